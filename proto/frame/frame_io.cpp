@@ -1,0 +1,89 @@
+#include "frame/frame_io.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+
+namespace tcfarm {
+namespace {
+
+void WritePixels(const std::filesystem::path& path, const Image& image, OIIO::TypeDesc format,
+                 const void* pixels) {
+  auto out = OIIO::ImageOutput::create(path.string());
+  if (!out) throw FrameIoError("cannot write " + path.string() + ": " + OIIO::geterror());
+  OIIO::ImageSpec spec(image.width, image.height, 3, format);
+  if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", "zip");
+  // Write to a temporary name and rename, so a reader never sees half a frame.
+  std::filesystem::path partial = path;
+  partial += ".partial";
+  if (!out->open(partial.string(), spec) || !out->write_image(format, pixels) || !out->close()) {
+    std::string error = out->geterror();
+    std::filesystem::remove(partial);
+    throw FrameIoError("cannot write " + path.string() + ": " + error);
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) throw FrameIoError("cannot move " + partial.string() + " into place: " + ec.message());
+}
+
+void CheckShape(const std::filesystem::path& path, const Image& image) {
+  if (image.width <= 0 || image.height <= 0 || image.rgb.size() != image.PixelCount() * 3) {
+    throw FrameIoError("cannot write " + path.string() + ": image of " +
+                       std::to_string(image.width) + "x" + std::to_string(image.height) +
+                       " holds " + std::to_string(image.rgb.size()) + " floats; expected " +
+                       std::to_string(image.PixelCount() * 3));
+  }
+}
+
+float SrgbToLinear(float code) {
+  return code <= 0.04045f ? code / 12.92f : std::pow((code + 0.055f) / 1.055f, 2.4f);
+}
+
+}  // namespace
+
+uint8_t LinearToSrgb8(float linear) {
+  float v = std::isfinite(linear) ? std::clamp(linear, 0.0f, 1.0f) : 0.0f;
+  float code = v <= 0.0031308f ? v * 12.92f : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+  return static_cast<uint8_t>(std::lround(code * 255.0f));
+}
+
+void WriteExr(const std::filesystem::path& path, const Image& image) {
+  CheckShape(path, image);
+  WritePixels(path, image, OIIO::TypeDesc::FLOAT, image.rgb.data());
+}
+
+void WritePng(const std::filesystem::path& path, const Image& image) {
+  CheckShape(path, image);
+  std::vector<uint8_t> codes(image.rgb.size());
+  std::transform(image.rgb.begin(), image.rgb.end(), codes.begin(), LinearToSrgb8);
+  WritePixels(path, image, OIIO::TypeDesc::UINT8, codes.data());
+}
+
+Image ReadImage(const std::filesystem::path& path) {
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) throw FrameIoError("cannot read " + path.string() + ": " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  Image image;
+  image.width = spec.width;
+  image.height = spec.height;
+  image.rgb.resize(image.PixelCount() * 3);
+  bool encodedSrgb = spec.format == OIIO::TypeDesc::UINT8;
+  if (!in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, image.rgb.data())) {
+    throw FrameIoError("cannot read " + path.string() + ": " + in->geterror());
+  }
+  if (encodedSrgb) {
+    for (float& v : image.rgb) v = SrgbToLinear(v);
+  }
+  return image;
+}
+
+std::string FrameFileStem(int frame) {
+  char name[32];
+  std::snprintf(name, sizeof name, "frame_%04d", frame);
+  return name;
+}
+
+}  // namespace tcfarm

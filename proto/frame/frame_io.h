@@ -1,0 +1,38 @@
+// Frame files: the farm's output contract. Every frame is written twice: OpenEXR with
+// 32-bit float linear RGB (the exact values, for compositing and for bit-exact checks)
+// and 8-bit sRGB PNG (for eyes and browsers).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace tcfarm {
+
+struct Image {
+  int width = 0;
+  int height = 0;
+  std::vector<float> rgb;  // width * height * 3, linear, row-major from the top row
+  size_t PixelCount() const { return static_cast<size_t>(width) * height; }
+};
+
+class FrameIoError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+void WriteExr(const std::filesystem::path& path, const Image& image);
+void WritePng(const std::filesystem::path& path, const Image& image);
+// Reads any format OpenImageIO knows into linear float RGB (PNG is decoded from sRGB).
+Image ReadImage(const std::filesystem::path& path);
+
+// "frame_0042" for frame 42: frames sort by name.
+std::string FrameFileStem(int frame);
+
+// Linear value to an 8-bit sRGB code, clamped to [0, 1] first.
+uint8_t LinearToSrgb8(float linear);
+
+}  // namespace tcfarm

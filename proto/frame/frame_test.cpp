@@ -1,0 +1,112 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <unistd.h>
+
+#include "frame/coherence.h"
+#include "frame/frame_io.h"
+#include "frame/frame_writer.h"
+
+namespace tcfarm {
+namespace {
+
+std::filesystem::path FreshFolder(const std::string& name) {
+  auto path = std::filesystem::temp_directory_path() /
+              ("tcfarm_frame_test_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(path);
+  std::filesystem::create_directories(path);
+  return path;
+}
+
+Image Gradient(int width, int height) {
+  Image image{width, height, std::vector<float>(static_cast<size_t>(width) * height * 3)};
+  for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = std::sqrt(i * 0.001f) * 0.37f;
+  return image;
+}
+
+TEST(FrameIoTest, ExrKeepsEveryFloatBit) {
+  auto folder = FreshFolder("exr");
+  Image image = Gradient(13, 7);
+  image.rgb[5] = 1e-30f;  // subnormal-adjacent and large values survive too
+  image.rgb[6] = 3e8f;
+  WriteExr(folder / "a.exr", image);
+  Image back = ReadImage(folder / "a.exr");
+  EXPECT_EQ(back.width, 13);
+  EXPECT_EQ(back.height, 7);
+  EXPECT_EQ(back.rgb, image.rgb);
+  EXPECT_FALSE(std::filesystem::exists(folder / "a.exr.partial"));
+}
+
+TEST(FrameIoTest, PngIsSrgbEncoded) {
+  EXPECT_EQ(LinearToSrgb8(0.0f), 0);
+  EXPECT_EQ(LinearToSrgb8(1.0f), 255);
+  EXPECT_EQ(LinearToSrgb8(7.0f), 255);
+  EXPECT_EQ(LinearToSrgb8(-1.0f), 0);
+  EXPECT_EQ(LinearToSrgb8(std::numeric_limits<float>::quiet_NaN()), 0);
+  EXPECT_EQ(LinearToSrgb8(0.21586f), 128);  // sRGB code 128 is linear 0.21586
+  auto folder = FreshFolder("png");
+  Image image = Gradient(9, 4);
+  WritePng(folder / "a.png", image);
+  Image back = ReadImage(folder / "a.png");
+  ASSERT_EQ(back.rgb.size(), image.rgb.size());
+  for (size_t i = 0; i < image.rgb.size(); ++i) {
+    EXPECT_EQ(LinearToSrgb8(back.rgb[i]), LinearToSrgb8(image.rgb[i])) << i;
+  }
+}
+
+TEST(FrameIoTest, ErrorsNameTheFile) {
+  Image bad{4, 4, std::vector<float>(5)};
+  try {
+    WriteExr("/tmp/never.exr", bad);
+    FAIL();
+  } catch (const FrameIoError& e) {
+    EXPECT_NE(std::string(e.what()).find("/tmp/never.exr"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("expected 48"), std::string::npos);
+  }
+  EXPECT_THROW(ReadImage("/nonexistent/frame.exr"), FrameIoError);
+}
+
+TEST(FrameWriterTest, WritesEveryQueuedFrame) {
+  auto folder = FreshFolder("writer");
+  {
+    FrameWriter writer(folder, true, true, 2);
+    for (int frame = 0; frame < 6; ++frame) writer.Write(frame, Gradient(8, 8));
+    writer.Finish();
+  }
+  for (int frame = 0; frame < 6; ++frame) {
+    EXPECT_TRUE(std::filesystem::exists(folder / (FrameFileStem(frame) + ".exr")));
+    EXPECT_TRUE(std::filesystem::exists(folder / (FrameFileStem(frame) + ".png")));
+  }
+  EXPECT_EQ(FrameFileStem(42), "frame_0042");
+}
+
+TEST(FrameWriterTest, FinishReportsAWriteError) {
+  FrameWriter writer("/nonexistent/folder", true, false);
+  writer.Write(0, Gradient(4, 4));
+  EXPECT_THROW(writer.Finish(), FrameIoError);
+}
+
+TEST(CoherenceTest, CountsBitwiseEqualPixels) {
+  Image a = Gradient(10, 10), b = a;
+  b.rgb[0] = 5;       // pixel 0 changes
+  b.rgb[3 * 7 + 2] = -0.0f;  // pixel 7: 0.0 vs -0.0 differ bitwise
+  a.rgb[3 * 7 + 2] = 0.0f;
+  EXPECT_DOUBLE_EQ(Coherence(a, b), 98.0 / 100.0);
+  Image other = Gradient(5, 5);
+  EXPECT_THROW(Coherence(a, other), std::invalid_argument);
+
+  CoherenceTracker tracker;
+  tracker.Add(a);
+  tracker.Add(b);
+  tracker.Add(a);
+  EXPECT_EQ(tracker.frameToFrame().count, 2u);
+  EXPECT_DOUBLE_EQ(tracker.frameToFrame().Mean(), 0.98);
+  EXPECT_DOUBLE_EQ(tracker.longTerm().min, 0.98);
+  EXPECT_DOUBLE_EQ(tracker.longTerm().max, 1.0);
+  EXPECT_NE(tracker.Summary().find("frame-to-frame mean 98.00%"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tcfarm

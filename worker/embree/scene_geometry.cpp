@@ -1,0 +1,172 @@
+#include "embree/scene_geometry.h"
+
+#include <cstring>
+
+namespace tcfarm {
+namespace {
+
+// Frames kept placed: a worker's in-flight tasks rarely span more frames than this.
+constexpr size_t kCachedFrames = 8;
+
+void FillVertices(RTCGeometry geometry, const std::vector<Vec3>& vertices) {
+  auto* out = static_cast<float*>(rtcSetNewGeometryBuffer(
+      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertices.size()));
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    out[3 * i + 0] = static_cast<float>(vertices[i].x);
+    out[3 * i + 1] = static_cast<float>(vertices[i].y);
+    out[3 * i + 2] = static_cast<float>(vertices[i].z);
+  }
+}
+
+RTCGeometry NewSphere(RTCDevice device, const Shape& shape) {
+  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+  auto* point = static_cast<float*>(rtcSetNewGeometryBuffer(
+      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
+  point[0] = static_cast<float>(shape.center.x);
+  point[1] = static_cast<float>(shape.center.y);
+  point[2] = static_cast<float>(shape.center.z);
+  point[3] = static_cast<float>(shape.radius);
+  return geometry;
+}
+
+RTCGeometry NewQuad(RTCDevice device, const Shape& shape) {
+  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_QUAD);
+  const Vec3& c = shape.corner;
+  auto add = [](Vec3 a, Vec3 b) { return Vec3{a.x + b.x, a.y + b.y, a.z + b.z}; };
+  FillVertices(geometry, {c, add(c, shape.edgeU), add(add(c, shape.edgeU), shape.edgeV),
+                          add(c, shape.edgeV)});
+  auto* index = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+      geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), 1));
+  for (unsigned i = 0; i < 4; ++i) index[i] = i;
+  return geometry;
+}
+
+RTCGeometry NewMesh(RTCDevice device, const TriangleMesh& mesh) {
+  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  FillVertices(geometry, mesh.vertices);
+  auto* index = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                              3 * sizeof(unsigned), mesh.triangles.size()));
+  std::memcpy(index, mesh.triangles.data(), mesh.triangles.size() * 3 * sizeof(unsigned));
+  return geometry;
+}
+
+RTCGeometry NewShapeGeometry(RTCDevice device, const Shape& shape) {
+  switch (shape.type) {
+    case Shape::Type::kSphere: return NewSphere(device, shape);
+    case Shape::Type::kQuad: return NewQuad(device, shape);
+    case Shape::Type::kMesh:
+    case Shape::Type::kTerrain: return NewMesh(device, shape.mesh);
+  }
+  return nullptr;
+}
+
+// Attaches the shape to `scene` and returns its geometry id.
+unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape) {
+  RTCGeometry geometry = NewShapeGeometry(device, shape);
+  rtcCommitGeometry(geometry);
+  unsigned id = rtcAttachGeometry(scene, geometry);
+  rtcReleaseGeometry(geometry);
+  return id;
+}
+
+// Robust traversal closes the hairline cracks between adjacent triangles (terrain).
+RTCScene NewStaticScene(RTCDevice device) {
+  RTCScene scene = rtcNewScene(device);
+  rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+  return scene;
+}
+
+unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Vec3& offset) {
+  RTCGeometry instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+  rtcSetGeometryInstancedScene(instance, child);
+  // Column-major 3x4: identity rotation, then the translation column.
+  const float worldFromObject[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, static_cast<float>(offset.x),
+                                     static_cast<float>(offset.y), static_cast<float>(offset.z)};
+  rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, worldFromObject);
+  rtcCommitGeometry(instance);
+  unsigned id = rtcAttachGeometry(top, instance);
+  rtcReleaseGeometry(instance);
+  return id;
+}
+
+}  // namespace
+
+int FrameGeometry::ShapeOf(unsigned instanceId, unsigned geometryId) const {
+  if (instanceId == RTC_INVALID_GEOMETRY_ID) return (*staticShapeOfGeometry_)[geometryId];
+  int shape = shapeOfInstance_[instanceId];
+  return shape >= 0 ? shape : (*staticShapeOfGeometry_)[geometryId];
+}
+
+SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
+    : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())) {
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& shape = scene.shapes[i];
+    if (shape.Moves()) {
+      SceneHandle own(NewStaticScene(device.get()));
+      AttachShape(device.get(), own.get(), shape);
+      rtcCommitScene(own.get());
+      movers_.push_back({static_cast<int>(i), std::move(own)});
+    } else {
+      unsigned id = AttachShape(device.get(), staticScene_.get(), shape);
+      if (staticShapeOfGeometry_.size() <= id) staticShapeOfGeometry_.resize(id + 1, -1);
+      staticShapeOfGeometry_[id] = static_cast<int>(i);
+      hasStaticShapes_ = true;
+    }
+  }
+  rtcCommitScene(staticScene_.get());
+  device.ThrowIfError("building the scene's geometry");
+  if (movers_.empty()) {
+    staticFrame_ = std::make_shared<FrameGeometry>();
+    rtcRetainScene(staticScene_.get());
+    staticFrame_->top_ = SceneHandle(staticScene_.get());
+    staticFrame_->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
+  }
+}
+
+std::shared_ptr<FrameGeometry> SceneGeometry::BuildFrame(int frame) const {
+  auto placed = std::make_shared<FrameGeometry>();
+  RTCScene top = rtcNewScene(device_.get());
+  // A handful of instances: a fast build beats a good tree.
+  rtcSetSceneBuildQuality(top, RTC_BUILD_QUALITY_LOW);
+  rtcSetSceneFlags(top, RTC_SCENE_FLAG_ROBUST);
+  placed->top_ = SceneHandle(top);
+  placed->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
+  auto recordInstance = [&](unsigned id, int shape) {
+    if (placed->shapeOfInstance_.size() <= id) placed->shapeOfInstance_.resize(id + 1, -1);
+    placed->shapeOfInstance_[id] = shape;
+  };
+  if (hasStaticShapes_) {
+    recordInstance(AttachInstance(device_.get(), top, staticScene_.get(), Vec3{}), -1);
+  }
+  for (const Mover& mover : movers_) {
+    Vec3 offset = scene_.shapes[mover.shape].translation.Evaluate(frame);
+    recordInstance(AttachInstance(device_.get(), top, mover.scene.get(), offset), mover.shape);
+  }
+  rtcCommitScene(top);
+  device_.ThrowIfError("placing a frame's moving shapes");
+  return placed;
+}
+
+std::shared_ptr<const FrameGeometry> SceneGeometry::ForFrame(int frame) {
+  if (staticFrame_) return staticFrame_;
+  std::lock_guard<std::mutex> lock(cacheMutex_);
+  for (auto it = recentFrames_.begin(); it != recentFrames_.end(); ++it) {
+    if (it->first == frame) {
+      recentFrames_.splice(recentFrames_.begin(), recentFrames_, it);
+      return it->second;
+    }
+  }
+  recentFrames_.emplace_front(frame, BuildFrame(frame));
+  ++frameBuilds_;
+  if (recentFrames_.size() > kCachedFrames) recentFrames_.pop_back();
+  return recentFrames_.front().second;
+}
+
+uint64_t SceneGeometry::FrameBuilds() const {
+  std::lock_guard<std::mutex> lock(cacheMutex_);
+  return frameBuilds_;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,63 @@
+// The Embree side of a scene: geometry built once, placed per frame.
+//
+// Shapes that never move go into one static scene, built once with a high-quality BVH.
+// Each moving shape gets its own small scene, instanced into a per-frame top level with
+// its translation at that frame. When nothing moves, every frame shares the static scene
+// and no per-frame work happens at all (FrameBuilds() stays 0).
+#pragma once
+
+#include <cstdint>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "embree/device.h"
+#include "scene/scene.h"
+
+namespace tcfarm {
+
+// The traceable geometry of one frame.
+class FrameGeometry {
+ public:
+  RTCScene scene() const { return top_.get(); }
+  // The scene's shape index for a hit's (instID[0], geomID).
+  int ShapeOf(unsigned instanceId, unsigned geometryId) const;
+
+ private:
+  friend class SceneGeometry;
+  SceneHandle top_;
+  const std::vector<int>* staticShapeOfGeometry_ = nullptr;
+  std::vector<int> shapeOfInstance_;  // -1: the instance of the static scene
+};
+
+class SceneGeometry {
+ public:
+  SceneGeometry(const EmbreeDevice& device, const Scene& scene);
+
+  // Thread-safe. The last few frames are cached: tasks of one frame arrive together.
+  std::shared_ptr<const FrameGeometry> ForFrame(int frame);
+  // Top-level scenes built for individual frames (0 when nothing moves).
+  uint64_t FrameBuilds() const;
+
+ private:
+  struct Mover {
+    int shape;
+    SceneHandle scene;
+  };
+  std::shared_ptr<FrameGeometry> BuildFrame(int frame) const;
+
+  const EmbreeDevice& device_;
+  const Scene& scene_;
+  SceneHandle staticScene_;
+  bool hasStaticShapes_ = false;
+  std::vector<int> staticShapeOfGeometry_;
+  std::vector<Mover> movers_;
+  std::shared_ptr<FrameGeometry> staticFrame_;  // used for every frame when nothing moves
+
+  mutable std::mutex cacheMutex_;
+  std::list<std::pair<int, std::shared_ptr<FrameGeometry>>> recentFrames_;
+  uint64_t frameBuilds_ = 0;
+};
+
+}  // namespace tcfarm

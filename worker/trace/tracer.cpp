@@ -1,0 +1,478 @@
+#include "trace/tracer.h"
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "trace/float3.h"
+
+namespace tcfarm {
+namespace {
+
+// Secondary rays start this fraction of the hit's coordinate magnitude (|origin| + t)
+// off the surface: float rounding of the hit point grows with that magnitude, so a
+// relative offset clears it at any scene scale where a fixed epsilon would not.
+// 1e-5 is ~170 float ulps: well above Embree's intersection error, well below any
+// feature a scene can usefully resolve.
+constexpr float kRelativeRayOffset = 1e-5f;
+// Fraction of a material's diffuse colour seen with no light at all, so surfaces in
+// shadow keep their shape (Whitted's ambient term).
+constexpr float kAmbient = 0.05f;
+// Pixels handed to a thread at a time: large enough to fill 8-wide packets many times,
+// small enough that two threads stay balanced on a few thousand pixels.
+constexpr size_t kPixelsPerChunk = 64;
+constexpr int kPacketWidth = 8;
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+struct ShadingLight {
+  bool isPoint;
+  Float3 position;     // point lights
+  Float3 towardLight;  // directional lights: unit vector from the surface to the light
+  Float3 intensity;
+};
+
+struct ShadingMaterial {
+  Float3 diffuse, specular;
+  float shininess, reflectivity, transparency, indexOfRefraction;
+};
+
+struct CameraRays {
+  Float3 origin, forward, right, up;  // right and up scaled to the image plane at distance 1
+  float width, height;
+
+  Float3 Direction(float px, float py) const {
+    float sx = 2.0f * px / width - 1.0f;
+    float sy = 1.0f - 2.0f * py / height;
+    return Normalize(forward + right * sx + up * sy);
+  }
+};
+
+Vec3 Sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3 CrossD(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+Vec3 NormalizeD(Vec3 a) {
+  double length = std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
+  return {a.x / length, a.y / length, a.z / length};
+}
+
+// The camera basis is built in double: at large coordinates the difference
+// position - lookAt loses digits in float.
+CameraRays MakeCamera(const Scene& scene, int frame) {
+  Vec3 position = scene.camera.position.Evaluate(frame);
+  Vec3 forward = NormalizeD(Sub(scene.camera.lookAt.Evaluate(frame), position));
+  Vec3 right = NormalizeD(CrossD(forward, scene.camera.up));
+  Vec3 up = CrossD(right, forward);
+  const RenderSettings& r = scene.render;
+  double tanHalf = std::tan(scene.camera.verticalFovDegrees * M_PI / 360.0);
+  double aspect = static_cast<double>(r.width) / r.height;
+  CameraRays camera;
+  camera.origin = ToFloat3(position);
+  camera.forward = ToFloat3(forward);
+  camera.right = ToFloat3({right.x * tanHalf * aspect, right.y * tanHalf * aspect,
+                           right.z * tanHalf * aspect});
+  camera.up = ToFloat3({up.x * tanHalf, up.y * tanHalf, up.z * tanHalf});
+  camera.width = static_cast<float>(r.width);
+  camera.height = static_cast<float>(r.height);
+  return camera;
+}
+
+std::vector<ShadingLight> MakeLights(const Scene& scene, int frame) {
+  std::vector<ShadingLight> lights;
+  for (const Light& light : scene.lights) {
+    ShadingLight s{};
+    s.isPoint = light.type == Light::Type::kPoint;
+    s.intensity = ToFloat3(light.intensity.Evaluate(frame));
+    if (s.isPoint) {
+      s.position = ToFloat3(light.position.Evaluate(frame));
+    } else {
+      Vec3 d = NormalizeD(light.direction.Evaluate(frame));
+      s.towardLight = ToFloat3({-d.x, -d.y, -d.z});
+    }
+    lights.push_back(s);
+  }
+  return lights;
+}
+
+std::vector<ShadingMaterial> MakeMaterials(const Scene& scene) {
+  std::vector<ShadingMaterial> materials;
+  for (const Material& m : scene.materials) {
+    materials.push_back({ToFloat3(m.diffuse), ToFloat3(m.specular), static_cast<float>(m.shininess),
+                         static_cast<float>(m.reflectivity), static_cast<float>(m.transparency),
+                         static_cast<float>(m.indexOfRefraction)});
+  }
+  return materials;
+}
+
+// Sample positions inside pixel (x, y): the pixel centre for one sample, else an R2
+// low-discrepancy sequence rotated by a hash of the pixel. Seeded by pixel, not frame.
+uint32_t HashPixel(uint32_t x, uint32_t y) {
+  uint32_t h = x * 0x8da6b343u ^ y * 0xd8163841u;
+  h ^= h >> 16;
+  h *= 0x7feb352du;
+  h ^= h >> 15;
+  h *= 0x846ca68bu;
+  h ^= h >> 16;
+  return h;
+}
+
+void SamplePosition(uint32_t x, uint32_t y, int sample, int samplesPerPixel, float* px,
+                    float* py) {
+  if (samplesPerPixel == 1) {
+    *px = x + 0.5f;
+    *py = y + 0.5f;
+    return;
+  }
+  constexpr double kG = 1.32471795724474602596;  // the plastic number: R2's generator
+  uint32_t h = HashPixel(x, y);
+  double u = (h & 0xffff) / 65536.0 + sample / kG;
+  double v = (h >> 16) / 65536.0 + sample / (kG * kG);
+  *px = static_cast<float>(x + (u - std::floor(u)));
+  *py = static_cast<float>(y + (v - std::floor(v)));
+}
+
+Float3 UnitNormal(Vec3 a, Vec3 b) {
+  Vec3 n = CrossD(a, b);
+  double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+  return length > 0 ? ToFloat3({n.x / length, n.y / length, n.z / length}) : Float3{};
+}
+
+std::vector<Float3> FaceNormals(const Shape& shape) {
+  std::vector<Float3> normals;
+  switch (shape.type) {
+    case Shape::Type::kSphere:
+      break;
+    case Shape::Type::kQuad:
+      normals.push_back(UnitNormal(shape.edgeU, shape.edgeV));
+      break;
+    case Shape::Type::kMesh:
+    case Shape::Type::kTerrain:
+      for (const auto& t : shape.mesh.triangles) {
+        const auto& v = shape.mesh.vertices;
+        normals.push_back(UnitNormal(Sub(v[t[1]], v[t[0]]), Sub(v[t[2]], v[t[0]])));
+      }
+      break;
+  }
+  return normals;
+}
+
+}  // namespace
+
+struct Tracer::FrameContext {
+  std::shared_ptr<const FrameGeometry> geometry;
+  CameraRays camera;
+  std::vector<ShadingLight> lights;
+  const std::vector<ShadingMaterial>* materials;
+  const std::vector<std::vector<Float3>>* faceNormals;
+  Float3 background;
+  int maxDepth;
+  int samplesPerPixel;
+  bool anySecondary;  // some material reflects or refracts
+};
+
+// One thread's view of a frame: shades hits, casts secondary rays, counts rays.
+class Tracer::PixelTracer {
+ public:
+  PixelTracer(const FrameContext& frame, const Scene& scene) : frame_(frame), scene_(scene) {
+    rtcInitIntersectContext(&context_);
+  }
+
+  // Traces `count` (<= 8) camera samples and writes their colours.
+  void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
+  Float3 TraceRay(Float3 origin, Float3 direction, int depth);
+  const RayCounts& counts() const { return counts_; }
+
+ private:
+  struct SurfaceHit {
+    Float3 position;
+    Float3 normal;     // unit, on the side the ray arrived from
+    Float3 direction;  // unit direction of the arriving ray
+    bool fromInside;   // arrived against the geometric normal (leaving a solid)
+    float offset;      // distance that clears the hit point's rounding error
+    int material;
+  };
+
+  // The Embree hit fields a surface hit is made from.
+  struct RawHit {
+    float t;
+    Float3 geometricNormal;
+    unsigned instanceId, geometryId, primitiveId;
+  };
+  SurfaceHit MakeHit(Float3 origin, Float3 direction, const RawHit& raw) const;
+  // Light arriving at the hit from light i if nothing blocks it; false when the light is
+  // behind the surface (then no shadow ray is needed at all).
+  bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const;
+  Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction,
+                           float distance) const;
+  Float3 Ambient(const SurfaceHit& hit) const;
+  Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
+  Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
+    return hit.position + hit.normal * (transmitted ? -hit.offset : hit.offset);
+  }
+
+  const FrameContext& frame_;
+  const Scene& scene_;
+  RTCIntersectContext context_;
+  RayCounts counts_;
+};
+
+Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Float3 direction,
+                                                             const RawHit& raw) const {
+  SurfaceHit hit;
+  hit.position = origin + direction * raw.t;
+  hit.direction = direction;
+  hit.offset = kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t);
+  int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
+  hit.material = scene_.shapes[shape].material;
+  const std::vector<Float3>& faces = (*frame_.faceNormals)[shape];
+  Float3 normal = faces.empty() ? raw.geometricNormal : faces[raw.primitiveId];
+  float length = Length(normal);
+  // A degenerate normal would put NaN into the frame; face the ray instead.
+  normal = (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : -direction;
+  hit.fromInside = Dot(normal, direction) > 0;
+  hit.normal = hit.fromInside ? -normal : normal;
+  return hit;
+}
+
+bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,
+                                    float* distance) const {
+  const ShadingLight& l = frame_.lights[light];
+  if (l.isPoint) {
+    Float3 toLight = l.position - hit.position;
+    *distance = Length(toLight);
+    if (!(*distance > 0)) return false;
+    *direction = toLight * (1.0f / *distance);
+  } else {
+    *direction = l.towardLight;
+    *distance = kInfinity;
+  }
+  return Dot(*direction, hit.normal) > 0;
+}
+
+Float3 Tracer::PixelTracer::LightContribution(const SurfaceHit& hit, size_t light,
+                                              Float3 direction, float distance) const {
+  const ShadingLight& l = frame_.lights[light];
+  const ShadingMaterial& m = (*frame_.materials)[hit.material];
+  float cosine = Dot(direction, hit.normal);
+  Float3 color = m.diffuse * cosine;
+  if (m.specular.x > 0 || m.specular.y > 0 || m.specular.z > 0) {
+    float highlight = Dot(Reflect(-direction, hit.normal), -hit.direction);
+    if (highlight > 0) color += m.specular * std::pow(highlight, m.shininess);
+  }
+  float falloff = l.isPoint ? 1.0f / (distance * distance) : 1.0f;
+  return color * l.intensity * falloff;
+}
+
+Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
+  return (*frame_.materials)[hit.material].diffuse * kAmbient;
+}
+
+// Local shading weighted against mirror reflection and refraction, Whitted style.
+Float3 Tracer::PixelTracer::Combine(const SurfaceHit& hit, Float3 local, int depth) {
+  const ShadingMaterial& m = (*frame_.materials)[hit.material];
+  if (depth >= frame_.maxDepth || (m.reflectivity == 0 && m.transparency == 0)) return local;
+  Float3 color = local * (1.0f - m.reflectivity - m.transparency);
+  Float3 mirror = Reflect(hit.direction, hit.normal);
+  if (m.reflectivity > 0) {
+    ++counts_.reflection;
+    color += TraceRay(Spawn(hit, false), mirror, depth + 1) * m.reflectivity;
+  }
+  if (m.transparency > 0) {
+    float eta = hit.fromInside ? m.indexOfRefraction : 1.0f / m.indexOfRefraction;
+    float cosIn = -Dot(hit.direction, hit.normal);
+    float k = 1.0f - eta * eta * (1.0f - cosIn * cosIn);
+    if (k < 0) {  // total internal reflection
+      ++counts_.reflection;
+      color += TraceRay(Spawn(hit, false), mirror, depth + 1) * m.transparency;
+    } else {
+      ++counts_.refraction;
+      Float3 refracted = Normalize(hit.direction * eta + hit.normal * (eta * cosIn - std::sqrt(k)));
+      color += TraceRay(Spawn(hit, true), refracted, depth + 1) * m.transparency;
+    }
+  }
+  return color;
+}
+
+Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth) {
+  RTCRayHit rayHit{};
+  rayHit.ray.org_x = origin.x, rayHit.ray.org_y = origin.y, rayHit.ray.org_z = origin.z;
+  rayHit.ray.dir_x = direction.x, rayHit.ray.dir_y = direction.y, rayHit.ray.dir_z = direction.z;
+  rayHit.ray.tnear = 0;
+  rayHit.ray.tfar = kInfinity;
+  rayHit.ray.mask = ~0u;
+  rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(frame_.geometry->scene(), &context_, &rayHit);
+  if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return frame_.background;
+
+  SurfaceHit hit = MakeHit(origin, direction,
+                           {rayHit.ray.tfar,
+                            {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
+                            rayHit.hit.instID[0],
+                            rayHit.hit.geomID,
+                            rayHit.hit.primID});
+  Float3 local = Ambient(hit);
+  for (size_t light = 0; light < frame_.lights.size(); ++light) {
+    Float3 toLight;
+    float distance;
+    if (!ShadowRay(hit, light, &toLight, &distance)) continue;
+    RTCRay shadow{};
+    Float3 start = Spawn(hit, false);
+    shadow.org_x = start.x, shadow.org_y = start.y, shadow.org_z = start.z;
+    shadow.dir_x = toLight.x, shadow.dir_y = toLight.y, shadow.dir_z = toLight.z;
+    shadow.tnear = 0;
+    shadow.tfar = distance;
+    shadow.mask = ~0u;
+    ++counts_.shadow;
+    rtcOccluded1(frame_.geometry->scene(), &context_, &shadow);
+    if (shadow.tfar >= 0) local += LightContribution(hit, light, toLight, distance);
+  }
+  return Combine(hit, local, depth);
+}
+
+void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count,
+                                             Float3* color) {
+  alignas(32) int valid[kPacketWidth] = {};
+  alignas(32) RTCRayHit8 packet{};
+  const auto width = static_cast<uint32_t>(scene_.render.width);
+  for (int lane = 0; lane < count; ++lane) {
+    float px, py;
+    SamplePosition(pixel[lane] % width, pixel[lane] / width, sample[lane],
+                   frame_.samplesPerPixel, &px, &py);
+    Float3 d = frame_.camera.Direction(px, py);
+    valid[lane] = -1;
+    packet.ray.org_x[lane] = frame_.camera.origin.x;
+    packet.ray.org_y[lane] = frame_.camera.origin.y;
+    packet.ray.org_z[lane] = frame_.camera.origin.z;
+    packet.ray.dir_x[lane] = d.x, packet.ray.dir_y[lane] = d.y, packet.ray.dir_z[lane] = d.z;
+    packet.ray.tnear[lane] = 0;
+    packet.ray.tfar[lane] = kInfinity;
+    packet.ray.mask[lane] = ~0u;
+    packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+    packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
+  }
+  counts_.primary += count;
+  rtcIntersect8(valid, frame_.geometry->scene(), &context_, &packet);
+
+  SurfaceHit hits[kPacketWidth];
+  bool hasHit[kPacketWidth] = {};
+  for (int lane = 0; lane < count; ++lane) {
+    hasHit[lane] = packet.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
+    if (!hasHit[lane]) {
+      color[lane] = frame_.background;
+      continue;
+    }
+    Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
+    Float3 direction{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
+    hits[lane] = MakeHit(origin, direction,
+                         {packet.ray.tfar[lane],
+                          {packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]},
+                          packet.hit.instID[0][lane],
+                          packet.hit.geomID[lane],
+                          packet.hit.primID[lane]});
+    color[lane] = Ambient(hits[lane]);
+  }
+
+  // Shadow rays of one light for the whole packet: they share a target, so they stay coherent.
+  for (size_t light = 0; light < frame_.lights.size(); ++light) {
+    alignas(32) int shadowValid[kPacketWidth] = {};
+    alignas(32) RTCRay8 shadow{};
+    Float3 toLight[kPacketWidth];
+    float distance[kPacketWidth];
+    int shadowCount = 0;
+    for (int lane = 0; lane < count; ++lane) {
+      if (!hasHit[lane] || !ShadowRay(hits[lane], light, &toLight[lane], &distance[lane])) continue;
+      Float3 start = Spawn(hits[lane], false);
+      shadowValid[lane] = -1;
+      shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
+      shadow.dir_x[lane] = toLight[lane].x;
+      shadow.dir_y[lane] = toLight[lane].y;
+      shadow.dir_z[lane] = toLight[lane].z;
+      shadow.tnear[lane] = 0;
+      shadow.tfar[lane] = distance[lane];
+      shadow.mask[lane] = ~0u;
+      ++shadowCount;
+    }
+    if (shadowCount == 0) continue;
+    counts_.shadow += shadowCount;
+    rtcOccluded8(shadowValid, frame_.geometry->scene(), &context_, &shadow);
+    for (int lane = 0; lane < count; ++lane) {
+      if (shadowValid[lane] && shadow.tfar[lane] >= 0) {
+        color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
+      }
+    }
+  }
+  if (!frame_.anySecondary) return;
+  for (int lane = 0; lane < count; ++lane) {
+    if (hasHit[lane]) color[lane] = Combine(hits[lane], color[lane], 0);
+  }
+}
+
+Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool)
+    : scene_(scene), geometry_(device, scene), pool_(pool) {
+  for (const Shape& shape : scene.shapes) faceNormals_.push_back(FaceNormals(shape));
+}
+
+void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb) {
+  const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
+  FrameContext context{geometry_.ForFrame(frame),
+                       MakeCamera(scene_, frame),
+                       MakeLights(scene_, frame),
+                       &materials,
+                       &faceNormals_,
+                       ToFloat3(scene_.background),
+                       scene_.render.maxDepth,
+                       scene_.render.samplesPerPixel,
+                       scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts()};
+  const int spp = context.samplesPerPixel;
+  pool_.ParallelFor(pixelCount, kPixelsPerChunk, [&](size_t begin, size_t end) {
+    PixelTracer tracer(context, scene_);
+    // Every (pixel, sample) of the chunk, in order, then packets of 8 over them.
+    std::vector<uint32_t> itemPixel;
+    std::vector<int> itemSample;
+    for (size_t i = begin; i < end; ++i) {
+      for (int s = 0; s < spp; ++s) {
+        itemPixel.push_back(pixels[i]);
+        itemSample.push_back(s);
+      }
+    }
+    std::vector<Float3> sampleColor(itemPixel.size());
+    for (size_t item = 0; item < itemPixel.size(); item += kPacketWidth) {
+      int lanes = static_cast<int>(std::min<size_t>(kPacketWidth, itemPixel.size() - item));
+      tracer.TracePrimaryPacket(&itemPixel[item], &itemSample[item], lanes, &sampleColor[item]);
+    }
+    // Average in sample order, so the sum's rounding is the same wherever the pixel goes.
+    for (size_t i = begin; i < end; ++i) {
+      Float3 sum;
+      for (int s = 0; s < spp; ++s) sum += sampleColor[(i - begin) * spp + s];
+      Float3 mean = sum * (1.0f / spp);
+      float* out = rgb + 3 * i;
+      out[0] = std::isfinite(mean.x) ? mean.x : 0.0f;
+      out[1] = std::isfinite(mean.y) ? mean.y : 0.0f;
+      out[2] = std::isfinite(mean.z) ? mean.z : 0.0f;
+    }
+    const RayCounts& c = tracer.counts();
+    primary_ += c.primary;
+    shadow_ += c.shadow;
+    reflection_ += c.reflection;
+    refraction_ += c.refraction;
+  });
+}
+
+void Tracer::TraceFrame(int frame, float* rgb) {
+  size_t count = static_cast<size_t>(scene_.render.width) * scene_.render.height;
+  std::vector<uint32_t> pixels(count);
+  for (size_t i = 0; i < count; ++i) pixels[i] = static_cast<uint32_t>(i);
+  TracePixels(frame, pixels.data(), count, rgb);
+}
+
+RayCounts Tracer::Counts() const {
+  RayCounts c;
+  c.primary = primary_;
+  c.shadow = shadow_;
+  c.reflection = reflection_;
+  c.refraction = refraction_;
+  return c;
+}
+
+}  // namespace tcfarm

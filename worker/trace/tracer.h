@@ -1,0 +1,69 @@
+// Whitted ray tracing of an arbitrary pixel set of an arbitrary frame.
+//
+// Determinism is the contract the coordinator builds on: a pixel's bits depend only on
+// the scene, the frame and the pixel, never on which other pixels are traced with it,
+// the thread count or the order. Sample positions are seeded by pixel (not frame), so a
+// pixel that sees nothing change stays bit-identical from frame to frame.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "embree/scene_geometry.h"
+#include "trace/float3.h"
+#include "scene/scene.h"
+#include "util/thread_pool.h"
+
+namespace tcfarm {
+
+// Rays cast, by type. They prove what a scene leaves out: no shadow rays without
+// lights, no reflection or refraction rays without such materials.
+struct RayCounts {
+  uint64_t primary = 0;
+  uint64_t shadow = 0;
+  uint64_t reflection = 0;
+  uint64_t refraction = 0;
+  uint64_t Total() const { return primary + shadow + reflection + refraction; }
+  RayCounts& operator+=(const RayCounts& o) {
+    primary += o.primary;
+    shadow += o.shadow;
+    reflection += o.reflection;
+    refraction += o.refraction;
+    return *this;
+  }
+};
+
+class Tracer {
+ public:
+  // The scene must outlive the tracer.
+  Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool);
+
+  // Traces pixels (linear indices y * width + x, each < width * height) of `frame` and
+  // writes 3 floats of linear RGB per pixel to `rgb`, in the order given.
+  void TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb);
+  // Every pixel of a frame, row by row.
+  void TraceFrame(int frame, float* rgb);
+
+  RayCounts Counts() const;
+  // Per-frame top-level scenes built (0 for a scene where nothing moves).
+  uint64_t FrameBuilds() const { return geometry_.FrameBuilds(); }
+  const Scene& scene() const { return scene_; }
+
+ private:
+  struct FrameContext;
+  class PixelTracer;
+
+  const Scene& scene_;
+  SceneGeometry geometry_;
+  // Per shape, per primitive: unit face normals computed in double from the scene. Embree's
+  // robust intersector derives Ng from ray-relative vertices, so its last bits change
+  // with the ray origin; a still surface must shade to the same bits from any viewpoint.
+  // Empty for spheres, whose normal comes from the hit point.
+  std::vector<std::vector<Float3>> faceNormals_;
+  ThreadPool& pool_;
+  std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
+};
+
+}  // namespace tcfarm

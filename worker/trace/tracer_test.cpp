@@ -1,0 +1,278 @@
+#include "trace/tracer.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numeric>
+#include <random>
+
+#include "frame/frame_io.h"
+
+namespace tcfarm {
+namespace {
+
+std::vector<float> RenderFrame(const Scene& scene, int frame, unsigned threads = 0,
+                               RayCounts* counts = nullptr, uint64_t* frameBuilds = nullptr) {
+  EmbreeDevice device;
+  ThreadPool pool(threads);
+  Tracer tracer(device, scene, pool);
+  std::vector<float> rgb(static_cast<size_t>(scene.render.width) * scene.render.height * 3);
+  tracer.TraceFrame(frame, rgb.data());
+  if (counts) *counts = tracer.Counts();
+  if (frameBuilds) *frameBuilds = tracer.FrameBuilds();
+  return rgb;
+}
+
+size_t DifferingPixels(const std::vector<float>& a, const std::vector<float>& b) {
+  size_t differing = 0;
+  for (size_t i = 0; i < a.size(); i += 3) {
+    differing += std::memcmp(&a[i], &b[i], 3 * sizeof(float)) != 0;
+  }
+  return differing;
+}
+
+double Psnr(const std::vector<float>& a, const std::vector<float>& b) {
+  double squared = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    double d = std::clamp(a[i], 0.0f, 1.0f) - std::clamp(b[i], 0.0f, 1.0f);
+    squared += d * d;
+  }
+  double mse = squared / a.size();
+  return mse == 0 ? INFINITY : 10 * std::log10(1.0 / mse);
+}
+
+// Small versions of the paper's scenes plus a mirror and a glass ball, so every ray type
+// and the moving-instance path are exercised.
+std::string ShowcaseScene(int width = 96, int height = 72, int samples = 1) {
+  return R"({
+    "camera": {"position": [0, 1, 9], "look_at": [0, 0, 0], "fov_degrees": 45},
+    "lights": [{"type": "point", "position": [4, 6, 7], "intensity": [120, 120, 120]},
+               {"type": "directional", "direction": [-1, -2, -1], "intensity": [0.3, 0.3, 0.3]}],
+    "materials": {
+      "wall": {"diffuse": [0.7, 0.7, 0.65]},
+      "mirror": {"diffuse": [0.1, 0.1, 0.1], "reflectivity": 0.8, "specular": [0.5, 0.5, 0.5]},
+      "glass": {"diffuse": [0.05, 0.05, 0.05], "transparency": 0.85, "ior": 1.5,
+                "specular": [0.6, 0.6, 0.6], "shininess": 80},
+      "red": {"diffuse": [0.8, 0.2, 0.2], "specular": [0.3, 0.3, 0.3]}
+    },
+    "shapes": [
+      {"type": "quad", "corner": [-6, -2, -4], "edge_u": [12, 0, 0], "edge_v": [0, 0, 8], "material": "wall"},
+      {"type": "quad", "corner": [-6, -2, -4], "edge_u": [12, 0, 0], "edge_v": [0, 9, 0], "material": "wall"},
+      {"type": "sphere", "center": [-1.5, -0.8, 0], "radius": 1.2, "material": "mirror"},
+      {"type": "sphere", "center": [1.6, -0.9, 1], "radius": 1.0, "material": "glass"},
+      {"type": "sphere", "center": [0, 0, 0], "radius": 0.5, "material": "red",
+       "motion": {"polynomial": [[-2, 0.2], [1.5, -0.05], [0, 0.01, 0.001]]}},
+      {"type": "mesh", "vertices": [[2, 1, -2], [3.5, 1, -2], [2.7, 2.6, -1.5]],
+       "triangles": [[0, 1, 2]], "material": "red"}
+    ],
+    "background": [0.1, 0.1, 0.2],
+    "render": {"width": )" + std::to_string(width) + R"(, "height": )" + std::to_string(height) +
+         R"(, "frames": {"start": 0, "count": 20}, "samples_per_pixel": )" +
+         std::to_string(samples) + R"(, "max_depth": 4}
+  })";
+}
+
+AnimatedVec3 ScaleAnimated(const AnimatedVec3& a, double s) {
+  switch (a.kind()) {
+    case AnimatedVec3::Kind::kConstant: {
+      Vec3 c = a.constant();
+      return AnimatedVec3::Constant({c.x * s, c.y * s, c.z * s});
+    }
+    case AnimatedVec3::Kind::kPolynomial: {
+      auto coefficients = a.coefficients();
+      for (auto& axis : coefficients) {
+        for (double& c : axis) c *= s;
+      }
+      return AnimatedVec3::Polynomial(coefficients);
+    }
+    case AnimatedVec3::Kind::kKeyframes: {
+      auto keys = a.keys();
+      for (auto& key : keys) key.value = {key.value.x * s, key.value.y * s, key.value.z * s};
+      return AnimatedVec3::Keyframes(keys);
+    }
+  }
+  return a;
+}
+
+Vec3 Scale(Vec3 v, double s) { return {v.x * s, v.y * s, v.z * s}; }
+
+// The same world in other units: every length times s, point-light intensities times
+// s^2 so that the inverse-square falloff lands on the same irradiance.
+Scene ScaleScene(Scene scene, double s) {
+  scene.camera.position = ScaleAnimated(scene.camera.position, s);
+  scene.camera.lookAt = ScaleAnimated(scene.camera.lookAt, s);
+  for (Light& light : scene.lights) {
+    light.position = ScaleAnimated(light.position, s);
+    if (light.type == Light::Type::kPoint) light.intensity = ScaleAnimated(light.intensity, s * s);
+  }
+  for (Shape& shape : scene.shapes) {
+    shape.translation = ScaleAnimated(shape.translation, s);
+    shape.center = Scale(shape.center, s);
+    shape.radius *= s;
+    shape.corner = Scale(shape.corner, s);
+    shape.edgeU = Scale(shape.edgeU, s);
+    shape.edgeV = Scale(shape.edgeV, s);
+    for (Vec3& v : shape.mesh.vertices) v = Scale(v, s);
+  }
+  return scene;
+}
+
+TEST(TracerTest, PixelSubsetsMatchTheFullFrameBitForBit) {
+  for (int samples : {1, 4}) {
+    Scene scene = ParseScene(ShowcaseScene(96, 72, samples));
+    const int frame = 7;
+    std::vector<float> full = RenderFrame(scene, frame);
+
+    EmbreeDevice device;
+    std::mt19937 random(42);
+    for (unsigned threads : {1u, 2u, 3u}) {
+      ThreadPool pool(threads);
+      Tracer tracer(device, scene, pool);
+      for (int trial = 0; trial < 4; ++trial) {
+        // A random subset in random order, so lanes, chunks and threads all differ.
+        std::vector<uint32_t> pixels(full.size() / 3);
+        std::iota(pixels.begin(), pixels.end(), 0u);
+        std::shuffle(pixels.begin(), pixels.end(), random);
+        pixels.resize(1 + random() % pixels.size());
+        std::vector<float> rgb(pixels.size() * 3);
+        tracer.TracePixels(frame, pixels.data(), pixels.size(), rgb.data());
+        for (size_t i = 0; i < pixels.size(); ++i) {
+          ASSERT_EQ(0, std::memcmp(&rgb[3 * i], &full[3 * pixels[i]], 3 * sizeof(float)))
+              << "pixel " << pixels[i] << " traced among " << pixels.size() << " on " << threads
+              << " threads, " << samples << " samples";
+        }
+      }
+    }
+  }
+}
+
+TEST(TracerTest, StillPixelsStayBitIdenticalAcrossFrames) {
+  // Only the small red ball moves; the far corner of the wall never sees it.
+  Scene scene = ParseScene(ShowcaseScene());
+  std::vector<float> a = RenderFrame(scene, 0), b = RenderFrame(scene, 5);
+  size_t differing = DifferingPixels(a, b);
+  EXPECT_GT(differing, 0u);
+  EXPECT_LT(differing, a.size() / 3 / 4);
+}
+
+TEST(TracerTest, ScaledScenesRenderTheSameImage) {
+  Scene scene = ParseScene(ShowcaseScene(128, 96));
+  std::vector<float> reference = RenderFrame(scene, 3);
+  for (double s : {1e-3, 1e5}) {
+    std::vector<float> scaled = RenderFrame(ScaleScene(scene, s), 3);
+    EXPECT_GE(Psnr(reference, scaled), 40.0) << "scale " << s;
+  }
+}
+
+// A floor lit by a sun 2 degrees above the horizon, with nothing to cast a shadow: every
+// floor pixel must get the same light. Self-shadowing (acne) would darken some of them.
+TEST(TracerTest, NoShadowAcneAtGrazingLight) {
+  for (double s : {1e-3, 1.0, 1e5}) {
+    Scene scene = ParseScene(R"({
+      "camera": {"position": [0, 3, 10], "look_at": [0, 0, -20], "fov_degrees": 60},
+      "lights": [{"type": "directional", "direction": [1, -0.0349, 0.2], "intensity": [1, 1, 1]}],
+      "shapes": [{"type": "quad", "corner": [-500, 0, -500], "edge_u": [1000, 0, 0], "edge_v": [0, 0, 1000]}],
+      "render": {"width": 160, "height": 120}
+    })");
+    scene = ScaleScene(scene, s);
+    std::vector<float> rgb = RenderFrame(scene, 0);
+    float brightest = 0;
+    for (float v : rgb) brightest = std::max(brightest, v);
+    size_t floorPixels = 0, darkFloorPixels = 0;
+    for (size_t i = 0; i < rgb.size(); i += 3) {
+      if (rgb[i] == 0) continue;  // background above the horizon
+      ++floorPixels;
+      darkFloorPixels += rgb[i] < brightest * 0.999f;
+    }
+    EXPECT_GT(floorPixels, rgb.size() / 3 / 2) << "scale " << s;
+    EXPECT_EQ(darkFloorPixels, 0u) << "scale " << s;
+  }
+}
+
+TEST(TracerTest, LambertQuadMatchesTheClosedForm) {
+  Scene scene = ParseScene(R"({
+    "camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+    "lights": [{"type": "directional", "direction": [0, 0, -1], "intensity": [2, 1, 0.5]}],
+    "materials": {"m": {"diffuse": [0.5, 0.25, 0.1]}},
+    "shapes": [{"type": "quad", "corner": [-100, -100, 0], "edge_u": [200, 0, 0], "edge_v": [0, 200, 0], "material": "m"}],
+    "render": {"width": 8, "height": 8}
+  })");
+  std::vector<float> rgb = RenderFrame(scene, 0);
+  const float kAmbient = 0.05f;
+  for (size_t i = 0; i < rgb.size(); i += 3) {
+    EXPECT_NEAR(rgb[i + 0], 0.5f * kAmbient + 0.5f * 2.0f, 1e-5);
+    EXPECT_NEAR(rgb[i + 1], 0.25f * kAmbient + 0.25f * 1.0f, 1e-5);
+    EXPECT_NEAR(rgb[i + 2], 0.1f * kAmbient + 0.1f * 0.5f, 1e-5);
+  }
+}
+
+TEST(TracerTest, NoNonFiniteValueReachesAFrame) {
+  Scene scene = ParseScene(ShowcaseScene(64, 48, 2));
+  for (int frame : {0, 10, 19}) {
+    for (float v : RenderFrame(scene, frame)) ASSERT_TRUE(std::isfinite(v) && v >= 0);
+  }
+}
+
+TEST(TracerTest, NoShadowRaysWithoutLights) {
+  Scene scene = ParseScene(ShowcaseScene());
+  scene.lights.clear();
+  RayCounts counts;
+  RenderFrame(scene, 0, 0, &counts);
+  EXPECT_EQ(counts.shadow, 0u);
+  EXPECT_EQ(counts.primary, 96u * 72u);
+  EXPECT_GT(counts.reflection, 0u);
+}
+
+TEST(TracerTest, NoSecondaryRaysWithoutMirrorsOrGlass) {
+  Scene scene = ParseScene(ShowcaseScene());
+  for (Material& m : scene.materials) m.reflectivity = m.transparency = 0;
+  RayCounts counts;
+  RenderFrame(scene, 0, 0, &counts);
+  EXPECT_EQ(counts.reflection, 0u);
+  EXPECT_EQ(counts.refraction, 0u);
+  EXPECT_GT(counts.shadow, 0u);
+}
+
+TEST(TracerTest, MirrorsAndGlassCastSecondaryRays) {
+  RayCounts counts;
+  RenderFrame(ParseScene(ShowcaseScene()), 0, 0, &counts);
+  EXPECT_GT(counts.reflection, 0u);
+  EXPECT_GT(counts.refraction, 0u);
+}
+
+TEST(TracerTest, NoPerFramePlacementWhenNothingMoves) {
+  Scene scene = ParseScene(ShowcaseScene());
+  uint64_t builds = 0;
+  RenderFrame(scene, 4, 0, nullptr, &builds);
+  EXPECT_EQ(builds, 1u);  // the red ball moves
+  for (Shape& shape : scene.shapes) shape.translation = AnimatedVec3::Constant({});
+  RenderFrame(scene, 4, 0, nullptr, &builds);
+  EXPECT_EQ(builds, 0u);
+}
+
+TEST(TracerTest, MovingShapeIsPlacedAtItsFramePosition) {
+  // A ball moving right across a dark background: its image moves right.
+  Scene scene = ParseScene(R"({
+    "camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},
+    "lights": [{"type": "directional", "direction": [0, 0, -1], "intensity": [1, 1, 1]}],
+    "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 0.5,
+                "motion": {"keyframes": [{"frame": 0, "value": [-2, 0, 0]}, {"frame": 10, "value": [2, 0, 0]}]}}],
+    "render": {"width": 64, "height": 16, "frames": {"start": 0, "count": 11}}
+  })");
+  auto centroidX = [&](int frame) {
+    std::vector<float> rgb = RenderFrame(scene, frame);
+    double sum = 0, count = 0;
+    for (size_t i = 0; i < rgb.size(); i += 3) {
+      if (rgb[i] > 0) sum += (i / 3) % 64, ++count;
+    }
+    return sum / count;
+  };
+  EXPECT_LT(centroidX(0), 28);
+  EXPECT_NEAR(centroidX(5), 31.5, 1.0);
+  EXPECT_GT(centroidX(10), 35);
+}
+
+}  // namespace
+}  // namespace tcfarm
