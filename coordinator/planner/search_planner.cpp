@@ -1,0 +1,352 @@
+#include "planner/search_planner.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace tcfarm {
+namespace {
+
+// Invariants of the planner itself. They throw rather than abort so that a daemon can
+// fail the one job and go on serving the others.
+template <typename A, typename B>
+void CheckEqual(const A& actual, const B& expected, const char* what) {
+  if (actual == expected) return;
+  std::ostringstream message;
+  message << "search planner invariant broken: " << what << " is " << actual << ", expected " << expected;
+  throw std::logic_error(message.str());
+}
+
+void Check(bool condition, const std::string& what) {
+  if (!condition) throw std::logic_error("search planner invariant broken: " + what);
+}
+
+void RequireOption(bool valid, const char* name, long long value, const char* expected) {
+  if (valid) return;
+  throw std::invalid_argument(std::string("PlannerOptions.") + name + " is " + std::to_string(value) +
+                              "; expected " + expected);
+}
+
+void ValidateOptions(const PlannerOptions& options) {
+  RequireOption(options.width >= 1, "width", options.width, ">= 1");
+  RequireOption(options.height >= 1, "height", options.height, ">= 1");
+  const long long pixels = static_cast<long long>(options.width) * options.height;
+  // Pixel indices are uint32_t, and a span's end must fit as well.
+  RequireOption(pixels <= static_cast<long long>(UINT32_MAX), "width * height", pixels, "<= 4294967295");
+  RequireOption(options.frameCount >= 1, "frameCount", options.frameCount, ">= 1");
+  RequireOption(options.binWidth >= 2, "binWidth", options.binWidth, ">= 2 (2 traces every pixel)");
+  RequireOption(options.maxTaskPixels >= 1, "maxTaskPixels", options.maxTaskPixels, ">= 1");
+  RequireOption(options.maxLiveBins >= 1, "maxLiveBins", options.maxLiveBins, ">= 1");
+  if (!(std::isfinite(options.tolerance) && options.tolerance >= 0)) {
+    throw std::invalid_argument("PlannerOptions.tolerance is " + std::to_string(options.tolerance) +
+                                "; expected a finite value >= 0");
+  }
+}
+
+// Bins share end frames, so bin k starts where bin k-1 ends; the last bin may be
+// shorter. A single frame is a bin of its own whose two ends coincide.
+std::vector<std::pair<int, int>> TileBins(int frameCount, int binWidth) {
+  if (frameCount == 1) return {{0, 0}};
+  std::vector<std::pair<int, int>> bins;
+  const long long step = binWidth - 1;
+  for (long long left = 0; left < frameCount - 1; left += step) {
+    bins.emplace_back(static_cast<int>(left), static_cast<int>(std::min<long long>(left + step, frameCount - 1)));
+  }
+  return bins;
+}
+
+struct BitwiseEqual {
+  bool operator()(const float* a, const float* b) const { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
+};
+
+struct EqualWithin {
+  float tolerance;
+  bool operator()(const float* a, const float* b) const {
+    return std::fabs(a[0] - b[0]) <= tolerance && std::fabs(a[1] - b[1]) <= tolerance &&
+           std::fabs(a[2] - b[2]) <= tolerance;
+  }
+};
+
+}  // namespace
+
+SearchPlanner::SearchPlanner(const PlannerOptions& options) : options_(options) {
+  ValidateOptions(options);
+  pixelCount_ = static_cast<uint32_t>(options.width) * static_cast<uint32_t>(options.height);
+  for (const auto& [left, right] : TileBins(options.frameCount, options.binWidth)) {
+    Bin bin;
+    bin.left = left;
+    bin.right = right;
+    bins_.push_back(bin);
+  }
+  released_.assign(static_cast<size_t>(options.frameCount), false);
+  StartBins();
+}
+
+std::vector<TraceTask> SearchPlanner::TakeReadyTasks() {
+  std::vector<TraceTask> tasks;
+  tasks.swap(readyTasks_);
+  return tasks;
+}
+
+std::vector<FinishedFrame> SearchPlanner::TakeFinishedFrames() {
+  std::vector<FinishedFrame> frames;
+  frames.swap(finished_);
+  return frames;
+}
+
+bool SearchPlanner::Done() const {
+  return nextBin_ == bins_.size() && liveBins_ == 0 && frames_.empty() && finished_.empty();
+}
+
+bool SearchPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCount) {
+  auto found = pendingTasks_.find(taskId);
+  if (found == pendingTasks_.end()) {
+    if (taskId != 0 && taskId < nextTaskId_) return false;  // completed before: a re-delivery
+    throw std::invalid_argument("result for unknown task id " + std::to_string(taskId) + "; ids issued are 1 .. " +
+                                std::to_string(nextTaskId_ - 1));
+  }
+  const PendingTask& task = found->second;
+  ValidateResult(taskId, task, rgb, floatCount);
+  WriteTraced(FrameAt(task.frame), task.frame, task.pixels, rgb);
+
+  const uint64_t requestId = task.request;
+  pendingTasks_.erase(found);
+  auto request = requests_.find(requestId);
+  Check(request != requests_.end(), "task " + std::to_string(taskId) + " belongs to no open trace request");
+  if (--request->second.chunksLeft == 0) {
+    std::vector<Continuation> continuations = std::move(request->second.continuations);
+    requests_.erase(request);
+    for (const Continuation& continuation : continuations) RunContinuation(continuation);
+  }
+  ReleaseFinishedFrames();
+  return true;
+}
+
+void SearchPlanner::ValidateResult(uint64_t taskId, const PendingTask& task, const float* rgb,
+                                   size_t floatCount) const {
+  // Built only on failure: this runs for every result.
+  auto where = [&] {
+    return "result of task " + std::to_string(taskId) + " (frame " + std::to_string(task.frame) + ")";
+  };
+  const uint64_t expected = task.pixels.size() * 3;
+  if (floatCount != expected) {
+    throw std::invalid_argument(where() + " has " + std::to_string(floatCount) + " floats; expected " +
+                                std::to_string(expected) + " (3 per pixel, " + std::to_string(task.pixels.size()) +
+                                " pixels)");
+  }
+  if (rgb == nullptr && floatCount > 0) throw std::invalid_argument(where() + " has no data");
+  for (size_t i = 0; i < floatCount; ++i) {
+    if (!std::isfinite(rgb[i])) {
+      throw std::invalid_argument(where() + " has a non-finite value at float " + std::to_string(i) +
+                                  "; expected finite RGB");
+    }
+  }
+}
+
+void SearchPlanner::StartBins() {
+  while (liveBins_ < options_.maxLiveBins && nextBin_ < bins_.size()) StartBin(nextBin_++);
+}
+
+void SearchPlanner::StartBin(size_t binIndex) {
+  Bin& bin = bins_[binIndex];
+  ++liveBins_;
+  // A bin reads both its end frames until it finishes. The right end is also the next
+  // bin's left end: its reader is added now, on the next bin's behalf, so the frame
+  // cannot be released in the gap between this bin finishing and the next starting.
+  if (binIndex == 0) AddReader(bin.left);
+  AddReader(bin.right);
+  if (binIndex + 1 < bins_.size()) AddReader(bin.right);
+
+  std::vector<int> ends = {bin.left};
+  if (bin.right != bin.left) ends.push_back(bin.right);  // a one-frame job's bin is [0, 0]
+  for (int end : ends) {
+    Frame& frame = FrameAt(end);
+    if (frame.knownCount == pixelCount_) continue;  // traced for the bin before
+    Continuation continuation;
+    continuation.bin = binIndex;
+    continuation.isEndFrame = true;
+    ++bin.endsPending;
+    if (frame.fullTraceRequest != 0) {
+      AddContinuation(frame.fullTraceRequest, std::move(continuation));  // the bin before traces it now
+    } else {
+      frame.fullTraceRequest = RequestTrace(end, PixelSet::Full(pixelCount_), std::move(continuation));
+    }
+  }
+  // Every new bin has a right end frame that no earlier bin traced, so it always waits
+  // for at least one trace and never finishes inside StartBin.
+  Check(bin.endsPending > 0, "bin " + std::to_string(binIndex) + " starts with both end frames traced");
+}
+
+void SearchPlanner::FinishBin(size_t binIndex) {
+  const Bin& bin = bins_[binIndex];
+  // Every frame of the bin has every pixel by now: either released already (it was
+  // complete) or complete and waiting for its readers.
+  for (int frame = bin.left; frame <= bin.right; ++frame) {
+    if (released_[static_cast<size_t>(frame)]) continue;
+    CheckEqual(frames_.at(frame).knownCount, uint64_t{pixelCount_}, "known pixels of a frame of a finished bin");
+  }
+  RemoveReader(bin.left);
+  RemoveReader(bin.right);
+  --liveBins_;
+  // Release before starting the next bin so the live frames never exceed the bound.
+  ReleaseFinishedFrames();
+  StartBins();
+}
+
+void SearchPlanner::RunContinuation(const Continuation& continuation) {
+  Bin& bin = bins_[continuation.bin];
+  --bin.waiting;
+  if (continuation.isEndFrame) {
+    if (--bin.endsPending == 0) Search(continuation.bin, PixelSet::Full(pixelCount_), bin.left, bin.right);
+  } else {
+    Search(continuation.bin, continuation.pixels, continuation.left, continuation.mid);
+    Search(continuation.bin, continuation.pixels, continuation.mid, continuation.right);
+    RemoveReader(continuation.left);
+    RemoveReader(continuation.mid);
+    RemoveReader(continuation.right);
+  }
+  if (bin.waiting == 0) FinishBin(continuation.bin);
+}
+
+// The paper's Search(S, l, r), up to the point where it must wait for a trace.
+void SearchPlanner::Search(size_t bin, const PixelSet& pixels, int left, int right) {
+  if (right - left <= 1 || pixels.empty()) return;
+  const Frame& leftFrame = frames_.at(left);
+  const Frame& rightFrame = frames_.at(right);
+  PixelSetBuilder same, changed;
+  if (options_.tolerance == 0) {
+    Classify(pixels, leftFrame, rightFrame, BitwiseEqual{}, same, changed);
+  } else {
+    Classify(pixels, leftFrame, rightFrame, EqualWithin{options_.tolerance}, same, changed);
+  }
+  const PixelSet unchanged = same.Build();
+  if (!unchanged.empty()) {
+    for (int frame = left + 1; frame < right; ++frame) CopyPixels(leftFrame, FrameAt(frame), frame, unchanged);
+  }
+  if (changed.size() == 0) return;
+
+  Continuation continuation;
+  continuation.bin = bin;
+  continuation.left = left;
+  continuation.mid = left + (right - left) / 2;  // (l+r)/2 without overflow
+  continuation.right = right;
+  continuation.pixels = changed.Build();
+  AddReader(continuation.left);
+  AddReader(continuation.mid);
+  AddReader(continuation.right);
+  const PixelSet toTrace = continuation.pixels;
+  RequestTrace(continuation.mid, toTrace, std::move(continuation));
+}
+
+template <typename Equal>
+void SearchPlanner::Classify(const PixelSet& pixels, const Frame& left, const Frame& right, Equal equal,
+                             PixelSetBuilder& same, PixelSetBuilder& changed) const {
+  const float* leftRgb = left.rgb.data();
+  const float* rightRgb = right.rgb.data();
+  for (const Span& span : pixels.spans()) {
+    for (uint32_t index = span.begin; index != span.end; ++index) {
+      const size_t offset = size_t{index} * 3;
+      (equal(leftRgb + offset, rightRgb + offset) ? same : changed).Add(index);
+    }
+  }
+}
+
+uint64_t SearchPlanner::RequestTrace(int frame, const PixelSet& pixels, Continuation continuation) {
+  FrameAt(frame);  // the frame must exist to receive the results
+  const uint64_t requestId = nextRequestId_++;
+  std::vector<PixelSet> chunks = pixels.Split(options_.maxTaskPixels);
+  Check(!chunks.empty(), "empty trace request at frame " + std::to_string(frame));
+  requests_[requestId].chunksLeft = chunks.size();
+  AddContinuation(requestId, std::move(continuation));
+  for (PixelSet& chunk : chunks) {
+    const uint64_t taskId = nextTaskId_++;
+    pendingTasks_[taskId] = PendingTask{requestId, frame, chunk};
+    readyTasks_.push_back(TraceTask{taskId, frame, std::move(chunk)});
+  }
+  return requestId;
+}
+
+void SearchPlanner::AddContinuation(uint64_t request, Continuation continuation) {
+  ++bins_[continuation.bin].waiting;
+  requests_.at(request).continuations.push_back(std::move(continuation));
+}
+
+void SearchPlanner::WriteTraced(Frame& frame, int frameIndex, const PixelSet& pixels, const float* rgb) {
+  for (const Span& span : pixels.spans()) {
+    MarkKnown(frame, frameIndex, span, kTraced);
+    const size_t floats = size_t{span.size()} * 3;
+    std::memcpy(frame.rgb.data() + size_t{span.begin} * 3, rgb, floats * sizeof(float));
+    rgb += floats;
+  }
+  frame.tracedCount += pixels.size();
+  tracedPixels_ += pixels.size();
+  if (frame.knownCount == pixelCount_) frame.fullTraceRequest = 0;
+}
+
+void SearchPlanner::CopyPixels(const Frame& source, Frame& destination, int destinationIndex,
+                               const PixelSet& pixels) {
+  for (const Span& span : pixels.spans()) {
+    MarkKnown(destination, destinationIndex, span, kCopied);
+    const size_t offset = size_t{span.begin} * 3;
+    std::memcpy(destination.rgb.data() + offset, source.rgb.data() + offset, size_t{span.size()} * 3 * sizeof(float));
+  }
+  copiedPixels_ += pixels.size();
+}
+
+// Each pixel of each frame gets its value exactly once, traced or copied.
+void SearchPlanner::MarkKnown(Frame& frame, int frameIndex, Span span, PixelState how) {
+  uint8_t* state = frame.state.data();
+  for (uint32_t index = span.begin; index != span.end; ++index) {
+    if (state[index] != kUnknown) {
+      std::ostringstream what;
+      what << "pixel " << index << " of frame " << frameIndex << " is given a value twice (state "
+           << int{state[index]} << ", then " << int{how} << ")";
+      Check(false, what.str());
+    }
+    state[index] = how;
+  }
+  frame.knownCount += span.size();
+}
+
+SearchPlanner::Frame& SearchPlanner::FrameAt(int frame) {
+  auto found = frames_.find(frame);
+  if (found != frames_.end()) return found->second;
+  Check(!released_[static_cast<size_t>(frame)], "frame " + std::to_string(frame) + " is needed after its release");
+  Frame& created = frames_[frame];
+  created.rgb.assign(size_t{pixelCount_} * 3, 0.0f);
+  created.state.assign(pixelCount_, kUnknown);
+  return created;
+}
+
+void SearchPlanner::AddReader(int frame) { ++FrameAt(frame).readers; }
+
+void SearchPlanner::RemoveReader(int frame) {
+  Frame& state = frames_.at(frame);
+  Check(state.readers > 0, "frame " + std::to_string(frame) + " loses a reader it does not have");
+  --state.readers;
+}
+
+void SearchPlanner::ReleaseFinishedFrames() {
+  for (auto it = frames_.begin(); it != frames_.end();) {
+    Frame& frame = it->second;
+    if (frame.knownCount != pixelCount_ || frame.readers > 0) {
+      ++it;
+      continue;
+    }
+    FinishedFrame finished;
+    finished.frame = it->first;
+    finished.rgb = std::move(frame.rgb);
+    finished.traced = std::move(frame.state);
+    for (uint8_t& state : finished.traced) state = state == kTraced ? 1 : 0;
+    finished.tracedCount = frame.tracedCount;
+    finished_.push_back(std::move(finished));
+    released_[static_cast<size_t>(it->first)] = true;
+    it = frames_.erase(it);
+  }
+}
+
+}  // namespace tcfarm
