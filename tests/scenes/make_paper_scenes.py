@@ -56,10 +56,10 @@ def twelve_spheres():
                            "specular": [0.35, 0.35, 0.35], "shininess": 30}
         start = [round(rng.uniform(-1.5, 1.5), 3), round(rng.uniform(-1.2, 1.2), 3),
                  round(rng.uniform(-2.0, 0.5), 3)]
-        velocity = [round(rng.uniform(-0.045, 0.045), 4) for _ in range(2)] + [
-            round(rng.uniform(-0.02, 0.03), 4)]
+        velocity = [round(rng.uniform(-0.11, 0.11), 4) for _ in range(2)] + [
+            round(rng.uniform(-0.04, 0.05), 4)]
         shapes.append({"type": "sphere", "name": name, "center": [0, 0, 0],
-                       "radius": round(rng.uniform(0.25, 0.6), 3), "material": name,
+                       "radius": round(rng.uniform(0.35, 0.8), 3), "material": name,
                        "motion": linear(start, velocity)})
     return {
         "camera": {"position": [0, 0, 10], "look_at": [0, 0, 0], "fov_degrees": 45},
@@ -75,8 +75,8 @@ def terrain_flyover():
     # A sun (directional light) lights the flat-shaded terrain and the sky polygon
     # uniformly, as in the paper's flat-shaded 1988 renderer.
     return {
-        "camera": {"position": linear([0, 14, 38], [0.05, 0, -0.45]),
-                   "look_at": linear([0, 3, -10], [0.05, 0, -0.45]), "fov_degrees": 50},
+        "camera": {"position": linear([0, 22, 45], [0.03, 0, -0.3]),
+                   "look_at": linear([0, 12, -10], [0.03, 0, -0.3]), "fov_degrees": 50},
         "lights": [{"type": "directional", "direction": [-0.4, -1.0, -0.5],
                     "intensity": [1.1, 1.05, 0.95]}],
         "materials": {

@@ -175,6 +175,10 @@ class Tracer::PixelTracer {
  public:
   PixelTracer(const FrameContext& frame, const Scene& scene) : frame_(frame), scene_(scene) {
     rtcInitIntersectContext(&context_);
+    // Camera rays of neighbouring pixels, and their shadow rays toward one light, travel
+    // together: Embree can traverse them as a packet.
+    rtcInitIntersectContext(&coherentContext_);
+    coherentContext_.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   }
 
   // Traces `count` (<= 8) camera samples and writes their colours.
@@ -213,6 +217,7 @@ class Tracer::PixelTracer {
   const FrameContext& frame_;
   const Scene& scene_;
   RTCIntersectContext context_;
+  RTCIntersectContext coherentContext_;
   RayCounts counts_;
 };
 
@@ -352,7 +357,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
   }
   counts_.primary += count;
-  rtcIntersect8(valid, frame_.geometry->scene(), &context_, &packet);
+  rtcIntersect8(valid, frame_.geometry->scene(), &coherentContext_, &packet);
 
   SurfaceHit hits[kPacketWidth];
   bool hasHit[kPacketWidth] = {};
@@ -395,7 +400,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     }
     if (shadowCount == 0) continue;
     counts_.shadow += shadowCount;
-    rtcOccluded8(shadowValid, frame_.geometry->scene(), &context_, &shadow);
+    rtcOccluded8(shadowValid, frame_.geometry->scene(), &coherentContext_, &shadow);
     for (int lane = 0; lane < count; ++lane) {
       if (shadowValid[lane] && shadow.tfar[lane] >= 0) {
         color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
