@@ -1,0 +1,1084 @@
+// Scene JSON -> Scene, Scene -> JSON, and the OBJ reader behind mesh "file" references.
+//
+// The parser is strict on purpose: a scene comes from a user over the network and is then
+// trusted by every worker, so each value is checked where it is read, and each error names
+// the JSON pointer of the value and what would have been accepted there.
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <set>
+#include <sstream>
+#include <system_error>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "scene/scene.h"
+
+namespace tcfarm {
+namespace {
+
+using nlohmann::json;
+
+// Beyond this, squared distances in the tracer approach overflow and ray offsets lose
+// all meaning; no sensible scene needs coordinates anywhere near it.
+constexpr double kMaxMagnitude = 1e30;
+// Keeps a single job within a worker's memory (Embree BVH plus mesh: ~100 bytes/triangle).
+constexpr size_t kMaxTriangles = 20'000'000;
+constexpr size_t kMaxPolynomialTerms = 8;
+constexpr int kMaxTerrainCells = 2000;
+// sin of the smallest angle between view direction and up that still gives a usable
+// camera basis; below it the basis is dominated by rounding.
+constexpr double kMinUpSine = 1e-9;
+// A triangle or quad whose edges' cross product is this small relative to the edges has
+// no area worth tracing.
+constexpr double kMinAreaRatio = 1e-12;
+// A view direction this short relative to the camera's coordinates is rounding noise.
+constexpr double kMinViewRatio = 1e-12;
+
+[[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) {
+  throw SceneError(pointer, problem + "; expected " + expected);
+}
+
+// --- small text helpers ------------------------------------------------------------
+
+std::string FormatNumber(double value) {
+  if (std::isnan(value)) return "nan";
+  if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
+  // Whole numbers read better without nlohmann's ".0"; below 2^53 they print exactly.
+  if (std::floor(value) == value && std::fabs(value) < 9007199254740992.0) {
+    return std::to_string(static_cast<long long>(value));
+  }
+  return json(value).dump();
+}
+
+std::string EscapePointerToken(const std::string& token) {
+  std::string escaped;
+  for (char c : token) {
+    if (c == '~') {
+      escaped += "~0";
+    } else if (c == '/') {
+      escaped += "~1";
+    } else {
+      escaped += c;
+    }
+  }
+  return escaped;
+}
+
+std::string Quote(const std::string& text) {
+  constexpr size_t kMaxShown = 40;
+  std::string shown = text.size() > kMaxShown ? text.substr(0, kMaxShown) + "..." : text;
+  return json(shown).dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+// What a value is, for "got ..." messages.
+std::string Describe(const json& value) {
+  switch (value.type()) {
+    case json::value_t::null:
+      return "null";
+    case json::value_t::boolean:
+      return std::string("the boolean ") + (value.get<bool>() ? "true" : "false");
+    case json::value_t::string:
+      return "the string " + Quote(value.get<std::string>());
+    case json::value_t::number_integer:
+    case json::value_t::number_unsigned:
+    case json::value_t::number_float:
+      return "the number " + FormatNumber(value.get<double>());
+    case json::value_t::array:
+      return "an array of " + std::to_string(value.size()) + " elements";
+    case json::value_t::object:
+      return "an object";
+    default:
+      return "an unsupported value";
+  }
+}
+
+// How a number was written, for "<value> is negative" messages: integers stay integers.
+std::string Show(const json& number) {
+  return number.is_number_float() ? FormatNumber(number.get<double>()) : number.dump();
+}
+
+std::string JoinNames(const std::vector<std::string>& names) {
+  std::string joined;
+  for (const auto& name : names) joined += (joined.empty() ? "" : ", ") + name;
+  return joined;
+}
+
+// --- duplicate keys ----------------------------------------------------------------
+
+// nlohmann keeps the last of two equal keys; a scene with "radius" twice is as likely a
+// mistake as a misspelt key, so the parse callback tracks the path and rejects it.
+class DocumentPosition {
+ public:
+  bool OnEvent(json::parse_event_t event, const json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start:
+      case json::parse_event_t::array_start:
+        BeginValue();
+        levels_.push_back(Level{event == json::parse_event_t::object_start, {}, {}, -1});
+        break;
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end:
+        levels_.pop_back();
+        break;
+      case json::parse_event_t::key:
+        OnKey(parsed.get<std::string>());
+        break;
+      case json::parse_event_t::value:
+        BeginValue();
+        break;
+    }
+    return true;
+  }
+
+  // The pointer of the value the parser is about to read (where it stopped on an error).
+  std::string PendingValuePointer() const {
+    if (levels_.empty()) return "";
+    std::string pointer = EnclosingPointer();
+    const Level& last = levels_.back();
+    return pointer + "/" + (last.isObject ? EscapePointerToken(last.key) : std::to_string(last.index + 1));
+  }
+
+ private:
+  struct Level {
+    bool isObject;
+    std::set<std::string> keys;
+    std::string key;
+    long index;
+  };
+
+  void BeginValue() {
+    if (!levels_.empty() && !levels_.back().isObject) ++levels_.back().index;
+  }
+
+  void OnKey(const std::string& key) {
+    Level& level = levels_.back();
+    if (!level.keys.insert(key).second) {
+      Fail(EnclosingPointer() + "/" + EscapePointerToken(key), "duplicate field " + Quote(key),
+           "each field at most once per object");
+    }
+    level.key = key;
+  }
+
+  // Pointer of the innermost open container.
+  std::string EnclosingPointer() const {
+    std::string pointer;
+    for (size_t i = 0; i + 1 < levels_.size(); ++i) {
+      const Level& level = levels_[i];
+      pointer += "/" + (level.isObject ? EscapePointerToken(level.key) : std::to_string(level.index));
+    }
+    return pointer;
+  }
+
+  std::vector<Level> levels_;
+};
+
+std::string StripExceptionPrefix(const std::string& what) {
+  size_t end = what.find("] ");
+  return what.rfind("[json.exception.", 0) == 0 && end != std::string::npos ? what.substr(end + 2) : what;
+}
+
+json ParseJson(const std::string& text) {
+  DocumentPosition position;
+  json::parser_callback_t callback = [&position](int, json::parse_event_t event, json& parsed) {
+    return position.OnEvent(event, parsed);
+  };
+  try {
+    return json::parse(text, callback);
+  } catch (const json::parse_error& error) {
+    // nlohmann's message already ends in "; expected ...": keep its expectation as ours.
+    std::string detail = StripExceptionPrefix(error.what());
+    size_t split = detail.find("; expected ");
+    std::string expected = split == std::string::npos ? "a JSON document" : detail.substr(split + 11);
+    Fail("", "invalid JSON at byte " + std::to_string(error.byte) + ": " + detail.substr(0, split), expected);
+  } catch (const json::out_of_range& error) {
+    // nlohmann refuses numbers that overflow a double (1e999) before the callback sees them.
+    Fail(position.PendingValuePointer(), StripExceptionPrefix(error.what()), "a finite number");
+  } catch (const json::exception& error) {
+    Fail(position.PendingValuePointer(), StripExceptionPrefix(error.what()), "a JSON document");
+  }
+}
+
+// --- reading values with their pointers -----------------------------------------------
+
+// A JSON value and where it sits in the document, so every check can name it.
+struct Node {
+  const json& value;
+  std::string pointer;
+
+  Node Member(const std::string& key) const { return Node{value.at(key), pointer + "/" + EscapePointerToken(key)}; }
+  Node Element(size_t index) const { return Node{value.at(index), pointer + "/" + std::to_string(index)}; }
+  std::string MemberPointer(const std::string& key) const { return pointer + "/" + EscapePointerToken(key); }
+  bool Has(const std::string& key) const { return value.contains(key); }
+};
+
+[[noreturn]] void FailType(const Node& node, const std::string& expected) {
+  Fail(node.pointer, "got " + Describe(node.value), expected);
+}
+
+// Objects list the keys they accept: a misspelt key is an error, never silently ignored.
+void ExpectObject(const Node& node, const std::vector<std::string>& allowed, const std::string& expected) {
+  if (!node.value.is_object()) FailType(node, expected);
+  for (const auto& member : node.value.items()) {
+    if (std::find(allowed.begin(), allowed.end(), member.key()) == allowed.end()) {
+      Fail(node.MemberPointer(member.key()), "unknown field " + Quote(member.key()),
+           "one of the fields " + JoinNames(allowed));
+    }
+  }
+}
+
+Node Required(const Node& object, const std::string& key, const std::string& expected) {
+  if (!object.Has(key)) Fail(object.MemberPointer(key), "missing", expected);
+  return object.Member(key);
+}
+
+void ExpectArray(const Node& node, size_t size, const std::string& expected) {
+  if (!node.value.is_array() || node.value.size() != size) FailType(node, expected);
+}
+
+double ReadNumber(const Node& node, const std::string& expected) {
+  if (!node.value.is_number()) FailType(node, expected);
+  double value = node.value.get<double>();
+  if (!std::isfinite(value)) Fail(node.pointer, FormatNumber(value) + " is not finite", expected);
+  if (std::fabs(value) > kMaxMagnitude) {
+    Fail(node.pointer, Show(node.value) + " exceeds 1e30 in magnitude", expected);
+  }
+  return value;
+}
+
+double ReadNonNegative(const Node& node, const std::string& expected) {
+  double value = ReadNumber(node, expected);
+  if (value < 0) Fail(node.pointer, Show(node.value) + " is negative", expected);
+  return value;
+}
+
+double ReadPositive(const Node& node, const std::string& expected) {
+  double value = ReadNonNegative(node, expected);
+  if (value == 0) Fail(node.pointer, Show(node.value) + " is zero", expected);
+  return value;
+}
+
+double ReadInRange(const Node& node, double low, double high, const std::string& expected) {
+  double value = ReadNumber(node, expected);
+  if (value < low || value > high) Fail(node.pointer, Show(node.value) + " is out of range", expected);
+  return value;
+}
+
+bool IsIntegral(const json& value) {
+  if (value.is_number_integer()) return true;  // both signed and unsigned
+  if (!value.is_number_float()) return false;
+  double number = value.get<double>();
+  return std::isfinite(number) && std::floor(number) == number;
+}
+
+int64_t ReadInteger(const Node& node, int64_t low, int64_t high) {
+  std::string expected = "an integer in [" + std::to_string(low) + ", " + std::to_string(high) + "]";
+  if (!IsIntegral(node.value)) FailType(node, expected);
+  // The limits are far below 2^53, so comparing as double is exact where it matters.
+  double value = node.value.get<double>();
+  if (value < static_cast<double>(low) || value > static_cast<double>(high)) {
+    Fail(node.pointer, Show(node.value) + " is out of range", expected);
+  }
+  return static_cast<int64_t>(value);
+}
+
+int ReadInt(const Node& node, int low, int high) { return static_cast<int>(ReadInteger(node, low, high)); }
+
+const char* const kVec3Expected = "an array of 3 finite numbers [x, y, z]";
+
+Vec3 ReadVec3(const Node& node, const std::string& expected = kVec3Expected) {
+  ExpectArray(node, 3, expected);
+  Vec3 result;
+  for (int axis = 0; axis < 3; ++axis) result[axis] = ReadNumber(node.Element(static_cast<size_t>(axis)), expected);
+  return result;
+}
+
+Vec3 ReadColour(const Node& node) {
+  const std::string expected = "an array of 3 non-negative finite numbers [r, g, b]";
+  ExpectArray(node, 3, expected);
+  Vec3 result;
+  for (int axis = 0; axis < 3; ++axis) {
+    result[axis] = ReadNonNegative(node.Element(static_cast<size_t>(axis)), expected);
+  }
+  return result;
+}
+
+std::string ReadString(const Node& node, const std::string& expected) {
+  if (!node.value.is_string()) FailType(node, expected);
+  return node.value.get<std::string>();
+}
+
+// --- vector helpers ------------------------------------------------------------------
+
+Vec3 Subtract(const Vec3& a, const Vec3& b) { return Vec3{a.x - b.x, a.y - b.y, a.z - b.z}; }
+Vec3 Cross(const Vec3& a, const Vec3& b) {
+  return Vec3{a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+double Length(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
+double MaxAbs(const Vec3& v) { return std::max({std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)}); }
+std::string FormatVec3(const Vec3& v) {
+  return "[" + FormatNumber(v.x) + ", " + FormatNumber(v.y) + ", " + FormatNumber(v.z) + "]";
+}
+
+// Squared lengths below the smallest normal double cannot be normalised reliably.
+bool IsZeroLength(const Vec3& v) { return v.x * v.x + v.y * v.y + v.z * v.z < std::numeric_limits<double>::min(); }
+
+bool IsDegenerate(const Vec3& edgeA, const Vec3& edgeB) {
+  return Length(Cross(edgeA, edgeB)) <= kMinAreaRatio * Length(edgeA) * Length(edgeB) || IsZeroLength(edgeA) ||
+         IsZeroLength(edgeB);
+}
+
+// --- animated values -----------------------------------------------------------------
+
+struct FrameRange {
+  int first;
+  int last;
+  std::string Text() const { return "frames " + std::to_string(first) + ".." + std::to_string(last); }
+};
+
+const char* const kAnimatedExpected =
+    "an animated vec3: [x, y, z], {\"polynomial\": [[...], [...], [...]]} or {\"keyframes\": [...]}";
+
+std::vector<double> ReadCoefficients(const Node& node) {
+  const std::string expected = "an array of 1 to 8 finite coefficients c0, c1, ... (value = sum c_k * frame^k)";
+  if (!node.value.is_array() || node.value.empty() || node.value.size() > kMaxPolynomialTerms) {
+    FailType(node, expected);
+  }
+  std::vector<double> coefficients;
+  for (size_t k = 0; k < node.value.size(); ++k) coefficients.push_back(ReadNumber(node.Element(k), expected));
+  return coefficients;
+}
+
+AnimatedVec3 ReadPolynomial(const Node& node) {
+  ExpectArray(node, 3, "an array of 3 coefficient arrays, one per axis");
+  std::array<std::vector<double>, 3> coefficients;
+  for (size_t axis = 0; axis < 3; ++axis) coefficients[axis] = ReadCoefficients(node.Element(axis));
+  return AnimatedVec3::Polynomial(std::move(coefficients));
+}
+
+AnimatedVec3 ReadKeyframes(const Node& node) {
+  const std::string expected = "a non-empty array of {\"frame\": number, \"value\": [x, y, z]}";
+  if (!node.value.is_array() || node.value.empty()) FailType(node, expected);
+  std::vector<AnimatedVec3::Keyframe> keys;
+  for (size_t i = 0; i < node.value.size(); ++i) {
+    Node key = node.Element(i);
+    ExpectObject(key, {"frame", "value"}, "a keyframe {\"frame\": number, \"value\": [x, y, z]}");
+    Node frameNode = Required(key, "frame", "a finite frame number");
+    double frame = ReadNumber(frameNode, "a finite frame number");
+    if (!keys.empty() && frame <= keys.back().frame) {
+      Fail(frameNode.pointer, "frame " + FormatNumber(frame) + " does not come after frame " +
+                                  FormatNumber(keys.back().frame),
+           "keyframes with strictly increasing frames");
+    }
+    keys.push_back({frame, ReadVec3(Required(key, "value", kVec3Expected))});
+  }
+  return AnimatedVec3::Keyframes(std::move(keys));
+}
+
+// Piecewise-linear keyframes reach their extremes over the integer frames of the range at
+// the range's ends or next to a key, so a component-wise bound only needs those frames.
+// A polynomial gives no such shortcut: every frame.
+std::vector<double> ExtremeFrames(const AnimatedVec3& value, const FrameRange& range) {
+  std::vector<double> frames{static_cast<double>(range.first), static_cast<double>(range.last)};
+  if (value.kind() == AnimatedVec3::Kind::kPolynomial) {
+    for (int frame = range.first + 1; frame < range.last; ++frame) frames.push_back(frame);
+  } else if (value.kind() == AnimatedVec3::Kind::kKeyframes) {
+    for (const auto& key : value.keys()) {
+      for (double frame : {std::floor(key.frame), std::ceil(key.frame)}) {
+        if (frame >= range.first && frame <= range.last) frames.push_back(frame);
+      }
+    }
+  }
+  return frames;
+}
+
+// Every frame the check must see: only the first when nothing changes.
+std::vector<double> AllFrames(bool animated, const FrameRange& range) {
+  std::vector<double> frames{static_cast<double>(range.first)};
+  if (!animated) return frames;
+  for (int frame = range.first + 1; frame <= range.last; ++frame) frames.push_back(frame);
+  return frames;
+}
+
+// A cheap upper bound of |polynomial| over the range; when it is small, no frame needs
+// evaluating.
+bool PolynomialSurelyBounded(const AnimatedVec3& value, const FrameRange& range) {
+  double reach = std::max(std::fabs(static_cast<double>(range.first)), std::fabs(static_cast<double>(range.last)));
+  for (const auto& axis : value.coefficients()) {
+    double bound = 0;
+    double power = 1;
+    for (double coefficient : axis) {
+      bound += std::fabs(coefficient) * power;
+      power *= reach;
+    }
+    // Headroom for the rounding of Horner's evaluation.
+    if (!(bound <= kMaxMagnitude / 2)) return false;
+  }
+  return true;
+}
+
+void CheckMagnitude(const AnimatedVec3& value, const Node& node, const FrameRange& range) {
+  if (value.kind() == AnimatedVec3::Kind::kPolynomial && PolynomialSurelyBounded(value, range)) return;
+  for (double frame : ExtremeFrames(value, range)) {
+    Vec3 v = value.Evaluate(frame);
+    if (!(MaxAbs(v) <= kMaxMagnitude)) {
+      Fail(node.pointer, "evaluates to " + FormatVec3(v) + " at frame " + FormatNumber(frame),
+           "finite values of magnitude at most 1e30 over " + range.Text());
+    }
+  }
+}
+
+AnimatedVec3 ReadAnimated(const Node& node, const FrameRange& range) {
+  AnimatedVec3 result;
+  if (node.value.is_array()) {
+    result = AnimatedVec3::Constant(ReadVec3(node, kAnimatedExpected));
+  } else if (node.value.is_object()) {
+    ExpectObject(node, {"polynomial", "keyframes"}, kAnimatedExpected);
+    if (node.value.empty()) FailType(node, kAnimatedExpected);
+    if (node.value.size() > 1) {
+      Fail(node.pointer, "both \"polynomial\" and \"keyframes\"", "exactly one of them");
+    }
+    result = node.Has("polynomial") ? ReadPolynomial(node.Member("polynomial"))
+                                    : ReadKeyframes(node.Member("keyframes"));
+  } else {
+    FailType(node, kAnimatedExpected);
+  }
+  CheckMagnitude(result, node, range);
+  return result;
+}
+
+void CheckNonNegative(const AnimatedVec3& value, const Node& node, const FrameRange& range) {
+  for (double frame : ExtremeFrames(value, range)) {
+    Vec3 v = value.Evaluate(frame);
+    if (v.x < 0 || v.y < 0 || v.z < 0) {
+      Fail(node.pointer, "has a negative component " + FormatVec3(v) + " at frame " + FormatNumber(frame),
+           "non-negative intensity components");
+    }
+  }
+}
+
+// --- OBJ -----------------------------------------------------------------------------
+
+class ObjReader {
+ public:
+  ObjReader(std::string pointer, std::string displayName, size_t triangleBudget)
+      : pointer_(std::move(pointer)), displayName_(std::move(displayName)), triangleBudget_(triangleBudget) {}
+
+  TriangleMesh Read(std::istream& in) {
+    std::string line;
+    while (std::getline(in, line)) {
+      ++lineNumber_;
+      ReadLine(line);
+    }
+    if (in.bad()) FailAtLine("read error", "a readable OBJ file");
+    return std::move(mesh_);
+  }
+
+ private:
+  [[noreturn]] void FailAtLine(const std::string& problem, const std::string& expected) const {
+    Fail(pointer_, displayName_ + " line " + std::to_string(lineNumber_) + ": " + problem, expected);
+  }
+
+  static std::vector<std::string> Tokens(const std::string& line) {
+    std::istringstream stream(line.substr(0, line.find('#')));
+    std::vector<std::string> tokens;
+    for (std::string token; stream >> token;) tokens.push_back(token);
+    return tokens;
+  }
+
+  void ReadLine(const std::string& line) {
+    std::vector<std::string> tokens = Tokens(line);
+    if (tokens.empty()) return;
+    if (tokens[0] == "v") ReadVertex(tokens);
+    if (tokens[0] == "f") ReadFace(tokens);
+    // Normals, texture coordinates, groups and materials do not affect the geometry.
+  }
+
+  double ParseCoordinate(const std::string& token) const {
+    const char* begin = token.data();
+    const char* end = token.data() + token.size();
+    if (begin != end && *begin == '+') ++begin;
+    double value = 0;
+    auto [rest, error] = std::from_chars(begin, end, value);
+    if (error != std::errc() || rest != end || !std::isfinite(value) || std::fabs(value) > kMaxMagnitude) {
+      FailAtLine("bad coordinate " + Quote(token), "finite numbers of magnitude at most 1e30");
+    }
+    return value;
+  }
+
+  void ReadVertex(const std::vector<std::string>& tokens) {
+    if (tokens.size() < 4) FailAtLine("a vertex with fewer than 3 coordinates", "\"v x y z\"");
+    std::vector<double> numbers;
+    for (size_t i = 1; i < tokens.size(); ++i) numbers.push_back(ParseCoordinate(tokens[i]));
+    // Extra numbers (w, or vertex colours some exporters add) do not move the vertex.
+    mesh_.vertices.push_back(Vec3{numbers[0], numbers[1], numbers[2]});
+    if (mesh_.vertices.size() > std::numeric_limits<uint32_t>::max()) {
+      FailAtLine("too many vertices", "at most 2^32 - 1 vertices");
+    }
+  }
+
+  // "i", "i/t", "i//n" or "i/t/n"; negative i counts back from the latest vertex.
+  uint32_t ParseVertexReference(const std::string& token) const {
+    const std::string expected = "a vertex reference i, i/t, i//n or i/t/n with i a defined vertex";
+    if (std::count(token.begin(), token.end(), '/') > 2) FailAtLine("bad vertex reference " + Quote(token), expected);
+    std::string index = token.substr(0, token.find('/'));
+    long long value = 0;
+    auto [rest, error] = std::from_chars(index.data(), index.data() + index.size(), value);
+    if (error != std::errc() || rest != index.data() + index.size() || value == 0) {
+      FailAtLine("bad vertex reference " + Quote(token), expected);
+    }
+    long long count = static_cast<long long>(mesh_.vertices.size());
+    long long resolved = value > 0 ? value - 1 : count + value;
+    if (resolved < 0 || resolved >= count) {
+      FailAtLine("vertex reference " + index + " does not name one of the " + std::to_string(count) +
+                     " vertices defined so far",
+                 expected);
+    }
+    return static_cast<uint32_t>(resolved);
+  }
+
+  void ReadFace(const std::vector<std::string>& tokens) {
+    if (tokens.size() < 4) {
+      FailAtLine("a face with " + std::to_string(tokens.size() - 1) + " vertices", "a face of at least 3 vertices");
+    }
+    std::vector<uint32_t> corners;
+    for (size_t i = 1; i < tokens.size(); ++i) corners.push_back(ParseVertexReference(tokens[i]));
+    for (size_t i = 1; i + 1 < corners.size(); ++i) {
+      if (mesh_.triangles.size() >= triangleBudget_) {
+        FailAtLine("the scene exceeds 20000000 triangles", "at most 20000000 triangles in the whole scene");
+      }
+      mesh_.triangles.push_back({corners[0], corners[i], corners[i + 1]});
+    }
+  }
+
+  std::string pointer_;
+  std::string displayName_;
+  size_t triangleBudget_;
+  size_t lineNumber_ = 0;
+  TriangleMesh mesh_;
+};
+
+// --- the scene ------------------------------------------------------------------------
+
+const char* const kDefaultMaterial = "default";
+
+class SceneReader {
+ public:
+  explicit SceneReader(std::optional<std::filesystem::path> baseDirectory)
+      : baseDirectory_(std::move(baseDirectory)) {}
+
+  Scene Read(const json& document) {
+    Node root{document, ""};
+    ExpectObject(root, {"camera", "lights", "materials", "shapes", "background", "render"}, "a scene object");
+    Scene scene;
+    scene.render = ReadRender(Required(root, "render", "render settings {\"width\", \"height\", ...}"));
+    range_ = FrameRange{scene.render.firstFrame, scene.render.LastFrame()};
+    scene.materials = ReadMaterials(root);
+    scene.camera = ReadCamera(Required(root, "camera", "a camera {\"position\", \"look_at\", ...}"));
+    if (root.Has("lights")) scene.lights = ReadLights(root.Member("lights"));
+    if (root.Has("shapes")) scene.shapes = ReadShapes(root.Member("shapes"));
+    if (root.Has("background")) scene.background = ReadColour(root.Member("background"));
+    // Terrain meshes are generated only once the whole scene is known to be valid: a
+    // rejected scene should cost no geometry.
+    for (Shape& shape : scene.shapes) {
+      if (shape.type == Shape::Type::kTerrain) shape.mesh = GenerateTerrain(shape.terrain);
+    }
+    return scene;
+  }
+
+ private:
+  // render ---------------------------------------------------------------------------
+
+  RenderSettings ReadRender(const Node& node) {
+    ExpectObject(node, {"width", "height", "frames", "samples_per_pixel", "max_depth"}, "render settings");
+    RenderSettings render;
+    render.width = ReadInt(Required(node, "width", "an integer in [1, 16384]"), 1, 16384);
+    render.height = ReadInt(Required(node, "height", "an integer in [1, 16384]"), 1, 16384);
+    if (node.Has("frames")) {
+      Node frames = node.Member("frames");
+      ExpectObject(frames, {"start", "count"}, "{\"start\": first frame, \"count\": number of frames}");
+      if (frames.Has("start")) render.firstFrame = ReadInt(frames.Member("start"), 0, 10'000'000);
+      if (frames.Has("count")) render.frameCount = ReadInt(frames.Member("count"), 1, 100'000);
+    }
+    if (node.Has("samples_per_pixel")) render.samplesPerPixel = ReadInt(node.Member("samples_per_pixel"), 1, 1024);
+    if (node.Has("max_depth")) render.maxDepth = ReadInt(node.Member("max_depth"), 0, 64);
+    return render;
+  }
+
+  // materials ------------------------------------------------------------------------
+
+  std::vector<Material> ReadMaterials(const Node& root) {
+    std::vector<Material> materials{Material{}};
+    materials[0].name = kDefaultMaterial;
+    materialIndex_[kDefaultMaterial] = 0;
+    if (!root.Has("materials")) return materials;
+    Node node = root.Member("materials");
+    if (!node.value.is_object()) FailType(node, "an object mapping material names to materials");
+    for (const auto& entry : node.value.items()) {
+      Material material = ReadMaterial(node.Member(entry.key()));
+      material.name = entry.key();
+      // A user "default" replaces the built-in one, so a written scene reads back the same.
+      if (material.name == kDefaultMaterial) {
+        materials[0] = material;
+      } else {
+        materialIndex_[material.name] = static_cast<int>(materials.size());
+        materials.push_back(material);
+      }
+    }
+    return materials;
+  }
+
+  Material ReadMaterial(const Node& node) {
+    ExpectObject(node, {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior"}, "a material");
+    Material material;
+    if (node.Has("diffuse")) material.diffuse = ReadColour(node.Member("diffuse"));
+    if (node.Has("specular")) material.specular = ReadColour(node.Member("specular"));
+    if (node.Has("shininess")) {
+      material.shininess = ReadNonNegative(node.Member("shininess"), "a non-negative Phong exponent");
+    }
+    if (node.Has("reflectivity")) {
+      material.reflectivity = ReadInRange(node.Member("reflectivity"), 0, 1, "a number in [0, 1]");
+    }
+    if (node.Has("transparency")) {
+      material.transparency = ReadInRange(node.Member("transparency"), 0, 1, "a number in [0, 1]");
+    }
+    if (node.Has("ior")) {
+      material.indexOfRefraction = ReadInRange(node.Member("ior"), 1, 10, "an index of refraction in [1, 10]");
+    }
+    if (material.reflectivity + material.transparency > 1) {
+      Fail(node.MemberPointer(node.Has("transparency") ? "transparency" : "reflectivity"),
+           "reflectivity " + FormatNumber(material.reflectivity) + " + transparency " +
+               FormatNumber(material.transparency) + " exceeds 1",
+           "reflectivity + transparency <= 1 (they share the light that is not absorbed)");
+    }
+    return material;
+  }
+
+  // camera ---------------------------------------------------------------------------
+
+  Camera ReadCamera(const Node& node) {
+    ExpectObject(node, {"position", "look_at", "up", "fov_degrees"}, "a camera");
+    Camera camera;
+    camera.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
+    camera.lookAt = ReadAnimated(Required(node, "look_at", kAnimatedExpected), range_);
+    if (node.Has("up")) camera.up = ReadVec3(node.Member("up"));
+    if (IsZeroLength(camera.up)) Fail(node.MemberPointer("up"), "zero-length up vector", "a non-zero up direction");
+    if (node.Has("fov_degrees")) {
+      Node fov = node.Member("fov_degrees");
+      camera.verticalFovDegrees = ReadNumber(fov, "a vertical field of view in (0, 180) degrees");
+      if (camera.verticalFovDegrees <= 0 || camera.verticalFovDegrees >= 180) {
+        Fail(fov.pointer, Show(fov.value) + " is out of range", "a vertical field of view in (0, 180) degrees");
+      }
+    }
+    CheckCameraBasis(camera, node);
+    return camera;
+  }
+
+  void CheckCameraBasis(const Camera& camera, const Node& node) const {
+    bool animated = camera.position.IsAnimated() || camera.lookAt.IsAnimated();
+    for (double frame : AllFrames(animated, range_)) {
+      Vec3 position = camera.position.Evaluate(frame);
+      Vec3 lookAt = camera.lookAt.Evaluate(frame);
+      Vec3 view = Subtract(lookAt, position);
+      if (IsZeroLength(view) || Length(view) <= kMinViewRatio * std::max(MaxAbs(position), MaxAbs(lookAt))) {
+        Fail(node.MemberPointer("look_at"), "look_at equals position " + FormatVec3(position) + " at frame " +
+                                                FormatNumber(frame),
+             "a look_at point distinct from the camera position at every frame");
+      }
+      if (Length(Cross(view, camera.up)) <= kMinUpSine * Length(view) * Length(camera.up)) {
+        Fail(node.MemberPointer("up"), "up " + FormatVec3(camera.up) + " is parallel to the view direction " +
+                                           FormatVec3(view) + " at frame " + FormatNumber(frame),
+             "an up vector not parallel to the view direction");
+      }
+    }
+  }
+
+  // lights ---------------------------------------------------------------------------
+
+  std::vector<Light> ReadLights(const Node& node) {
+    if (!node.value.is_array()) FailType(node, "an array of lights");
+    std::vector<Light> lights;
+    for (size_t i = 0; i < node.value.size(); ++i) lights.push_back(ReadLight(node.Element(i)));
+    return lights;
+  }
+
+  Light ReadLight(const Node& node) {
+    const std::string expected = "a light {\"type\": \"point\" or \"directional\", ...}";
+    if (!node.value.is_object()) FailType(node, expected);
+    const std::string typeExpected = "\"point\" or \"directional\"";
+    std::string type = ReadString(Required(node, "type", typeExpected), typeExpected);
+    Light light;
+    if (type == "point") {
+      ExpectObject(node, {"type", "position", "intensity"}, "a point light");
+      light.type = Light::Type::kPoint;
+      light.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
+    } else if (type == "directional") {
+      ExpectObject(node, {"type", "direction", "intensity"}, "a directional light");
+      light.type = Light::Type::kDirectional;
+      Node direction = Required(node, "direction", kAnimatedExpected);
+      light.direction = ReadAnimated(direction, range_);
+      CheckDirection(light.direction, direction);
+    } else {
+      Fail(node.MemberPointer("type"), "unknown light type " + Quote(type), typeExpected);
+    }
+    Node intensity = Required(node, "intensity", kAnimatedExpected);
+    light.intensity = ReadAnimated(intensity, range_);
+    CheckNonNegative(light.intensity, intensity, range_);
+    return light;
+  }
+
+  void CheckDirection(const AnimatedVec3& direction, const Node& node) const {
+    for (double frame : AllFrames(direction.IsAnimated(), range_)) {
+      if (IsZeroLength(direction.Evaluate(frame))) {
+        Fail(node.pointer, "zero-length direction at frame " + FormatNumber(frame), "a non-zero direction");
+      }
+    }
+  }
+
+  // shapes ---------------------------------------------------------------------------
+
+  std::vector<Shape> ReadShapes(const Node& node) {
+    if (!node.value.is_array()) FailType(node, "an array of shapes");
+    std::vector<Shape> shapes;
+    for (size_t i = 0; i < node.value.size(); ++i) shapes.push_back(ReadShape(node.Element(i)));
+    return shapes;
+  }
+
+  Shape ReadShape(const Node& node) {
+    const std::string typeExpected = "\"sphere\", \"quad\", \"mesh\" or \"terrain\"";
+    if (!node.value.is_object()) FailType(node, "a shape {\"type\": " + typeExpected + ", ...}");
+    std::string type = ReadString(Required(node, "type", typeExpected), typeExpected);
+    Shape shape;
+    if (type == "sphere") {
+      ReadSphere(node, shape);
+    } else if (type == "quad") {
+      ReadQuad(node, shape);
+    } else if (type == "mesh") {
+      ReadMesh(node, shape);
+    } else if (type == "terrain") {
+      ReadTerrain(node, shape);
+    } else {
+      Fail(node.MemberPointer("type"), "unknown shape type " + Quote(type), typeExpected);
+    }
+    ReadCommonShapeFields(node, shape);
+    return shape;
+  }
+
+  static std::vector<std::string> ShapeFields(std::vector<std::string> specific) {
+    specific.insert(specific.begin(), {"type", "name", "material", "motion"});
+    return specific;
+  }
+
+  void ReadCommonShapeFields(const Node& node, Shape& shape) {
+    if (node.Has("name")) shape.name = ReadString(node.Member("name"), "a string");
+    if (node.Has("motion")) shape.translation = ReadAnimated(node.Member("motion"), range_);
+    if (node.Has("material")) {
+      Node material = node.Member("material");
+      std::string name = ReadString(material, "the name of a material");
+      auto found = materialIndex_.find(name);
+      if (found == materialIndex_.end()) Fail(material.pointer, "unknown material " + Quote(name), MaterialChoices());
+      shape.material = found->second;
+    }
+  }
+
+  std::string MaterialChoices() const {
+    std::vector<std::string> names;
+    for (const auto& entry : materialIndex_) names.push_back(Quote(entry.first));
+    return "one of the materials " + JoinNames(names);
+  }
+
+  void ReadSphere(const Node& node, Shape& shape) {
+    ExpectObject(node, ShapeFields({"center", "radius"}), "a sphere");
+    shape.type = Shape::Type::kSphere;
+    shape.center = ReadVec3(Required(node, "center", kVec3Expected));
+    shape.radius = ReadPositive(Required(node, "radius", "a positive finite number"), "a positive finite number");
+  }
+
+  void ReadQuad(const Node& node, Shape& shape) {
+    ExpectObject(node, ShapeFields({"corner", "edge_u", "edge_v"}), "a quad");
+    shape.type = Shape::Type::kQuad;
+    shape.corner = ReadVec3(Required(node, "corner", kVec3Expected));
+    shape.edgeU = ReadVec3(Required(node, "edge_u", kVec3Expected));
+    shape.edgeV = ReadVec3(Required(node, "edge_v", kVec3Expected));
+    if (IsDegenerate(shape.edgeU, shape.edgeV)) {
+      Fail(node.pointer, "edge_u x edge_v is zero: the quad has no area",
+           "edge_u and edge_v non-zero and not parallel");
+    }
+  }
+
+  void ReadMesh(const Node& node, Shape& shape) {
+    ExpectObject(node, ShapeFields({"vertices", "triangles", "file"}), "a mesh");
+    shape.type = Shape::Type::kMesh;
+    if (node.Has("file")) {
+      if (node.Has("vertices") || node.Has("triangles")) {
+        Fail(node.MemberPointer("file"), "both a file and inline geometry",
+             "either \"file\" or inline \"vertices\" and \"triangles\"");
+      }
+      shape.mesh = LoadMeshFile(node.Member("file"));
+      CheckMesh(shape.mesh, node.Member("file"), node.Member("file"));
+      return;
+    }
+    const std::string expected = "inline \"vertices\" and \"triangles\", or a \"file\"";
+    Node vertices = Required(node, "vertices", expected);
+    Node triangles = Required(node, "triangles", expected);
+    shape.mesh.vertices = ReadVertices(vertices);
+    shape.mesh.triangles = ReadTriangles(triangles, shape.mesh.vertices.size());
+    CheckMesh(shape.mesh, vertices, triangles);
+  }
+
+  std::vector<Vec3> ReadVertices(const Node& node) {
+    if (!node.value.is_array()) FailType(node, "an array of vertices [x, y, z]");
+    std::vector<Vec3> vertices;
+    vertices.reserve(node.value.size());
+    for (size_t i = 0; i < node.value.size(); ++i) vertices.push_back(ReadVec3(node.Element(i)));
+    return vertices;
+  }
+
+  std::vector<std::array<uint32_t, 3>> ReadTriangles(const Node& node, size_t vertexCount) {
+    if (!node.value.is_array()) FailType(node, "an array of triangles [i, j, k]");
+    ChargeTriangles(node.value.size(), node);
+    std::vector<std::array<uint32_t, 3>> triangles;
+    triangles.reserve(node.value.size());
+    const std::string expected = "a triangle [i, j, k] of vertex indices";
+    for (size_t t = 0; t < node.value.size(); ++t) {
+      Node triangle = node.Element(t);
+      ExpectArray(triangle, 3, expected);
+      std::array<uint32_t, 3> corners{};
+      for (size_t c = 0; c < 3; ++c) corners[c] = ReadVertexIndex(triangle.Element(c), vertexCount);
+      triangles.push_back(corners);
+    }
+    return triangles;
+  }
+
+  static uint32_t ReadVertexIndex(const Node& node, size_t vertexCount) {
+    std::string expected = "an integer in [0, " + std::to_string(vertexCount) + "), the index of one of the mesh's " +
+                           std::to_string(vertexCount) + " vertices";
+    if (!IsIntegral(node.value)) FailType(node, expected);
+    double index = node.value.get<double>();
+    if (index < 0 || index >= static_cast<double>(vertexCount)) {
+      Fail(node.pointer, "index " + Show(node.value) + " is out of range", expected);
+    }
+    return static_cast<uint32_t>(index);
+  }
+
+  static void CheckMesh(const TriangleMesh& mesh, const Node& verticesNode, const Node& trianglesNode) {
+    if (mesh.vertices.empty()) {
+      Fail(verticesNode.pointer, "the mesh has no vertices", "a mesh with at least 3 vertices");
+    }
+    if (mesh.triangles.empty()) Fail(trianglesNode.pointer, "the mesh has no triangles", "at least one triangle");
+    for (const auto& t : mesh.triangles) {
+      const Vec3& a = mesh.vertices[t[0]];
+      if (!IsDegenerate(Subtract(mesh.vertices[t[1]], a), Subtract(mesh.vertices[t[2]], a))) return;
+    }
+    Fail(trianglesNode.pointer, "every triangle of the mesh has zero area", "at least one triangle with area");
+  }
+
+  void ChargeTriangles(size_t count, const Node& node) {
+    if (count > kMaxTriangles - triangleCount_) {
+      Fail(node.pointer, "the scene would have " + std::to_string(triangleCount_ + count) + " triangles",
+           "at most 20000000 triangles in the whole scene");
+    }
+    triangleCount_ += count;
+  }
+
+  TriangleMesh LoadMeshFile(const Node& node) {
+    std::string name = ReadString(node, "a path to an OBJ file inside the scene folder");
+    if (!baseDirectory_) {
+      Fail(node.pointer, "mesh file " + Quote(name) + " cannot be resolved: the scene was submitted without a folder",
+           "inline \"vertices\" and \"triangles\" (scenes submitted without a folder must inline their meshes)");
+    }
+    std::filesystem::path path = ResolveInsideBase(node, name);
+    std::ifstream in(path, std::ios::binary);
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(path, error) || !in) {
+      Fail(node.pointer, "cannot read mesh file " + Quote(name), "a readable OBJ file inside the scene folder");
+    }
+    TriangleMesh mesh = ObjReader(node.pointer, name, kMaxTriangles - triangleCount_).Read(in);
+    triangleCount_ += mesh.triangles.size();
+    return mesh;
+  }
+
+  std::filesystem::path ResolveInsideBase(const Node& node, const std::string& name) const {
+    const std::string expected = "a relative path that stays inside the scene folder";
+    std::filesystem::path relative(name);
+    if (name.empty() || relative.has_root_name() || relative.has_root_directory()) {
+      Fail(node.pointer, "mesh file " + Quote(name) + " is empty or absolute", expected);
+    }
+    std::error_code error;
+    std::filesystem::path base = std::filesystem::weakly_canonical(*baseDirectory_, error);
+    std::filesystem::path resolved;
+    if (!error) resolved = std::filesystem::weakly_canonical(*baseDirectory_ / relative, error);
+    if (error) Fail(node.pointer, "cannot resolve mesh file " + Quote(name) + ": " + error.message(), expected);
+    std::filesystem::path inside = resolved.lexically_relative(base);
+    if (inside.empty() || inside == "." || *inside.begin() == "..") {
+      Fail(node.pointer, "mesh file " + Quote(name) + " resolves outside the scene folder", expected);
+    }
+    return resolved;
+  }
+
+  void ReadTerrain(const Node& node, Shape& shape) {
+    ExpectObject(node, ShapeFields({"origin", "size", "height", "cells", "seed"}), "a terrain");
+    shape.type = Shape::Type::kTerrain;
+    Shape::Terrain& terrain = shape.terrain;
+    terrain.origin = ReadVec3(Required(node, "origin", kVec3Expected));
+    const std::string sizeExpected = "[size_x, size_z], two positive finite numbers";
+    Node size = Required(node, "size", sizeExpected);
+    ExpectArray(size, 2, sizeExpected);
+    terrain.sizeX = ReadPositive(size.Element(0), sizeExpected);
+    terrain.sizeZ = ReadPositive(size.Element(1), sizeExpected);
+    if (node.Has("height")) terrain.height = ReadNonNegative(node.Member("height"), "a non-negative finite height");
+    if (node.Has("cells")) ReadTerrainCells(node.Member("cells"), terrain);
+    if (node.Has("seed")) terrain.seed = ReadSeed(node.Member("seed"));
+    ChargeTriangles(2 * static_cast<size_t>(terrain.cellsX) * static_cast<size_t>(terrain.cellsZ),
+                    node.Has("cells") ? node.Member("cells") : node);
+  }
+
+  static void ReadTerrainCells(const Node& node, Shape::Terrain& terrain) {
+    ExpectArray(node, 2, "[cells_x, cells_z], two integers in [1, 2000]");
+    terrain.cellsX = ReadInt(node.Element(0), 1, kMaxTerrainCells);
+    terrain.cellsZ = ReadInt(node.Element(1), 1, kMaxTerrainCells);
+  }
+
+  static uint64_t ReadSeed(const Node& node) {
+    const std::string expected = "an integer in [0, 18446744073709551615]";
+    if (node.value.is_number_unsigned()) return node.value.get<uint64_t>();
+    if (node.value.is_number_integer()) Fail(node.pointer, Show(node.value) + " is negative", expected);
+    FailType(node, expected);
+  }
+
+  std::optional<std::filesystem::path> baseDirectory_;
+  FrameRange range_{0, 0};
+  std::map<std::string, int> materialIndex_;
+  size_t triangleCount_ = 0;
+};
+
+// --- writing -------------------------------------------------------------------------
+
+json Vec3Json(const Vec3& v) { return json::array({v.x, v.y, v.z}); }
+
+json AnimatedJson(const AnimatedVec3& value) {
+  switch (value.kind()) {
+    case AnimatedVec3::Kind::kConstant:
+      return Vec3Json(value.constant());
+    case AnimatedVec3::Kind::kPolynomial: {
+      json axes = json::array();
+      for (const auto& axis : value.coefficients()) axes.push_back(axis);
+      return json{{"polynomial", axes}};
+    }
+    case AnimatedVec3::Kind::kKeyframes: {
+      json keys = json::array();
+      for (const auto& key : value.keys()) keys.push_back(json{{"frame", key.frame}, {"value", Vec3Json(key.value)}});
+      return json{{"keyframes", keys}};
+    }
+  }
+  return Vec3Json(value.constant());
+}
+
+json CameraJson(const Camera& camera) {
+  return json{{"position", AnimatedJson(camera.position)},
+              {"look_at", AnimatedJson(camera.lookAt)},
+              {"up", Vec3Json(camera.up)},
+              {"fov_degrees", camera.verticalFovDegrees}};
+}
+
+json LightJson(const Light& light) {
+  json result{{"intensity", AnimatedJson(light.intensity)}};
+  if (light.type == Light::Type::kPoint) {
+    result["type"] = "point";
+    result["position"] = AnimatedJson(light.position);
+  } else {
+    result["type"] = "directional";
+    result["direction"] = AnimatedJson(light.direction);
+  }
+  return result;
+}
+
+json MaterialJson(const Material& material) {
+  return json{{"diffuse", Vec3Json(material.diffuse)},   {"specular", Vec3Json(material.specular)},
+              {"shininess", material.shininess},         {"reflectivity", material.reflectivity},
+              {"transparency", material.transparency}, {"ior", material.indexOfRefraction}};
+}
+
+json MeshJson(const TriangleMesh& mesh, json result) {
+  json vertices = json::array();
+  for (const auto& v : mesh.vertices) vertices.push_back(Vec3Json(v));
+  json triangles = json::array();
+  for (const auto& t : mesh.triangles) triangles.push_back(json::array({t[0], t[1], t[2]}));
+  result["vertices"] = std::move(vertices);
+  result["triangles"] = std::move(triangles);
+  return result;
+}
+
+json ShapeGeometryJson(const Shape& shape) {
+  switch (shape.type) {
+    case Shape::Type::kSphere:
+      return json{{"type", "sphere"}, {"center", Vec3Json(shape.center)}, {"radius", shape.radius}};
+    case Shape::Type::kQuad:
+      return json{{"type", "quad"},
+                  {"corner", Vec3Json(shape.corner)},
+                  {"edge_u", Vec3Json(shape.edgeU)},
+                  {"edge_v", Vec3Json(shape.edgeV)}};
+    case Shape::Type::kMesh:
+      return MeshJson(shape.mesh, json{{"type", "mesh"}});
+    case Shape::Type::kTerrain: {
+      const Shape::Terrain& t = shape.terrain;
+      return json{{"type", "terrain"},       {"origin", Vec3Json(t.origin)},
+                  {"size", {t.sizeX, t.sizeZ}}, {"height", t.height},
+                  {"cells", {t.cellsX, t.cellsZ}}, {"seed", t.seed}};
+    }
+  }
+  return json::object();
+}
+
+json ShapeJson(const Shape& shape, const std::vector<Material>& materials) {
+  json result = ShapeGeometryJson(shape);
+  if (!shape.name.empty()) result["name"] = shape.name;
+  result["material"] = materials.at(static_cast<size_t>(shape.material)).name;
+  result["motion"] = AnimatedJson(shape.translation);
+  return result;
+}
+
+json RenderJson(const RenderSettings& render) {
+  return json{{"width", render.width},
+              {"height", render.height},
+              {"frames", {{"start", render.firstFrame}, {"count", render.frameCount}}},
+              {"samples_per_pixel", render.samplesPerPixel},
+              {"max_depth", render.maxDepth}};
+}
+
+}  // namespace
+
+Scene ParseScene(const std::string& jsonText, const std::optional<std::filesystem::path>& baseDirectory) {
+  json document = ParseJson(jsonText);
+  return SceneReader(baseDirectory).Read(document);
+}
+
+Scene LoadSceneFile(const std::filesystem::path& path) {
+  std::error_code error;
+  std::ifstream in(path, std::ios::binary);
+  if (!std::filesystem::is_regular_file(path, error) || !in) {
+    Fail("", "cannot read scene file " + path.string(), "a readable scene file");
+  }
+  std::ostringstream text;
+  text << in.rdbuf();
+  return ParseScene(text.str(), std::filesystem::absolute(path).parent_path());
+}
+
+std::string SerializeScene(const Scene& scene) {
+  json materials = json::object();
+  for (const auto& material : scene.materials) materials[material.name] = MaterialJson(material);
+  json lights = json::array();
+  for (const auto& light : scene.lights) lights.push_back(LightJson(light));
+  json shapes = json::array();
+  for (const auto& shape : scene.shapes) shapes.push_back(ShapeJson(shape, scene.materials));
+  json document{{"camera", CameraJson(scene.camera)}, {"lights", lights},
+                {"materials", materials},             {"shapes", shapes},
+                {"background", Vec3Json(scene.background)}, {"render", RenderJson(scene.render)}};
+  return document.dump();
+}
+
+}  // namespace tcfarm

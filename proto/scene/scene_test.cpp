@@ -1,0 +1,910 @@
+#include "scene/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include <unistd.h>
+
+namespace tcfarm {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+json MinimalScene() {
+  return json{{"camera", {{"position", {0, 0, 5}}, {"look_at", {0, 0, 0}}}},
+              {"render", {{"width", 4}, {"height", 3}}}};
+}
+
+json WithShape(json shape) {
+  json scene = MinimalScene();
+  scene["shapes"] = json::array({std::move(shape)});
+  return scene;
+}
+
+json Sphere() { return json{{"type", "sphere"}, {"center", {0, 0, 0}}, {"radius", 1}}; }
+
+json Triangle() {
+  return json{{"type", "mesh"}, {"vertices", {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}}, {"triangles", {{0, 1, 2}}}};
+}
+
+// Passes when parsing throws a SceneError at exactly `pointer` whose text says what was
+// expected and mentions `mention`.
+testing::AssertionResult FailsAt(const std::string& text, const std::string& pointer, const std::string& mention,
+                                 const std::optional<fs::path>& base = std::nullopt) {
+  try {
+    ParseScene(text, base);
+  } catch (const SceneError& error) {
+    std::string what = error.what();
+    if (error.pointer() != pointer) {
+      return testing::AssertionFailure() << "pointer \"" << error.pointer() << "\" != \"" << pointer << "\": " << what;
+    }
+    if (what.rfind("scene" + pointer + ": ", 0) != 0 || what.find("; expected ") == std::string::npos) {
+      return testing::AssertionFailure() << "badly formed message: " << what;
+    }
+    if (what.find(mention) == std::string::npos) {
+      return testing::AssertionFailure() << "\"" << what << "\" does not mention \"" << mention << "\"";
+    }
+    return testing::AssertionSuccess();
+  }
+  return testing::AssertionFailure() << "no SceneError for " << text;
+}
+
+testing::AssertionResult FailsAt(const json& scene, const std::string& pointer, const std::string& mention) {
+  return FailsAt(scene.dump(), pointer, mention);
+}
+
+// A fresh folder per test, removed afterwards.
+class TempFolder {
+ public:
+  TempFolder() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("tcfarm_scene_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::create_directories(path_);
+  }
+  ~TempFolder() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  const fs::path& path() const { return path_; }
+  void Write(const fs::path& relative, const std::string& text) const {
+    fs::create_directories((path_ / relative).parent_path());
+    std::ofstream(path_ / relative, std::ios::binary) << text;
+  }
+
+ private:
+  fs::path path_;
+};
+
+// --- messages ---------------------------------------------------------------------
+
+TEST(SceneErrorTest, MessageNamesPointerProblemAndExpectation) {
+  json scene = MinimalScene();
+  scene["shapes"] = json::array({Sphere(), Sphere(), Sphere(), Sphere()});
+  scene["shapes"][3]["radius"] = -1;
+  try {
+    ParseScene(scene.dump());
+    FAIL() << "no error";
+  } catch (const SceneError& error) {
+    EXPECT_EQ(error.pointer(), "/shapes/3/radius");
+    EXPECT_STREQ(error.what(), "scene/shapes/3/radius: -1 is negative; expected a positive finite number");
+  }
+}
+
+// --- JSON-level errors --------------------------------------------------------------
+
+TEST(SceneSyntaxTest, SyntaxErrorReportsBytePosition) {
+  EXPECT_TRUE(FailsAt(std::string("{\"camera\": }"), "", "invalid JSON at byte 12"));
+  EXPECT_TRUE(FailsAt(std::string(), "", "end of input"));
+}
+
+TEST(SceneSyntaxTest, TopLevelMustBeAnObject) { EXPECT_TRUE(FailsAt(std::string("[1, 2]"), "", "a scene object")); }
+
+TEST(SceneSyntaxTest, DuplicateKeyIsRejected) {
+  std::string text = R"({"camera": {"position": [0,0,5], "look_at": [0,0,0]},
+                         "render": {"width": 4, "height": 3, "width": 5}})";
+  EXPECT_TRUE(FailsAt(text, "/render/width", "duplicate"));
+  std::string inArray = R"({"camera": {"position": [0,0,5], "look_at": [0,0,0]},
+      "render": {"width": 4, "height": 3},
+      "shapes": [{"type": "sphere", "center": [0,0,0], "radius": 1},
+                 {"type": "sphere", "center": [0,0,0], "radius": 1, "radius": 2}]})";
+  EXPECT_TRUE(FailsAt(inArray, "/shapes/1/radius", "duplicate"));
+}
+
+TEST(SceneSyntaxTest, OverflowingNumberIsRejectedAtItsPointer) {
+  std::string text = R"({"camera": {"position": [0,0,5], "look_at": [0,0,0], "fov_degrees": 1e999},
+                         "render": {"width": 4, "height": 3}})";
+  EXPECT_TRUE(FailsAt(text, "/camera/fov_degrees", "finite"));
+  std::string inArray = R"({"camera": {"position": [0,-1e999,5], "look_at": [0,0,0]},
+                            "render": {"width": 4, "height": 3}})";
+  EXPECT_TRUE(FailsAt(inArray, "/camera/position/1", "finite"));
+}
+
+TEST(SceneSyntaxTest, HugeFiniteNumberIsRejected) {
+  json scene = WithShape(Sphere());
+  scene["shapes"][0]["center"] = {0, 1e31, 0};
+  EXPECT_TRUE(FailsAt(scene, "/shapes/0/center/1", "1e30"));
+}
+
+// --- unknown fields -----------------------------------------------------------------
+
+TEST(SceneUnknownFieldTest, MisspeltShapeFieldIsRejected) {
+  json shape = Sphere();
+  shape.erase("radius");
+  shape["raduis"] = 1;
+  EXPECT_TRUE(FailsAt(WithShape(shape), "/shapes/0/raduis", "radius"));
+}
+
+TEST(SceneUnknownFieldTest, UnknownFieldsAreRejectedEverywhere) {
+  json scene = MinimalScene();
+  scene["cameras"] = 1;
+  EXPECT_TRUE(FailsAt(scene, "/cameras", "unknown field"));
+
+  scene = MinimalScene();
+  scene["camera"]["lookat"] = {0, 0, 0};
+  EXPECT_TRUE(FailsAt(scene, "/camera/lookat", "look_at"));
+
+  scene = MinimalScene();
+  scene["materials"] = {{"red", {{"diffuse_colour", {1, 0, 0}}}}};
+  EXPECT_TRUE(FailsAt(scene, "/materials/red/diffuse_colour", "diffuse"));
+
+  scene = MinimalScene();
+  scene["render"]["frames"] = {{"start", 0}, {"end", 4}};
+  EXPECT_TRUE(FailsAt(scene, "/render/frames/end", "count"));
+
+  scene = MinimalScene();
+  scene["camera"]["position"] = {{"keyframes", {{{"frame", 0}, {"value", {0, 0, 5}}, {"ease", 1}}}}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position/keyframes/0/ease", "unknown field"));
+
+  scene = MinimalScene();
+  scene["lights"] = {{{"type", "point"}, {"position", {0, 5, 0}}, {"intensity", {1, 1, 1}}, {"direction", {0, -1, 0}}}};
+  EXPECT_TRUE(FailsAt(scene, "/lights/0/direction", "unknown field"));
+}
+
+TEST(SceneUnknownFieldTest, PointerEscapesSpecialCharacters) {
+  json scene = MinimalScene();
+  scene["materials"] = {{"a/b~c", {{"glow", 1}}}};
+  EXPECT_TRUE(FailsAt(scene, "/materials/a~1b~0c/glow", "unknown field"));
+}
+
+// --- types and required fields ---------------------------------------------------------
+
+TEST(SceneTypeTest, StringWhereNumberExpected) {
+  json shape = Sphere();
+  shape["radius"] = "1";
+  EXPECT_TRUE(FailsAt(WithShape(shape), "/shapes/0/radius", "got the string \"1\""));
+}
+
+TEST(SceneTypeTest, Vec3OfWrongLength) {
+  json scene = MinimalScene();
+  scene["camera"]["position"] = {0, 5};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position", "[x, y, z]"));
+  scene = MinimalScene();
+  scene["camera"]["up"] = {0, "1", 0};
+  EXPECT_TRUE(FailsAt(scene, "/camera/up/1", "finite number"));
+}
+
+TEST(SceneTypeTest, IntegerFieldRejectsFraction) {
+  json scene = MinimalScene();
+  scene["render"]["width"] = 640.5;
+  EXPECT_TRUE(FailsAt(scene, "/render/width", "an integer in [1, 16384]"));
+  scene["render"]["width"] = 640.0;  // an integral number is an integer, as in JSON Schema
+  EXPECT_EQ(ParseScene(scene.dump()).render.width, 640);
+}
+
+TEST(SceneTypeTest, ContainersOfWrongType) {
+  json scene = MinimalScene();
+  scene["lights"] = json::object();
+  EXPECT_TRUE(FailsAt(scene, "/lights", "an array of lights"));
+  scene = MinimalScene();
+  scene["shapes"] = {1};
+  EXPECT_TRUE(FailsAt(scene, "/shapes/0", "a shape"));
+  scene = MinimalScene();
+  scene["materials"] = json::array();
+  EXPECT_TRUE(FailsAt(scene, "/materials", "material names"));
+}
+
+TEST(SceneTypeTest, UnknownTypes) {
+  json shape = Sphere();
+  shape["type"] = "cube";
+  EXPECT_TRUE(FailsAt(WithShape(shape), "/shapes/0/type", "\"sphere\""));
+  json scene = MinimalScene();
+  scene["lights"] = {{{"type", "spot"}, {"intensity", {1, 1, 1}}}};
+  EXPECT_TRUE(FailsAt(scene, "/lights/0/type", "\"directional\""));
+}
+
+TEST(SceneTypeTest, RequiredFieldsMissing) {
+  json scene = MinimalScene();
+  scene.erase("camera");
+  EXPECT_TRUE(FailsAt(scene, "/camera", "missing"));
+  scene = MinimalScene();
+  scene["camera"].erase("look_at");
+  EXPECT_TRUE(FailsAt(scene, "/camera/look_at", "missing"));
+  scene = MinimalScene();
+  scene["render"].erase("height");
+  EXPECT_TRUE(FailsAt(scene, "/render/height", "missing"));
+  json shape = Sphere();
+  shape.erase("center");
+  EXPECT_TRUE(FailsAt(WithShape(shape), "/shapes/0/center", "missing"));
+  shape = Triangle();
+  shape.erase("triangles");
+  EXPECT_TRUE(FailsAt(WithShape(shape), "/shapes/0/triangles", "missing"));
+  scene = MinimalScene();
+  scene["lights"] = {{{"type", "point"}, {"position", {0, 5, 0}}}};
+  EXPECT_TRUE(FailsAt(scene, "/lights/0/intensity", "missing"));
+}
+
+// --- animated values --------------------------------------------------------------------
+
+TEST(SceneAnimatedTest, PolynomialValidation) {
+  json scene = MinimalScene();
+  scene["camera"]["position"] = {{"polynomial", {{0, 1}, {0}}}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position/polynomial", "3 coefficient arrays"));
+  scene["camera"]["position"] = {{"polynomial", {{0, 0, 0, 0, 0, 0, 0, 0, 1}, {0}, {5}}}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position/polynomial/0", "1 to 8"));
+  scene["camera"]["position"] = {{"polynomial", {{1}, json::array(), {5}}}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position/polynomial/1", "1 to 8"));
+  scene["camera"]["position"] = {{"polynomial", {{1}, {0}, {5}}}, {"keyframes", json::array()}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position", "exactly one"));
+  scene["camera"]["position"] = json::object();
+  EXPECT_TRUE(FailsAt(scene, "/camera/position", "polynomial"));
+}
+
+TEST(SceneAnimatedTest, PolynomialBeyondLimitOverRangeIsRejected) {
+  json shape = Sphere();
+  // 1e-10 * frame^7 is tiny at frame 0 but 1e39 at frame 10^7.
+  shape["motion"] = {{"polynomial", {{0, 0, 0, 0, 0, 0, 0, 1e-10}, {0}, {0}}}};
+  json scene = WithShape(shape);
+  EXPECT_NO_THROW(ParseScene(scene.dump()));
+  scene["render"]["frames"] = {{"start", 10000000}, {"count", 1}};
+  EXPECT_TRUE(FailsAt(scene, "/shapes/0/motion", "at most 1e30"));
+}
+
+TEST(SceneAnimatedTest, PolynomialCheckedAtEveryFrame) {
+  // Large coefficients that cancel at frame 0 and 1 but not at frame 2.
+  json shape = Sphere();
+  shape["motion"] = {{"polynomial", {{0, -1e30, 1e30}, {0}, {0}}}};
+  json scene = WithShape(shape);
+  scene["render"]["frames"] = {{"start", 0}, {"count", 2}};
+  EXPECT_NO_THROW(ParseScene(scene.dump()));
+  scene["render"]["frames"]["count"] = 3;
+  EXPECT_TRUE(FailsAt(scene, "/shapes/0/motion", "frame 2"));
+}
+
+TEST(SceneAnimatedTest, KeyframeValidation) {
+  json scene = MinimalScene();
+  scene["camera"]["position"] = {{"keyframes", json::array()}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position/keyframes", "non-empty"));
+  scene["camera"]["position"] = {
+      {"keyframes", {{{"frame", 0}, {"value", {0, 0, 5}}}, {{"frame", 0}, {"value", {0, 0, 6}}}}}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position/keyframes/1/frame", "strictly increasing"));
+  scene["camera"]["position"] = {{"keyframes", {{{"frame", 0}}}}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/position/keyframes/0/value", "missing"));
+}
+
+TEST(AnimatedVec3Test, PolynomialEvaluatesPerAxis) {
+  AnimatedVec3 v = AnimatedVec3::Polynomial({{{1, 2, 3}, {-4}, {5, 0, 0, 1}}});
+  EXPECT_EQ(v.Evaluate(2), (Vec3{17, -4, 13}));
+  EXPECT_EQ(v.Evaluate(-1), (Vec3{2, -4, 4}));
+  EXPECT_EQ(v.Evaluate(0), (Vec3{1, -4, 5}));
+}
+
+TEST(AnimatedVec3Test, KeyframesInterpolateAndHold) {
+  AnimatedVec3 v = AnimatedVec3::Keyframes({{0, {0, 0, 7}}, {10, {10, 20, 7}}, {20, {10, 0, 7}}});
+  EXPECT_EQ(v.Evaluate(-5), (Vec3{0, 0, 7}));
+  EXPECT_EQ(v.Evaluate(0), (Vec3{0, 0, 7}));
+  EXPECT_EQ(v.Evaluate(5), (Vec3{5, 10, 7}));
+  EXPECT_EQ(v.Evaluate(10), (Vec3{10, 20, 7}));
+  EXPECT_EQ(v.Evaluate(15), (Vec3{10, 10, 7}));
+  EXPECT_EQ(v.Evaluate(20), (Vec3{10, 0, 7}));
+  EXPECT_EQ(v.Evaluate(100), (Vec3{10, 0, 7}));
+  EXPECT_TRUE(v.SameAt(-5, 0));
+  EXPECT_FALSE(v.SameAt(0, 1));
+}
+
+TEST(AnimatedVec3Test, SingleKeyIsConstant) {
+  AnimatedVec3 v = AnimatedVec3::Keyframes({{3, {1, 2, 3}}});
+  EXPECT_EQ(v.Evaluate(-100), (Vec3{1, 2, 3}));
+  EXPECT_EQ(v.Evaluate(100), (Vec3{1, 2, 3}));
+  EXPECT_FALSE(v.IsAnimated());
+}
+
+TEST(AnimatedVec3Test, IsAnimated) {
+  EXPECT_FALSE(AnimatedVec3().IsAnimated());
+  EXPECT_FALSE(AnimatedVec3::Constant({1, 2, 3}).IsAnimated());
+  EXPECT_FALSE(AnimatedVec3::Polynomial({{{5}, {1, 0}, {2, 0, 0}}}).IsAnimated());
+  EXPECT_TRUE(AnimatedVec3::Polynomial({{{5}, {1, 0}, {2, 0, 1e-300}}}).IsAnimated());
+  EXPECT_FALSE(AnimatedVec3::Keyframes({{0, {1, 1, 1}}, {9, {1, 1, 1}}}).IsAnimated());
+  EXPECT_TRUE(AnimatedVec3::Keyframes({{0, {1, 1, 1}}, {9, {1, 1, 1}}, {12, {1, 2, 1}}}).IsAnimated());
+}
+
+TEST(AnimatedVec3Test, ParsedForms) {
+  json scene = MinimalScene();
+  scene["camera"]["position"] = {{"polynomial", {{0, 1}, {2}, {5, 0, 0.5}}}};
+  scene["camera"]["look_at"] = {
+      {"keyframes", {{{"frame", 0}, {"value", {0, 0, 0}}}, {{"frame", 4}, {"value", {4, 0, 0}}}}}};
+  scene["render"]["frames"] = {{"start", 0}, {"count", 3}};
+  Scene parsed = ParseScene(scene.dump());
+  EXPECT_EQ(parsed.camera.position.kind(), AnimatedVec3::Kind::kPolynomial);
+  EXPECT_EQ(parsed.camera.position.Evaluate(2), (Vec3{2, 2, 7}));
+  EXPECT_EQ(parsed.camera.lookAt.Evaluate(1), (Vec3{1, 0, 0}));
+  EXPECT_TRUE(parsed.CameraMoves());
+}
+
+// --- shapes ------------------------------------------------------------------------------
+
+TEST(SceneShapeTest, RadiusMustBePositive) {
+  json shape = Sphere();
+  shape["radius"] = 0;
+  EXPECT_TRUE(FailsAt(WithShape(shape), "/shapes/0/radius", "0 is zero; expected a positive"));
+  shape["radius"] = -0.5;
+  EXPECT_TRUE(FailsAt(WithShape(shape), "/shapes/0/radius", "-0.5 is negative"));
+}
+
+TEST(SceneShapeTest, ZeroAreaQuad) {
+  json quad{{"type", "quad"}, {"corner", {0, 0, 0}}, {"edge_u", {1, 0, 0}}, {"edge_v", {3, 0, 0}}};
+  EXPECT_TRUE(FailsAt(WithShape(quad), "/shapes/0", "no area"));
+  quad["edge_v"] = {0, 0, 0};
+  EXPECT_TRUE(FailsAt(WithShape(quad), "/shapes/0", "not parallel"));
+  quad["edge_v"] = {0, 0, 1};
+  EXPECT_NO_THROW(ParseScene(WithShape(quad).dump()));
+}
+
+TEST(SceneShapeTest, TriangleIndexOutOfRange) {
+  json mesh = Triangle();
+  mesh["triangles"] = {{0, 1, 2}, {0, 2, 3}};
+  EXPECT_TRUE(FailsAt(WithShape(mesh), "/shapes/0/triangles/1/2", "[0, 3)"));
+  mesh["triangles"] = {{0, -1, 2}};
+  EXPECT_TRUE(FailsAt(WithShape(mesh), "/shapes/0/triangles/0/1", "[0, 3)"));
+  mesh["triangles"] = {{0, 1}};
+  EXPECT_TRUE(FailsAt(WithShape(mesh), "/shapes/0/triangles/0", "[i, j, k]"));
+}
+
+TEST(SceneShapeTest, EmptyMesh) {
+  json mesh = Triangle();
+  mesh["vertices"] = json::array();
+  mesh["triangles"] = json::array();
+  EXPECT_TRUE(FailsAt(WithShape(mesh), "/shapes/0/vertices", "at least 3 vertices"));
+  mesh = Triangle();
+  mesh["triangles"] = json::array();
+  EXPECT_TRUE(FailsAt(WithShape(mesh), "/shapes/0/triangles", "at least one triangle"));
+}
+
+TEST(SceneShapeTest, DegenerateMesh) {
+  json mesh = Triangle();
+  mesh["vertices"] = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}};
+  mesh["triangles"] = {{0, 1, 2}, {0, 0, 1}};
+  EXPECT_TRUE(FailsAt(WithShape(mesh), "/shapes/0/triangles", "zero area"));
+  // One degenerate triangle among good ones is harmless.
+  mesh = Triangle();
+  mesh["triangles"] = {{0, 0, 1}, {0, 1, 2}};
+  EXPECT_NO_THROW(ParseScene(WithShape(mesh).dump()));
+}
+
+TEST(SceneShapeTest, TerrainValidation) {
+  json terrain{{"type", "terrain"}, {"origin", {0, 0, 0}}, {"size", {10, 0}}};
+  EXPECT_TRUE(FailsAt(WithShape(terrain), "/shapes/0/size/1", "positive"));
+  terrain["size"] = {-1, 10};
+  EXPECT_TRUE(FailsAt(WithShape(terrain), "/shapes/0/size/0", "positive"));
+  terrain["size"] = {10, 10};
+  terrain["cells"] = {0, 10};
+  EXPECT_TRUE(FailsAt(WithShape(terrain), "/shapes/0/cells/0", "[1, 2000]"));
+  terrain["cells"] = {10, 2001};
+  EXPECT_TRUE(FailsAt(WithShape(terrain), "/shapes/0/cells/1", "[1, 2000]"));
+  terrain["cells"] = {10, 10};
+  terrain["seed"] = -3;
+  EXPECT_TRUE(FailsAt(WithShape(terrain), "/shapes/0/seed", "integer"));
+}
+
+TEST(SceneShapeTest, TriangleBudget) {
+  json terrain{{"type", "terrain"}, {"origin", {0, 0, 0}}, {"size", {10, 10}}, {"cells", {2000, 2000}}};
+  json scene = MinimalScene();
+  scene["shapes"] = {terrain, terrain, terrain};  // 3 x 8 million triangles
+  EXPECT_TRUE(FailsAt(scene, "/shapes/2/cells", "20000000 triangles"));
+}
+
+TEST(SceneShapeTest, UnknownMaterial) {
+  json shape = Sphere();
+  shape["material"] = "gold";
+  json scene = WithShape(shape);
+  scene["materials"] = {{"red", json::object()}};
+  EXPECT_TRUE(FailsAt(scene, "/shapes/0/material", "\"red\""));
+}
+
+TEST(SceneShapeTest, MotionAppliesToEveryType) {
+  json scene = MinimalScene();
+  json motion = {{"polynomial", {{0, 1}, {0}, {0}}}};
+  json terrain{{"type", "terrain"}, {"origin", {0, 0, 0}}, {"size", {1, 1}}, {"cells", {1, 1}}};
+  json quad{{"type", "quad"}, {"corner", {0, 0, 0}}, {"edge_u", {1, 0, 0}}, {"edge_v", {0, 1, 0}}};
+  scene["shapes"] = {Sphere(), quad, Triangle(), terrain};
+  for (auto& shape : scene["shapes"]) shape["motion"] = motion;
+  Scene parsed = ParseScene(scene.dump());
+  for (const Shape& shape : parsed.shapes) EXPECT_TRUE(shape.Moves());
+  EXPECT_TRUE(parsed.AnyShapeMoves());
+}
+
+// --- camera ------------------------------------------------------------------------------
+
+TEST(SceneCameraTest, PositionEqualsLookAt) {
+  json scene = MinimalScene();
+  scene["camera"]["look_at"] = {0, 0, 5};
+  EXPECT_TRUE(FailsAt(scene, "/camera/look_at", "distinct"));
+}
+
+TEST(SceneCameraTest, AnimatedPositionReachesLookAt) {
+  json scene = MinimalScene();
+  scene["camera"]["position"] = {{"polynomial", {{0}, {0}, {5, -1}}}};  // z = 5 - frame
+  scene["render"]["frames"] = {{"start", 0}, {"count", 5}};
+  EXPECT_NO_THROW(ParseScene(scene.dump()));
+  scene["render"]["frames"]["count"] = 6;
+  EXPECT_TRUE(FailsAt(scene, "/camera/look_at", "frame 5"));
+}
+
+TEST(SceneCameraTest, UpParallelToView) {
+  json scene = MinimalScene();
+  scene["camera"]["up"] = {0, 0, -2};
+  EXPECT_TRUE(FailsAt(scene, "/camera/up", "not parallel"));
+  scene["camera"]["up"] = {0, 0, 0};
+  EXPECT_TRUE(FailsAt(scene, "/camera/up", "non-zero"));
+  // Looking straight down at frame 3 only.
+  scene = MinimalScene();
+  scene["camera"]["position"] = {
+      {"keyframes", {{{"frame", 0}, {"value", {-3, 5, 0}}}, {{"frame", 6}, {"value", {3, 5, 0}}}}}};
+  scene["render"]["frames"] = {{"start", 0}, {"count", 7}};
+  EXPECT_TRUE(FailsAt(scene, "/camera/up", "frame 3"));
+}
+
+TEST(SceneCameraTest, FieldOfViewRange) {
+  json scene = MinimalScene();
+  for (double fov : {0.0, -10.0, 180.0, 200.0}) {
+    scene["camera"]["fov_degrees"] = fov;
+    EXPECT_TRUE(FailsAt(scene, "/camera/fov_degrees", "(0, 180)")) << fov;
+  }
+  scene["camera"]["fov_degrees"] = 179.5;
+  EXPECT_NO_THROW(ParseScene(scene.dump()));
+}
+
+// --- lights ------------------------------------------------------------------------------
+
+TEST(SceneLightTest, ZeroLengthDirection) {
+  json scene = MinimalScene();
+  scene["lights"] = {{{"type", "directional"}, {"direction", {0, 0, 0}}, {"intensity", {1, 1, 1}}}};
+  EXPECT_TRUE(FailsAt(scene, "/lights/0/direction", "non-zero"));
+  scene["lights"][0]["direction"] = {{"polynomial", {{-2, 1}, {0}, {0}}}};
+  scene["render"]["frames"] = {{"start", 0}, {"count", 2}};
+  EXPECT_NO_THROW(ParseScene(scene.dump()));
+  scene["render"]["frames"]["count"] = 3;
+  EXPECT_TRUE(FailsAt(scene, "/lights/0/direction", "frame 2"));
+}
+
+TEST(SceneLightTest, NegativeIntensity) {
+  json scene = MinimalScene();
+  scene["lights"] = {{{"type", "point"}, {"position", {0, 5, 0}}, {"intensity", {1, -0.1, 1}}}};
+  EXPECT_TRUE(FailsAt(scene, "/lights/0/intensity", "non-negative"));
+  // Negative only around frame 7, between keys that fall between frames.
+  scene["lights"][0]["intensity"] = {{"keyframes",
+                                      {{{"frame", 6.5}, {"value", {1, 1, 1}}},
+                                       {{"frame", 7}, {"value", {1, -1, 1}}},
+                                       {{"frame", 7.5}, {"value", {1, 1, 1}}}}}};
+  scene["render"]["frames"] = {{"start", 0}, {"count", 7}};
+  EXPECT_NO_THROW(ParseScene(scene.dump()));
+  scene["render"]["frames"]["count"] = 20;
+  EXPECT_TRUE(FailsAt(scene, "/lights/0/intensity", "frame 7"));
+}
+
+// --- materials ---------------------------------------------------------------------------
+
+TEST(SceneMaterialTest, ValuesOutOfRange) {
+  auto withMaterial = [](json material) {
+    json scene = MinimalScene();
+    scene["materials"] = {{"m", std::move(material)}};
+    return scene;
+  };
+  EXPECT_TRUE(FailsAt(withMaterial({{"reflectivity", 1.5}}), "/materials/m/reflectivity", "[0, 1]"));
+  EXPECT_TRUE(FailsAt(withMaterial({{"transparency", -0.1}}), "/materials/m/transparency", "[0, 1]"));
+  EXPECT_TRUE(FailsAt(withMaterial({{"reflectivity", 0.6}, {"transparency", 0.5}}), "/materials/m/transparency",
+                      "reflectivity + transparency <= 1"));
+  EXPECT_TRUE(FailsAt(withMaterial({{"ior", 0.9}}), "/materials/m/ior", "[1, 10]"));
+  EXPECT_TRUE(FailsAt(withMaterial({{"ior", 10.5}}), "/materials/m/ior", "[1, 10]"));
+  EXPECT_TRUE(FailsAt(withMaterial({{"shininess", -1}}), "/materials/m/shininess", "non-negative"));
+  EXPECT_TRUE(FailsAt(withMaterial({{"diffuse", {0.5, -0.5, 0.5}}}), "/materials/m/diffuse/1", "non-negative"));
+  EXPECT_TRUE(FailsAt(withMaterial({{"specular", {0.5, 0.5}}}), "/materials/m/specular", "[r, g, b]"));
+  EXPECT_NO_THROW(ParseScene(withMaterial({{"reflectivity", 0.5}, {"transparency", 0.5}}).dump()));
+}
+
+TEST(SceneMaterialTest, DefaultFirstThenSortedByName) {
+  json scene = WithShape(Sphere());
+  scene["materials"] = {{"zeta", {{"reflectivity", 0.5}}}, {"alpha", {{"transparency", 0.25}}}};
+  scene["shapes"][0]["material"] = "zeta";
+  Scene parsed = ParseScene(scene.dump());
+  ASSERT_EQ(parsed.materials.size(), 3u);
+  EXPECT_EQ(parsed.materials[0].name, "default");
+  EXPECT_EQ(parsed.materials[1].name, "alpha");
+  EXPECT_EQ(parsed.materials[2].name, "zeta");
+  EXPECT_EQ(parsed.shapes[0].material, 2);
+  EXPECT_TRUE(parsed.AnyMaterialReflects());
+  EXPECT_TRUE(parsed.AnyMaterialRefracts());
+}
+
+TEST(SceneMaterialTest, UserDefaultReplacesBuiltIn) {
+  json scene = WithShape(Sphere());
+  scene["materials"] = {{"default", {{"diffuse", {0.1, 0.2, 0.3}}}}};
+  Scene parsed = ParseScene(scene.dump());
+  ASSERT_EQ(parsed.materials.size(), 1u);
+  EXPECT_EQ(parsed.materials[0].diffuse, (Vec3{0.1, 0.2, 0.3}));
+  EXPECT_EQ(parsed.shapes[0].material, 0);
+}
+
+// --- render settings ---------------------------------------------------------------------
+
+TEST(SceneRenderTest, LimitsAreEnforced) {
+  struct Case {
+    json::json_pointer field;
+    int value;
+    std::string range;
+  };
+  const Case cases[] = {
+      {json::json_pointer("/render/width"), 0, "[1, 16384]"},
+      {json::json_pointer("/render/width"), 16385, "[1, 16384]"},
+      {json::json_pointer("/render/height"), 0, "[1, 16384]"},
+      {json::json_pointer("/render/frames/count"), 0, "[1, 100000]"},
+      {json::json_pointer("/render/frames/count"), 100001, "[1, 100000]"},
+      {json::json_pointer("/render/frames/start"), -1, "[0, 10000000]"},
+      {json::json_pointer("/render/frames/start"), 10000001, "[0, 10000000]"},
+      {json::json_pointer("/render/samples_per_pixel"), 0, "[1, 1024]"},
+      {json::json_pointer("/render/samples_per_pixel"), 1025, "[1, 1024]"},
+      {json::json_pointer("/render/max_depth"), -1, "[0, 64]"},
+      {json::json_pointer("/render/max_depth"), 65, "[0, 64]"},
+  };
+  for (const Case& c : cases) {
+    json scene = MinimalScene();
+    scene[c.field] = c.value;
+    EXPECT_TRUE(FailsAt(scene, c.field.to_string(), c.range)) << c.field.to_string() << " = " << c.value;
+  }
+}
+
+TEST(SceneRenderTest, BackgroundMustBeAColour) {
+  json scene = MinimalScene();
+  scene["background"] = {0.1, -0.1, 0.2};
+  EXPECT_TRUE(FailsAt(scene, "/background/1", "non-negative"));
+}
+
+// --- defaults ----------------------------------------------------------------------------
+
+TEST(SceneDefaultsTest, MinimalScene) {
+  Scene scene = ParseScene(MinimalScene().dump());
+  EXPECT_EQ(scene.camera.up, (Vec3{0, 1, 0}));
+  EXPECT_EQ(scene.camera.verticalFovDegrees, 45);
+  EXPECT_TRUE(scene.lights.empty());
+  EXPECT_TRUE(scene.shapes.empty());
+  ASSERT_EQ(scene.materials.size(), 1u);
+  EXPECT_EQ(scene.materials[0].name, "default");
+  EXPECT_EQ(scene.materials[0].diffuse, (Vec3{0.8, 0.8, 0.8}));
+  EXPECT_EQ(scene.background, (Vec3{0, 0, 0}));
+  EXPECT_EQ(scene.render.width, 4);
+  EXPECT_EQ(scene.render.height, 3);
+  EXPECT_EQ(scene.render.firstFrame, 0);
+  EXPECT_EQ(scene.render.frameCount, 1);
+  EXPECT_EQ(scene.render.samplesPerPixel, 1);
+  EXPECT_EQ(scene.render.maxDepth, 5);
+  EXPECT_FALSE(scene.CameraMoves());
+  EXPECT_FALSE(scene.AnyLightChanges());
+  EXPECT_FALSE(scene.AnyShapeMoves());
+  EXPECT_FALSE(scene.AnyMaterialReflects());
+  EXPECT_FALSE(scene.AnyMaterialRefracts());
+}
+
+TEST(SceneDefaultsTest, MaterialShapeAndTerrainDefaults) {
+  json scene = MinimalScene();
+  scene["materials"] = {{"plain", json::object()}};
+  scene["shapes"] = {Sphere(), {{"type", "terrain"}, {"origin", {0, 0, 0}}, {"size", {10, 20}}}};
+  scene["render"]["frames"] = {{"start", 7}};
+  Scene parsed = ParseScene(scene.dump());
+  const Material& plain = parsed.materials.at(1);
+  EXPECT_EQ(plain.diffuse, (Vec3{0.8, 0.8, 0.8}));
+  EXPECT_EQ(plain.specular, (Vec3{0, 0, 0}));
+  EXPECT_EQ(plain.shininess, 32);
+  EXPECT_EQ(plain.reflectivity, 0);
+  EXPECT_EQ(plain.transparency, 0);
+  EXPECT_EQ(plain.indexOfRefraction, 1.5);
+  const Shape& sphere = parsed.shapes[0];
+  EXPECT_EQ(sphere.material, 0);
+  EXPECT_EQ(sphere.translation.kind(), AnimatedVec3::Kind::kConstant);
+  EXPECT_EQ(sphere.translation.Evaluate(3), (Vec3{0, 0, 0}));
+  const Shape& terrain = parsed.shapes[1];
+  EXPECT_EQ(terrain.terrain.cellsX, 100);
+  EXPECT_EQ(terrain.terrain.cellsZ, 100);
+  EXPECT_EQ(terrain.terrain.seed, 1u);
+  EXPECT_EQ(terrain.terrain.height, 1);
+  EXPECT_EQ(terrain.mesh.triangles.size(), 20000u);
+  EXPECT_EQ(parsed.render.firstFrame, 7);
+  EXPECT_EQ(parsed.render.frameCount, 1);
+}
+
+TEST(ScenePredicateTest, LightChanges) {
+  json scene = MinimalScene();
+  scene["lights"] = {{{"type", "point"}, {"position", {0, 5, 0}}, {"intensity", {1, 1, 1}}}};
+  EXPECT_FALSE(ParseScene(scene.dump()).AnyLightChanges());
+  scene["lights"][0]["intensity"] = {{"polynomial", {{1, 0.1}, {1}, {1}}}};
+  EXPECT_TRUE(ParseScene(scene.dump()).AnyLightChanges());
+}
+
+// --- terrain -----------------------------------------------------------------------------
+
+Shape::Terrain SampleTerrain() {
+  Shape::Terrain terrain;
+  terrain.origin = {-50, 2, -50};
+  terrain.sizeX = 100;
+  terrain.sizeZ = 100;
+  terrain.height = 8;
+  terrain.seed = 7;
+  return terrain;
+}
+
+TEST(TerrainTest, GridSize) {
+  TriangleMesh mesh = GenerateTerrain(SampleTerrain());
+  EXPECT_EQ(mesh.triangles.size(), 20000u);
+  EXPECT_EQ(mesh.vertices.size(), 101u * 101u);
+  Shape::Terrain narrow = SampleTerrain();
+  narrow.cellsX = 3;
+  narrow.cellsZ = 5;
+  EXPECT_EQ(GenerateTerrain(narrow).triangles.size(), 30u);
+}
+
+TEST(TerrainTest, Deterministic) {
+  TriangleMesh a = GenerateTerrain(SampleTerrain());
+  TriangleMesh b = GenerateTerrain(SampleTerrain());
+  ASSERT_EQ(a.vertices.size(), b.vertices.size());
+  EXPECT_EQ(0, std::memcmp(a.vertices.data(), b.vertices.data(), a.vertices.size() * sizeof(Vec3)));
+  EXPECT_EQ(a.triangles, b.triangles);
+}
+
+TEST(TerrainTest, SeedChangesHeights) {
+  Shape::Terrain other = SampleTerrain();
+  other.seed = 8;
+  TriangleMesh a = GenerateTerrain(SampleTerrain());
+  TriangleMesh b = GenerateTerrain(other);
+  size_t differing = 0;
+  for (size_t i = 0; i < a.vertices.size(); ++i) differing += a.vertices[i].y != b.vertices[i].y;
+  EXPECT_GT(differing, a.vertices.size() * 9 / 10);
+}
+
+TEST(TerrainTest, CoversItsRectangleWithinItsHeight) {
+  Shape::Terrain terrain = SampleTerrain();
+  TriangleMesh mesh = GenerateTerrain(terrain);
+  EXPECT_EQ(mesh.vertices.front().x, -50);
+  EXPECT_EQ(mesh.vertices.front().z, -50);
+  EXPECT_EQ(mesh.vertices.back().x, 50);
+  EXPECT_EQ(mesh.vertices.back().z, 50);
+  double low = 1e9, high = -1e9;
+  for (const Vec3& v : mesh.vertices) {
+    low = std::min(low, v.y);
+    high = std::max(high, v.y);
+  }
+  EXPECT_GE(low, 2);
+  EXPECT_LE(high, 10);
+  EXPECT_GT(high - low, 2);  // hills, not a plane
+}
+
+TEST(TerrainTest, NormalsPointUp) {
+  TriangleMesh mesh = GenerateTerrain(SampleTerrain());
+  for (const auto& t : mesh.triangles) {
+    const Vec3& a = mesh.vertices[t[0]];
+    const Vec3& b = mesh.vertices[t[1]];
+    const Vec3& c = mesh.vertices[t[2]];
+    Vec3 ab{b.x - a.x, b.y - a.y, b.z - a.z};
+    Vec3 ac{c.x - a.x, c.y - a.y, c.z - a.z};
+    double normalY = ab.z * ac.x - ab.x * ac.z;
+    ASSERT_GT(normalY, 0);
+  }
+}
+
+// Guards the "same bits everywhere" promise against accidental changes to the noise:
+// a change here changes every rendered terrain, so it must be deliberate.
+TEST(TerrainTest, GoldenHeights) {
+  Shape::Terrain terrain = SampleTerrain();
+  terrain.cellsX = 4;
+  terrain.cellsZ = 4;
+  TriangleMesh mesh = GenerateTerrain(terrain);
+  uint64_t hash = 1469598103934665603ULL;
+  for (const Vec3& v : mesh.vertices) {
+    for (int axis = 0; axis < 3; ++axis) {
+      uint64_t bits;
+      double value = v[axis];
+      std::memcpy(&bits, &value, sizeof bits);
+      hash = (hash ^ bits) * 1099511628211ULL;
+    }
+  }
+  EXPECT_EQ(hash, 0xf4d7a6a5d50d45b8ULL) << std::hex << hash;
+}
+
+// --- OBJ files ---------------------------------------------------------------------------
+
+json FileMesh(const std::string& file) { return json{{"type", "mesh"}, {"file", file}}; }
+
+TEST(SceneObjTest, FanTriangulationAndIndexForms) {
+  TempFolder folder;
+  folder.Write("models/shape.obj",
+               "# a square and a pentagon\r\n"
+               "mtllib shape.mtl\n"
+               "o square\n"
+               "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+               "vt 0 0\nvn 0 0 1\n"
+               "g top\ns off\nusemtl red\n"
+               "f 1/1 2/1/1 3//1 4\n"
+               "v 0 0 1\nv 1 0 1\nv 1.5 0.5 1\nv 1 1 1\nv 0 1 1 1.0\n"
+               "f -5 -4 -3 -2 -1  # relative\n");
+  Scene scene = ParseScene(WithShape(FileMesh("models/shape.obj")).dump(), folder.path());
+  const TriangleMesh& mesh = scene.shapes[0].mesh;
+  ASSERT_EQ(mesh.vertices.size(), 9u);
+  EXPECT_EQ(mesh.vertices[6], (Vec3{1.5, 0.5, 1}));
+  using T = std::array<uint32_t, 3>;
+  std::vector<T> expected{T{0, 1, 2}, T{0, 2, 3}, T{4, 5, 6}, T{4, 6, 7}, T{4, 7, 8}};
+  EXPECT_EQ(mesh.triangles, expected);
+}
+
+TEST(SceneObjTest, WithoutBaseDirectoryFilesAreRejected) {
+  EXPECT_TRUE(FailsAt(WithShape(FileMesh("models/shape.obj")), "/shapes/0/file", "must inline their meshes"));
+}
+
+TEST(SceneObjTest, AbsolutePathRejected) {
+  TempFolder folder;
+  folder.Write("tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_TRUE(FailsAt(WithShape(FileMesh((folder.path() / "tri.obj").string())).dump(), "/shapes/0/file", "absolute",
+                      folder.path()));
+}
+
+TEST(SceneObjTest, DotDotEscapeRejected) {
+  TempFolder folder;
+  folder.Write("outside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  fs::create_directories(folder.path() / "scene" / "models");
+  EXPECT_TRUE(FailsAt(WithShape(FileMesh("models/../../outside.obj")).dump(), "/shapes/0/file",
+                      "outside the scene folder", folder.path() / "scene"));
+  // Going up and back down inside the folder is fine.
+  folder.Write("scene/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_NO_THROW(ParseScene(WithShape(FileMesh("models/../tri.obj")).dump(), folder.path() / "scene"));
+}
+
+TEST(SceneObjTest, SymlinkEscapeRejected) {
+  TempFolder folder;
+  folder.Write("outside.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  fs::create_directories(folder.path() / "scene");
+  fs::create_symlink(folder.path() / "outside.obj", folder.path() / "scene" / "link.obj");
+  fs::create_directory_symlink(folder.path(), folder.path() / "scene" / "up");
+  EXPECT_TRUE(FailsAt(WithShape(FileMesh("link.obj")).dump(), "/shapes/0/file", "outside the scene folder",
+                      folder.path() / "scene"));
+  EXPECT_TRUE(FailsAt(WithShape(FileMesh("up/outside.obj")).dump(), "/shapes/0/file", "outside the scene folder",
+                      folder.path() / "scene"));
+}
+
+TEST(SceneObjTest, MissingFile) {
+  TempFolder folder;
+  EXPECT_TRUE(FailsAt(WithShape(FileMesh("missing.obj")).dump(), "/shapes/0/file", "cannot read", folder.path()));
+  fs::create_directories(folder.path() / "dir.obj");
+  EXPECT_TRUE(FailsAt(WithShape(FileMesh("dir.obj")).dump(), "/shapes/0/file", "cannot read", folder.path()));
+}
+
+TEST(SceneObjTest, MalformedObjNamesTheLine) {
+  TempFolder folder;
+  const std::string header = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  auto failsWith = [&](const std::string& body, const std::string& mention) {
+    folder.Write("bad.obj", header + body);
+    return FailsAt(WithShape(FileMesh("bad.obj")).dump(), "/shapes/0/file", mention, folder.path());
+  };
+  EXPECT_TRUE(failsWith("f 1 2\n", "bad.obj line 4: a face with 2 vertices"));
+  EXPECT_TRUE(failsWith("\nv 1 x 2\n", "line 5: bad coordinate \"x\""));
+  EXPECT_TRUE(failsWith("v 1 2\n", "line 4"));
+  EXPECT_TRUE(failsWith("f 1 2 4\n", "line 4: vertex reference 4"));
+  EXPECT_TRUE(failsWith("f 1 2 -4\n", "line 4: vertex reference -4"));
+  EXPECT_TRUE(failsWith("f 1 2 0\n", "line 4"));
+  EXPECT_TRUE(failsWith("f 1 2 3/1/1/1\n", "line 4"));
+  EXPECT_TRUE(failsWith("v 1 1e999 2\n", "line 4"));
+  EXPECT_TRUE(failsWith("", "no triangles"));
+  EXPECT_TRUE(failsWith("f 1 1 2\n", "zero area"));
+}
+
+TEST(SceneObjTest, FileAndInlineGeometryConflict) {
+  TempFolder folder;
+  json mesh = Triangle();
+  mesh["file"] = "tri.obj";
+  EXPECT_TRUE(FailsAt(WithShape(mesh).dump(), "/shapes/0/file", "either", folder.path()));
+}
+
+TEST(SceneFileTest, LoadSceneFileResolvesMeshesNextToIt) {
+  TempFolder folder;
+  folder.Write("jobs/models/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  folder.Write("jobs/scene.json", WithShape(FileMesh("models/tri.obj")).dump());
+  Scene scene = LoadSceneFile(folder.path() / "jobs" / "scene.json");
+  ASSERT_EQ(scene.shapes.size(), 1u);
+  EXPECT_EQ(scene.shapes[0].mesh.triangles.size(), 1u);
+  EXPECT_EQ(SerializeScene(scene).find("\"file\""), std::string::npos);
+}
+
+TEST(SceneFileTest, MissingSceneFile) {
+  TempFolder folder;
+  try {
+    LoadSceneFile(folder.path() / "nope.json");
+    FAIL() << "no error";
+  } catch (const SceneError& error) {
+    EXPECT_EQ(error.pointer(), "");
+    EXPECT_NE(std::string(error.what()).find("expected a readable scene file"), std::string::npos);
+  }
+}
+
+// --- serialisation -----------------------------------------------------------------------
+
+json EveryFeatureScene() {
+  return json::parse(R"({
+    "camera": {"position": {"polynomial": [[0, 0.1], [2], [10, 0, -0.001]]},
+               "look_at": {"keyframes": [{"frame": 0, "value": [0, 0, 0]}, {"frame": 30, "value": [1, 0.5, 0]}]},
+               "up": [0, 1, 0.1], "fov_degrees": 38.5},
+    "lights": [{"type": "point", "position": [3, 7, 1], "intensity": {"polynomial": [[10, 0.5], [10], [9.75]]}},
+               {"type": "directional", "direction": [-1, -2, -0.3], "intensity": [0.2, 0.2, 0.25]}],
+    "materials": {"mirror": {"diffuse": [0.1, 0.1, 0.1], "specular": [0.9, 0.9, 0.9], "shininess": 200,
+                             "reflectivity": 0.8},
+                  "glass": {"diffuse": [0, 0, 0], "transparency": 0.9, "ior": 1.33},
+                  "red": {"diffuse": [0.8, 0.1, 0.1]}},
+    "shapes": [
+      {"type": "sphere", "name": "ball", "center": [0, 1, 0], "radius": 0.7, "material": "mirror",
+       "motion": {"keyframes": [{"frame": 0, "value": [0, 0, 0]}, {"frame": 12.5, "value": [0, 2, 0]}]}},
+      {"type": "sphere", "center": [2, 1, 0], "radius": 1, "material": "glass"},
+      {"type": "quad", "corner": [-5, 0, -5], "edge_u": [10, 0, 0], "edge_v": [0, 0, 10], "material": "red"},
+      {"type": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0.3333333333333333]], "triangles": [[0, 1, 2]],
+       "motion": {"polynomial": [[0], [0, 0.01], [0]]}},
+      {"type": "mesh", "file": "tri.obj", "material": "red"},
+      {"type": "terrain", "name": "hills", "origin": [-50, -1, -50], "size": [100, 80], "height": 8,
+       "cells": [20, 16], "seed": 18446744073709551615, "material": "red"}
+    ],
+    "background": [0.1, 0.1, 0.2],
+    "render": {"width": 64, "height": 48, "frames": {"start": 3, "count": 20}, "samples_per_pixel": 4,
+               "max_depth": 3}
+  })");
+}
+
+TEST(SceneSerializeTest, RoundTripIsStable) {
+  TempFolder folder;
+  folder.Write("tri.obj", "v 0 0 0\nv 0.1 0 0\nv 0 0.2 0.7\nf 1 2 3\n");
+  Scene original = ParseScene(EveryFeatureScene().dump(), folder.path());
+  std::string first = SerializeScene(original);
+  Scene reread = ParseScene(first);
+  std::string second = SerializeScene(reread);
+  EXPECT_EQ(first, second);
+
+  EXPECT_EQ(reread.shapes[4].mesh.vertices, original.shapes[4].mesh.vertices);
+  EXPECT_EQ(reread.shapes[5].type, Shape::Type::kTerrain);
+  EXPECT_EQ(reread.shapes[5].terrain.seed, 18446744073709551615ULL);
+  ASSERT_EQ(reread.shapes[5].mesh.vertices.size(), original.shapes[5].mesh.vertices.size());
+  EXPECT_EQ(0, std::memcmp(reread.shapes[5].mesh.vertices.data(), original.shapes[5].mesh.vertices.data(),
+                           original.shapes[5].mesh.vertices.size() * sizeof(Vec3)));
+  EXPECT_EQ(reread.camera.position.Evaluate(7), original.camera.position.Evaluate(7));
+  EXPECT_EQ(reread.shapes[0].translation.Evaluate(5), original.shapes[0].translation.Evaluate(5));
+  EXPECT_EQ(reread.shapes[0].material, original.shapes[0].material);
+  EXPECT_EQ(reread.materials[0].name, "default");
+
+  // Terrain travels as parameters, not as 672 triangles.
+  json written = json::parse(first);
+  EXPECT_FALSE(written["shapes"][5].contains("vertices"));
+  EXPECT_EQ(written["shapes"][5]["cells"], json({20, 16}));
+}
+
+TEST(SceneSerializeTest, PredicatesOfEveryFeatureScene) {
+  TempFolder folder;
+  folder.Write("tri.obj", "v 0 0 0\nv 0.1 0 0\nv 0 0.2 0.7\nf 1 2 3\n");
+  Scene scene = ParseScene(EveryFeatureScene().dump(), folder.path());
+  EXPECT_TRUE(scene.CameraMoves());
+  EXPECT_TRUE(scene.AnyLightChanges());
+  EXPECT_TRUE(scene.AnyShapeMoves());
+  EXPECT_TRUE(scene.AnyMaterialReflects());
+  EXPECT_TRUE(scene.AnyMaterialRefracts());
+  EXPECT_FALSE(scene.shapes[1].Moves());
+}
+
+}  // namespace
+}  // namespace tcfarm
