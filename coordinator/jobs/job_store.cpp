@@ -1,0 +1,551 @@
+#include "jobs/job_store.h"
+
+#include <sqlite3.h>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+namespace tcfarm {
+
+namespace {
+
+constexpr std::array<std::pair<JobState, const char*>, 5> kStateNames = {{
+    {JobState::kQueued, "queued"},
+    {JobState::kRunning, "running"},
+    {JobState::kCompleted, "completed"},
+    {JobState::kFailed, "failed"},
+    {JobState::kCanceled, "canceled"},
+}};
+
+// Long enough to ride out another connection's commit (another process on the same file),
+// short enough that a wedged lock surfaces as an error instead of a hung coordinator.
+constexpr int kBusyTimeoutMs = 5000;
+
+}  // namespace
+
+std::string ToString(JobState state) {
+  for (const auto& [value, name] : kStateNames) {
+    if (value == state) return name;
+  }
+  return "unknown";
+}
+
+std::optional<JobState> JobStateFromString(std::string_view name) {
+  for (const auto& [value, stateName] : kStateNames) {
+    if (name == stateName) return value;
+  }
+  return std::nullopt;
+}
+
+double JobRecord::TracedPixelRatio(uint64_t pixelsPerFrame) const {
+  const double bruteForcePixels = static_cast<double>(pixelsPerFrame) * framesDone;
+  if (bruteForcePixels <= 0) return 0;
+  return static_cast<double>(tracedPixels) / bruteForcePixels;
+}
+
+// ---------------------------------------------------------------------------------------
+// Thin RAII wrappers over the SQLite C API. Every value reaches SQL through a bound
+// parameter; SQL text is always a literal.
+
+namespace sqlite {
+
+class Database {
+ public:
+  explicit Database(const std::filesystem::path& file) : path_(file.string()) {
+    const int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX;
+    const int rc = sqlite3_open_v2(path_.c_str(), &handle_, flags, nullptr);
+    if (rc != SQLITE_OK) {
+      // sqlite3_open_v2 allocates a handle even on failure, to carry the message.
+      const std::string reason = handle_ ? sqlite3_errmsg(handle_) : sqlite3_errstr(rc);
+      sqlite3_close(handle_);
+      handle_ = nullptr;
+      throw JobStoreError(path_ + ": cannot open job database: " + reason);
+    }
+    sqlite3_extended_result_codes(handle_, 1);
+  }
+  ~Database() { sqlite3_close(handle_); }  // statements are finalized before, by RAII
+  Database(const Database&) = delete;
+  Database& operator=(const Database&) = delete;
+
+  sqlite3* handle() const { return handle_; }
+  const std::string& path() const { return path_; }
+
+  [[noreturn]] void Throw(const std::string& context) const {
+    throw JobStoreError(path_ + ": " + context + ": " + sqlite3_errmsg(handle_));
+  }
+
+  // For statements without parameters or results (schema, pragmas, transaction control).
+  void Exec(const char* sql) {
+    char* message = nullptr;
+    if (sqlite3_exec(handle_, sql, nullptr, nullptr, &message) != SQLITE_OK) {
+      const std::string reason = message ? message : sqlite3_errmsg(handle_);
+      sqlite3_free(message);
+      throw JobStoreError(path_ + ": " + sql + ": " + reason);
+    }
+  }
+
+  int Changes() const { return sqlite3_changes(handle_); }
+  int64_t LastInsertRowId() const { return sqlite3_last_insert_rowid(handle_); }
+
+ private:
+  std::string path_;
+  sqlite3* handle_ = nullptr;
+};
+
+class Statement {
+ public:
+  Statement(Database& db, const std::string& sql) : db_(db) {
+    if (sqlite3_prepare_v2(db.handle(), sql.c_str(), -1, &handle_, nullptr) != SQLITE_OK) {
+      db.Throw("prepare " + sql);
+    }
+  }
+  ~Statement() { sqlite3_finalize(handle_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  // Parameters are numbered from 1, as in SQLite.
+  Statement& Bind(int index, int64_t value) {
+    return Check(sqlite3_bind_int64(handle_, index, value));
+  }
+  Statement& Bind(int index, double value) {
+    return Check(sqlite3_bind_double(handle_, index, value));
+  }
+  Statement& Bind(int index, std::string_view value) {
+    return Check(sqlite3_bind_text(handle_, index, value.data(), static_cast<int>(value.size()),
+                                   SQLITE_TRANSIENT));
+  }
+
+  // True while a row is ready; false when done.
+  bool Step() {
+    const int rc = sqlite3_step(handle_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    db_.Throw(std::string("step ") + sqlite3_sql(handle_));
+  }
+  void Run() {
+    while (Step()) {
+    }
+  }
+
+  // Columns are numbered from 0, as in SQLite.
+  int64_t Int64(int column) const { return sqlite3_column_int64(handle_, column); }
+  int Int(int column) const { return static_cast<int>(Int64(column)); }
+  uint64_t UInt64(int column) const { return static_cast<uint64_t>(Int64(column)); }
+  double Double(int column) const { return sqlite3_column_double(handle_, column); }
+  std::string Text(int column) const {
+    const auto* text = reinterpret_cast<const char*>(sqlite3_column_text(handle_, column));
+    return text ? std::string(text, sqlite3_column_bytes(handle_, column)) : std::string();
+  }
+
+ private:
+  Statement& Check(int rc) {
+    if (rc != SQLITE_OK) db_.Throw(std::string("bind ") + sqlite3_sql(handle_));
+    return *this;
+  }
+
+  Database& db_;
+  sqlite3_stmt* handle_ = nullptr;
+};
+
+// kWrite (BEGIN IMMEDIATE) takes the write lock up front, so a read-then-write (claim,
+// counters, merge-patch) cannot interleave with another connection's write; kRead gives
+// several reads one consistent snapshot. Rolls back unless committed, so an exception
+// leaves the file as it was.
+class Transaction {
+ public:
+  enum class Mode { kRead, kWrite };
+  explicit Transaction(Database& db, Mode mode = Mode::kWrite) : db_(db) {
+    db_.Exec(mode == Mode::kWrite ? "BEGIN IMMEDIATE" : "BEGIN DEFERRED");
+  }
+  ~Transaction() {
+    if (!committed_) sqlite3_exec(db_.handle(), "ROLLBACK", nullptr, nullptr, nullptr);
+  }
+  Transaction(const Transaction&) = delete;
+  Transaction& operator=(const Transaction&) = delete;
+
+  void Commit() {
+    db_.Exec("COMMIT");
+    committed_ = true;
+  }
+
+ private:
+  Database& db_;
+  bool committed_ = false;
+};
+
+}  // namespace sqlite
+
+// ---------------------------------------------------------------------------------------
+// Schema
+
+namespace {
+
+using sqlite::Database;
+using sqlite::Statement;
+using sqlite::Transaction;
+
+// Migrations[v] takes a file from user_version v to v + 1; a new schema version appends one.
+// The scene JSON and the per-frame counts live in side tables so that a jobs row stays a
+// few hundred bytes: List scans it without touching megabytes of scene or 100,000 frames.
+constexpr std::array<const char*, JobStore::kSchemaVersion> kMigrations = {{
+    R"sql(
+      CREATE TABLE jobs (
+        id            INTEGER PRIMARY KEY AUTOINCREMENT,
+        name          TEXT    NOT NULL,
+        scene_hash    TEXT    NOT NULL,
+        first_frame   INTEGER NOT NULL,
+        last_frame    INTEGER NOT NULL CHECK (last_frame >= first_frame),
+        strategy      TEXT    NOT NULL,
+        bin_width     INTEGER NOT NULL,
+        tolerance     REAL    NOT NULL,
+        priority      INTEGER NOT NULL,
+        options       TEXT    NOT NULL,
+        state         TEXT    NOT NULL
+                      CHECK (state IN ('queued', 'running', 'completed', 'failed', 'canceled')),
+        error         TEXT    NOT NULL DEFAULT '',
+        submitted_ms  INTEGER NOT NULL,
+        started_ms    INTEGER NOT NULL DEFAULT 0,
+        finished_ms   INTEGER NOT NULL DEFAULT 0,
+        frames_done   INTEGER NOT NULL DEFAULT 0,
+        traced_pixels INTEGER NOT NULL DEFAULT 0,
+        copied_pixels INTEGER NOT NULL DEFAULT 0,
+        stats         TEXT    NOT NULL DEFAULT '{}'
+      );
+      CREATE INDEX jobs_by_claim_order ON jobs (state, priority DESC, id);
+      CREATE TABLE job_scenes (
+        job_id     INTEGER PRIMARY KEY REFERENCES jobs (id) ON DELETE CASCADE,
+        scene_json TEXT NOT NULL
+      );
+      CREATE TABLE job_frames (
+        job_id INTEGER NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+        frame  INTEGER NOT NULL,
+        traced INTEGER NOT NULL,
+        copied INTEGER NOT NULL,
+        PRIMARY KEY (job_id, frame)
+      ) WITHOUT ROWID;
+    )sql",
+}};
+
+int ReadSchemaVersion(Database& db) {
+  Statement statement(db, "PRAGMA user_version");
+  statement.Step();
+  return statement.Int(0);
+}
+
+// PRAGMA takes no bound parameters; the version is one of our own integers, never input.
+void WriteSchemaVersion(Database& db, int version) {
+  db.Exec(("PRAGMA user_version = " + std::to_string(version)).c_str());
+}
+
+// Inside one IMMEDIATE transaction, so two processes opening a new file at once cannot
+// both create the tables, and a failed migration leaves the old schema intact.
+void MigrateForward(Database& db) {
+  Transaction transaction(db);
+  const int version = ReadSchemaVersion(db);
+  if (version > JobStore::kSchemaVersion) {
+    throw JobStoreError(db.path() + ": job database schema version " + std::to_string(version) +
+                        " is newer than this coordinator understands (" +
+                        std::to_string(JobStore::kSchemaVersion) +
+                        "); run a newer coordinator or use another file");
+  }
+  for (int next = version; next < JobStore::kSchemaVersion; ++next) db.Exec(kMigrations[next]);
+  if (version != JobStore::kSchemaVersion) WriteSchemaVersion(db, JobStore::kSchemaVersion);
+  transaction.Commit();
+}
+
+void ConfigureConnection(Database& db) {
+  sqlite3_busy_timeout(db.handle(), kBusyTimeoutMs);
+  // The first statement that reads the file: a non-SQLite file fails here.
+  if (sqlite3_exec(db.handle(), "PRAGMA journal_mode = WAL", nullptr, nullptr, nullptr) !=
+      SQLITE_OK) {
+    db.Throw("cannot open job database");
+  }
+  // In WAL mode NORMAL never corrupts the file and loses nothing when the process dies; only
+  // an OS crash may drop the last commits. FULL would fsync once per finished frame.
+  db.Exec("PRAGMA synchronous = NORMAL");
+  db.Exec("PRAGMA foreign_keys = ON");
+}
+
+// The columns every record read selects, in the order ReadRecord expects.
+const std::string kSelectJobColumns =
+    "SELECT id, name, scene_hash, first_frame, last_frame, strategy, bin_width, tolerance, "
+    "priority, options, state, error, submitted_ms, started_ms, finished_ms, frames_done, "
+    "traced_pixels, copied_pixels, stats FROM jobs ";
+
+JobRecord ReadRecord(const Statement& row) {
+  JobRecord record;
+  record.id = row.UInt64(0);
+  record.spec.name = row.Text(1);
+  record.spec.sceneHash = row.Text(2);
+  record.spec.firstFrame = row.Int(3);
+  record.spec.lastFrame = row.Int(4);
+  record.spec.strategy = row.Text(5);
+  record.spec.binWidth = row.Int(6);
+  record.spec.tolerance = row.Double(7);
+  record.spec.priority = row.Int(8);
+  record.spec.options = nlohmann::json::parse(row.Text(9));
+  // The CHECK constraint on the column keeps this lookup total.
+  record.state = JobStateFromString(row.Text(10)).value_or(JobState::kFailed);
+  record.error = row.Text(11);
+  record.submittedMs = row.Int64(12);
+  record.startedMs = row.Int64(13);
+  record.finishedMs = row.Int64(14);
+  record.framesDone = row.Int(15);
+  record.tracedPixels = row.UInt64(16);
+  record.copiedPixels = row.UInt64(17);
+  record.stats = nlohmann::json::parse(row.Text(18));
+  return record;
+}
+
+std::optional<JobRecord> LoadRecordRow(Database& db, uint64_t id) {
+  Statement statement(db, kSelectJobColumns + "WHERE id = ?1");
+  statement.Bind(1, static_cast<int64_t>(id));
+  if (!statement.Step()) return std::nullopt;
+  return ReadRecord(statement);
+}
+
+void LoadSceneJson(Database& db, JobRecord& record) {
+  Statement statement(db, "SELECT scene_json FROM job_scenes WHERE job_id = ?1");
+  statement.Bind(1, static_cast<int64_t>(record.id));
+  if (statement.Step()) record.spec.sceneJson = statement.Text(0);
+}
+
+void LoadTracedPerFrame(Database& db, JobRecord& record) {
+  record.tracedPerFrame.assign(static_cast<size_t>(record.FrameCount()), -1);
+  Statement statement(db, "SELECT frame, traced FROM job_frames WHERE job_id = ?1");
+  statement.Bind(1, static_cast<int64_t>(record.id));
+  while (statement.Step()) {
+    const int64_t index = statement.Int64(0) - record.spec.firstFrame;
+    if (index >= 0 && index < record.FrameCount()) {
+      record.tracedPerFrame[static_cast<size_t>(index)] = statement.Int64(1);
+    }
+  }
+}
+
+std::optional<JobRecord> LoadFullRecord(Database& db, uint64_t id) {
+  std::optional<JobRecord> record = LoadRecordRow(db, id);
+  if (!record) return std::nullopt;
+  LoadSceneJson(db, *record);
+  LoadTracedPerFrame(db, *record);
+  return record;
+}
+
+std::optional<JobState> ReadState(Database& db, uint64_t id) {
+  Statement statement(db, "SELECT state FROM jobs WHERE id = ?1");
+  statement.Bind(1, static_cast<int64_t>(id));
+  if (!statement.Step()) return std::nullopt;
+  return JobStateFromString(statement.Text(0));
+}
+
+void ValidateSpec(const JobSpec& spec) {
+  if (spec.lastFrame < spec.firstFrame) {
+    throw std::invalid_argument("job spec: lastFrame " + std::to_string(spec.lastFrame) +
+                                " is before firstFrame " + std::to_string(spec.firstFrame));
+  }
+  if (spec.binWidth < 1) {
+    throw std::invalid_argument("job spec: binWidth must be at least 1, got " +
+                                std::to_string(spec.binWidth));
+  }
+  if (!std::isfinite(spec.tolerance) || spec.tolerance < 0) {
+    throw std::invalid_argument("job spec: tolerance must be finite and >= 0, got " +
+                                std::to_string(spec.tolerance));
+  }
+}
+
+// One guarded UPDATE moves a job between states: the WHERE clause names the states the
+// transition may leave, so a job in any other state is left alone and no row changes.
+bool Transition(Database& db, uint64_t id, const char* guardedUpdate, int64_t nowMs) {
+  Statement statement(db, guardedUpdate);
+  statement.Bind(1, static_cast<int64_t>(id)).Bind(2, nowMs);
+  statement.Run();
+  return db.Changes() == 1;
+}
+
+// stats stay a JSON object: a null patch merges nothing (RFC 7386 would replace the whole
+// object with null), any other non-object is refused.
+void MergeStats(Database& db, uint64_t id, const nlohmann::json& patch) {
+  if (patch.is_null()) return;
+  if (!patch.is_object()) {
+    throw std::invalid_argument("job " + std::to_string(id) +
+                                ": stats must be a JSON object, got " + patch.type_name());
+  }
+  Statement read(db, "SELECT stats FROM jobs WHERE id = ?1");
+  read.Bind(1, static_cast<int64_t>(id));
+  if (!read.Step()) return;
+  nlohmann::json stats = nlohmann::json::parse(read.Text(0));
+  stats.merge_patch(patch);
+  Statement write(db, "UPDATE jobs SET stats = ?2 WHERE id = ?1");
+  write.Bind(1, static_cast<int64_t>(id)).Bind(2, stats.dump());
+  write.Run();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// JobStore
+
+int64_t JobStore::SystemNowMs() {
+  using namespace std::chrono;
+  return duration_cast<milliseconds>(system_clock::now().time_since_epoch()).count();
+}
+
+JobStore::JobStore(const std::filesystem::path& file, ClockMs nowMs)
+    : db_(std::make_unique<sqlite::Database>(file)), nowMs_(std::move(nowMs)) {
+  ConfigureConnection(*db_);
+  MigrateForward(*db_);
+}
+
+JobStore::~JobStore() = default;
+
+uint64_t JobStore::Submit(const JobSpec& spec) {
+  ValidateSpec(spec);
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  Statement insert(*db_,
+                   "INSERT INTO jobs (name, scene_hash, first_frame, last_frame, strategy, "
+                   "bin_width, tolerance, priority, options, state, submitted_ms) "
+                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued', ?10)");
+  insert.Bind(1, spec.name).Bind(2, spec.sceneHash);
+  insert.Bind(3, int64_t{spec.firstFrame}).Bind(4, int64_t{spec.lastFrame});
+  insert.Bind(5, spec.strategy).Bind(6, int64_t{spec.binWidth}).Bind(7, spec.tolerance);
+  insert.Bind(8, int64_t{spec.priority}).Bind(9, spec.options.dump()).Bind(10, nowMs_());
+  insert.Run();
+  const int64_t id = db_->LastInsertRowId();
+  Statement scene(*db_, "INSERT INTO job_scenes (job_id, scene_json) VALUES (?1, ?2)");
+  scene.Bind(1, id).Bind(2, spec.sceneJson);
+  scene.Run();
+  transaction.Commit();
+  return static_cast<uint64_t>(id);
+}
+
+std::optional<JobRecord> JobStore::Get(uint64_t id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  // The row, scene and frames as one snapshot, even while another process writes.
+  Transaction snapshot(*db_, Transaction::Mode::kRead);
+  std::optional<JobRecord> record = LoadFullRecord(*db_, id);
+  snapshot.Commit();
+  return record;
+}
+
+std::vector<JobRecord> JobStore::List(std::optional<JobState> state, int limit) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  // ?1 NULL matches every state; SQLite reads a negative LIMIT as no limit.
+  Statement statement(*db_, kSelectJobColumns +
+                                "WHERE ?1 IS NULL OR state = ?1 ORDER BY id DESC LIMIT ?2");
+  if (state) statement.Bind(1, ToString(*state));
+  statement.Bind(2, int64_t{limit > 0 ? limit : -1});
+  std::vector<JobRecord> records;
+  while (statement.Step()) records.push_back(ReadRecord(statement));
+  return records;
+}
+
+size_t JobStore::CountInState(JobState state) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT COUNT(*) FROM jobs WHERE state = ?1");
+  statement.Bind(1, ToString(state));
+  statement.Step();
+  return static_cast<size_t>(statement.Int64(0));
+}
+
+std::optional<JobRecord> JobStore::ClaimNext() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  Statement next(*db_, "SELECT id FROM jobs WHERE state = 'queued' "
+                       "ORDER BY priority DESC, id LIMIT 1");
+  if (!next.Step()) return std::nullopt;
+  const uint64_t id = next.UInt64(0);
+  Transition(*db_, id,
+             "UPDATE jobs SET state = 'running', started_ms = ?2 "
+             "WHERE id = ?1 AND state = 'queued'",
+             nowMs_());
+  std::optional<JobRecord> record = LoadFullRecord(*db_, id);
+  transaction.Commit();
+  return record;
+}
+
+bool JobStore::Cancel(uint64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return Transition(*db_, id,
+                    "UPDATE jobs SET state = 'canceled', finished_ms = ?2 "
+                    "WHERE id = ?1 AND state IN ('queued', 'running')",
+                    nowMs_());
+}
+
+bool JobStore::RecordFrame(uint64_t id, int frame, uint64_t tracedPixels,
+                           uint64_t copiedPixels) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  std::optional<JobRecord> record = LoadRecordRow(*db_, id);
+  if (!record || record->state != JobState::kRunning) return false;
+  if (frame < record->spec.firstFrame || frame > record->spec.lastFrame) {
+    throw std::out_of_range("job " + std::to_string(id) + ": frame " + std::to_string(frame) +
+                            " outside [" + std::to_string(record->spec.firstFrame) + ", " +
+                            std::to_string(record->spec.lastFrame) + "]");
+  }
+  Statement insert(*db_, "INSERT OR IGNORE INTO job_frames (job_id, frame, traced, copied) "
+                         "VALUES (?1, ?2, ?3, ?4)");
+  insert.Bind(1, static_cast<int64_t>(id)).Bind(2, int64_t{frame});
+  insert.Bind(3, static_cast<int64_t>(tracedPixels)).Bind(4, static_cast<int64_t>(copiedPixels));
+  insert.Run();
+  if (db_->Changes() == 0) return false;  // this frame was already counted
+  Statement update(*db_, "UPDATE jobs SET frames_done = frames_done + 1, "
+                         "traced_pixels = traced_pixels + ?2, copied_pixels = copied_pixels + ?3 "
+                         "WHERE id = ?1");
+  update.Bind(1, static_cast<int64_t>(id)).Bind(2, static_cast<int64_t>(tracedPixels));
+  update.Bind(3, static_cast<int64_t>(copiedPixels));
+  update.Run();
+  transaction.Commit();
+  return true;
+}
+
+bool JobStore::Complete(uint64_t id, const nlohmann::json& stats) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  const bool completed = Transition(*db_, id,
+                                    "UPDATE jobs SET state = 'completed', finished_ms = ?2 "
+                                    "WHERE id = ?1 AND state = 'running'",
+                                    nowMs_());
+  if (!completed) return false;
+  MergeStats(*db_, id, stats);
+  transaction.Commit();
+  return true;
+}
+
+bool JobStore::Fail(uint64_t id, const std::string& error) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "UPDATE jobs SET state = 'failed', finished_ms = ?2, error = ?3 "
+                            "WHERE id = ?1 AND state IN ('queued', 'running')");
+  statement.Bind(1, static_cast<int64_t>(id)).Bind(2, nowMs_()).Bind(3, error);
+  statement.Run();
+  return db_->Changes() == 1;
+}
+
+bool JobStore::SetStats(uint64_t id, const nlohmann::json& stats) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  if (ReadState(*db_, id) != JobState::kRunning) return false;
+  MergeStats(*db_, id, stats);
+  transaction.Commit();
+  return true;
+}
+
+std::vector<uint64_t> JobStore::RequeueInterrupted() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  std::vector<uint64_t> ids;
+  Statement running(*db_, "SELECT id FROM jobs WHERE state = 'running' ORDER BY id");
+  while (running.Step()) ids.push_back(running.UInt64(0));
+  for (uint64_t id : ids) {
+    Statement frames(*db_, "DELETE FROM job_frames WHERE job_id = ?1");
+    frames.Bind(1, static_cast<int64_t>(id));
+    frames.Run();
+  }
+  db_->Exec("UPDATE jobs SET state = 'queued', started_ms = 0, frames_done = 0, "
+            "traced_pixels = 0, copied_pixels = 0, stats = '{}' WHERE state = 'running'");
+  transaction.Commit();
+  return ids;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,490 @@
+#include "jobs/job_store.h"
+
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <algorithm>
+#include <atomic>
+#include <fstream>
+#include <random>
+#include <set>
+#include <thread>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace tcfarm {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A fresh folder per test, removed afterwards, so tests never see each other's files.
+class JobStoreTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device random;
+    folder_ = fs::temp_directory_path() /
+              ("tcfarm_job_store_" + std::to_string(random()) + "_" +
+               ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(folder_);
+    file_ = folder_ / "jobs.sqlite";
+  }
+  void TearDown() override { fs::remove_all(folder_); }
+
+  std::unique_ptr<JobStore> Open() {
+    return std::make_unique<JobStore>(file_, [this] { return nowMs_.load(); });
+  }
+
+  static JobSpec Spec(int priority = 0, const std::string& name = "") {
+    JobSpec spec;
+    spec.name = name;
+    spec.sceneJson = R"({"camera":{}})";
+    spec.sceneHash = "ab12";
+    spec.firstFrame = 1;
+    spec.lastFrame = 10;
+    spec.priority = priority;
+    return spec;
+  }
+
+  fs::path folder_;
+  fs::path file_;
+  std::atomic<int64_t> nowMs_{1'000};
+};
+
+// Runs one SQL statement on the file through a separate, raw connection.
+void RawExec(const fs::path& file, const char* sql) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(file.string().c_str(), &db), SQLITE_OK);
+  EXPECT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+  sqlite3_close(db);
+}
+
+TEST(JobStateTest, NamesRoundTrip) {
+  for (JobState state : {JobState::kQueued, JobState::kRunning, JobState::kCompleted,
+                         JobState::kFailed, JobState::kCanceled}) {
+    EXPECT_EQ(JobStateFromString(ToString(state)), state);
+  }
+  EXPECT_EQ(ToString(JobState::kCanceled), "canceled");
+  EXPECT_FALSE(JobStateFromString("cancelled").has_value());
+  EXPECT_FALSE(JobStateFromString("").has_value());
+}
+
+TEST(JobRecordTest, TracedPixelRatioOverFinishedFrames) {
+  JobRecord record;
+  EXPECT_EQ(record.TracedPixelRatio(100), 0.0);
+  record.framesDone = 4;
+  record.tracedPixels = 100;
+  EXPECT_DOUBLE_EQ(record.TracedPixelRatio(100), 0.25);
+  EXPECT_EQ(record.TracedPixelRatio(0), 0.0);
+}
+
+TEST_F(JobStoreTest, SubmitGetRoundTripsEveryField) {
+  auto store = Open();
+  JobSpec spec;
+  spec.name = "orbit 'quoted'; DROP TABLE jobs; --";
+  spec.sceneJson = R"({"camera":{"fov":45},"text":"ünïcode"})";
+  spec.sceneHash = std::string(64, 'f');
+  spec.firstFrame = -3;
+  spec.lastFrame = 7;
+  spec.strategy = "brute";
+  spec.binWidth = 4;
+  spec.tolerance = 0.125;
+  spec.priority = -2;
+  spec.options = {{"verify", {{"frames", "sampled"}, {"every", 5}}}};
+  nowMs_ = 42;
+  const uint64_t id = store->Submit(spec);
+
+  const std::optional<JobRecord> record = store->Get(id);
+  ASSERT_TRUE(record.has_value());
+  EXPECT_EQ(record->id, id);
+  EXPECT_EQ(record->spec.name, spec.name);
+  EXPECT_EQ(record->spec.sceneJson, spec.sceneJson);
+  EXPECT_EQ(record->spec.sceneHash, spec.sceneHash);
+  EXPECT_EQ(record->spec.firstFrame, -3);
+  EXPECT_EQ(record->spec.lastFrame, 7);
+  EXPECT_EQ(record->spec.strategy, "brute");
+  EXPECT_EQ(record->spec.binWidth, 4);
+  EXPECT_EQ(record->spec.tolerance, 0.125);
+  EXPECT_EQ(record->spec.priority, -2);
+  EXPECT_EQ(record->spec.options, spec.options);
+  EXPECT_EQ(record->state, JobState::kQueued);
+  EXPECT_EQ(record->error, "");
+  EXPECT_EQ(record->submittedMs, 42);
+  EXPECT_EQ(record->startedMs, 0);
+  EXPECT_EQ(record->finishedMs, 0);
+  EXPECT_EQ(record->framesDone, 0);
+  EXPECT_EQ(record->tracedPixels, 0u);
+  EXPECT_EQ(record->copiedPixels, 0u);
+  EXPECT_EQ(record->FrameCount(), 11);
+  EXPECT_EQ(record->tracedPerFrame, std::vector<int64_t>(11, -1));
+  EXPECT_EQ(record->stats, nlohmann::json::object());
+  EXPECT_EQ(store->CountInState(JobState::kQueued), 1u);
+}
+
+TEST_F(JobStoreTest, GetUnknownIsEmpty) {
+  auto store = Open();
+  EXPECT_FALSE(store->Get(12345).has_value());
+}
+
+TEST_F(JobStoreTest, SubmitRejectsBadSpec) {
+  auto store = Open();
+  JobSpec backwards = Spec();
+  backwards.lastFrame = 0;
+  EXPECT_THROW(store->Submit(backwards), std::invalid_argument);
+  JobSpec noBins = Spec();
+  noBins.binWidth = 0;
+  EXPECT_THROW(store->Submit(noBins), std::invalid_argument);
+  JobSpec nanTolerance = Spec();
+  nanTolerance.tolerance = std::nan("");
+  EXPECT_THROW(store->Submit(nanTolerance), std::invalid_argument);
+  EXPECT_EQ(store->List().size(), 0u);
+}
+
+TEST_F(JobStoreTest, ListIsNewestFirstFilteredLimitedAndLight) {
+  auto store = Open();
+  const uint64_t first = store->Submit(Spec(0, "a"));
+  const uint64_t second = store->Submit(Spec(0, "b"));
+  const uint64_t third = store->Submit(Spec(0, "c"));
+  ASSERT_TRUE(store->ClaimNext().has_value());  // claims `first`
+
+  const std::vector<JobRecord> all = store->List();
+  ASSERT_EQ(all.size(), 3u);
+  EXPECT_EQ(all[0].id, third);
+  EXPECT_EQ(all[1].id, second);
+  EXPECT_EQ(all[2].id, first);
+  for (const JobRecord& record : all) {
+    EXPECT_TRUE(record.spec.sceneJson.empty());
+    EXPECT_TRUE(record.tracedPerFrame.empty());
+    EXPECT_EQ(record.spec.sceneHash, "ab12");
+  }
+  const std::vector<JobRecord> queued = store->List(JobState::kQueued);
+  ASSERT_EQ(queued.size(), 2u);
+  EXPECT_EQ(queued[0].id, third);
+  EXPECT_EQ(store->List(JobState::kRunning).at(0).id, first);
+  EXPECT_EQ(store->List(std::nullopt, 1).size(), 1u);
+  EXPECT_EQ(store->List(std::nullopt, 0).size(), 3u);  // no limit
+  EXPECT_TRUE(store->List(JobState::kFailed).empty());
+}
+
+TEST_F(JobStoreTest, ClaimNextTakesHighestPriorityThenOldest) {
+  auto store = Open();
+  const uint64_t lowOld = store->Submit(Spec(0));
+  const uint64_t highOld = store->Submit(Spec(5));
+  const uint64_t lowNew = store->Submit(Spec(0));
+  const uint64_t highNew = store->Submit(Spec(5));
+  const uint64_t negative = store->Submit(Spec(-1));
+
+  nowMs_ = 7'000;
+  const std::optional<JobRecord> claimed = store->ClaimNext();
+  ASSERT_TRUE(claimed.has_value());
+  EXPECT_EQ(claimed->id, highOld);
+  EXPECT_EQ(claimed->state, JobState::kRunning);
+  EXPECT_EQ(claimed->startedMs, 7'000);
+  EXPECT_EQ(claimed->spec.sceneJson, Spec().sceneJson);  // the worker-facing side needs it
+
+  std::vector<uint64_t> order;
+  while (std::optional<JobRecord> next = store->ClaimNext()) order.push_back(next->id);
+  EXPECT_EQ(order, (std::vector<uint64_t>{highNew, lowOld, lowNew, negative}));
+  EXPECT_EQ(store->CountInState(JobState::kRunning), 5u);
+}
+
+TEST_F(JobStoreTest, ClaimNextOnEmptyQueueIsEmpty) {
+  auto store = Open();
+  EXPECT_FALSE(store->ClaimNext().has_value());
+  const uint64_t id = store->Submit(Spec());
+  store->Cancel(id);
+  EXPECT_FALSE(store->ClaimNext().has_value());  // only final jobs left
+}
+
+// Claims from several threads (and, to exercise the file lock too, two stores on the same
+// file): every job is claimed exactly once.
+TEST_F(JobStoreTest, ConcurrentClaimNeverClaimsAJobTwice) {
+  auto storeA = Open();
+  auto storeB = Open();
+  constexpr int kJobs = 100;
+  std::set<uint64_t> submitted;
+  for (int i = 0; i < kJobs; ++i) submitted.insert(storeA->Submit(Spec(i % 3)));
+
+  constexpr int kThreads = 4;
+  std::vector<std::vector<uint64_t>> claimedBy(kThreads);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    JobStore& store = t % 2 == 0 ? *storeA : *storeB;
+    threads.emplace_back([&store, &claimed = claimedBy[t]] {
+      while (std::optional<JobRecord> job = store.ClaimNext()) claimed.push_back(job->id);
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+
+  std::multiset<uint64_t> claimed;
+  for (const auto& ids : claimedBy) claimed.insert(ids.begin(), ids.end());
+  EXPECT_EQ(claimed.size(), static_cast<size_t>(kJobs));
+  EXPECT_EQ(std::set<uint64_t>(claimed.begin(), claimed.end()), submitted);
+  EXPECT_EQ(storeA->CountInState(JobState::kRunning), static_cast<size_t>(kJobs));
+  EXPECT_EQ(storeB->CountInState(JobState::kQueued), 0u);
+}
+
+TEST_F(JobStoreTest, CancelQueuedAndRunningButNotFinishedOrUnknown) {
+  auto store = Open();
+  const uint64_t running = store->Submit(Spec(1));
+  const uint64_t queued = store->Submit(Spec(0));
+  const uint64_t completed = store->Submit(Spec(2));
+  ASSERT_EQ(store->ClaimNext()->id, completed);
+  ASSERT_TRUE(store->Complete(completed, {}));
+  ASSERT_EQ(store->ClaimNext()->id, running);
+
+  nowMs_ = 9'000;
+  EXPECT_TRUE(store->Cancel(queued));
+  EXPECT_TRUE(store->Cancel(running));
+  EXPECT_FALSE(store->Cancel(completed));
+  EXPECT_FALSE(store->Cancel(999));
+  EXPECT_FALSE(store->Cancel(queued));  // already canceled: final
+
+  EXPECT_EQ(store->Get(queued)->state, JobState::kCanceled);
+  EXPECT_EQ(store->Get(queued)->finishedMs, 9'000);
+  EXPECT_EQ(store->Get(running)->state, JobState::kCanceled);
+  EXPECT_EQ(store->Get(completed)->state, JobState::kCompleted);
+  EXPECT_EQ(store->CountInState(JobState::kCanceled), 2u);
+}
+
+TEST_F(JobStoreTest, LateResultsNeverResurrectACanceledJob) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec());
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  ASSERT_TRUE(store->RecordFrame(id, 1, 100, 0));
+  nowMs_ = 5'000;
+  ASSERT_TRUE(store->Cancel(id));
+  nowMs_ = 6'000;
+
+  EXPECT_FALSE(store->Complete(id, {{"coherence", 0.9}}));
+  EXPECT_FALSE(store->RecordFrame(id, 2, 100, 0));
+  EXPECT_FALSE(store->SetStats(id, {{"late", true}}));
+  EXPECT_FALSE(store->Fail(id, "worker lost"));
+
+  const JobRecord record = *store->Get(id);
+  EXPECT_EQ(record.state, JobState::kCanceled);
+  EXPECT_EQ(record.finishedMs, 5'000);
+  EXPECT_EQ(record.framesDone, 1);  // the partial progress stays visible
+  EXPECT_EQ(record.error, "");
+  EXPECT_EQ(record.stats, nlohmann::json::object());
+}
+
+TEST_F(JobStoreTest, CompleteOnlyFromRunningAndMergesStats) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec());
+  EXPECT_FALSE(store->Complete(id, {}));  // still queued
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  ASSERT_TRUE(store->SetStats(id, {{"coherence", 0.5}, {"timings", {{"traceS", 1.0}}}}));
+  ASSERT_TRUE(store->SetStats(id, {{"timings", {{"planS", 0.25}}}}));
+  nowMs_ = 8'000;
+  ASSERT_TRUE(store->Complete(id, {{"coherence", 0.75}, {"relativeCost", 0.2}}));
+  EXPECT_FALSE(store->Complete(id, {{"coherence", 0.0}}));  // final: stays as it was
+
+  const JobRecord record = *store->Get(id);
+  EXPECT_EQ(record.state, JobState::kCompleted);
+  EXPECT_EQ(record.finishedMs, 8'000);
+  const nlohmann::json expected = {{"coherence", 0.75},
+                                   {"relativeCost", 0.2},
+                                   {"timings", {{"traceS", 1.0}, {"planS", 0.25}}}};
+  EXPECT_EQ(record.stats, expected);
+  EXPECT_FALSE(store->SetStats(id, {{"x", 1}}));
+  EXPECT_FALSE(store->Fail(id, "too late"));
+}
+
+TEST_F(JobStoreTest, FailRecordsTheErrorFromQueuedOrRunning) {
+  auto store = Open();
+  const uint64_t running = store->Submit(Spec(1));
+  const uint64_t queued = store->Submit(Spec(0));
+  ASSERT_EQ(store->ClaimNext()->id, running);
+  nowMs_ = 3'000;
+  EXPECT_TRUE(store->Fail(running, "scene hash mismatch on worker w3"));
+  EXPECT_TRUE(store->Fail(queued, "scene rejected"));
+  EXPECT_FALSE(store->Fail(running, "again"));
+  EXPECT_FALSE(store->Fail(4242, "unknown"));
+
+  EXPECT_EQ(store->Get(running)->state, JobState::kFailed);
+  EXPECT_EQ(store->Get(running)->error, "scene hash mismatch on worker w3");
+  EXPECT_EQ(store->Get(running)->finishedMs, 3'000);
+  EXPECT_EQ(store->Get(queued)->error, "scene rejected");
+  EXPECT_FALSE(store->Cancel(running));
+  EXPECT_EQ(store->CountInState(JobState::kFailed), 2u);
+}
+
+TEST_F(JobStoreTest, RecordFrameUpdatesCountersAndPerFrameList) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec());  // frames 1..10
+  EXPECT_FALSE(store->RecordFrame(id, 1, 5, 5));  // queued: ignored
+  ASSERT_TRUE(store->ClaimNext().has_value());
+
+  EXPECT_TRUE(store->RecordFrame(id, 1, 1000, 0));
+  EXPECT_TRUE(store->RecordFrame(id, 10, 30, 970));
+  EXPECT_TRUE(store->RecordFrame(id, 4, 0, 1000));
+  EXPECT_FALSE(store->RecordFrame(id, 4, 0, 1000));  // duplicate result: counted once
+  EXPECT_THROW(store->RecordFrame(id, 11, 1, 1), std::out_of_range);
+  EXPECT_THROW(store->RecordFrame(id, 0, 1, 1), std::out_of_range);
+  EXPECT_FALSE(store->RecordFrame(777, 1, 1, 1));  // unknown job: ignored
+
+  const JobRecord record = *store->Get(id);
+  EXPECT_EQ(record.framesDone, 3);
+  EXPECT_EQ(record.tracedPixels, 1030u);
+  EXPECT_EQ(record.copiedPixels, 1970u);
+  const std::vector<int64_t> expected = {1000, -1, -1, 0, -1, -1, -1, -1, -1, 30};
+  EXPECT_EQ(record.tracedPerFrame, expected);
+  EXPECT_DOUBLE_EQ(record.TracedPixelRatio(1000), 1030.0 / 3000.0);
+  EXPECT_EQ(store->List().at(0).framesDone, 3);
+}
+
+TEST_F(JobStoreTest, LongJobStaysCheapToList) {
+  auto store = Open();
+  JobSpec spec = Spec();
+  spec.firstFrame = 0;
+  spec.lastFrame = 99'999;
+  const uint64_t id = store->Submit(spec);
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  for (int frame = 0; frame < 100'000; frame += 1000) store->RecordFrame(id, frame, 7, 3);
+
+  const JobRecord record = *store->Get(id);
+  ASSERT_EQ(record.tracedPerFrame.size(), 100'000u);
+  EXPECT_EQ(record.tracedPerFrame[1000], 7);
+  EXPECT_EQ(record.tracedPerFrame[1001], -1);
+  EXPECT_EQ(record.framesDone, 100);
+  EXPECT_TRUE(store->List().at(0).tracedPerFrame.empty());
+}
+
+TEST_F(JobStoreTest, EverythingPersistsAcrossReopen) {
+  uint64_t done = 0, failed = 0, queued = 0;
+  {
+    auto store = Open();
+    done = store->Submit(Spec(3, "done"));
+    failed = store->Submit(Spec(2, "failed"));
+    queued = store->Submit(Spec(1, "queued"));
+    store->ClaimNext();
+    store->RecordFrame(done, 2, 11, 22);
+    store->Complete(done, {{"coherence", 0.8}});
+    store->ClaimNext();
+    store->Fail(failed, "out of memory");
+  }
+  auto store = Open();
+  const JobRecord doneRecord = *store->Get(done);
+  EXPECT_EQ(doneRecord.state, JobState::kCompleted);
+  EXPECT_EQ(doneRecord.spec.name, "done");
+  EXPECT_EQ(doneRecord.spec.sceneJson, Spec().sceneJson);
+  EXPECT_EQ(doneRecord.tracedPixels, 11u);
+  EXPECT_EQ(doneRecord.copiedPixels, 22u);
+  EXPECT_EQ(doneRecord.tracedPerFrame[1], 11);
+  EXPECT_EQ(doneRecord.stats, (nlohmann::json{{"coherence", 0.8}}));
+  EXPECT_EQ(store->Get(failed)->error, "out of memory");
+  EXPECT_EQ(store->Get(queued)->state, JobState::kQueued);
+  EXPECT_TRUE(store->RequeueInterrupted().empty());  // nothing was running
+  // Ids keep growing after a reopen, so an old id never names a new job.
+  EXPECT_GT(store->Submit(Spec()), queued);
+}
+
+TEST_F(JobStoreTest, RequeueInterruptedAfterACrash) {
+  uint64_t interrupted = 0, waiting = 0, finished = 0;
+  {
+    auto store = Open();
+    finished = store->Submit(Spec(9));
+    interrupted = store->Submit(Spec(5));
+    waiting = store->Submit(Spec(0));
+    store->ClaimNext();
+    store->Complete(finished, {});
+    store->ClaimNext();
+    store->RecordFrame(interrupted, 3, 50, 50);
+    store->SetStats(interrupted, {{"coherence", 0.4}});
+  }  // the process "dies" with `interrupted` running
+
+  auto store = Open();
+  EXPECT_EQ(store->RequeueInterrupted(), std::vector<uint64_t>{interrupted});
+  const JobRecord record = *store->Get(interrupted);
+  EXPECT_EQ(record.state, JobState::kQueued);
+  EXPECT_EQ(record.startedMs, 0);
+  EXPECT_EQ(record.framesDone, 0);
+  EXPECT_EQ(record.tracedPixels, 0u);
+  EXPECT_EQ(record.copiedPixels, 0u);
+  EXPECT_EQ(record.tracedPerFrame, std::vector<int64_t>(10, -1));
+  EXPECT_EQ(record.stats, nlohmann::json::object());
+  EXPECT_EQ(store->Get(finished)->state, JobState::kCompleted);
+  EXPECT_EQ(store->Get(waiting)->state, JobState::kQueued);
+  EXPECT_TRUE(store->RequeueInterrupted().empty());
+  // Its priority still puts it ahead of the job that was waiting.
+  EXPECT_EQ(store->ClaimNext()->id, interrupted);
+  EXPECT_TRUE(store->RecordFrame(interrupted, 3, 50, 50));  // the frame counts again
+}
+
+// A real crash: a child process claims a job and dies without closing the database, so
+// the job's last commits are still in the WAL file when the next process opens it.
+TEST_F(JobStoreTest, RequeueInterruptedAfterTheProcessDies) {
+  const uint64_t id = Open()->Submit(Spec());
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    auto store = Open();
+    const bool claimed = store->ClaimNext().has_value() && store->RecordFrame(id, 2, 9, 1);
+    _exit(claimed ? 0 : 1);  // no destructors: the connection is never closed
+  }
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+
+  auto store = Open();
+  EXPECT_EQ(store->Get(id)->state, JobState::kRunning);
+  EXPECT_EQ(store->Get(id)->framesDone, 1);
+  EXPECT_EQ(store->RequeueInterrupted(), std::vector<uint64_t>{id});
+  EXPECT_EQ(store->Get(id)->state, JobState::kQueued);
+  EXPECT_EQ(store->Get(id)->framesDone, 0);
+}
+
+TEST_F(JobStoreTest, StatsStayAnObject) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec());
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  ASSERT_TRUE(store->SetStats(id, {{"coherence", 0.5}, {"drop", 1}}));
+  EXPECT_TRUE(store->SetStats(id, nullptr));                 // merges nothing
+  EXPECT_TRUE(store->SetStats(id, {{"drop", nullptr}}));     // RFC 7386: null removes a key
+  EXPECT_THROW(store->SetStats(id, nlohmann::json::array()), std::invalid_argument);
+  EXPECT_THROW(store->Complete(id, 3), std::invalid_argument);
+  EXPECT_EQ(store->Get(id)->state, JobState::kRunning);  // the refused Complete rolled back
+  EXPECT_EQ(store->Get(id)->stats, (nlohmann::json{{"coherence", 0.5}}));
+}
+
+void ExpectOpenFailsMentioning(const fs::path& file, const std::string& text) {
+  try {
+    JobStore store(file);
+    FAIL() << "opened " << file;
+  } catch (const JobStoreError& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find(file.string()), std::string::npos) << message;
+    EXPECT_NE(message.find(text), std::string::npos) << message;
+  }
+}
+
+TEST_F(JobStoreTest, NonSqliteFileIsRefusedNamingThePath) {
+  std::ofstream(file_) << "this is a render log, not a database\n" << std::string(4096, 'x');
+  ExpectOpenFailsMentioning(file_, "not a database");
+}
+
+TEST_F(JobStoreTest, UnopenablePathIsRefusedNamingThePath) {
+  ExpectOpenFailsMentioning(folder_ / "missing-folder" / "jobs.sqlite", "unable to open");
+}
+
+TEST_F(JobStoreTest, NewerSchemaIsRefused) {
+  Open()->Submit(Spec());
+  RawExec(file_, "PRAGMA user_version = 99");
+  ExpectOpenFailsMentioning(file_, "schema version 99 is newer");
+}
+
+TEST_F(JobStoreTest, NewFileGetsTheCurrentSchemaVersion) {
+  Open();
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(file_.string().c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* statement = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, "PRAGMA user_version", -1, &statement, nullptr), SQLITE_OK);
+  ASSERT_EQ(sqlite3_step(statement), SQLITE_ROW);
+  EXPECT_EQ(sqlite3_column_int(statement, 0), JobStore::kSchemaVersion);
+  sqlite3_finalize(statement);
+  sqlite3_close(db);
+}
+
+}  // namespace
+}  // namespace tcfarm
