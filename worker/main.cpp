@@ -1,19 +1,76 @@
 // tcfarm-worker: a stateless tracing process.
+//   tcfarm-worker serve [--coordinator tcp://HOST:5555] [--threads N] [--capacity K] [--name NAME]
 //   tcfarm-worker render SCENE --frames A:B --out DIR   brute-force reference render
+#include <atomic>
+#include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <exception>
 #include <string>
 #include <vector>
 
-#include "embree/device.h"
-#include "frame/frame_io.h"
+#include "daemon/worker_daemon.h"
 #include "render/render_command.h"
 #include "scene/scene.h"
 
 namespace {
 
 constexpr const char* kUsage =
-    "usage: tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N]\n";
+    "usage: tcfarm-worker serve [--coordinator tcp://HOST:PORT] [--threads N] [--capacity K] "
+    "[--name NAME]\n"
+    "       tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N]\n";
+
+std::atomic<bool> stopRequested{false};
+
+void RequestStop(int) { stopRequested = true; }
+
+unsigned ParseCount(const std::string& text, const std::string& flag, unsigned minimum) {
+  size_t used = 0;
+  long value = -1;
+  try {
+    value = std::stol(text, &used);
+  } catch (const std::exception&) {
+  }
+  if (used != text.size() || value < static_cast<long>(minimum) || value > 65536) {
+    throw std::invalid_argument(flag + " " + text + ": expected an integer from " +
+                                std::to_string(minimum) + " to 65536");
+  }
+  return static_cast<unsigned>(value);
+}
+
+tcfarm::WorkerOptions ParseServeArguments(const std::vector<std::string>& args) {
+  tcfarm::WorkerOptions options;
+  if (const char* env = std::getenv("TCFARM_COORDINATOR")) options.coordinator = env;
+  for (size_t i = 0; i < args.size(); ++i) {
+    auto value = [&]() -> const std::string& {
+      if (i + 1 >= args.size()) throw std::invalid_argument(args[i] + " needs a value");
+      return args[++i];
+    };
+    if (args[i] == "--coordinator") {
+      options.coordinator = value();
+    } else if (args[i] == "--threads") {
+      options.threads = ParseCount(value(), "--threads", 0);
+    } else if (args[i] == "--capacity") {
+      options.capacity = ParseCount(value(), "--capacity", 1);
+    } else if (args[i] == "--name") {
+      options.name = value();
+    } else {
+      throw std::invalid_argument("unexpected argument " + args[i]);
+    }
+  }
+  return options;
+}
+
+int RunServe(const std::vector<std::string>& args) {
+  tcfarm::WorkerOptions options = ParseServeArguments(args);
+  std::signal(SIGINT, RequestStop);
+  std::signal(SIGTERM, RequestStop);
+  tcfarm::SystemClock clock;
+  tcfarm::WorkerDaemon daemon(options, clock);
+  std::fprintf(stderr, "tcfarm-worker: serving %s\n", options.coordinator.c_str());
+  daemon.Run(stopRequested);
+  return 0;
+}
 
 }  // namespace
 
@@ -26,6 +83,7 @@ int main(int argc, char** argv) {
   const std::string command = args[0];
   args.erase(args.begin());
   try {
+    if (command == "serve") return RunServe(args);
     if (command == "render") return tcfarm::RunRender(tcfarm::ParseRenderArguments(args));
     std::fprintf(stderr, "tcfarm-worker: unknown command '%s'\n%s", command.c_str(), kUsage);
     return 2;

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include "frame/coherence.h"
+#include "frame/compare.h"
 #include "frame/frame_io.h"
 #include "frame/frame_writer.h"
 
@@ -106,6 +107,28 @@ TEST(CoherenceTest, CountsBitwiseEqualPixels) {
   EXPECT_DOUBLE_EQ(tracker.longTerm().min, 0.98);
   EXPECT_DOUBLE_EQ(tracker.longTerm().max, 1.0);
   EXPECT_NE(tracker.Summary().find("frame-to-frame mean 98.00%"), std::string::npos);
+}
+
+TEST(CompareTest, CountsDifferingPixelsAndTheirSize) {
+  Image reference = Gradient(4, 4), test = reference;
+  FrameError same = CompareImages(reference, test);
+  EXPECT_EQ(same.differingPixels, 0u);
+  EXPECT_TRUE(std::isinf(same.Psnr()));
+  test.rgb[3 * 5 + 1] += 0.25f;
+  test.rgb[3 * 9 + 0] = -0.0f;  // differs in bits only where the reference has +0
+  reference.rgb[3 * 9 + 0] = 0.0f;
+  FrameError error = CompareImages(reference, test);
+  EXPECT_EQ(error.pixels, 16u);
+  EXPECT_EQ(error.differingPixels, 2u);
+  EXPECT_NEAR(error.maxAbsError, 0.25, 1e-6);
+  EXPECT_DOUBLE_EQ(error.DifferingShare(), 2.0 / 16);
+  EXPECT_GT(error.Psnr(), 10);
+  FrameError total;
+  total += error;
+  total += same;
+  EXPECT_EQ(total.pixels, 32u);
+  EXPECT_EQ(total.differingPixels, 2u);
+  EXPECT_THROW(CompareImages(reference, Gradient(2, 2)), std::invalid_argument);
 }
 
 }  // namespace

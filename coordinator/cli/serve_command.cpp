@@ -1,0 +1,145 @@
+#include "cli/serve_command.h"
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <stdexcept>
+
+#include "farm/farm.h"
+#include "farm/local_workers.h"
+#include "http/api_server.h"
+#include "jobs/job_store.h"
+
+namespace tcfarm {
+namespace {
+
+constexpr const char* kUsage =
+    "usage: tcfarm-coordinator serve [--http HOST:PORT] [--zmq ENDPOINT] [--store DIR] "
+    "[--db FILE]\n"
+    "           [--local-workers N] [--worker-threads T] [--worker-binary PATH] "
+    "[--max-running-jobs K]\n"
+    "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
+    "--local-workers 0\n";
+
+struct ServeOptions {
+  std::string httpHost = "127.0.0.1";
+  int httpPort = 8080;
+  FarmOptions farm;
+  std::filesystem::path database;
+  unsigned localWorkers = 0;
+  unsigned workerThreads = 0;
+  std::string workerBinary;
+};
+
+std::atomic<bool> stopRequested{false};
+void RequestStop(int) { stopRequested = true; }
+
+int ParseInt(const std::string& text, const std::string& flag, int minimum, int maximum) {
+  size_t used = 0;
+  long value = minimum - 1L;
+  try {
+    value = std::stol(text, &used);
+  } catch (const std::exception&) {
+  }
+  if (used != text.size() || value < minimum || value > maximum) {
+    throw std::invalid_argument(flag + " " + text + ": expected an integer from " +
+                                std::to_string(minimum) + " to " + std::to_string(maximum));
+  }
+  return static_cast<int>(value);
+}
+
+void ParseHttpAddress(const std::string& text, ServeOptions* options) {
+  size_t colon = text.rfind(':');
+  if (colon == std::string::npos) throw std::invalid_argument("--http " + text + ": expected HOST:PORT");
+  options->httpHost = text.substr(0, colon);
+  options->httpPort = ParseInt(text.substr(colon + 1), "--http port", 0, 65535);
+}
+
+ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
+  ServeOptions options;
+  for (size_t i = 0; i < args.size(); ++i) {
+    auto value = [&]() -> const std::string& {
+      if (i + 1 >= args.size()) throw std::invalid_argument(args[i] + " needs a value");
+      return args[++i];
+    };
+    const std::string& flag = args[i];
+    if (flag == "--http") ParseHttpAddress(value(), &options);
+    else if (flag == "--zmq") options.farm.endpoint = value();
+    else if (flag == "--store") options.farm.storeRoot = value();
+    else if (flag == "--db") options.database = value();
+    else if (flag == "--local-workers") options.localWorkers = ParseInt(value(), flag, 0, 256);
+    else if (flag == "--worker-threads") options.workerThreads = ParseInt(value(), flag, 0, 4096);
+    else if (flag == "--worker-binary") options.workerBinary = value();
+    else if (flag == "--max-running-jobs") options.farm.maxRunningJobs = ParseInt(value(), flag, 1, 1024);
+    else throw std::invalid_argument("unexpected argument " + flag);
+  }
+  if (options.database.empty()) options.database = options.farm.storeRoot / "jobs.db";
+  return options;
+}
+
+// Where local workers connect: a wildcard bind is reached through loopback.
+std::string LoopbackEndpoint(std::string bound) {
+  for (const char* any : {"0.0.0.0", "[::]", "*"}) {
+    size_t at = bound.find(any);
+    if (at != std::string::npos) bound.replace(at, std::string(any).size(), "127.0.0.1");
+  }
+  return bound;
+}
+
+}  // namespace
+
+int RunServe(const std::vector<std::string>& args) {
+  ServeOptions options;
+  try {
+    options = ParseServeOptions(args);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "tcfarm-coordinator serve: %s\n%s", e.what(), kUsage);
+    return 2;
+  }
+  std::signal(SIGINT, RequestStop);
+  std::signal(SIGTERM, RequestStop);
+  std::signal(SIGPIPE, SIG_IGN);
+
+  std::filesystem::create_directories(options.farm.storeRoot);
+  if (options.database.has_parent_path()) {
+    std::filesystem::create_directories(options.database.parent_path());
+  }
+  JobStore store(options.database);
+  SystemClock clock;
+  Farm farm(store, options.farm, clock);
+
+  ApiOptions api;
+  api.host = options.httpHost;
+  api.port = options.httpPort;
+  api.storeRoot = options.farm.storeRoot;
+  ApiServer server(store, farm, farm.metrics().registry, api);
+  int port = server.Start();
+
+  std::string workerEndpoint = LoopbackEndpoint(farm.BoundEndpoint());
+  LocalWorkers localWorkers(options.workerBinary.empty() ? FindWorkerBinary() : options.workerBinary,
+                            workerEndpoint, options.workerThreads);
+  localWorkers.Start(options.localWorkers);
+
+  std::printf("tcfarm-coordinator: listening http=http://%s:%d zmq=%s workers=%u store=%s\n",
+              options.httpHost.c_str(), port, workerEndpoint.c_str(), options.localWorkers,
+              options.farm.storeRoot.c_str());
+  std::fflush(stdout);
+
+  // Step the farm; look after the local workers a few times a second.
+  auto lastCheck = clock.Now();
+  while (!stopRequested) {
+    farm.Step(Milliseconds(50));
+    if (clock.Now() - lastCheck > Milliseconds(250)) {
+      localWorkers.RestartExited();
+      lastCheck = clock.Now();
+    }
+  }
+  std::fprintf(stderr, "tcfarm-coordinator: stopping\n");
+  server.Stop();
+  localWorkers.Stop();
+  return 0;
+}
+
+}  // namespace tcfarm

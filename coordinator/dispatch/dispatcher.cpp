@@ -1,0 +1,259 @@
+#include "dispatch/dispatcher.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "wire/zmq_io.h"
+
+namespace tcfarm {
+namespace {
+
+// Messages handled per Poll before the farm loop gets to run: keeps result handling
+// from starving task dispatch under a flood.
+constexpr int kMaxMessagesPerPoll = 4096;
+// A job of priority p gets (1 + p) shares of the workers; negative priorities get one.
+double WeightOf(int priority) { return 1.0 + std::max(0, priority); }
+
+}  // namespace
+
+Dispatcher::Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy)
+    : clock_(clock),
+      policy_(policy),
+      socket_(context_, zmq::socket_type::router),
+      registry_(policy),
+      lastHeartbeat_(clock.Now()) {
+  socket_.set(zmq::sockopt::linger, 0);
+  // Sending to a peer that is gone fails instead of silently vanishing, so the credit
+  // it would have held is never taken.
+  socket_.set(zmq::sockopt::router_mandatory, 1);
+  socket_.bind(endpoint);
+}
+
+Dispatcher::~Dispatcher() = default;
+
+std::string Dispatcher::BoundEndpoint() const {
+  return socket_.get(zmq::sockopt::last_endpoint);
+}
+
+void Dispatcher::AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
+                        const std::string& sceneHash, const std::string& sceneJson) {
+  JobQueue queue;
+  queue.priority = priority;
+  queue.weight = WeightOf(priority);
+  queue.width = width;
+  queue.height = height;
+  queue.sceneHash = sceneHash;
+  // A new job starts level with the others instead of owing them its whole history.
+  for (const auto& [id, other] : jobs_) queue.pass = std::max(queue.pass, other.pass);
+  jobs_[jobId] = std::move(queue);
+  scenes_[sceneHash] = sceneJson;
+}
+
+void Dispatcher::RemoveJob(uint64_t jobId) {
+  auto job = jobs_.find(jobId);
+  if (job == jobs_.end()) return;
+  std::string hash = job->second.sceneHash;
+  jobs_.erase(job);
+  for (auto it = tasks_.begin(); it != tasks_.end();) {
+    if (it->second.task.jobId != jobId) {
+      ++it;
+      continue;
+    }
+    if (it->second.pending) --pendingCount_;
+    registry_.Forget(it->first);
+    it = tasks_.erase(it);
+  }
+  bool sceneStillUsed = std::any_of(jobs_.begin(), jobs_.end(),
+                                    [&](const auto& j) { return j.second.sceneHash == hash; });
+  if (!sceneStillUsed) scenes_.erase(hash);
+}
+
+void Dispatcher::Enqueue(DispatchTask task) {
+  auto job = jobs_.find(task.jobId);
+  if (job == jobs_.end()) return;
+  uint64_t id = nextTaskId_++;
+  job->second.pending.push_back(id);
+  tasks_.emplace(id, TaskEntry{std::move(task), true, SteadyTime{}});
+  ++pendingCount_;
+}
+
+size_t Dispatcher::PendingTasks() const { return pendingCount_; }
+
+void Dispatcher::Poll(Milliseconds timeout, DispatchSink& sink) {
+  zmq::pollitem_t item{static_cast<void*>(socket_), 0, ZMQ_POLLIN, 0};
+  zmq::poll(&item, 1, timeout);
+  ReceiveAll(sink);
+  SteadyTime now = clock_.Now();
+  std::vector<std::string> lost;
+  Requeue(registry_.ExpireSilent(now, &lost));
+  for (const std::string& name : lost) {
+    ++counters_.workersLost;
+    std::fprintf(stderr, "coordinator: worker %s went silent; its tasks are requeued\n",
+                 name.c_str());
+  }
+  SendHeartbeats(now);
+  DispatchPending();
+}
+
+void Dispatcher::ReceiveAll(DispatchSink& sink) {
+  for (int i = 0; i < kMaxMessagesPerPoll; ++i) {
+    auto parts = wire::ReceiveParts(socket_);
+    if (!parts) return;
+    if (parts->size() < 2) {
+      ++counters_.malformed;
+      continue;
+    }
+    std::string identity = std::move(parts->front());
+    parts->erase(parts->begin());
+    try {
+      Handle(identity, wire::Decode(*parts), sink);
+    } catch (const wire::WireError& e) {
+      if (counters_.malformed++ < 10) {
+        std::fprintf(stderr, "coordinator: dropped a malformed message: %s\n", e.what());
+      }
+    }
+  }
+}
+
+void Dispatcher::Handle(const std::string& identity, wire::Message message,
+                        DispatchSink& sink) {
+  SteadyTime now = clock_.Now();
+  if (auto* ready = std::get_if<wire::Ready>(&message)) {
+    Requeue(registry_.OnReady(identity, *ready, now));
+    return;
+  }
+  if (!registry_.OnHeard(identity, now)) {
+    // A worker we expired (or never met): ask it to reconnect and say READY again.
+    ++counters_.unexpected;
+    Send(identity, wire::Disconnect{});
+    if (auto* result = std::get_if<wire::Result>(&message)) OnResult(identity, std::move(*result), sink);
+    return;
+  }
+  if (auto* result = std::get_if<wire::Result>(&message)) {
+    OnResult(identity, std::move(*result), sink);
+  } else if (auto* get = std::get_if<wire::SceneGet>(&message)) {
+    auto scene = scenes_.find(get->sceneHash);
+    if (scene != scenes_.end()) {
+      Send(identity, wire::SceneData{get->sceneHash, scene->second});
+      ++counters_.scenesSent;
+    } else {
+      Send(identity, wire::Error{0, get->sceneHash, "no job uses this scene any more"});
+    }
+  } else if (auto* error = std::get_if<wire::Error>(&message)) {
+    OnError(identity, *error, sink);
+  } else if (std::holds_alternative<wire::Disconnect>(message)) {
+    Requeue(registry_.Remove(identity));
+  } else if (!std::holds_alternative<wire::Heartbeat>(message)) {
+    ++counters_.unexpected;  // TASK or SCENE from a worker: not its role
+  }
+}
+
+void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
+                          DispatchSink& sink) {
+  registry_.Release(identity, result.taskId);
+  auto entry = tasks_.find(result.taskId);
+  if (entry == tasks_.end()) {
+    ++counters_.duplicateResults;  // traced twice after a requeue, or its job is gone
+    return;
+  }
+  const DispatchTask& task = entry->second.task;
+  if (result.jobId != task.jobId || result.frame != task.frame ||
+      result.PixelCount() != task.pixels.size()) {
+    ++counters_.unexpected;
+    return;  // stays outstanding; a correct answer or a requeue will settle it
+  }
+  if (entry->second.pending) {  // requeued, but the first worker answered after all
+    --pendingCount_;
+    auto& pending = jobs_[task.jobId].pending;
+    pending.erase(std::remove(pending.begin(), pending.end(), result.taskId), pending.end());
+  }
+  if (WorkerState* worker = registry_.Find(identity)) {
+    ++worker->tasksDone;
+    worker->pixelsDone += result.PixelCount();
+    worker->traceSeconds += result.traceSeconds;
+  }
+  ++counters_.resultsReceived;
+  counters_.pixelsReceived += result.PixelCount();
+  uint64_t jobId = task.jobId, plannerTaskId = task.plannerTaskId;
+  double latency = std::chrono::duration<double>(clock_.Now() - entry->second.sentAt).count();
+  tasks_.erase(entry);
+  sink.OnResult(jobId, plannerTaskId, std::move(result), latency);
+}
+
+void Dispatcher::OnError(const std::string& identity, const wire::Error& error,
+                         DispatchSink& sink) {
+  if (error.taskId == 0) return;
+  registry_.Release(identity, error.taskId);
+  auto entry = tasks_.find(error.taskId);
+  if (entry == tasks_.end()) return;
+  if (entry->second.pending) return;  // requeued meanwhile; another worker will try it
+  uint64_t jobId = entry->second.task.jobId, plannerTaskId = entry->second.task.plannerTaskId;
+  tasks_.erase(entry);
+  sink.OnTaskFailed(jobId, plannerTaskId, error.message);
+}
+
+void Dispatcher::Requeue(const std::vector<uint64_t>& taskIds) {
+  for (uint64_t id : taskIds) {
+    auto entry = tasks_.find(id);
+    if (entry == tasks_.end() || entry->second.pending) continue;
+    auto job = jobs_.find(entry->second.task.jobId);
+    if (job == jobs_.end()) continue;
+    entry->second.pending = true;
+    ++pendingCount_;
+    job->second.pending.push_front(id);  // it waited long enough already
+    ++counters_.requeued;
+  }
+}
+
+void Dispatcher::SendHeartbeats(SteadyTime now) {
+  if (now - lastHeartbeat_ < policy_.interval) return;
+  lastHeartbeat_ = now;
+  for (const auto& [identity, worker] : registry_.workers()) Send(identity, wire::Heartbeat{});
+}
+
+Dispatcher::JobQueue* Dispatcher::NextJob() {
+  JobQueue* next = nullptr;
+  for (auto& [id, job] : jobs_) {
+    if (!job.pending.empty() && (!next || job.pass < next->pass)) next = &job;
+  }
+  return next;
+}
+
+void Dispatcher::DispatchPending() {
+  while (pendingCount_ > 0) {
+    WorkerState* worker = registry_.MostAvailable();
+    JobQueue* job = NextJob();
+    if (!worker || !job) return;
+    uint64_t id = job->pending.front();
+    job->pending.pop_front();
+    job->pass += 1.0 / job->weight;
+    TaskEntry& entry = tasks_.at(id);
+    entry.pending = false;
+    entry.sentAt = clock_.Now();
+    --pendingCount_;
+    const DispatchTask& t = entry.task;
+    wire::Task message{id, t.jobId, job->sceneHash, t.frame, job->width, job->height, t.pixels,
+                       t.window};
+    registry_.Assign(worker->identity, id);
+    ++counters_.tasksSent;
+    if (!Send(worker->identity, message)) {
+      // Gone between its last message and now: take the task back; expiry removes it.
+      Requeue(registry_.Remove(worker->identity));
+    }
+  }
+}
+
+bool Dispatcher::Send(const std::string& identity, const wire::Message& message) {
+  try {
+    return wire::SendMessageTo(socket_, identity, message);
+  } catch (const zmq::error_t&) {
+    return false;  // router_mandatory: the peer is gone
+  }
+}
+
+void Dispatcher::SayGoodbye() {
+  for (const auto& [identity, worker] : registry_.workers()) Send(identity, wire::Disconnect{});
+}
+
+}  // namespace tcfarm

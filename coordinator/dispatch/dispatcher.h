@@ -1,0 +1,125 @@
+// The coordinator's end of the wire: a ROUTER socket, the worker registry, and the
+// queue of tasks waiting for a worker.
+//
+// Flow control is by credit: a worker gets at most `capacity` tasks in flight, and each
+// RESULT or ERROR returns one. Jobs share the workers by stride scheduling weighted by
+// priority, so a long job cannot starve a short one. A worker that dies or goes silent
+// has its tasks requeued: no pixel is lost. Every inbound message is decoded and
+// validated; anything malformed is dropped and counted.
+//
+// Not thread-safe: one thread (the farm loop) owns the dispatcher and its socket.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <string>
+#include <unordered_map>
+
+#include <zmq.hpp>
+
+#include "dispatch/worker_registry.h"
+#include "pixel_set/pixel_set.h"
+#include "wire/liveness.h"
+#include "wire/wire.h"
+
+namespace tcfarm {
+
+struct DispatchTask {
+  uint64_t jobId = 0;
+  uint64_t plannerTaskId = 0;
+  int frame = 0;  // absolute frame number (the scene's)
+  PixelSet pixels;
+  int window = 0;
+};
+
+// Where the dispatcher delivers what workers send back.
+class DispatchSink {
+ public:
+  virtual ~DispatchSink() = default;
+  // latencySeconds: from sending the task to receiving its result.
+  virtual void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
+                        double latencySeconds) = 0;
+  virtual void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) = 0;
+};
+
+struct DispatcherCounters {
+  uint64_t malformed = 0;         // undecodable or invalid messages dropped
+  uint64_t unexpected = 0;        // valid messages that made no sense (unknown worker, wrong sizes)
+  uint64_t duplicateResults = 0;  // results of tasks no longer outstanding (ignored)
+  uint64_t tasksSent = 0;
+  uint64_t resultsReceived = 0;
+  uint64_t pixelsReceived = 0;
+  uint64_t requeued = 0;
+  uint64_t workersLost = 0;
+  uint64_t scenesSent = 0;
+};
+
+class Dispatcher {
+ public:
+  // Binds a ROUTER socket at `endpoint` ("tcp://*:5555", "tcp://127.0.0.1:0" for any port,
+  // "ipc:///path"). Throws zmq::error_t if the address cannot be bound.
+  Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy = {});
+  ~Dispatcher();
+
+  std::string BoundEndpoint() const;
+
+  void AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
+              const std::string& sceneHash, const std::string& sceneJson);
+  // Drops the job's pending tasks and forgets its in-flight ones; late results are ignored.
+  void RemoveJob(uint64_t jobId);
+  void Enqueue(DispatchTask task);
+
+  // One round: waits up to `timeout` for messages, handles all that arrived, expires
+  // silent workers, sends heartbeats, hands pending tasks to workers with credit.
+  void Poll(Milliseconds timeout, DispatchSink& sink);
+  // Tells every worker the coordinator is leaving.
+  void SayGoodbye();
+
+  size_t PendingTasks() const;
+  size_t InFlightTasks() const { return tasks_.size() - PendingTasks(); }
+  const WorkerRegistry& registry() const { return registry_; }
+  const DispatcherCounters& counters() const { return counters_; }
+
+ private:
+  struct TaskEntry {
+    DispatchTask task;
+    bool pending = true;
+    SteadyTime sentAt;
+  };
+  struct JobQueue {
+    int priority = 0;
+    double weight = 1;
+    double pass = 0;  // stride scheduling: the job with the lowest pass goes next
+    uint32_t width = 0, height = 0;
+    std::string sceneHash;
+    std::deque<uint64_t> pending;
+  };
+
+  void ReceiveAll(DispatchSink& sink);
+  void Handle(const std::string& identity, wire::Message message, DispatchSink& sink);
+  void OnResult(const std::string& identity, wire::Result&& result, DispatchSink& sink);
+  void OnError(const std::string& identity, const wire::Error& error, DispatchSink& sink);
+  void Requeue(const std::vector<uint64_t>& taskIds);
+  void SendHeartbeats(SteadyTime now);
+  void DispatchPending();
+  JobQueue* NextJob();
+  // False when the peer is gone or its queue is full.
+  bool Send(const std::string& identity, const wire::Message& message);
+
+  const Clock& clock_;
+  HeartbeatPolicy policy_;
+  zmq::context_t context_;
+  zmq::socket_t socket_;
+  WorkerRegistry registry_;
+  std::unordered_map<uint64_t, TaskEntry> tasks_;
+  std::map<uint64_t, JobQueue> jobs_;
+  std::map<std::string, std::string> scenes_;  // hash -> JSON, for the jobs present
+  uint64_t nextTaskId_ = 1;
+  size_t pendingCount_ = 0;
+  SteadyTime lastHeartbeat_;
+  DispatcherCounters counters_;
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,93 @@
+#include "dispatch/worker_registry.h"
+
+namespace tcfarm {
+namespace {
+
+std::vector<uint64_t> TasksOf(const WorkerState& worker) {
+  return {worker.inFlight.begin(), worker.inFlight.end()};
+}
+
+}  // namespace
+
+std::vector<uint64_t> WorkerRegistry::OnReady(const std::string& identity,
+                                              const wire::Ready& ready, SteadyTime now) {
+  std::vector<uint64_t> lost;
+  auto it = workers_.find(identity);
+  if (it != workers_.end()) lost = TasksOf(it->second);
+  WorkerState& worker = workers_[identity];
+  worker = WorkerState{};
+  worker.identity = identity;
+  worker.name = ready.name;
+  worker.capacity = std::max<uint32_t>(1, ready.capacity);
+  worker.threads = std::max<uint32_t>(1, ready.threads);
+  worker.connectedAt = worker.lastHeard = now;
+  return lost;
+}
+
+bool WorkerRegistry::OnHeard(const std::string& identity, SteadyTime now) {
+  WorkerState* worker = Find(identity);
+  if (!worker) return false;
+  worker->lastHeard = now;
+  return true;
+}
+
+std::vector<uint64_t> WorkerRegistry::ExpireSilent(SteadyTime now,
+                                                   std::vector<std::string>* expired) {
+  std::vector<uint64_t> lost;
+  for (auto it = workers_.begin(); it != workers_.end();) {
+    if (now - it->second.lastHeard < policy_.timeout) {
+      ++it;
+      continue;
+    }
+    for (uint64_t task : it->second.inFlight) lost.push_back(task);
+    if (expired) expired->push_back(it->second.name);
+    it = workers_.erase(it);
+  }
+  return lost;
+}
+
+std::vector<uint64_t> WorkerRegistry::Remove(const std::string& identity) {
+  auto it = workers_.find(identity);
+  if (it == workers_.end()) return {};
+  std::vector<uint64_t> lost = TasksOf(it->second);
+  workers_.erase(it);
+  return lost;
+}
+
+WorkerState* WorkerRegistry::MostAvailable() {
+  WorkerState* best = nullptr;
+  for (auto& [identity, worker] : workers_) {
+    if (worker.FreeCredit() == 0) continue;
+    if (!best || worker.FreeCredit() > best->FreeCredit() ||
+        (worker.FreeCredit() == best->FreeCredit() && worker.tasksDone < best->tasksDone)) {
+      best = &worker;
+    }
+  }
+  return best;
+}
+
+void WorkerRegistry::Assign(const std::string& identity, uint64_t taskId) {
+  if (WorkerState* worker = Find(identity)) worker->inFlight.insert(taskId);
+}
+
+bool WorkerRegistry::Release(const std::string& identity, uint64_t taskId) {
+  WorkerState* worker = Find(identity);
+  return worker && worker->inFlight.erase(taskId) > 0;
+}
+
+void WorkerRegistry::Forget(uint64_t taskId) {
+  for (auto& [identity, worker] : workers_) worker.inFlight.erase(taskId);
+}
+
+WorkerState* WorkerRegistry::Find(const std::string& identity) {
+  auto it = workers_.find(identity);
+  return it == workers_.end() ? nullptr : &it->second;
+}
+
+size_t WorkerRegistry::TotalFreeCredit() const {
+  size_t credit = 0;
+  for (const auto& [identity, worker] : workers_) credit += worker.FreeCredit();
+  return credit;
+}
+
+}  // namespace tcfarm

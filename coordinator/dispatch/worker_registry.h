@@ -1,0 +1,66 @@
+// The coordinator's view of its workers: who is connected, how much credit each has,
+// which tasks each holds, and who has gone silent. Pure bookkeeping with an injected
+// clock; the dispatcher does the socket I/O.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "wire/liveness.h"
+#include "wire/wire.h"
+
+namespace tcfarm {
+
+struct WorkerState {
+  std::string identity;  // the ROUTER's routing id for this connection
+  std::string name;
+  uint32_t capacity = 1;  // tasks it accepts in flight (its credit)
+  uint32_t threads = 1;
+  SteadyTime connectedAt;
+  SteadyTime lastHeard;
+  std::set<uint64_t> inFlight;
+  uint64_t tasksDone = 0;
+  uint64_t pixelsDone = 0;
+  double traceSeconds = 0;
+  uint32_t FreeCredit() const {
+    return inFlight.size() >= capacity ? 0 : capacity - static_cast<uint32_t>(inFlight.size());
+  }
+};
+
+class WorkerRegistry {
+ public:
+  explicit WorkerRegistry(HeartbeatPolicy policy) : policy_(policy) {}
+
+  // READY. A worker that says READY again has restarted its connection state: whatever
+  // it held is lost and returned for requeueing.
+  std::vector<uint64_t> OnReady(const std::string& identity, const wire::Ready& ready,
+                                SteadyTime now);
+  // Any message: refreshes liveness. False for an identity that never said READY.
+  bool OnHeard(const std::string& identity, SteadyTime now);
+  // Workers silent past the timeout are forgotten; their tasks are returned.
+  std::vector<uint64_t> ExpireSilent(SteadyTime now, std::vector<std::string>* expired = nullptr);
+  // DISCONNECT: the worker leaves; its tasks are returned.
+  std::vector<uint64_t> Remove(const std::string& identity);
+
+  // The worker with the most free credit (ties: fewest tasks done, to spread the
+  // first tasks of a job), or nullptr when every worker is full.
+  WorkerState* MostAvailable();
+  void Assign(const std::string& identity, uint64_t taskId);
+  // Returns the credit of a finished (or failed) task; false if that worker did not hold it.
+  bool Release(const std::string& identity, uint64_t taskId);
+  // Forgets a task wherever it is held (its job went away); the credit returns at once.
+  void Forget(uint64_t taskId);
+
+  WorkerState* Find(const std::string& identity);
+  const std::map<std::string, WorkerState>& workers() const { return workers_; }
+  size_t TotalFreeCredit() const;
+
+ private:
+  HeartbeatPolicy policy_;
+  std::map<std::string, WorkerState> workers_;
+};
+
+}  // namespace tcfarm

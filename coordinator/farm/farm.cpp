@@ -1,0 +1,218 @@
+#include "farm/farm.h"
+
+#include <cstdio>
+
+namespace tcfarm {
+namespace {
+
+// How often the loop looks for new jobs and republishes its snapshot: often enough that
+// a submitted job starts at once, rarely enough that SQLite is not polled in a tight loop.
+constexpr Milliseconds kClaimInterval{100};
+constexpr Milliseconds kSnapshotInterval{200};
+// Poll timeout of the loop when idle; bounds the latency of cancellation and stop.
+constexpr Milliseconds kIdlePoll{50};
+
+double SecondsBetween(SteadyTime earlier, SteadyTime later) {
+  return std::chrono::duration<double>(later - earlier).count();
+}
+
+}  // namespace
+
+Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
+    : store_(store),
+      options_(std::move(options)),
+      clock_(clock),
+      dispatcher_(options_.endpoint, clock, options_.heartbeat) {
+  for (uint64_t id : store_.RequeueInterrupted()) {
+    std::fprintf(stderr, "coordinator: job %llu was interrupted; requeued\n",
+                 static_cast<unsigned long long>(id));
+  }
+}
+
+Farm::~Farm() = default;
+
+void Farm::Run(const std::atomic<bool>& stop) {
+  while (!stop) Step(kIdlePoll);
+  dispatcher_.SayGoodbye();
+}
+
+void Farm::Step(Milliseconds pollTimeout) {
+  SteadyTime now = clock_.Now();
+  if (now - lastClaim_ >= kClaimInterval) {
+    lastClaim_ = now;
+    ClaimJobs();
+  }
+  ApplyCancellations();
+  PumpTasks();
+  dispatcher_.Poll(runs_.empty() ? pollTimeout : Milliseconds(1), *this);
+  CollectFrames();
+  UpdateMetrics();
+  if (clock_.Now() - lastSnapshot_ >= kSnapshotInterval) PublishSnapshot();
+}
+
+void Farm::ClaimJobs() {
+  while (static_cast<int>(runs_.size()) < options_.maxRunningJobs) {
+    std::optional<JobRecord> record = store_.ClaimNext();
+    if (!record) return;
+    StartJob(*record);
+  }
+}
+
+void Farm::StartJob(const JobRecord& record) {
+  try {
+    auto run = std::make_unique<JobRun>(record, options_.storeRoot);
+    const RenderSettings& r = run->scene().render;
+    dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(r.width),
+                       static_cast<uint32_t>(r.height), record.spec.sceneHash,
+                       record.spec.sceneJson);
+    runs_[record.id] = std::move(run);
+  } catch (const std::exception& e) {
+    // A bad job fails alone; the farm goes on.
+    store_.Fail(record.id, e.what());
+    metrics_.jobsFinishedFailed.Increment();
+  }
+}
+
+void Farm::RequestCancel(uint64_t jobId) {
+  std::lock_guard<std::mutex> lock(shared_);
+  cancelRequests_.insert(jobId);
+}
+
+void Farm::ApplyCancellations() {
+  std::set<uint64_t> requests;
+  {
+    std::lock_guard<std::mutex> lock(shared_);
+    requests.swap(cancelRequests_);
+  }
+  for (uint64_t id : requests) {
+    auto run = runs_.find(id);
+    if (run == runs_.end()) continue;
+    dispatcher_.RemoveJob(id);
+    try {
+      run->second->FinishWriting();  // frames already finished stay downloadable
+    } catch (const std::exception&) {
+    }
+    runs_.erase(run);
+    metrics_.jobsFinishedCanceled.Increment();
+  }
+}
+
+void Farm::PumpTasks() {
+  for (auto& [id, run] : runs_) {
+    for (DispatchTask& task : run->TakeTasks()) dispatcher_.Enqueue(std::move(task));
+  }
+}
+
+void Farm::OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
+                    double latencySeconds) {
+  metrics_.taskLatency.Observe(latencySeconds);
+  auto run = runs_.find(jobId);
+  if (run == runs_.end()) return;
+  try {
+    if (!run->second->OnResult(plannerTaskId, result)) return;
+  } catch (const std::invalid_argument& e) {
+    // The dispatcher checked sizes; a planner complaint here means values it refuses
+    // (non-finite). The pixels are lost, so the job cannot finish correctly.
+    FailJob(jobId, std::string("a worker returned an unusable result: ") + e.what());
+    return;
+  }
+  metrics_.taskResults.Increment();
+  metrics_.raysPrimary.Increment(static_cast<double>(result.primaryRays));
+  metrics_.raysShadow.Increment(static_cast<double>(result.shadowRays));
+  metrics_.raysReflection.Increment(static_cast<double>(result.reflectionRays));
+  metrics_.raysRefraction.Increment(static_cast<double>(result.refractionRays));
+}
+
+void Farm::OnTaskFailed(uint64_t jobId, uint64_t /*plannerTaskId*/, const std::string& why) {
+  FailJob(jobId, "a worker could not trace this job: " + why);
+}
+
+void Farm::CollectFrames() {
+  std::vector<uint64_t> done;
+  for (auto& [id, run] : runs_) {
+    uint64_t tracedBefore = run->tracedPixels(), copiedBefore = run->copiedPixels();
+    int frames = 0;
+    try {
+      frames = run->CollectFinishedFrames(store_);
+    } catch (const std::exception& e) {
+      FailJob(id, e.what());
+      return;  // runs_ changed
+    }
+    metrics_.framesWritten.Increment(frames);
+    metrics_.pixelsTraced.Increment(static_cast<double>(run->tracedPixels() - tracedBefore));
+    metrics_.pixelsCopied.Increment(static_cast<double>(run->copiedPixels() - copiedBefore));
+    if (run->Done()) done.push_back(id);
+  }
+  for (uint64_t id : done) FinishJob(id);
+}
+
+void Farm::FinishJob(uint64_t jobId) {
+  auto run = runs_.find(jobId);
+  try {
+    run->second->FinishWriting();
+  } catch (const std::exception& e) {
+    FailJob(jobId, e.what());
+    return;
+  }
+  nlohmann::json stats = run->second->Stats();
+  finishedTraced_ += run->second->tracedPixels();
+  finishedPixels_ += run->second->tracedPixels() + run->second->copiedPixels();
+  dispatcher_.RemoveJob(jobId);
+  runs_.erase(run);
+  if (store_.Complete(jobId, stats)) metrics_.jobsFinishedCompleted.Increment();
+}
+
+void Farm::FailJob(uint64_t jobId, const std::string& why) {
+  auto run = runs_.find(jobId);
+  if (run == runs_.end()) return;
+  std::fprintf(stderr, "coordinator: job %llu failed: %s\n",
+               static_cast<unsigned long long>(jobId), why.c_str());
+  dispatcher_.RemoveJob(jobId);
+  try {
+    run->second->FinishWriting();
+  } catch (const std::exception&) {
+  }
+  store_.SetStats(jobId, run->second->Stats());
+  runs_.erase(run);
+  if (store_.Fail(jobId, why)) metrics_.jobsFinishedFailed.Increment();
+}
+
+void Farm::UpdateMetrics() {
+  const DispatcherCounters& c = dispatcher_.counters();
+  metrics_.tasksDispatched.Increment(static_cast<double>(c.tasksSent - lastCounters_.tasksSent));
+  metrics_.tasksRequeued.Increment(static_cast<double>(c.requeued - lastCounters_.requeued));
+  metrics_.messagesMalformed.Increment(static_cast<double>(c.malformed - lastCounters_.malformed));
+  lastCounters_ = c;
+  metrics_.queueDepth.Set(static_cast<double>(dispatcher_.PendingTasks()));
+  metrics_.tasksInFlight.Set(static_cast<double>(dispatcher_.InFlightTasks()));
+  metrics_.liveWorkers.Set(static_cast<double>(dispatcher_.registry().workers().size()));
+  metrics_.runningJobs.Set(static_cast<double>(runs_.size()));
+  if (finishedPixels_ > 0) {
+    metrics_.tracedPixelRatio.Set(static_cast<double>(finishedTraced_) / finishedPixels_);
+  }
+}
+
+void Farm::PublishSnapshot() {
+  SteadyTime now = clock_.Now();
+  lastSnapshot_ = now;
+  FarmSnapshot snapshot;
+  for (const auto& [identity, w] : dispatcher_.registry().workers()) {
+    snapshot.workers.push_back({w.name, w.capacity, w.threads,
+                                static_cast<uint32_t>(w.inFlight.size()), w.tasksDone,
+                                w.pixelsDone, w.traceSeconds, SecondsBetween(w.lastHeard, now),
+                                SecondsBetween(w.connectedAt, now)});
+  }
+  for (const auto& [id, run] : runs_) snapshot.runningStats[id] = run->Stats();
+  snapshot.queuedTasks = dispatcher_.PendingTasks();
+  snapshot.inFlightTasks = dispatcher_.InFlightTasks();
+  metrics_.queuedJobs.Set(static_cast<double>(store_.CountInState(JobState::kQueued)));
+  std::lock_guard<std::mutex> lock(shared_);
+  snapshot_ = std::move(snapshot);
+}
+
+FarmSnapshot Farm::Snapshot() const {
+  std::lock_guard<std::mutex> lock(shared_);
+  return snapshot_;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,83 @@
+// The farm loop: claims jobs from the job store, runs their planners, hands tasks to the
+// dispatcher, feeds results back, writes finished frames, and finishes jobs.
+//
+// One thread runs the loop and owns everything in it. Other threads (the HTTP server)
+// talk to it only through the job store, RequestCancel, and Snapshot.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "dispatch/dispatcher.h"
+#include "farm/farm_control.h"
+#include "farm/farm_metrics.h"
+#include "farm/job_run.h"
+#include "jobs/job_store.h"
+
+namespace tcfarm {
+
+struct FarmOptions {
+  std::string endpoint = "tcp://*:5555";
+  std::filesystem::path storeRoot = "store";
+  // Jobs rendered at once; more queue in the store. Several keep the workers busy while
+  // one job's search waits on its last results.
+  int maxRunningJobs = 4;
+  HeartbeatPolicy heartbeat;
+};
+
+class Farm : public FarmControl, private DispatchSink {
+ public:
+  Farm(JobStore& store, FarmOptions options, const Clock& clock);
+  ~Farm() override;
+
+  std::string BoundEndpoint() const { return dispatcher_.BoundEndpoint(); }
+  FarmMetrics& metrics() { return metrics_; }
+
+  // Runs the loop until *stop; then tells the workers goodbye. Jobs still running stay
+  // "running" in the store and are requeued by the next coordinator (RequeueInterrupted).
+  void Run(const std::atomic<bool>& stop);
+  // One iteration; tests drive the loop with this.
+  void Step(Milliseconds pollTimeout);
+
+  // Thread-safe.
+  void RequestCancel(uint64_t jobId) override;
+  FarmSnapshot Snapshot() const override;
+
+ private:
+  void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
+                double latencySeconds) override;
+  void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override;
+
+  void ClaimJobs();
+  void StartJob(const JobRecord& record);
+  void ApplyCancellations();
+  void PumpTasks();
+  void CollectFrames();
+  void FinishJob(uint64_t jobId);
+  void FailJob(uint64_t jobId, const std::string& why);
+  void UpdateMetrics();
+  void PublishSnapshot();
+
+  JobStore& store_;
+  FarmOptions options_;
+  const Clock& clock_;
+  FarmMetrics metrics_;
+  Dispatcher dispatcher_;
+  std::map<uint64_t, std::unique_ptr<JobRun>> runs_;
+  DispatcherCounters lastCounters_;
+  uint64_t finishedTraced_ = 0, finishedPixels_ = 0;
+  SteadyTime lastClaim_{}, lastSnapshot_{};
+
+  mutable std::mutex shared_;  // guards cancelRequests_ and snapshot_
+  std::set<uint64_t> cancelRequests_;
+  FarmSnapshot snapshot_;
+};
+
+}  // namespace tcfarm

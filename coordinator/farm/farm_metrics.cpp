@@ -1,0 +1,74 @@
+#include "farm/farm_metrics.h"
+
+namespace tcfarm {
+namespace {
+
+prometheus::Counter& NewCounter(prometheus::Registry& registry, const char* name,
+                                const char* help) {
+  return prometheus::BuildCounter().Name(name).Help(help).Register(registry).Add({});
+}
+
+prometheus::Gauge& NewGauge(prometheus::Registry& registry, const char* name, const char* help) {
+  return prometheus::BuildGauge().Name(name).Help(help).Register(registry).Add({});
+}
+
+prometheus::Family<prometheus::Counter>& RayFamily(prometheus::Registry& registry) {
+  return prometheus::BuildCounter()
+      .Name("tcfarm_rays_total")
+      .Help("Rays cast by the workers for this coordinator, by ray type")
+      .Register(registry);
+}
+
+prometheus::Family<prometheus::Counter>& JobsFamily(prometheus::Registry& registry) {
+  return prometheus::BuildCounter()
+      .Name("tcfarm_jobs_finished_total")
+      .Help("Jobs that reached a final state, by state")
+      .Register(registry);
+}
+
+// Task latency buckets from 1 ms to ~16 s: a task is sized for tens of milliseconds.
+prometheus::Histogram::BucketBoundaries LatencyBuckets() {
+  prometheus::Histogram::BucketBoundaries buckets;
+  for (double b = 0.001; b < 20; b *= 2) buckets.push_back(b);
+  return buckets;
+}
+
+}  // namespace
+
+FarmMetrics::FarmMetrics()
+    : registry(std::make_shared<prometheus::Registry>()),
+      pixelsTraced(NewCounter(*registry, "tcfarm_pixels_traced_total",
+                              "Pixels computed by ray tracing")),
+      pixelsCopied(NewCounter(*registry, "tcfarm_pixels_copied_total",
+                              "Pixels copied from another frame instead of traced")),
+      tasksDispatched(NewCounter(*registry, "tcfarm_tasks_dispatched_total",
+                                 "Tasks sent to workers, requeued ones included")),
+      taskResults(NewCounter(*registry, "tcfarm_task_results_total",
+                             "Task results accepted from workers")),
+      tasksRequeued(NewCounter(*registry, "tcfarm_tasks_requeued_total",
+                               "Tasks taken back from dead or silent workers and requeued")),
+      messagesMalformed(NewCounter(*registry, "tcfarm_messages_malformed_total",
+                                   "Inbound messages dropped as malformed")),
+      framesWritten(NewCounter(*registry, "tcfarm_frames_written_total",
+                               "Finished frames handed to the frame store")),
+      raysPrimary(RayFamily(*registry).Add({{"type", "primary"}})),
+      raysShadow(RayFamily(*registry).Add({{"type", "shadow"}})),
+      raysReflection(RayFamily(*registry).Add({{"type", "reflection"}})),
+      raysRefraction(RayFamily(*registry).Add({{"type", "refraction"}})),
+      jobsFinishedCompleted(JobsFamily(*registry).Add({{"state", "completed"}})),
+      jobsFinishedFailed(JobsFamily(*registry).Add({{"state", "failed"}})),
+      jobsFinishedCanceled(JobsFamily(*registry).Add({{"state", "canceled"}})),
+      taskLatency(prometheus::BuildHistogram()
+                      .Name("tcfarm_task_latency_seconds")
+                      .Help("From sending a task to receiving its result")
+                      .Register(*registry)
+                      .Add({}, LatencyBuckets())),
+      queueDepth(NewGauge(*registry, "tcfarm_tasks_queued", "Tasks waiting for a worker")),
+      tasksInFlight(NewGauge(*registry, "tcfarm_tasks_in_flight", "Tasks held by workers")),
+      liveWorkers(NewGauge(*registry, "tcfarm_workers_live", "Workers connected and alive")),
+      runningJobs(NewGauge(*registry, "tcfarm_jobs_running", "Jobs being rendered")),
+      queuedJobs(NewGauge(*registry, "tcfarm_jobs_queued", "Jobs waiting to start")),
+      tracedPixelRatio(NewGauge(*registry, "tcfarm_traced_pixel_ratio",
+                                "Pixels traced / pixels rendered, over the jobs finished")) {}
+
+}  // namespace tcfarm

@@ -1,0 +1,42 @@
+// The coordinator's Prometheus metrics. Families are built once and their children kept,
+// so the hot path only increments. No job or task ids as labels: their cardinality grows
+// without bound; per-job figures live in the job records of the HTTP API instead.
+#pragma once
+
+#include <memory>
+
+#include <prometheus/counter.h>
+#include <prometheus/gauge.h>
+#include <prometheus/histogram.h>
+#include <prometheus/registry.h>
+
+namespace tcfarm {
+
+struct FarmMetrics {
+  FarmMetrics();
+
+  std::shared_ptr<prometheus::Registry> registry;
+  prometheus::Counter& pixelsTraced;
+  prometheus::Counter& pixelsCopied;
+  prometheus::Counter& tasksDispatched;
+  prometheus::Counter& taskResults;
+  prometheus::Counter& tasksRequeued;
+  prometheus::Counter& messagesMalformed;
+  prometheus::Counter& framesWritten;
+  prometheus::Counter& raysPrimary;
+  prometheus::Counter& raysShadow;
+  prometheus::Counter& raysReflection;
+  prometheus::Counter& raysRefraction;
+  prometheus::Counter& jobsFinishedCompleted;
+  prometheus::Counter& jobsFinishedFailed;
+  prometheus::Counter& jobsFinishedCanceled;
+  prometheus::Histogram& taskLatency;
+  prometheus::Gauge& queueDepth;      // tasks waiting for a worker
+  prometheus::Gauge& tasksInFlight;
+  prometheus::Gauge& liveWorkers;
+  prometheus::Gauge& runningJobs;
+  prometheus::Gauge& queuedJobs;
+  prometheus::Gauge& tracedPixelRatio;  // of the jobs finished so far, pixels traced / pixels
+};
+
+}  // namespace tcfarm

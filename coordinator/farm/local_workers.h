@@ -1,0 +1,38 @@
+// Worker processes started by the coordinator itself for the embedded local farm. They
+// are ordinary `tcfarm-worker serve` processes on loopback; one that exits is restarted,
+// so a local farm heals the way a cluster's orchestrator would heal it.
+#pragma once
+
+#include <sys/types.h>
+
+#include <string>
+#include <vector>
+
+namespace tcfarm {
+
+class LocalWorkers {
+ public:
+  LocalWorkers(std::string binary, std::string coordinatorEndpoint, unsigned threadsEach);
+  ~LocalWorkers();  // stops them
+
+  void Start(unsigned count);
+  // Restarts workers that have exited; returns how many were restarted.
+  int RestartExited();
+  // SIGTERM, then SIGKILL for those still running after a grace period.
+  void Stop();
+  size_t size() const { return pids_.size(); }
+
+ private:
+  pid_t Spawn(unsigned index) const;
+
+  std::string binary_;
+  std::string endpoint_;
+  unsigned threadsEach_;
+  std::vector<pid_t> pids_;
+};
+
+// The tcfarm-worker binary beside this executable, or in the build tree's worker/
+// folder, or on PATH as a last resort.
+std::string FindWorkerBinary();
+
+}  // namespace tcfarm

@@ -1,0 +1,49 @@
+// Moving wire messages over ZeroMQ sockets. The codec (wire.h) knows nothing of ZeroMQ;
+// these helpers turn its parts into zmq frames and back, adding or removing the peer
+// identity frame that a ROUTER socket sees.
+#pragma once
+
+#include <zmq.hpp>
+#include <zmq_addon.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "wire/wire.h"
+
+namespace tcfarm::wire {
+
+// Sends a message on a DEALER socket. Returns false if it would block (peer gone and
+// the high-water mark reached): the caller treats that like a lost message.
+inline bool SendMessage(zmq::socket_t& socket, const Message& message) {
+  std::vector<std::string> parts = Encode(message);
+  for (size_t i = 0; i < parts.size(); ++i) {
+    auto flags = zmq::send_flags::dontwait;
+    if (i + 1 < parts.size()) flags = flags | zmq::send_flags::sndmore;
+    if (!socket.send(zmq::buffer(parts[i]), flags)) return false;
+  }
+  return true;
+}
+
+// Sends a message to one peer of a ROUTER socket.
+inline bool SendMessageTo(zmq::socket_t& socket, const std::string& identity,
+                          const Message& message) {
+  if (!socket.send(zmq::buffer(identity), zmq::send_flags::sndmore | zmq::send_flags::dontwait)) {
+    return false;
+  }
+  return SendMessage(socket, message);
+}
+
+// Receives one multipart message without blocking; nullopt when none is waiting.
+inline std::optional<std::vector<std::string>> ReceiveParts(zmq::socket_t& socket) {
+  std::vector<zmq::message_t> frames;
+  auto received = zmq::recv_multipart(socket, std::back_inserter(frames), zmq::recv_flags::dontwait);
+  if (!received) return std::nullopt;
+  std::vector<std::string> parts;
+  parts.reserve(frames.size());
+  for (auto& frame : frames) parts.emplace_back(frame.to_string());
+  return parts;
+}
+
+}  // namespace tcfarm::wire

@@ -1,0 +1,4 @@
+"""Python SDK for the tcfarm render farm: talks only to its HTTP API (proto/openapi.yaml)."""
+from tcfarm.client import ApiError, Client
+
+__all__ = ["ApiError", "Client"]

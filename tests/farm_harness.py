@@ -1,0 +1,105 @@
+"""Starts real coordinator and worker processes on loopback for cross-process tests."""
+import json
+import os
+import pathlib
+import re
+import signal
+import subprocess
+import sys
+import time
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+BUILD = pathlib.Path(os.environ.get("TCFARM_BUILD", ROOT / "build"))
+COORDINATOR = BUILD / "coordinator" / "tcfarm-coordinator"
+WORKER = BUILD / "worker" / "tcfarm-worker"
+sys.path.insert(0, str(ROOT / "services" / "client"))
+
+from tcfarm.client import Client  # noqa: E402
+
+
+class LocalFarm:
+    """A coordinator on ephemeral loopback ports plus worker processes we control."""
+
+    def __init__(self, directory, workers=2, worker_threads=1, local_workers=0):
+        self.directory = pathlib.Path(directory)
+        self.store = self.directory / "store"
+        self.worker_threads = worker_threads
+        self.workers = []
+        self.coordinator = subprocess.Popen(
+            [str(COORDINATOR), "serve", "--http", "127.0.0.1:0", "--zmq", "tcp://127.0.0.1:*",
+             "--store", str(self.store), "--local-workers", str(local_workers),
+             "--worker-threads", str(worker_threads)],
+            stdout=subprocess.PIPE, stderr=open(self.directory / "coordinator.log", "w"),
+            text=True)
+        line = self.coordinator.stdout.readline()
+        match = re.search(r"http=(\S+) zmq=(\S+)", line)
+        if not match:
+            self.close()
+            raise RuntimeError(f"coordinator did not start: {line!r}; see {self.directory}")
+        self.url, self.zmq = match.group(1), match.group(2)
+        self.client = Client(self.url)
+        for _ in range(workers):
+            self.add_worker()
+
+    def add_worker(self):
+        index = len(self.workers)
+        process = subprocess.Popen(
+            [str(WORKER), "serve", "--coordinator", self.zmq, "--threads",
+             str(self.worker_threads), "--name", f"test-{index}"],
+            stdout=subprocess.DEVNULL, stderr=open(self.directory / f"worker{index}.log", "w"))
+        self.workers.append(process)
+        return process
+
+    def wait_for_workers(self, count, timeout=10):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if len(self.client.workers()["workers"]) >= count:
+                return
+            time.sleep(0.05)
+        raise TimeoutError(f"fewer than {count} workers connected after {timeout} s")
+
+    def metrics(self):
+        import urllib.request
+        with urllib.request.urlopen(self.url + "/metrics", timeout=10) as response:
+            return response.read().decode()
+
+    def close(self):
+        for process in self.workers + [self.coordinator]:
+            if process.poll() is None:
+                process.send_signal(signal.SIGTERM)
+        for process in self.workers + [self.coordinator]:
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def small_scene(path, width=160, height=120, frames=21):
+    scene = json.loads(pathlib.Path(path).read_text())
+    scene["render"].update(width=width, height=height, frames={"start": 0, "count": frames})
+    return scene
+
+
+def render_reference(scene, directory):
+    """The brute-force reference through the standalone renderer."""
+    directory = pathlib.Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    scene_path = directory / "scene.json"
+    scene_path.write_text(json.dumps(scene))
+    subprocess.run([str(WORKER), "render", str(scene_path), "--out", str(directory / "frames"),
+                    "--no-png"], check=True, capture_output=True, timeout=600)
+    return directory / "frames"
+
+
+def compare(reference_dir, test_dir):
+    result = subprocess.run([str(COORDINATOR), "compare", str(reference_dir), str(test_dir),
+                             "--json"], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)

@@ -1,0 +1,200 @@
+#include "daemon/worker_daemon.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <thread>
+
+#include "wire/sha256.h"
+#include "wire/zmq_io.h"
+
+namespace tcfarm {
+namespace {
+
+// Poll timeout while idle: bounds how late a heartbeat or a stop request is noticed.
+constexpr long kIdlePollMs = 100;
+
+std::string DefaultName() {
+  char host[256] = "worker";
+  gethostname(host, sizeof host - 1);
+  return std::string(host) + ":" + std::to_string(getpid());
+}
+
+std::vector<uint32_t> PixelIndices(const PixelSet& pixels) {
+  std::vector<uint32_t> indices;
+  indices.reserve(pixels.size());
+  pixels.ForEach([&](uint32_t index) { indices.push_back(index); });
+  return indices;
+}
+
+// Why a task cannot be traced with this scene, or "" when it can.
+std::string TaskMismatch(const wire::Task& task, const Scene& scene) {
+  const RenderSettings& r = scene.render;
+  if (task.width != static_cast<uint32_t>(r.width) ||
+      task.height != static_cast<uint32_t>(r.height)) {
+    return "task is " + std::to_string(task.width) + "x" + std::to_string(task.height) +
+           " but the scene renders " + std::to_string(r.width) + "x" + std::to_string(r.height);
+  }
+  if (task.frame < r.firstFrame || task.frame > r.LastFrame()) {
+    return "frame " + std::to_string(task.frame) + " is outside the scene's frames " +
+           std::to_string(r.firstFrame) + ":" + std::to_string(r.LastFrame());
+  }
+  return "";
+}
+
+}  // namespace
+
+WorkerDaemon::WorkerDaemon(WorkerOptions options, const Clock& clock)
+    : options_(std::move(options)),
+      clock_(clock),
+      pool_(options_.threads),
+      scenes_(device_, pool_),
+      coordinator_(options_.heartbeat, clock.Now()),
+      backoff_(options_.heartbeat) {
+  if (options_.name.empty()) options_.name = DefaultName();
+}
+
+WorkerDaemon::~WorkerDaemon() = default;
+
+void WorkerDaemon::Connect() {
+  socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
+  socket_->set(zmq::sockopt::linger, 0);
+  socket_->connect(options_.coordinator);
+  coordinator_ = PeerLiveness(options_.heartbeat, clock_.Now());
+  Send(wire::Ready{options_.capacity, pool_.ThreadCount(), options_.name});
+}
+
+// Everything queued belonged to the old connection: the coordinator requeues it.
+void WorkerDaemon::Reconnect(const std::atomic<bool>& stop) {
+  ++counters_.reconnects;
+  ready_.clear();
+  waitingForScene_.clear();
+  socket_.reset();
+  Milliseconds delay = backoff_.Next();
+  std::fprintf(stderr, "worker %s: coordinator %s silent; reconnecting in %lld ms\n",
+               options_.name.c_str(), options_.coordinator.c_str(),
+               static_cast<long long>(delay.count()));
+  for (auto waited = Milliseconds(0); waited < delay && !stop; waited += Milliseconds(50)) {
+    std::this_thread::sleep_for(Milliseconds(50));
+  }
+  Connect();
+}
+
+void WorkerDaemon::Send(const wire::Message& message) {
+  if (socket_ && wire::SendMessage(*socket_, message)) coordinator_.OnSent(clock_.Now());
+}
+
+void WorkerDaemon::Run(const std::atomic<bool>& stop) {
+  Connect();
+  while (!stop) {
+    zmq::pollitem_t item{static_cast<void*>(*socket_), 0, ZMQ_POLLIN, 0};
+    zmq::poll(&item, 1, std::chrono::milliseconds(ready_.empty() ? kIdlePollMs : 0));
+    ReceiveAll();
+    if (!ready_.empty()) TraceNext();
+    SteadyTime now = clock_.Now();
+    if (coordinator_.IsDead(now)) {
+      Reconnect(stop);
+      continue;
+    }
+    if (coordinator_.ShouldSendHeartbeat(now)) Send(wire::Heartbeat{});
+  }
+  Send(wire::Disconnect{});
+}
+
+void WorkerDaemon::ReceiveAll() {
+  while (auto parts = wire::ReceiveParts(*socket_)) {
+    coordinator_.OnHeard(clock_.Now());
+    try {
+      Handle(wire::Decode(*parts));
+    } catch (const wire::WireError& e) {
+      // Never trusted, never fatal: count it and go on.
+      if (counters_.malformed++ < 10) {
+        std::fprintf(stderr, "worker %s: dropped a malformed message: %s\n",
+                     options_.name.c_str(), e.what());
+      }
+    }
+  }
+}
+
+void WorkerDaemon::Handle(wire::Message message) {
+  backoff_.Reset();
+  if (auto* task = std::get_if<wire::Task>(&message)) {
+    OnTask(std::move(*task));
+  } else if (auto* scene = std::get_if<wire::SceneData>(&message)) {
+    OnScene(*scene);
+  } else if (std::holds_alternative<wire::Disconnect>(message)) {
+    // The coordinator is going away: treat it as dead now rather than in 5 s.
+    coordinator_ = PeerLiveness(options_.heartbeat, clock_.Now() - options_.heartbeat.timeout);
+  }
+  // HEARTBEAT only proves liveness; other commands are not for workers.
+}
+
+void WorkerDaemon::OnTask(wire::Task task) {
+  if (scenes_.Find(task.sceneHash)) {
+    ready_.push_back(std::move(task));
+    return;
+  }
+  auto& waiting = waitingForScene_[task.sceneHash];
+  if (waiting.empty()) Send(wire::SceneGet{task.sceneHash});
+  waiting.push_back(std::move(task));
+}
+
+void WorkerDaemon::OnScene(const wire::SceneData& scene) {
+  auto waiting = waitingForScene_.find(scene.sceneHash);
+  if (waiting == waitingForScene_.end()) return;  // not asked for (or asked by an old connection)
+  std::vector<wire::Task> tasks = std::move(waiting->second);
+  waitingForScene_.erase(waiting);
+  std::string problem;
+  if (wire::Sha256Hex(scene.sceneJson) != scene.sceneHash) {
+    problem = "scene bytes do not match hash " + scene.sceneHash;
+  } else {
+    try {
+      scenes_.Add(scene.sceneHash, scene.sceneJson);
+    } catch (const std::exception& e) {
+      problem = e.what();
+    }
+  }
+  if (problem.empty()) {
+    for (auto& task : tasks) ready_.push_back(std::move(task));
+    return;
+  }
+  ++counters_.sceneErrors;
+  for (const auto& task : tasks) Send(wire::Error{task.taskId, scene.sceneHash, problem});
+}
+
+void WorkerDaemon::TraceNext() {
+  wire::Task task = std::move(ready_.front());
+  ready_.pop_front();
+  Tracer* tracer = scenes_.Find(task.sceneHash);
+  if (!tracer) {  // evicted by a newer scene since it was queued: fetch it again
+    OnTask(std::move(task));
+    return;
+  }
+  std::string mismatch = TaskMismatch(task, tracer->scene());
+  if (!mismatch.empty()) {
+    Send(wire::Error{task.taskId, task.sceneHash, mismatch});
+    return;
+  }
+  std::vector<uint32_t> indices = PixelIndices(task.pixels);
+  wire::Result result;
+  result.taskId = task.taskId;
+  result.jobId = task.jobId;
+  result.frame = task.frame;
+  result.rgb.resize(indices.size() * 3);
+  RayCounts before = tracer->Counts();
+  auto start = std::chrono::steady_clock::now();
+  tracer->TracePixels(task.frame, indices.data(), indices.size(), result.rgb.data());
+  result.traceSeconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  RayCounts after = tracer->Counts();
+  result.primaryRays = after.primary - before.primary;
+  result.shadowRays = after.shadow - before.shadow;
+  result.reflectionRays = after.reflection - before.reflection;
+  result.refractionRays = after.refraction - before.refraction;
+  ++counters_.tasks;
+  counters_.pixels += indices.size();
+  Send(result);
+}
+
+}  // namespace tcfarm

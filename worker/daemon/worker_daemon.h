@@ -1,0 +1,76 @@
+// `tcfarm-worker serve`: a stateless tracing process. It connects a DEALER socket to the
+// coordinator, announces its capacity, traces whatever (frame, pixel set) tasks arrive
+// and sends the pixels back. It holds no job state: if it dies, the coordinator
+// requeues its tasks; if the coordinator goes silent, it reconnects with back-off.
+//
+// One thread owns the socket and does everything; tracing fans out over the thread pool.
+// Tasks are small (tens of milliseconds), so heartbeats still go out on time.
+#pragma once
+
+#include <atomic>
+#include <deque>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <zmq.hpp>
+
+#include "daemon/scene_cache.h"
+#include "wire/liveness.h"
+#include "wire/wire.h"
+
+namespace tcfarm {
+
+struct WorkerOptions {
+  std::string coordinator = "tcp://127.0.0.1:5555";
+  unsigned threads = 0;  // 0: all cores
+  // Tasks in flight: one tracing, the rest queued here so the next starts at once
+  // instead of after a round trip to the coordinator.
+  uint32_t capacity = 3;
+  std::string name;  // shown in the coordinator's worker list; default host:pid
+  HeartbeatPolicy heartbeat;
+};
+
+struct WorkerCounters {
+  uint64_t tasks = 0;
+  uint64_t pixels = 0;
+  uint64_t malformed = 0;  // messages dropped as malformed
+  uint64_t reconnects = 0;
+  uint64_t sceneErrors = 0;
+};
+
+class WorkerDaemon {
+ public:
+  WorkerDaemon(WorkerOptions options, const Clock& clock);
+  ~WorkerDaemon();
+
+  // Runs until *stop becomes true; then says DISCONNECT and returns.
+  void Run(const std::atomic<bool>& stop);
+  const WorkerCounters& counters() const { return counters_; }
+
+ private:
+  void Connect();
+  void Reconnect(const std::atomic<bool>& stop);
+  void ReceiveAll();
+  void Handle(wire::Message message);
+  void OnTask(wire::Task task);
+  void OnScene(const wire::SceneData& scene);
+  void TraceNext();
+  void Send(const wire::Message& message);
+
+  WorkerOptions options_;
+  const Clock& clock_;
+  EmbreeDevice device_;
+  ThreadPool pool_;
+  SceneCache scenes_;
+  zmq::context_t context_;
+  std::unique_ptr<zmq::socket_t> socket_;
+  PeerLiveness coordinator_;
+  Backoff backoff_;
+  std::deque<wire::Task> ready_;                           // scene at hand
+  std::map<std::string, std::vector<wire::Task>> waitingForScene_;
+  WorkerCounters counters_;
+};
+
+}  // namespace tcfarm
