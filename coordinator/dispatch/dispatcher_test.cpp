@@ -1,0 +1,243 @@
+// The dispatcher against fake workers: real DEALER sockets in this process that speak
+// the wire protocol, and a fake clock for liveness.
+#include "dispatch/dispatcher.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <thread>
+
+#include "wire/zmq_io.h"
+
+namespace tcfarm {
+namespace {
+
+const std::string kHash(64, 'a');
+
+class RecordingSink : public DispatchSink {
+ public:
+  void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result, double) override {
+    results.push_back({jobId, plannerTaskId, result.PixelCount()});
+  }
+  void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override {
+    failures.push_back({jobId, plannerTaskId, why});
+  }
+  struct Delivered {
+    uint64_t jobId, plannerTaskId;
+    size_t pixels;
+  };
+  struct Failed {
+    uint64_t jobId, plannerTaskId;
+    std::string why;
+  };
+  std::vector<Delivered> results;
+  std::vector<Failed> failures;
+};
+
+class FakeWorker {
+ public:
+  FakeWorker(zmq::context_t& context, const std::string& endpoint, uint32_t capacity)
+      : socket_(context, zmq::socket_type::dealer) {
+    socket_.set(zmq::sockopt::linger, 0);
+    socket_.connect(endpoint);
+    Send(wire::Ready{capacity, 1, "fake"});
+  }
+  void Send(const wire::Message& message) { ASSERT_TRUE(wire::SendMessage(socket_, message)); }
+  void SendRaw(const std::vector<std::string>& parts) {
+    for (size_t i = 0; i < parts.size(); ++i) {
+      socket_.send(zmq::buffer(parts[i]),
+                   i + 1 < parts.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+    }
+  }
+  // Everything the dispatcher sent us so far, decoded.
+  std::vector<wire::Message> Drain() {
+    std::vector<wire::Message> messages;
+    while (auto parts = wire::ReceiveParts(socket_)) messages.push_back(wire::Decode(*parts));
+    return messages;
+  }
+  std::vector<wire::Task> Tasks() {
+    std::vector<wire::Task> tasks;
+    for (auto& m : Drain()) {
+      if (auto* t = std::get_if<wire::Task>(&m)) tasks.push_back(std::move(*t));
+    }
+    return tasks;
+  }
+  void Answer(const wire::Task& task) {
+    wire::Result result;
+    result.taskId = task.taskId;
+    result.jobId = task.jobId;
+    result.frame = task.frame;
+    result.rgb.assign(task.pixels.size() * 3, 0.5f);
+    Send(result);
+  }
+
+ private:
+  zmq::socket_t socket_;
+};
+
+class DispatcherTest : public ::testing::Test {
+ protected:
+  DispatcherTest() : dispatcher_("tcp://127.0.0.1:*", clock_) {
+    dispatcher_.AddJob(1, 0, 4, 4, kHash, "{\"scene\": 1}");
+  }
+  // Lets messages cross loopback, then runs the dispatcher a few rounds.
+  void Pump(int rounds = 5) {
+    for (int i = 0; i < rounds; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      dispatcher_.Poll(Milliseconds(5), sink_);
+    }
+  }
+  void EnqueueTasks(uint64_t job, int count) {
+    for (int i = 0; i < count; ++i) {
+      dispatcher_.Enqueue({job, static_cast<uint64_t>(100 + i), 0, PixelSet::Full(16), 0});
+    }
+  }
+
+  FakeClock clock_;
+  zmq::context_t context_;
+  Dispatcher dispatcher_;
+  RecordingSink sink_;
+};
+
+TEST_F(DispatcherTest, CreditLimitsTasksInFlight) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 2);
+  EnqueueTasks(1, 5);
+  Pump();
+  std::vector<wire::Task> tasks = worker.Tasks();
+  ASSERT_EQ(tasks.size(), 2u);
+  EXPECT_EQ(dispatcher_.PendingTasks(), 3u);
+  EXPECT_EQ(tasks[0].sceneHash, kHash);
+  EXPECT_EQ(tasks[0].width, 4u);
+  worker.Answer(tasks[0]);
+  Pump();
+  ASSERT_EQ(sink_.results.size(), 1u);
+  EXPECT_EQ(sink_.results[0].plannerTaskId, 100u);
+  EXPECT_EQ(sink_.results[0].pixels, 16u);
+  EXPECT_EQ(worker.Tasks().size(), 1u);  // one credit back, one more task
+}
+
+TEST_F(DispatcherTest, SilentWorkersTasksGoToAnotherWorker) {
+  FakeWorker silent(context_, dispatcher_.BoundEndpoint(), 4);
+  EnqueueTasks(1, 3);
+  Pump();
+  ASSERT_EQ(silent.Tasks().size(), 3u);
+  FakeWorker healthy(context_, dispatcher_.BoundEndpoint(), 4);
+  Pump();
+  EXPECT_TRUE(healthy.Tasks().empty());
+  clock_.Advance(Milliseconds(3000));
+  healthy.Send(wire::Heartbeat{});
+  Pump();
+  clock_.Advance(Milliseconds(2500));  // silent: 5.5 s; healthy: 2.5 s
+  Pump();
+  std::vector<wire::Task> moved = healthy.Tasks();
+  ASSERT_EQ(moved.size(), 3u);
+  EXPECT_EQ(dispatcher_.counters().requeued, 3u);
+  EXPECT_EQ(dispatcher_.counters().workersLost, 1u);
+  for (const auto& task : moved) healthy.Answer(task);
+  Pump();
+  EXPECT_EQ(sink_.results.size(), 3u);
+  EXPECT_EQ(dispatcher_.InFlightTasks(), 0u);
+}
+
+TEST_F(DispatcherTest, ALateDuplicateResultIsIgnored) {
+  FakeWorker first(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 1);
+  Pump();
+  std::vector<wire::Task> tasks = first.Tasks();
+  ASSERT_EQ(tasks.size(), 1u);
+  first.Answer(tasks[0]);
+  first.Answer(tasks[0]);
+  Pump();
+  EXPECT_EQ(sink_.results.size(), 1u);
+  EXPECT_EQ(dispatcher_.counters().duplicateResults, 1u);
+}
+
+TEST_F(DispatcherTest, AResultOfTheWrongSizeIsNotDelivered) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 1);
+  Pump();
+  wire::Task task = worker.Tasks().at(0);
+  wire::Result result;
+  result.taskId = task.taskId;
+  result.jobId = task.jobId;
+  result.frame = task.frame;
+  result.rgb.assign(3, 0.0f);  // one pixel instead of 16
+  worker.Send(result);
+  Pump();
+  EXPECT_TRUE(sink_.results.empty());
+  EXPECT_EQ(dispatcher_.counters().unexpected, 1u);
+}
+
+TEST_F(DispatcherTest, MalformedMessagesAreDroppedAndCounted) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  worker.SendRaw({"garbage"});
+  worker.SendRaw({std::string(1, '\x01'), std::string(1, '\x03'), "\xff\xff", ""});
+  worker.SendRaw({std::string(1, '\x07'), std::string(1, '\x01'), "", ""});
+  Pump();
+  EXPECT_EQ(dispatcher_.counters().malformed, 3u);
+  EnqueueTasks(1, 1);
+  Pump();
+  EXPECT_EQ(worker.Tasks().size(), 1u);  // still serving
+}
+
+TEST_F(DispatcherTest, ScenesAreSentOnRequest) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  worker.Send(wire::SceneGet{kHash});
+  worker.Send(wire::SceneGet{std::string(64, 'b')});
+  Pump();
+  std::vector<wire::Message> replies = worker.Drain();
+  int scenes = 0, errors = 0;
+  for (auto& m : replies) {
+    if (auto* s = std::get_if<wire::SceneData>(&m)) {
+      ++scenes;
+      EXPECT_EQ(s->sceneJson, "{\"scene\": 1}");
+    }
+    errors += std::holds_alternative<wire::Error>(m);
+  }
+  EXPECT_EQ(scenes, 1);
+  EXPECT_EQ(errors, 1);
+}
+
+TEST_F(DispatcherTest, AWorkerErrorFailsTheTask) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 1);
+  Pump();
+  wire::Task task = worker.Tasks().at(0);
+  worker.Send(wire::Error{task.taskId, kHash, "scene would not build"});
+  Pump();
+  ASSERT_EQ(sink_.failures.size(), 1u);
+  EXPECT_EQ(sink_.failures[0].why, "scene would not build");
+}
+
+TEST_F(DispatcherTest, HigherPriorityJobsGetALargerShare) {
+  dispatcher_.AddJob(2, 2, 4, 4, kHash, "{}");  // weight 3 against job 1's weight 1
+  EnqueueTasks(1, 40);
+  EnqueueTasks(2, 40);
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  std::map<uint64_t, int> served;
+  for (int i = 0; i < 20; ++i) {
+    Pump(2);
+    for (const auto& task : worker.Tasks()) {
+      ++served[task.jobId];
+      worker.Answer(task);
+    }
+  }
+  ASSERT_GE(served[1] + served[2], 16);
+  EXPECT_NEAR(static_cast<double>(served[2]) / (served[1] + served[2]), 0.75, 0.1);
+}
+
+TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 2);
+  Pump();
+  wire::Task task = worker.Tasks().at(0);
+  dispatcher_.RemoveJob(1);
+  EXPECT_EQ(dispatcher_.PendingTasks(), 0u);
+  worker.Answer(task);
+  Pump();
+  EXPECT_TRUE(sink_.results.empty());
+  EXPECT_EQ(dispatcher_.registry().workers().begin()->second.FreeCredit(), 1u);
+}
+
+}  // namespace
+}  // namespace tcfarm
