@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <exception>
 #include <string>
+#include <algorithm>
 #include <vector>
 
 #include "daemon/worker_daemon.h"
@@ -51,7 +52,7 @@ tcfarm::WorkerOptions ParseServeArguments(const std::vector<std::string>& args) 
     } else if (args[i] == "--threads") {
       options.threads = ParseCount(value(), "--threads", 0);
     } else if (args[i] == "--capacity") {
-      options.capacity = ParseCount(value(), "--capacity", 1);
+      options.capacity = std::min(ParseCount(value(), "--capacity", 1), tcfarm::wire::kMaxCapacity);
     } else if (args[i] == "--name") {
       options.name = value();
     } else {

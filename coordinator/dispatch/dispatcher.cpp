@@ -160,8 +160,10 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
   const DispatchTask& task = entry->second.task;
   if (result.jobId != task.jobId || result.frame != task.frame ||
       result.PixelCount() != task.pixels.size()) {
+    // A wrong answer: the pixels are still owed. Requeue so another attempt settles it.
     ++counters_.unexpected;
-    return;  // stays outstanding; a correct answer or a requeue will settle it
+    Requeue({result.taskId});
+    return;
   }
   if (entry->second.pending) {  // requeued, but the first worker answered after all
     --pendingCount_;

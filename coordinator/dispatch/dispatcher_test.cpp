@@ -166,6 +166,10 @@ TEST_F(DispatcherTest, AResultOfTheWrongSizeIsNotDelivered) {
   Pump();
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.counters().unexpected, 1u);
+  // The pixels are still owed: the task goes out again.
+  std::vector<wire::Task> again = worker.Tasks();
+  ASSERT_EQ(again.size(), 1u);
+  EXPECT_EQ(again[0].taskId, task.taskId);
 }
 
 TEST_F(DispatcherTest, MalformedMessagesAreDroppedAndCounted) {

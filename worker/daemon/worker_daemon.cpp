@@ -104,9 +104,10 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
 
 void WorkerDaemon::ReceiveAll() {
   while (auto parts = wire::ReceiveParts(*socket_)) {
-    coordinator_.OnHeard(clock_.Now());
     try {
-      Handle(wire::Decode(*parts));
+      wire::Message message = wire::Decode(*parts);
+      coordinator_.OnHeard(clock_.Now());  // only a well-formed message proves liveness
+      Handle(std::move(message));
     } catch (const wire::WireError& e) {
       // Never trusted, never fatal: count it and go on.
       if (counters_.malformed++ < 10) {
@@ -123,6 +124,9 @@ void WorkerDaemon::Handle(wire::Message message) {
     OnTask(std::move(*task));
   } else if (auto* scene = std::get_if<wire::SceneData>(&message)) {
     OnScene(*scene);
+  } else if (auto* error = std::get_if<wire::Error>(&message)) {
+    // The coordinator cannot serve a scene we asked for (its job is gone): drop its tasks.
+    waitingForScene_.erase(error->sceneHash);
   } else if (std::holds_alternative<wire::Disconnect>(message)) {
     // The coordinator is going away: treat it as dead now rather than in 5 s.
     coordinator_ = PeerLiveness(options_.heartbeat, clock_.Now() - options_.heartbeat.timeout);
