@@ -8,6 +8,7 @@
 #include <stdexcept>
 
 #include "farm/farm.h"
+#include "frame/frame_io.h"
 #include "farm/local_workers.h"
 #include "http/api_server.h"
 #include "jobs/job_store.h"
@@ -20,6 +21,7 @@ constexpr const char* kUsage =
     "[--db FILE]\n"
     "           [--local-workers N] [--worker-threads T] [--worker-binary PATH] "
     "[--max-running-jobs K]\n"
+    "           [--exr-compression zip[:1-9]|none|rle|zips|piz] [--writer-threads N]\n"
     "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
     "--local-workers 0\n";
 
@@ -73,9 +75,15 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     else if (flag == "--worker-threads") options.workerThreads = ParseInt(value(), flag, 0, 4096);
     else if (flag == "--worker-binary") options.workerBinary = value();
     else if (flag == "--max-running-jobs") options.farm.maxRunningJobs = ParseInt(value(), flag, 1, 1024);
+    else if (flag == "--exr-compression") options.farm.output.exrCompression = value();
+    else if (flag == "--writer-threads") options.farm.output.threads = ParseInt(value(), flag, 1, 64);
     else throw std::invalid_argument("unexpected argument " + flag);
   }
   if (options.database.empty()) options.database = options.farm.storeRoot / "jobs.db";
+  if (!IsLosslessExrCompression(options.farm.output.exrCompression)) {
+    throw std::invalid_argument("--exr-compression " + options.farm.output.exrCompression +
+                                ": expected a lossless one: none, rle, zips, zip or piz");
+  }
   return options;
 }
 

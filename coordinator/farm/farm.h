@@ -30,6 +30,7 @@ struct FarmOptions {
   // one job's search waits on its last results.
   int maxRunningJobs = 4;
   HeartbeatPolicy heartbeat;
+  FrameWriterOptions output;  // how the frame store writes each job's frames
 };
 
 class Farm : public FarmControl, private DispatchSink {

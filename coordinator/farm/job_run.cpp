@@ -27,13 +27,14 @@ const std::filesystem::path& CreatedDirectory(const std::filesystem::path& path)
 
 }  // namespace
 
-JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot)
+JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
+               const FrameWriterOptions& output)
     : id_(record.id),
       spec_(record.spec),
       scene_(ParseStoredScene(record.spec)),
       directory_(storeRoot / std::to_string(record.id)),
       planner_(PlannerOptionsFor(record.spec, *scene_)),
-      writer_(CreatedDirectory(directory_), true, true),
+      writer_(CreatedDirectory(directory_), output),
       started_(std::chrono::steady_clock::now()) {
   spec_.sceneJson.clear();  // parsed; no need to hold the text twice
 }

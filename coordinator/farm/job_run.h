@@ -27,7 +27,8 @@ class JobRun {
  public:
   // Throws SceneError when the stored scene no longer parses, std::invalid_argument for
   // planner options out of range.
-  JobRun(const JobRecord& record, const std::filesystem::path& storeRoot);
+  JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
+         const FrameWriterOptions& output = {});
 
   uint64_t id() const { return id_; }
   const Scene& scene() const { return *scene_; }

@@ -5,17 +5,23 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <memory>
 
 namespace tcfarm {
 namespace {
 
+// PNG deflate level: 3 encodes ~1.5x faster than the default 6 for ~25 % more bytes,
+// and frames are written at the rate they are traced.
+constexpr int kPngCompressionLevel = 3;
+
 void WritePixels(const std::filesystem::path& path, const Image& image, OIIO::TypeDesc format,
-                 const void* pixels) {
+                 const void* pixels, const std::string& exrCompression = "") {
   auto out = OIIO::ImageOutput::create(path.string());
   if (!out) throw FrameIoError("cannot write " + path.string() + ": " + OIIO::geterror());
   OIIO::ImageSpec spec(image.width, image.height, 3, format);
-  if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", "zip");
+  if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", exrCompression);
+  if (format == OIIO::TypeDesc::UINT8) spec.attribute("png:compressionLevel", kPngCompressionLevel);
   // Write to a temporary name and rename, so a reader never sees half a frame.
   std::filesystem::path partial = path;
   partial += ".partial";
@@ -42,7 +48,45 @@ float SrgbToLinear(float code) {
   return code <= 0.04045f ? code / 12.92f : std::pow((code + 0.055f) / 1.055f, 2.4f);
 }
 
+// thresholds[k] is the smallest float that encodes to code k (k >= 1), found by
+// bisection over the float bit patterns (monotone for non-negative floats), so the
+// table agrees with LinearToSrgb8 exactly.
+struct SrgbThresholds {
+  float thresholds[256];
+  SrgbThresholds() {
+    thresholds[0] = 0;
+    for (int code = 1; code < 256; ++code) {
+      uint32_t lo = 0, hi = 0x3f800000;  // bits of 0.0f and 1.0f
+      while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        float value;
+        std::memcpy(&value, &mid, sizeof value);
+        if (LinearToSrgb8(value) >= code) hi = mid; else lo = mid + 1;
+      }
+      std::memcpy(&thresholds[code], &lo, sizeof lo);
+    }
+  }
+};
+
 }  // namespace
+
+uint8_t LinearToSrgb8Fast(float linear) {
+  static const SrgbThresholds table;
+  if (!(linear > 0)) return 0;  // also NaN
+  if (linear >= 1) return 255;
+  const float* t = table.thresholds;
+  return static_cast<uint8_t>(std::upper_bound(t, t + 256, linear) - t - 1);
+}
+
+bool IsLosslessExrCompression(const std::string& name) {
+  for (const char* lossless : {"none", "rle", "zips", "zip", "piz"}) {
+    if (name == lossless) return true;
+  }
+  // zip and zips take a deflate level: "zip:1" .. "zip:9".
+  bool zipFamily = name.rfind("zip:", 0) == 0 || name.rfind("zips:", 0) == 0;
+  char level = name.empty() ? 0 : name.back();
+  return zipFamily && name.size() == name.find(':') + 2 && level >= '1' && level <= '9';
+}
 
 uint8_t LinearToSrgb8(float linear) {
   float v = std::isfinite(linear) ? std::clamp(linear, 0.0f, 1.0f) : 0.0f;
@@ -50,15 +94,20 @@ uint8_t LinearToSrgb8(float linear) {
   return static_cast<uint8_t>(std::lround(code * 255.0f));
 }
 
-void WriteExr(const std::filesystem::path& path, const Image& image) {
+void WriteExr(const std::filesystem::path& path, const Image& image,
+              const std::string& compression) {
   CheckShape(path, image);
-  WritePixels(path, image, OIIO::TypeDesc::FLOAT, image.rgb.data());
+  if (!IsLosslessExrCompression(compression)) {
+    throw FrameIoError("cannot write " + path.string() + ": EXR compression '" + compression +
+                       "' is not lossless; expected none, rle, zips, zip or piz");
+  }
+  WritePixels(path, image, OIIO::TypeDesc::FLOAT, image.rgb.data(), compression);
 }
 
 void WritePng(const std::filesystem::path& path, const Image& image) {
   CheckShape(path, image);
   std::vector<uint8_t> codes(image.rgb.size());
-  std::transform(image.rgb.begin(), image.rgb.end(), codes.begin(), LinearToSrgb8);
+  std::transform(image.rgb.begin(), image.rgb.end(), codes.begin(), LinearToSrgb8Fast);
   WritePixels(path, image, OIIO::TypeDesc::UINT8, codes.data());
 }
 

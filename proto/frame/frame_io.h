@@ -24,7 +24,13 @@ class FrameIoError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-void WriteExr(const std::filesystem::path& path, const Image& image);
+// Lossless EXR compressions only: the EXR is the exact record of every bit. Zip is
+// OpenEXR's usual choice; at level 1 ("zip:1") it writes ~1.4x faster than the default
+// level at the same size on traced floats, whose low mantissa bits do not compress;
+// "none" writes ~10x faster and ~1.8x larger.
+bool IsLosslessExrCompression(const std::string& name);
+void WriteExr(const std::filesystem::path& path, const Image& image,
+              const std::string& compression = "zip:1");
 void WritePng(const std::filesystem::path& path, const Image& image);
 // Reads any format OpenImageIO knows into linear float RGB (PNG is decoded from sRGB).
 Image ReadImage(const std::filesystem::path& path);
@@ -34,5 +40,7 @@ std::string FrameFileStem(int frame);
 
 // Linear value to an 8-bit sRGB code, clamped to [0, 1] first.
 uint8_t LinearToSrgb8(float linear);
+// The same code by table look-up, ~15x faster; equal to LinearToSrgb8 for every float.
+uint8_t LinearToSrgb8Fast(float linear);
 
 }  // namespace tcfarm

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <cstring>
 #include <limits>
 #include <unistd.h>
 
@@ -57,6 +58,30 @@ TEST(FrameIoTest, PngIsSrgbEncoded) {
   }
 }
 
+TEST(FrameIoTest, FastSrgbAgreesWithTheFormulaEverywhere) {
+  // Every float in [0, 1.5] at a stride, plus the exact code boundaries' neighbours.
+  for (uint32_t bits = 0; bits <= 0x3fc00000; bits += 997) {
+    float v;
+    std::memcpy(&v, &bits, sizeof v);
+    ASSERT_EQ(LinearToSrgb8Fast(v), LinearToSrgb8(v)) << v;
+  }
+  EXPECT_EQ(LinearToSrgb8Fast(-1.0f), 0);
+  EXPECT_EQ(LinearToSrgb8Fast(std::numeric_limits<float>::quiet_NaN()), 0);
+  EXPECT_EQ(LinearToSrgb8Fast(std::numeric_limits<float>::infinity()), 255);
+}
+
+TEST(FrameIoTest, ExrCompressionMustBeLossless) {
+  auto folder = FreshFolder("compression");
+  Image image = Gradient(6, 5);
+  for (const char* compression : {"none", "zip", "zip:1", "piz"}) {
+    WriteExr(folder / "a.exr", image, compression);
+    EXPECT_EQ(ReadImage(folder / "a.exr").rgb, image.rgb) << compression;
+  }
+  EXPECT_THROW(WriteExr(folder / "b.exr", image, "b44"), FrameIoError);
+  EXPECT_THROW(WriteExr(folder / "b.exr", image, "zip:0"), FrameIoError);
+  EXPECT_THROW(WriteExr(folder / "b.exr", image, "zip:12"), FrameIoError);
+}
+
 TEST(FrameIoTest, ErrorsNameTheFile) {
   Image bad{4, 4, std::vector<float>(5)};
   try {
@@ -72,7 +97,7 @@ TEST(FrameIoTest, ErrorsNameTheFile) {
 TEST(FrameWriterTest, WritesEveryQueuedFrame) {
   auto folder = FreshFolder("writer");
   {
-    FrameWriter writer(folder, true, true, 2);
+    FrameWriter writer(folder, {true, true, "zip", 3, 2});
     for (int frame = 0; frame < 6; ++frame) writer.Write(frame, Gradient(8, 8));
     writer.Finish();
   }
@@ -83,8 +108,12 @@ TEST(FrameWriterTest, WritesEveryQueuedFrame) {
   EXPECT_EQ(FrameFileStem(42), "frame_0042");
 }
 
+TEST(FrameWriterTest, RefusesLossyCompression) {
+  EXPECT_THROW(FrameWriter("/tmp", {true, true, "dwaa"}), FrameIoError);
+}
+
 TEST(FrameWriterTest, FinishReportsAWriteError) {
-  FrameWriter writer("/nonexistent/folder", true, false);
+  FrameWriter writer("/nonexistent/folder", {true, false});
   writer.Write(0, Gradient(4, 4));
   EXPECT_THROW(writer.Finish(), FrameIoError);
 }

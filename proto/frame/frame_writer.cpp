@@ -1,14 +1,20 @@
 #include "frame/frame_writer.h"
 
+#include <algorithm>
+
 namespace tcfarm {
 
-FrameWriter::FrameWriter(std::filesystem::path directory, bool writeExr, bool writePng,
-                         size_t maxQueuedFrames)
-    : directory_(std::move(directory)),
-      writeExr_(writeExr),
-      writePng_(writePng),
-      maxQueued_(std::max<size_t>(1, maxQueuedFrames)),
-      thread_([this] { Run(); }) {}
+FrameWriter::FrameWriter(std::filesystem::path directory, FrameWriterOptions options)
+    : directory_(std::move(directory)), options_(std::move(options)) {
+  if (options_.writeExr && !IsLosslessExrCompression(options_.exrCompression)) {
+    throw FrameIoError("EXR compression '" + options_.exrCompression +
+                       "' is not lossless; expected none, rle, zips, zip or piz");
+  }
+  options_.maxQueuedFrames = std::max<size_t>(1, options_.maxQueuedFrames);
+  for (unsigned i = 0; i < std::max(1u, options_.threads); ++i) {
+    threads_.emplace_back([this] { Run(); });
+  }
+}
 
 FrameWriter::~FrameWriter() {
   {
@@ -16,20 +22,26 @@ FrameWriter::~FrameWriter() {
     stopping_ = true;
   }
   changed_.notify_all();
-  thread_.join();
+  for (auto& thread : threads_) thread.join();
 }
 
 void FrameWriter::Write(int frame, Image image) {
   std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait(lock, [&] { return queue_.size() < maxQueued_; });
+  changed_.wait(lock, [&] { return queue_.size() < options_.maxQueuedFrames; });
   queue_.emplace_back(frame, std::move(image));
   changed_.notify_all();
 }
 
 void FrameWriter::Finish() {
   std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait(lock, [&] { return queue_.empty() && !writing_; });
+  changed_.wait(lock, [&] { return queue_.empty() && writing_ == 0; });
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+}
+
+void FrameWriter::WriteFiles(int frame, const Image& image) const {
+  std::filesystem::path stem = directory_ / FrameFileStem(frame);
+  if (options_.writeExr) WriteExr(stem.string() + ".exr", image, options_.exrCompression);
+  if (options_.writePng) WritePng(stem.string() + ".png", image);
 }
 
 void FrameWriter::Run() {
@@ -39,19 +51,18 @@ void FrameWriter::Run() {
     if (queue_.empty()) return;  // stopping with nothing left
     auto [frame, image] = std::move(queue_.front());
     queue_.pop_front();
-    writing_ = true;
+    ++writing_;
     changed_.notify_all();
     lock.unlock();
+    std::exception_ptr error;
     try {
-      std::filesystem::path stem = directory_ / FrameFileStem(frame);
-      if (writeExr_) WriteExr(stem.string() + ".exr", image);
-      if (writePng_) WritePng(stem.string() + ".png", image);
+      WriteFiles(frame, image);
     } catch (...) {
-      std::lock_guard<std::mutex> errorLock(mutex_);
-      if (!error_) error_ = std::current_exception();
+      error = std::current_exception();
     }
     lock.lock();
-    writing_ = false;
+    if (error && !error_) error_ = error;
+    --writing_;
     changed_.notify_all();
   }
 }

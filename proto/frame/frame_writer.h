@@ -9,19 +9,29 @@
 #include <filesystem>
 #include <mutex>
 #include <thread>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "frame/frame_io.h"
 
 namespace tcfarm {
 
+struct FrameWriterOptions {
+  bool writeExr = true;
+  bool writePng = true;
+  std::string exrCompression = "zip:1";
+  // Encoding a frame (EXR zip + PNG) costs several times tracing it at small sizes, so
+  // frames are encoded in parallel.
+  unsigned threads = 2;
+  // Frames queued before Write blocks: enough to ride out slow writes.
+  size_t maxQueuedFrames = 4;
+};
+
 class FrameWriter {
  public:
-  // Frames queued before Write blocks: enough to ride out a slow write of one frame.
-  static constexpr size_t kDefaultQueueFrames = 4;
-
-  FrameWriter(std::filesystem::path directory, bool writeExr, bool writePng,
-              size_t maxQueuedFrames = kDefaultQueueFrames);
+  // Throws FrameIoError for a lossy EXR compression.
+  FrameWriter(std::filesystem::path directory, FrameWriterOptions options = {});
   ~FrameWriter();  // finishes pending writes; errors are only reported by Finish()
   FrameWriter(const FrameWriter&) = delete;
   FrameWriter& operator=(const FrameWriter&) = delete;
@@ -34,16 +44,17 @@ class FrameWriter {
  private:
   void Run();
 
+  void WriteFiles(int frame, const Image& image) const;
+
   std::filesystem::path directory_;
-  bool writeExr_, writePng_;
-  size_t maxQueued_;
+  FrameWriterOptions options_;
   std::mutex mutex_;
   std::condition_variable changed_;
   std::deque<std::pair<int, Image>> queue_;
-  bool writing_ = false;
+  unsigned writing_ = 0;
   bool stopping_ = false;
   std::exception_ptr error_;
-  std::thread thread_;
+  std::vector<std::thread> threads_;
 };
 
 }  // namespace tcfarm

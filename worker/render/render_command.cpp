@@ -17,7 +17,7 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N] "
-    "[--no-exr] [--no-png]";
+    "[--no-exr] [--no-png] [--exr-compression zip[:1-9]|none|rle|zips|piz]";
 
 int ParseInt(const std::string& text, const std::string& what) {
   size_t used = 0;
@@ -83,9 +83,15 @@ RenderOptions ParseRenderArguments(const std::vector<std::string>& args) {
       if (threads < 0) throw std::invalid_argument("--threads: expected 0 (all cores) or more");
       options.threads = static_cast<unsigned>(threads);
     } else if (arg == "--no-exr") {
-      options.writeExr = false;
+      options.output.writeExr = false;
     } else if (arg == "--no-png") {
-      options.writePng = false;
+      options.output.writePng = false;
+    } else if (arg == "--exr-compression") {
+      options.output.exrCompression = value();
+      if (!IsLosslessExrCompression(options.output.exrCompression)) {
+        throw std::invalid_argument("--exr-compression " + options.output.exrCompression +
+                                    ": expected a lossless one: none, rle, zips, zip or piz");
+      }
     } else if (!arg.empty() && arg[0] == '-') {
       throw std::invalid_argument("unknown option " + arg + "\n" + kUsage);
     } else if (options.scenePath.empty()) {
@@ -107,7 +113,7 @@ int RunRender(const RenderOptions& requested) {
   ThreadPool pool(options.threads);
   Tracer tracer(device, scene, pool);
   std::filesystem::create_directories(options.outDirectory);
-  FrameWriter writer(options.outDirectory, options.writeExr, options.writePng);
+  FrameWriter writer(options.outDirectory, options.output);
   CoherenceTracker coherence;
 
   const int width = scene.render.width, height = scene.render.height;

@@ -4,6 +4,8 @@
 #pragma once
 
 #include <filesystem>
+
+#include "frame/frame_writer.h"
 #include <string>
 #include <vector>
 
@@ -15,11 +17,11 @@ struct RenderOptions {
   int firstFrame = -1;  // -1: the scene's range
   int lastFrame = -1;
   unsigned threads = 0;  // 0: all cores
-  bool writeExr = true;
-  bool writePng = true;
+  FrameWriterOptions output;
 };
 
-// Parses `render SCENE --frames A:B --out DIR [--threads N] [--no-exr] [--no-png]`
+// Parses `render SCENE --frames A:B --out DIR [--threads N] [--no-exr] [--no-png]
+// [--exr-compression NAME]`
 // (argv after the command word). Throws std::invalid_argument with a usage message.
 RenderOptions ParseRenderArguments(const std::vector<std::string>& args);
 
