@@ -1,0 +1,30 @@
+#include "http/api_error.h"
+
+namespace tcfarm::http {
+
+nlohmann::json ApiError::Body() const {
+  nlohmann::json error{{"status", status_}, {"code", code_}, {"message", what()}};
+  if (pointer_) error["pointer"] = *pointer_;
+  return nlohmann::json{{"error", std::move(error)}};
+}
+
+std::string EscapePointerToken(const std::string& token) {
+  std::string escaped;
+  escaped.reserve(token.size());
+  for (char c : token) {
+    if (c == '~') {
+      escaped += "~0";
+    } else if (c == '/') {
+      escaped += "~1";
+    } else {
+      escaped += c;
+    }
+  }
+  return escaped;
+}
+
+std::string DumpJson(const nlohmann::json& value) {
+  return value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+}  // namespace tcfarm::http

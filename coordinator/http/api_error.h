@@ -1,0 +1,62 @@
+// The HTTP API's one error shape:
+//
+//   {"error": {"status": 400, "code": "invalid_scene", "message": "...", "pointer": "/scene/..."}}
+//
+// Handlers and request validation throw ApiError; the server turns it into that body, so
+// no route can answer an error in any other shape. "pointer" (RFC 6901, into the request
+// body) is there only when the bad value has one.
+#pragma once
+
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace tcfarm::http {
+
+// The codes clients may branch on; proto/openapi.yaml lists the same set.
+namespace error_code {
+inline constexpr const char* kInvalidJson = "invalid_json";            // 400
+inline constexpr const char* kUnknownField = "unknown_field";          // 400
+inline constexpr const char* kMissingField = "missing_field";          // 400
+inline constexpr const char* kInvalidField = "invalid_field";          // 400
+inline constexpr const char* kInvalidScene = "invalid_scene";          // 400
+inline constexpr const char* kInvalidParameter = "invalid_parameter";  // 400, path or query
+inline constexpr const char* kBadRequest = "bad_request";              // 400, malformed HTTP
+inline constexpr const char* kNotFound = "not_found";                  // 404, no such route
+inline constexpr const char* kJobNotFound = "job_not_found";           // 404
+inline constexpr const char* kFrameNotReady = "frame_not_ready";       // 404
+inline constexpr const char* kMethodNotAllowed = "method_not_allowed"; // 405
+inline constexpr const char* kJobFinished = "job_finished";            // 409
+inline constexpr const char* kPayloadTooLarge = "payload_too_large";   // 413
+inline constexpr const char* kInternal = "internal";                   // 500
+}  // namespace error_code
+
+class ApiError : public std::runtime_error {
+ public:
+  ApiError(int status, std::string code, const std::string& message,
+           std::optional<std::string> pointer = std::nullopt)
+      : std::runtime_error(message), status_(status), code_(std::move(code)),
+        pointer_(std::move(pointer)) {}
+
+  int status() const { return status_; }
+  const std::string& code() const { return code_; }
+  const std::optional<std::string>& pointer() const { return pointer_; }
+
+  nlohmann::json Body() const;
+
+ private:
+  int status_;
+  std::string code_;
+  std::optional<std::string> pointer_;
+};
+
+// RFC 6901 reference token: "~" -> "~0", "/" -> "~1".
+std::string EscapePointerToken(const std::string& token);
+
+// Serializes for a response body. Replaces invalid UTF-8 instead of throwing: error
+// messages quote whatever bytes the client sent.
+std::string DumpJson(const nlohmann::json& value);
+
+}  // namespace tcfarm::http

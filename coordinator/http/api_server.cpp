@@ -1,0 +1,450 @@
+#include "http/api_server.h"
+
+#include <httplib.h>
+#include <prometheus/registry.h>
+#include <prometheus/text_serializer.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <stdexcept>
+#include <utility>
+
+#include <sys/socket.h>
+
+#include "frame/frame_io.h"
+#include "http/api_error.h"
+#include "http/submit_request.h"
+
+namespace tcfarm {
+namespace {
+
+using http::ApiError;
+using nlohmann::json;
+namespace error_code = http::error_code;
+
+constexpr int kDefaultListLimit = 50;
+constexpr int kMaxListLimit = 1000;  // one page stays a few hundred KiB of JSON
+constexpr size_t kFileChunkBytes = 64u << 10;
+constexpr const char* kJsonType = "application/json";
+// The Prometheus text exposition format, version 0.0.4: what a scraper asks for.
+constexpr const char* kMetricsType = "text/plain; version=0.0.4";
+constexpr const char* kMethodsWithCatchAll[] = {"GET", "POST", "PUT", "PATCH", "DELETE", "OPTIONS"};
+
+void WriteJson(httplib::Response& response, const json& body, int status = 200) {
+  response.status = status;
+  response.set_content(http::DumpJson(body), kJsonType);
+}
+
+void WriteError(httplib::Response& response, const ApiError& error) {
+  WriteJson(response, error.Body(), error.status());
+}
+
+ApiError PayloadTooLarge(size_t maxBytes) {
+  return ApiError(413, error_code::kPayloadTooLarge,
+                  "request body is larger than the limit of " + std::to_string(maxBytes) + " bytes");
+}
+
+bool TakesBody(const std::string& method) {
+  return method == "POST" || method == "PUT" || method == "PATCH" || method == "DELETE";
+}
+
+// Reads the whole body but keeps at most maxBytes of it; past that the rest is read and
+// dropped, so memory stays bounded and the connection stays in step for its next request.
+// httplib 0.11.4 enforces its payload limit only on bodies with a Content-Length, not on
+// chunked ones, nor on what a compressed body inflates to; this covers all three.
+// nullopt when the body is too large (413) or could not be read (400): the error is in
+// response already.
+std::optional<std::string> ReadLimitedBody(const httplib::ContentReader& reader, size_t maxBytes,
+                                           httplib::Response& response) {
+  std::string body;
+  bool tooLarge = false;
+  const bool complete = reader([&](const char* data, size_t length) {
+    if (tooLarge || length > maxBytes - body.size()) {
+      tooLarge = true;
+      std::string().swap(body);
+    } else {
+      body.append(data, length);
+    }
+    return true;
+  });
+  // 413 here: httplib refused a Content-Length over its limit before reading anything.
+  if (tooLarge || response.status == 413) {
+    WriteError(response, PayloadTooLarge(maxBytes));
+    return std::nullopt;
+  }
+  if (!complete) {
+    WriteError(response, ApiError(400, error_code::kBadRequest, "the request body could not be read"));
+    return std::nullopt;
+  }
+  return body;
+}
+
+bool AllDigits(const std::string& text) {
+  return !text.empty() &&
+         std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+// Path and query parameters are parsed as plain decimal integers, never used as text: no
+// sign, no spaces, no "..", so nothing a client sends can name a path outside the store.
+uint64_t ParseJobId(const std::string& text) {
+  constexpr size_t kMaxDigits = 19;  // every 19-digit number fits in uint64_t
+  if (!AllDigits(text) || text.size() > kMaxDigits) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "job id \"" + text + "\" is not a job id; expected a positive integer");
+  }
+  return std::stoull(text);
+}
+
+std::optional<JobState> ParseStateFilter(const httplib::Request& request) {
+  if (!request.has_param("state")) return std::nullopt;
+  const std::string name = request.get_param_value("state");
+  std::optional<JobState> state = JobStateFromString(name);
+  if (!state) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "state \"" + name + "\" is not a job state; expected one of queued, running, "
+                   "completed, failed, canceled");
+  }
+  return state;
+}
+
+int ParseLimit(const httplib::Request& request) {
+  if (!request.has_param("limit")) return kDefaultListLimit;
+  const std::string text = request.get_param_value("limit");
+  const std::string expected = "expected an integer in [1, " + std::to_string(kMaxListLimit) + "]";
+  if (!AllDigits(text) || text.size() > 4 || std::stoi(text) < 1 || std::stoi(text) > kMaxListLimit) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "limit \"" + text + "\" is out of range; " + expected);
+  }
+  return std::stoi(text);
+}
+
+struct FrameFile {
+  int frame = 0;
+  std::string extension;   // "png" or "exr"
+  const char* contentType;
+};
+
+// "42.png" -> frame 42, png.
+FrameFile ParseFrameFile(const std::string& text) {
+  const std::string expected = "expected <frame number>.png or <frame number>.exr";
+  constexpr size_t kMaxFrameDigits = 9;  // scene frames stay below 10^7 + 10^5
+  const size_t dot = text.rfind('.');
+  const std::string number = text.substr(0, dot);
+  const std::string extension = dot == std::string::npos ? "" : text.substr(dot + 1);
+  if (!AllDigits(number) || number.size() > kMaxFrameDigits) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "frame file \"" + text + "\" has no frame number; " + expected);
+  }
+  if (extension == "png") return FrameFile{std::stoi(number), extension, "image/png"};
+  if (extension == "exr") return FrameFile{std::stoi(number), extension, "image/x-exr"};
+  throw ApiError(400, error_code::kInvalidParameter,
+                 "frame file \"" + text + "\" has an unknown extension; " + expected);
+}
+
+// Streams the file so a 16K float EXR never has to sit in memory whole. The stream stays
+// open for the response's lifetime: a frame renamed over it meanwhile is not mixed in.
+bool ServeFile(httplib::Response& response, const std::filesystem::path& path, const char* contentType) {
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error)) return false;
+  const uintmax_t size = std::filesystem::file_size(path, error);
+  auto file = std::make_shared<std::ifstream>(path, std::ios::binary);
+  if (error || !*file) return false;
+  response.set_content_provider(
+      static_cast<size_t>(size), contentType,
+      [file](size_t offset, size_t length, httplib::DataSink& sink) {
+        std::vector<char> buffer(std::min(length, kFileChunkBytes));
+        file->seekg(static_cast<std::streamoff>(offset));
+        file->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+        const std::streamsize got = file->gcount();
+        return got > 0 && sink.write(buffer.data(), static_cast<size_t>(got));
+      });
+  return true;
+}
+
+// For errors the HTTP library answers itself, before any route runs.
+ApiError LibraryError(const httplib::Request& request, int status, size_t maxBodyBytes) {
+  switch (status) {
+    case 413:
+      return PayloadTooLarge(maxBodyBytes);
+    case 404:
+      return ApiError(404, error_code::kNotFound, "no route for " + request.method + " " + request.path);
+    default:
+      if (status >= 500) return ApiError(status, error_code::kInternal, "internal server error");
+      return ApiError(status, error_code::kBadRequest,
+                      "malformed HTTP request (status " + std::to_string(status) + ")");
+  }
+}
+
+}  // namespace
+
+ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometheus::Registry> metrics,
+                     ApiOptions options)
+    : store_(store), farm_(farm), metrics_(std::move(metrics)), options_(std::move(options)) {
+  for (const Route& route : Routes()) routePatterns_.emplace_back(route.pattern);
+}
+
+ApiServer::~ApiServer() { Stop(); }
+
+const std::vector<ApiServer::Route>& ApiServer::Routes() {
+  static const std::vector<Route> routes{
+      {"POST", "/api/v1/jobs", &ApiServer::SubmitJob},
+      {"GET", "/api/v1/jobs", &ApiServer::ListJobs},
+      {"GET", "/api/v1/jobs/([^/]+)", &ApiServer::GetJob},
+      {"POST", "/api/v1/jobs/([^/]+)/cancel", &ApiServer::CancelJob},
+      {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)", &ApiServer::GetFrame},
+      {"GET", "/api/v1/workers", &ApiServer::ListWorkers},
+      {"GET", "/healthz", &ApiServer::Health},
+      {"GET", "/metrics", &ApiServer::Metrics},
+  };
+  return routes;
+}
+
+int ApiServer::Start() {
+  if (server_) throw std::logic_error("ApiServer::Start: already started");
+  auto server = std::make_unique<httplib::Server>();
+  Configure(*server);
+  int port = options_.port;
+  if (port == 0) {
+    port = server->bind_to_any_port(options_.host);
+  } else if (!server->bind_to_port(options_.host, port)) {
+    port = -1;
+  }
+  if (port < 0) {
+    throw std::runtime_error("cannot listen on " + options_.host + ":" + std::to_string(options_.port));
+  }
+  server_ = std::move(server);
+  listenReturned_ = false;
+  listenThread_ = std::thread([this] {
+    server_->listen_after_bind();
+    listenReturned_ = true;
+  });
+  // httplib's stop() does nothing until the listen loop is running, so Stop right after
+  // Start would otherwise hang in join.
+  while (!server_->is_running() && !listenReturned_) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  return port;
+}
+
+void ApiServer::Stop() {
+  if (!server_) return;
+  server_->stop();
+  if (listenThread_.joinable()) listenThread_.join();
+  server_.reset();
+}
+
+void ApiServer::Configure(httplib::Server& server) {
+  // httplib's default sets SO_REUSEPORT, with which a second coordinator on the same port
+  // starts "fine" and the kernel splits requests between the two. SO_REUSEADDR alone
+  // still allows a quick restart over connections in TIME_WAIT.
+  server.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
+  server.set_payload_max_length(options_.maxBodyBytes);
+  for (const Route& route : Routes()) Register(server, route.method, route.pattern, route.handle);
+  // Registered last, so they only see what no route matched: answers 405 or 404 in the
+  // error shape instead of the library's empty 404.
+  for (const char* method : kMethodsWithCatchAll) Register(server, method, ".*", &ApiServer::RouteMiss);
+  // The library runs this for every status >= 400; a body already there came from a
+  // handler and is kept.
+  server.set_error_handler(httplib::Server::HandlerWithResponse(
+      [this](const httplib::Request& request, httplib::Response& response) {
+        if (!response.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
+        WriteError(response, LibraryError(request, response.status, options_.maxBodyBytes));
+        return httplib::Server::HandlerResponse::Handled;
+      }));
+  if (!options_.dashboardDirectory.empty() &&
+      !server.set_mount_point("/", options_.dashboardDirectory.string())) {
+    throw std::runtime_error("dashboard directory " + options_.dashboardDirectory.string() +
+                             " is not a readable folder");
+  }
+}
+
+void ApiServer::Register(httplib::Server& server, const std::string& method, const std::string& pattern,
+                         Handler handle) {
+  const httplib::Server::Handler withoutBody = [this, handle](const httplib::Request& request,
+                                                              httplib::Response& response) {
+    Dispatch(handle, request, request.body, response);
+  };
+  if (method == "GET") {
+    server.Get(pattern, withoutBody);
+  } else if (method == "OPTIONS") {
+    server.Options(pattern, withoutBody);
+  } else if (TakesBody(method)) {
+    // httplib picks the body-reading handler whenever a body comes, the other otherwise.
+    const httplib::Server::HandlerWithContentReader withBody =
+        [this, handle](const httplib::Request& request, httplib::Response& response,
+                       const httplib::ContentReader& reader) {
+          // httplib 0.11.4 reads a POST with neither header until the client closes (or its
+          // read timeout), then answers 400; RFC 9112 says such a request has no body.
+          if (!request.has_header("Content-Length") && !request.has_header("Transfer-Encoding")) {
+            Dispatch(handle, request, std::string(), response);
+            return;
+          }
+          const std::optional<std::string> body = ReadLimitedBody(reader, options_.maxBodyBytes, response);
+          if (body) Dispatch(handle, request, *body, response);
+        };
+    if (method == "POST") {
+      server.Post(pattern, withoutBody).Post(pattern, withBody);
+    } else if (method == "PUT") {
+      server.Put(pattern, withoutBody).Put(pattern, withBody);
+    } else if (method == "PATCH") {
+      server.Patch(pattern, withoutBody).Patch(pattern, withBody);
+    } else {
+      server.Delete(pattern, withoutBody).Delete(pattern, withBody);
+    }
+  } else {
+    throw std::logic_error("ApiServer: no way to register method " + method);
+  }
+}
+
+void ApiServer::Dispatch(Handler handle, const httplib::Request& request, const std::string& body,
+                         httplib::Response& response) {
+  try {
+    (this->*handle)(request, body, response);
+  } catch (const ApiError& error) {
+    WriteError(response, error);
+  } catch (const std::exception& error) {
+    // A store failure or a bug: the client gets a 500 in the usual shape, the server goes on.
+    std::fprintf(stderr, "coordinator http: %s %s failed: %s\n", request.method.c_str(),
+                 request.path.c_str(), error.what());
+    WriteError(response, ApiError(500, error_code::kInternal, error.what()));
+  }
+}
+
+void ApiServer::RouteMiss(const httplib::Request& request, const std::string&,
+                          httplib::Response& response) {
+  std::string allowed;
+  for (size_t i = 0; i < Routes().size(); ++i) {
+    if (!std::regex_match(request.path, routePatterns_[i])) continue;
+    const std::string method = Routes()[i].method;
+    allowed += (allowed.empty() ? "" : ", ") + method + (method == "GET" ? ", HEAD" : "");
+  }
+  if (allowed.empty()) {
+    throw ApiError(404, error_code::kNotFound, "no route for " + request.method + " " + request.path);
+  }
+  response.set_header("Allow", allowed);
+  if (request.method == "OPTIONS") {
+    response.status = 204;
+    return;
+  }
+  throw ApiError(405, error_code::kMethodNotAllowed,
+                 request.method + " is not allowed on " + request.path + "; allowed: " + allowed);
+}
+
+void ApiServer::SubmitJob(const httplib::Request&, const std::string& body, httplib::Response& response) {
+  const http::Submission submission = http::ParseSubmission(body);
+  const uint64_t id = store_.Submit(submission.spec);
+  {
+    std::lock_guard<std::mutex> lock(geometryMutex_);
+    geometry_[id] =
+        JobGeometry{submission.frameSize, submission.spec.firstFrame, submission.spec.lastFrame};
+  }
+  response.set_header("Location", http::JobPath(id));
+  WriteJson(response, JobDetail(LoadJob(id)), 201);
+}
+
+void ApiServer::ListJobs(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const std::optional<JobState> state = ParseStateFilter(request);
+  const std::vector<JobRecord> records = store_.List(state, ParseLimit(request));
+  const bool anyRunning = std::any_of(records.begin(), records.end(), [](const JobRecord& record) {
+    return record.state == JobState::kRunning;
+  });
+  const FarmSnapshot snapshot = anyRunning ? farm_.Snapshot() : FarmSnapshot{};
+  json jobs = json::array();
+  for (const JobRecord& record : records) {
+    const auto live = snapshot.runningStats.find(record.id);
+    jobs.push_back(http::JobJson(record, GeometryOf(record.id, &record).frameSize,
+                                 live == snapshot.runningStats.end() ? nullptr : &live->second));
+  }
+  WriteJson(response, json{{"jobs", std::move(jobs)}});
+}
+
+void ApiServer::GetJob(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  WriteJson(response, JobDetail(LoadJob(ParseJobId(request.matches[1]))));
+}
+
+void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
+                          httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  // Cancel first and ask afterwards: checking the state first would race with the farm
+  // finishing the job in between.
+  if (!store_.Cancel(id)) {
+    const JobRecord record = LoadJob(id);
+    throw ApiError(409, error_code::kJobFinished,
+                   "job " + std::to_string(id) + " is already " + ToString(record.state) +
+                       "; only queued or running jobs can be canceled");
+  }
+  farm_.RequestCancel(id);
+  WriteJson(response, JobDetail(LoadJob(id)));
+}
+
+void ApiServer::GetFrame(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  const FrameFile file = ParseFrameFile(request.matches[2]);
+  const JobGeometry geometry = GeometryOf(id, nullptr);
+  if (file.frame < geometry.firstFrame || file.frame > geometry.lastFrame) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "frame " + std::to_string(file.frame) + " is outside job " + std::to_string(id) +
+                       "'s frames [" + std::to_string(geometry.firstFrame) + ", " +
+                       std::to_string(geometry.lastFrame) + "]");
+  }
+  const std::filesystem::path path =
+      options_.storeRoot / std::to_string(id) / (FrameFileStem(file.frame) + "." + file.extension);
+  if (!ServeFile(response, path, file.contentType)) {
+    throw ApiError(404, error_code::kFrameNotReady,
+                   "frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +
+                       " is not written yet");
+  }
+}
+
+void ApiServer::ListWorkers(const httplib::Request&, const std::string&, httplib::Response& response) {
+  WriteJson(response, http::WorkersJson(farm_.Snapshot()));
+}
+
+void ApiServer::Health(const httplib::Request&, const std::string&, httplib::Response& response) {
+  WriteJson(response, json{{"status", "ok"}});
+}
+
+void ApiServer::Metrics(const httplib::Request&, const std::string&, httplib::Response& response) {
+  const std::string text = metrics_ ? prometheus::TextSerializer().Serialize(metrics_->Collect()) : "";
+  response.set_content(text, kMetricsType);
+}
+
+JobRecord ApiServer::LoadJob(uint64_t id) const {
+  std::optional<JobRecord> record = store_.Get(id);
+  if (!record) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  return std::move(*record);
+}
+
+json ApiServer::JobDetail(const JobRecord& record) {
+  const http::FrameSize frameSize = GeometryOf(record.id, &record).frameSize;
+  if (record.state != JobState::kRunning) return http::JobDetailJson(record, frameSize, nullptr);
+  const FarmSnapshot snapshot = farm_.Snapshot();
+  const auto live = snapshot.runningStats.find(record.id);
+  return http::JobDetailJson(record, frameSize,
+                             live == snapshot.runningStats.end() ? nullptr : &live->second);
+}
+
+ApiServer::JobGeometry ApiServer::GeometryOf(uint64_t id, const JobRecord* loaded) {
+  {
+    std::lock_guard<std::mutex> lock(geometryMutex_);
+    const auto cached = geometry_.find(id);
+    if (cached != geometry_.end()) return cached->second;
+  }
+  std::optional<JobRecord> fetched;
+  if (loaded == nullptr || loaded->spec.sceneJson.empty()) {
+    fetched = LoadJob(id);
+    loaded = &*fetched;
+  }
+  const JobGeometry geometry{http::RenderSizeOfScene(loaded->spec.sceneJson), loaded->spec.firstFrame,
+                             loaded->spec.lastFrame};
+  std::lock_guard<std::mutex> lock(geometryMutex_);
+  geometry_.emplace(id, geometry);
+  return geometry;
+}
+
+}  // namespace tcfarm

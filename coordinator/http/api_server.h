@@ -1,0 +1,118 @@
+// The coordinator's HTTP API (/api/v1), plus /healthz and /metrics. proto/openapi.yaml
+// is its contract: routes, bodies, status codes, and the one error shape
+// {"error": {"status", "code", "message", "pointer"?}} that every failure answers with,
+// including the ones the HTTP library produces itself (unknown route, body too large).
+//
+// The server only reads and writes the JobStore and asks the FarmControl for cancels and
+// snapshots; it never touches the farm's state directly, so a slow client cannot stall
+// rendering.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <regex>
+#include <string>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include "farm/farm_control.h"
+#include "http/job_json.h"
+#include "jobs/job_store.h"
+
+namespace httplib {
+class Server;
+struct Request;
+struct Response;
+}  // namespace httplib
+
+namespace prometheus {
+class Registry;
+}
+
+namespace tcfarm {
+
+struct ApiOptions {
+  std::string host = "0.0.0.0";
+  int port = 8080;  // 0: any free port (Start returns it)
+  // Submissions carry whole scenes with inline meshes; above this the body is refused
+  // with 413 before it is read into memory.
+  size_t maxBodyBytes = 64u << 20;
+  std::filesystem::path storeRoot = "store";  // frames: storeRoot/<job id>/frame_NNNN.{exr,png}
+  std::filesystem::path dashboardDirectory;   // static files served at / when set
+};
+
+class ApiServer {
+ public:
+  ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometheus::Registry> metrics,
+            ApiOptions options);
+  ~ApiServer();  // stops
+  ApiServer(const ApiServer&) = delete;
+  ApiServer& operator=(const ApiServer&) = delete;
+
+  // Binds and serves on a background thread; returns the bound port. Throws
+  // std::runtime_error "cannot listen on host:port" when the address is taken or invalid.
+  int Start();
+  // Stops accepting, finishes the requests in progress and joins the server thread.
+  // Safe to call twice or without Start.
+  void Stop();
+
+ private:
+  // body: the request body, read by the server within options_.maxBodyBytes (httplib's
+  // Request::body stays empty for bodies read that way).
+  using Handler = void (ApiServer::*)(const httplib::Request& request, const std::string& body,
+                                      httplib::Response& response);
+  struct Route {
+    const char* method;
+    const char* pattern;  // a regex on the decoded path; groups are the path parameters
+    Handler handle;
+  };
+  // What never changes about a job once submitted.
+  struct JobGeometry {
+    http::FrameSize frameSize;
+    int firstFrame = 0;
+    int lastFrame = 0;
+  };
+
+  static const std::vector<Route>& Routes();
+  void Configure(httplib::Server& server);
+  void Register(httplib::Server& server, const std::string& method, const std::string& pattern,
+                Handler handle);
+  void Dispatch(Handler handle, const httplib::Request& request, const std::string& body,
+                httplib::Response& response);
+  void RouteMiss(const httplib::Request& request, const std::string& body, httplib::Response& response);
+
+  void SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void GetFrame(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void ListWorkers(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void Health(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
+
+  JobRecord LoadJob(uint64_t id) const;  // throws ApiError 404 job_not_found
+  nlohmann::json JobDetail(const JobRecord& record);
+  // Cached per job: the frame size needs the scene JSON, which List results lack and
+  // which may be megabytes of mesh. Loads the job when neither cache nor record has it.
+  JobGeometry GeometryOf(uint64_t id, const JobRecord* loaded);
+
+  JobStore& store_;
+  FarmControl& farm_;
+  std::shared_ptr<prometheus::Registry> metrics_;
+  ApiOptions options_;
+  std::vector<std::regex> routePatterns_;  // Routes() compiled once, for 405 vs 404
+
+  std::mutex geometryMutex_;
+  std::unordered_map<uint64_t, JobGeometry> geometry_;
+
+  std::unique_ptr<httplib::Server> server_;
+  std::thread listenThread_;
+  std::atomic<bool> listenReturned_{false};
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,818 @@
+// The HTTP API through a real server on a free port, a real JobStore in a temporary SQLite
+// file and a fake farm; the client is httplib's, so requests cross a real socket.
+#include "http/api_server.h"
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+#include <prometheus/counter.h>
+#include <prometheus/registry.h>
+
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <mutex>
+#include <random>
+#include <sstream>
+#include <thread>
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "frame/frame_io.h"
+#include "scene/scene.h"
+#include "wire/sha256.h"
+
+namespace tcfarm {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr int64_t kNowMs = 1714566896789;  // 2024-05-01T12:34:56.789Z
+constexpr size_t kMaxBodyBytes = 64u << 10;
+
+class FakeFarm : public FarmControl {
+ public:
+  void RequestCancel(uint64_t jobId) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    canceled_.push_back(jobId);
+  }
+  FarmSnapshot Snapshot() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return snapshot_;
+  }
+  std::vector<uint64_t> Canceled() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return canceled_;
+  }
+  void SetSnapshot(FarmSnapshot snapshot) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    snapshot_ = std::move(snapshot);
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<uint64_t> canceled_;
+  FarmSnapshot snapshot_;
+};
+
+// 8x6 pixels, frames 0..9, one sphere.
+json SmallScene() {
+  return json{{"camera", {{"position", {0, 0, 5}}, {"look_at", {0, 0, 0}}}},
+              {"shapes", json::array({{{"type", "sphere"}, {"center", {0, 0, 0}}, {"radius", 1}}})},
+              {"render", {{"width", 8}, {"height", 6}, {"frames", {{"start", 0}, {"count", 10}}}}}};
+}
+
+json Submission(json scene = SmallScene()) { return json{{"scene", std::move(scene)}}; }
+
+std::string RunCommand(const std::string& command, int* exitStatus) {
+  std::string output;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) {
+    *exitStatus = -1;
+    return output;
+  }
+  char buffer[4096];
+  size_t got = 0;
+  while ((got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, got);
+  const int status = pclose(pipe);
+  *exitStatus = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return output;
+}
+
+// Sends raw bytes and returns what the server answers until it closes or stays silent for
+// 3 s: for requests httplib::Client never writes.
+std::string RawExchange(int port, const std::string& request) {
+  const int socketFd = socket(AF_INET, SOCK_STREAM, 0);
+  if (socketFd < 0) return "";
+  timeval timeout{3, 0};
+  setsockopt(socketFd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  inet_pton(AF_INET, "127.0.0.1", &address.sin_addr);
+  std::string answer;
+  if (connect(socketFd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0 &&
+      send(socketFd, request.data(), request.size(), 0) == static_cast<ssize_t>(request.size())) {
+    char buffer[4096];
+    ssize_t got = 0;
+    while ((got = recv(socketFd, buffer, sizeof buffer, 0)) > 0) {
+      answer.append(buffer, static_cast<size_t>(got));
+    }
+  }
+  close(socketFd);
+  return answer;
+}
+
+// The project's virtual environment first, then the system's python3; "" when neither
+// can import the modules (the spec checks are then skipped, not failed).
+std::string PythonWith(const std::string& modules) {
+  const std::string venvPython = (fs::path(TCFARM_SOURCE_DIR) / ".venv" / "bin" / "python").string();
+  for (const std::string& python : {venvPython, std::string("python3")}) {
+    int status = 0;
+    RunCommand("'" + python + "' -c 'import " + modules + "' 2>/dev/null", &status);
+    if (status == 0) return python;
+  }
+  return "";
+}
+
+const fs::path kOpenApiSpec = fs::path(TCFARM_SOURCE_DIR) / "proto" / "openapi.yaml";
+
+class ApiServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::random_device random;
+    folder_ = fs::temp_directory_path() /
+              ("tcfarm_api_" + std::to_string(random()) + "_" +
+               ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(folder_ / "store");
+    store_ = std::make_unique<JobStore>(folder_ / "jobs.sqlite", [this] { return nowMs_.load(); });
+    registry_ = std::make_shared<prometheus::Registry>();
+    auto& requests = prometheus::BuildCounter()
+                         .Name("tcfarm_test_renders_total")
+                         .Help("Renders the test pretends to have done.")
+                         .Register(*registry_);
+    requests.Add({{"strategy", "search"}}).Increment(3);
+
+    ApiOptions options;
+    options.host = "127.0.0.1";
+    options.port = 0;
+    options.maxBodyBytes = kMaxBodyBytes;
+    options.storeRoot = folder_ / "store";
+    server_ = std::make_unique<ApiServer>(*store_, farm_, registry_, options);
+    port_ = server_->Start();
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+  }
+
+  void TearDown() override {
+    client_.reset();
+    server_.reset();
+    store_.reset();
+    fs::remove_all(folder_);
+  }
+
+  httplib::Result Post(const std::string& path, const json& body) {
+    return client_->Post(path.c_str(), body.dump(), "application/json");
+  }
+  httplib::Result PostText(const std::string& path, const std::string& body) {
+    return client_->Post(path.c_str(), body, "application/json");
+  }
+  httplib::Result Get(const std::string& path) { return client_->Get(path.c_str()); }
+
+  // Submits and returns the new job's id.
+  uint64_t SubmitOk(json body = Submission()) {
+    httplib::Result result = Post("/api/v1/jobs", body);
+    EXPECT_TRUE(result);
+    if (!result) return 0;
+    EXPECT_EQ(result->status, 201) << result->body;
+    return json::parse(result->body).at("id").get<uint64_t>();
+  }
+
+  fs::path FramePath(uint64_t id, int frame, const std::string& extension) const {
+    return folder_ / "store" / std::to_string(id) / (FrameFileStem(frame) + "." + extension);
+  }
+
+  fs::path folder_;
+  std::atomic<int64_t> nowMs_{kNowMs};
+  std::unique_ptr<JobStore> store_;
+  FakeFarm farm_;
+  std::shared_ptr<prometheus::Registry> registry_;
+  std::unique_ptr<ApiServer> server_;
+  int port_ = 0;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+// Checks the one error shape and returns its "error" member.
+json ExpectError(const httplib::Result& result, int status, const std::string& code) {
+  EXPECT_TRUE(result);
+  if (!result) return json::object();
+  EXPECT_EQ(result->status, status) << result->body;
+  EXPECT_EQ(result->get_header_value("Content-Type"), "application/json");
+  json body = json::parse(result->body, nullptr, false);
+  EXPECT_TRUE(body.is_object() && body.size() == 1 && body.contains("error")) << result->body;
+  if (!body.is_object() || !body.contains("error")) return json::object();
+  const json& error = body["error"];
+  EXPECT_EQ(error.value("status", 0), status);
+  EXPECT_EQ(error.value("code", ""), code) << result->body;
+  EXPECT_TRUE(error.contains("message") && error["message"].is_string() &&
+              !error["message"].get<std::string>().empty());
+  return error;
+}
+
+void ExpectBadField(const httplib::Result& result, const std::string& code, const std::string& pointer,
+                    const std::string& messagePart = "") {
+  const json error = ExpectError(result, 400, code);
+  EXPECT_EQ(error.value("pointer", "<none>"), pointer) << error.dump();
+  EXPECT_NE(error.value("message", "").find(messagePart), std::string::npos) << error.dump();
+}
+
+// --- submit ------------------------------------------------------------------------------
+
+TEST_F(ApiServerTest, SubmitStoresTheCanonicalSceneAndAnswersCreated) {
+  json body = Submission();
+  body["name"] = "ball";
+  httplib::Result result = Post("/api/v1/jobs", body);
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 201) << result->body;
+  const json job = json::parse(result->body);
+  const uint64_t id = job.at("id").get<uint64_t>();
+  EXPECT_EQ(result->get_header_value("Location"), "/api/v1/jobs/" + std::to_string(id));
+  EXPECT_EQ(result->get_header_value("Content-Type"), "application/json");
+
+  const std::optional<JobRecord> record = store_->Get(id);
+  ASSERT_TRUE(record);
+  const std::string canonical = SerializeScene(ParseScene(SmallScene().dump()));
+  EXPECT_EQ(record->spec.sceneJson, canonical);
+  EXPECT_EQ(record->spec.sceneHash, wire::Sha256Hex(canonical));
+  EXPECT_EQ(record->spec.name, "ball");
+
+  EXPECT_EQ(job["name"], "ball");
+  EXPECT_EQ(job["state"], "queued");
+  EXPECT_EQ(job["strategy"], "search");
+  EXPECT_EQ(job["bin_width"], 10);
+  EXPECT_EQ(job["tolerance"], 0.0);
+  EXPECT_EQ(job["priority"], 0);
+  EXPECT_EQ(job["width"], 8);
+  EXPECT_EQ(job["height"], 6);
+  EXPECT_EQ(job["frames"], (json{{"start", 0}, {"end", 9}, {"count", 10}, {"done", 0}}));
+  EXPECT_EQ(job["progress"], 0.0);
+  EXPECT_EQ(job["submitted_at"], "2024-05-01T12:34:56.789Z");
+  EXPECT_TRUE(job["started_at"].is_null());
+  EXPECT_TRUE(job["finished_at"].is_null());
+  EXPECT_FALSE(job.contains("error"));
+  EXPECT_EQ(job["traced_per_frame"], json(std::vector<int>(10, -1)));
+  EXPECT_EQ(job["links"]["self"], "/api/v1/jobs/" + std::to_string(id));
+  EXPECT_EQ(job["links"]["frames"], "/api/v1/jobs/" + std::to_string(id) + "/frames/{frame}.png");
+}
+
+TEST_F(ApiServerTest, EqualScenesWrittenDifferentlyGetTheSameHash) {
+  const uint64_t first = SubmitOk();
+  const std::string reordered =
+      R"({"scene": {"render": {"height": 6, "frames": {"count": 10, "start": 0}, "width": 8},
+                    "shapes": [{"radius": 1.0, "center": [0, 0, 0], "type": "sphere"}],
+                    "camera": {"look_at": [0, 0, 0], "position": [0, 0, 5.0]}}})";
+  httplib::Result result = PostText("/api/v1/jobs", reordered);
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 201) << result->body;
+  const uint64_t second = json::parse(result->body).at("id").get<uint64_t>();
+  EXPECT_EQ(store_->Get(first)->spec.sceneHash, store_->Get(second)->spec.sceneHash);
+}
+
+TEST_F(ApiServerTest, SubmitTakesEveryOptionalField) {
+  json body = Submission();
+  body["frames"] = {{"start", 2}, {"end", 7}};
+  body["strategy"] = "brute";
+  body["bin_width"] = 5;
+  body["tolerance"] = 0.25;
+  body["priority"] = -100;
+  const uint64_t id = SubmitOk(body);
+  const JobSpec spec = store_->Get(id)->spec;
+  EXPECT_EQ(spec.firstFrame, 2);
+  EXPECT_EQ(spec.lastFrame, 7);
+  EXPECT_EQ(spec.strategy, "brute");
+  EXPECT_EQ(spec.binWidth, 5);
+  EXPECT_EQ(spec.tolerance, 0.25);
+  EXPECT_EQ(spec.priority, -100);
+
+  // One end alone keeps the scene's other end; a single frame is a range too.
+  body = Submission();
+  body["frames"] = {{"start", 9}};
+  const JobSpec last = store_->Get(SubmitOk(body))->spec;
+  EXPECT_EQ(last.firstFrame, 9);
+  EXPECT_EQ(last.lastFrame, 9);
+}
+
+TEST_F(ApiServerTest, BodyThatIsNotJsonIsInvalidJson) {
+  const json error = ExpectError(PostText("/api/v1/jobs", "{\"scene\": "), 400, "invalid_json");
+  EXPECT_NE(error["message"].get<std::string>().find("not valid JSON"), std::string::npos);
+  EXPECT_FALSE(error.contains("pointer"));
+  ExpectError(PostText("/api/v1/jobs", ""), 400, "invalid_json");
+  ExpectError(PostText("/api/v1/jobs", "{\"tolerance\": 1e999}"), 400, "invalid_json");
+}
+
+TEST_F(ApiServerTest, DuplicateKeysAreRefusedWithTheirPointer) {
+  const std::string body =
+      R"({"scene": {"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+                    "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "radius": 2}],
+                    "render": {"width": 8, "height": 6}}})";
+  ExpectBadField(PostText("/api/v1/jobs", body), "invalid_json", "/scene/shapes/0/radius", "duplicate");
+  ExpectBadField(PostText("/api/v1/jobs", R"({"priority": 1, "priority": 2})"), "invalid_json",
+                 "/priority");
+}
+
+TEST_F(ApiServerTest, BodyMustBeAnObjectWithAScene) {
+  ExpectBadField(PostText("/api/v1/jobs", "[1, 2]"), "invalid_field", "");
+  ExpectBadField(Post("/api/v1/jobs", json{{"name", "no scene"}}), "missing_field", "/scene");
+}
+
+TEST_F(ApiServerTest, UnknownFieldsAreNamed) {
+  json body = Submission();
+  body["colour/space"] = "srgb";
+  ExpectBadField(Post("/api/v1/jobs", body), "unknown_field", "/colour~1space", "bin_width");
+  body = Submission();
+  body["frames"] = {{"start", 0}, {"stop", 3}};
+  ExpectBadField(Post("/api/v1/jobs", body), "unknown_field", "/frames/stop");
+}
+
+TEST_F(ApiServerTest, BadSceneNamesItsPointerInsideTheBody) {
+  json scene = SmallScene();
+  scene["shapes"].push_back({{"type", "sphere"}, {"center", {1, 0, 0}}, {"radius", -1}});
+  const json error = ExpectError(Post("/api/v1/jobs", Submission(scene)), 400, "invalid_scene");
+  EXPECT_EQ(error.value("pointer", ""), "/scene/shapes/1/radius");
+  EXPECT_EQ(error["message"].get<std::string>().rfind("scene/shapes/1/radius: -1", 0), 0u) << error;
+
+  ExpectBadField(Post("/api/v1/jobs", json{{"scene", "not a scene"}}), "invalid_scene", "/scene");
+}
+
+TEST_F(ApiServerTest, MeshFileReferencesAreRefused) {
+  json scene = SmallScene();
+  scene["shapes"].push_back({{"type", "mesh"}, {"file", "/etc/passwd"}});
+  ExpectBadField(Post("/api/v1/jobs", Submission(scene)), "invalid_scene", "/scene/shapes/1/file");
+}
+
+TEST_F(ApiServerTest, FramesMustLieInsideTheScenesRange) {
+  json body = Submission();
+  body["frames"] = {{"start", 2}, {"end", 10}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/frames/end", "[0, 9]");
+  body["frames"] = {{"start", -1}, {"end", 3}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/frames/start");
+  body["frames"] = {{"start", 5}, {"end", 3}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/frames/end", "before");
+  body["frames"] = {{"start", 1.5}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/frames/start", "integer");
+  body["frames"] = json::array({0, 3});
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/frames");
+}
+
+TEST_F(ApiServerTest, StrategyMustBeOneThatRunsToday) {
+  json body = Submission();
+  body["strategy"] = "exact";
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/strategy", R"(one of "search", "brute")");
+  body["strategy"] = 3;
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/strategy");
+}
+
+TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
+  const std::vector<std::pair<std::string, json>> bad{
+      {"bin_width", 1},     {"bin_width", 1001}, {"bin_width", 2.5}, {"bin_width", "10"},
+      {"tolerance", -0.1},  {"tolerance", "0"},  {"priority", 101},  {"priority", -101},
+      {"priority", 1e300},  {"name", 7},         {"name", std::string(300, 'x')},
+  };
+  for (const auto& [field, value] : bad) {
+    json body = Submission();
+    body[field] = value;
+    SCOPED_TRACE(field + " = " + value.dump());
+    ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/" + field);
+  }
+  // The limits themselves are fine, and an integral float is an integer.
+  json body = Submission();
+  body["bin_width"] = 2.0;
+  body["priority"] = 100;
+  body["tolerance"] = 0;
+  SubmitOk(body);
+}
+
+TEST_F(ApiServerTest, BodyOverTheLimitIs413InTheErrorShape) {
+  json body = Submission();
+  body["name"] = std::string(kMaxBodyBytes, 'x');
+  const json error = ExpectError(Post("/api/v1/jobs", body), 413, "payload_too_large");
+  EXPECT_NE(error["message"].get<std::string>().find(std::to_string(kMaxBodyBytes)), std::string::npos);
+  // The connection is still good for the next request.
+  SubmitOk();
+}
+
+TEST_F(ApiServerTest, ChunkedBodyOverTheLimitIsRefusedToo) {
+  const std::string big(2 * kMaxBodyBytes, ' ');
+  httplib::Result result = client_->Post(
+      "/api/v1/jobs",
+      [&big](size_t offset, httplib::DataSink& sink) {
+        constexpr size_t kChunk = 8192;
+        if (offset >= big.size()) {
+          sink.done();
+        } else {
+          sink.write(big.data() + offset, std::min(kChunk, big.size() - offset));
+        }
+        return true;
+      },
+      "application/json");
+  ExpectError(result, 413, "payload_too_large");
+}
+
+// --- list and get ------------------------------------------------------------------------
+
+TEST_F(ApiServerTest, ListIsNewestFirstAndFilters) {
+  const uint64_t first = SubmitOk();
+  const uint64_t second = SubmitOk();
+  const uint64_t third = SubmitOk();
+  ASSERT_TRUE(store_->ClaimNext());  // the oldest of equal priority: first
+  ASSERT_TRUE(store_->Cancel(second));
+
+  httplib::Result all = Get("/api/v1/jobs");
+  ASSERT_TRUE(all);
+  ASSERT_EQ(all->status, 200) << all->body;
+  const json jobs = json::parse(all->body).at("jobs");
+  ASSERT_EQ(jobs.size(), 3u);
+  EXPECT_EQ(jobs[0]["id"], third);
+  EXPECT_EQ(jobs[1]["id"], second);
+  EXPECT_EQ(jobs[2]["id"], first);
+  EXPECT_EQ(jobs[2]["width"], 8);  // geometry for list records, whose scene is not loaded
+  EXPECT_FALSE(jobs[0].contains("traced_per_frame"));
+
+  const json running = json::parse(Get("/api/v1/jobs?state=running")->body).at("jobs");
+  ASSERT_EQ(running.size(), 1u);
+  EXPECT_EQ(running[0]["id"], first);
+  const json queued = json::parse(Get("/api/v1/jobs?state=queued")->body).at("jobs");
+  ASSERT_EQ(queued.size(), 1u);
+  EXPECT_EQ(queued[0]["id"], third);
+  EXPECT_EQ(json::parse(Get("/api/v1/jobs?state=completed")->body).at("jobs"), json::array());
+
+  const json limited = json::parse(Get("/api/v1/jobs?limit=2")->body).at("jobs");
+  ASSERT_EQ(limited.size(), 2u);
+  EXPECT_EQ(limited[0]["id"], third);
+}
+
+TEST_F(ApiServerTest, ListRefusesBadStateOrLimit) {
+  ExpectError(Get("/api/v1/jobs?state=sleeping"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs?state="), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs?limit=0"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs?limit=1001"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs?limit=-5"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs?limit=ten"), 400, "invalid_parameter");
+}
+
+TEST_F(ApiServerTest, GetUnknownOrMalformedId) {
+  ExpectError(Get("/api/v1/jobs/42"), 404, "job_not_found");
+  ExpectError(Get("/api/v1/jobs/abc"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs/-1"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs/99999999999999999999999"), 400, "invalid_parameter");
+}
+
+TEST_F(ApiServerTest, RunningJobShowsLiveProgressAndStats) {
+  const uint64_t id = SubmitOk();
+  nowMs_ = kNowMs + 1000;
+  ASSERT_TRUE(store_->ClaimNext());
+  ASSERT_TRUE(store_->RecordFrame(id, 0, 48, 0));
+  ASSERT_TRUE(store_->RecordFrame(id, 1, 12, 36));
+  ASSERT_TRUE(store_->SetStats(id, json{{"rays", 100}, {"phase", "stored"}}));
+  FarmSnapshot snapshot;
+  snapshot.runningStats[id] = json{{"phase", "live"}, {"bins_done", 1}};
+  farm_.SetSnapshot(snapshot);
+
+  const json job = json::parse(Get("/api/v1/jobs/" + std::to_string(id))->body);
+  EXPECT_EQ(job["state"], "running");
+  EXPECT_EQ(job["started_at"], "2024-05-01T12:34:57.789Z");
+  EXPECT_EQ(job["frames"]["done"], 2);
+  EXPECT_DOUBLE_EQ(job["progress"].get<double>(), 0.2);
+  EXPECT_EQ(job["pixels_traced"], 60);
+  EXPECT_EQ(job["pixels_copied"], 36);
+  // Finished frames only: 60 traced of 2 frames * 48 pixels.
+  EXPECT_DOUBLE_EQ(job["traced_pixel_ratio"].get<double>(), 60.0 / 96.0);
+  EXPECT_EQ(job["stats"], (json{{"rays", 100}, {"phase", "live"}, {"bins_done", 1}}));
+  json expectedPerFrame = json(std::vector<int>(10, -1));
+  expectedPerFrame[0] = 48;
+  expectedPerFrame[1] = 12;
+  EXPECT_EQ(job["traced_per_frame"], expectedPerFrame);
+
+  const json listed = json::parse(Get("/api/v1/jobs?state=running")->body).at("jobs").at(0);
+  EXPECT_EQ(listed["stats"]["phase"], "live");
+}
+
+TEST_F(ApiServerTest, FailedJobCarriesItsError) {
+  const uint64_t id = SubmitOk();
+  ASSERT_TRUE(store_->Fail(id, "scene too large for any worker"));
+  const json job = json::parse(Get("/api/v1/jobs/" + std::to_string(id))->body);
+  EXPECT_EQ(job["state"], "failed");
+  EXPECT_EQ(job["error"], "scene too large for any worker");
+  EXPECT_EQ(job["finished_at"], "2024-05-01T12:34:56.789Z");
+}
+
+// --- cancel ------------------------------------------------------------------------------
+
+TEST_F(ApiServerTest, CancelQueuedJobNotifiesTheFarmOnce) {
+  const uint64_t id = SubmitOk();
+  const std::string path = "/api/v1/jobs/" + std::to_string(id) + "/cancel";
+  httplib::Result result = client_->Post(path.c_str());
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(json::parse(result->body)["state"], "canceled");
+  EXPECT_EQ(store_->Get(id)->state, JobState::kCanceled);
+  EXPECT_EQ(farm_.Canceled(), std::vector<uint64_t>{id});
+
+  const json error = ExpectError(client_->Post(path.c_str()), 409, "job_finished");
+  EXPECT_NE(error["message"].get<std::string>().find("canceled"), std::string::npos);
+  EXPECT_EQ(farm_.Canceled().size(), 1u);
+}
+
+TEST_F(ApiServerTest, CancelRunningJobAndUnknownJob) {
+  const uint64_t id = SubmitOk();
+  ASSERT_TRUE(store_->ClaimNext());
+  httplib::Result result = client_->Post(("/api/v1/jobs/" + std::to_string(id) + "/cancel").c_str());
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 200);
+  EXPECT_EQ(farm_.Canceled(), std::vector<uint64_t>{id});
+  ExpectError(client_->Post("/api/v1/jobs/77/cancel"), 404, "job_not_found");
+  ExpectError(client_->Post("/api/v1/jobs/x/cancel"), 400, "invalid_parameter");
+}
+
+// curl -X POST sends neither Content-Length nor Transfer-Encoding: no body, not "read until
+// the client closes".
+TEST_F(ApiServerTest, PostWithoutAnyLengthHeaderHasAnEmptyBody) {
+  const uint64_t id = SubmitOk();
+  const std::string answer = RawExchange(
+      port_, "POST /api/v1/jobs/" + std::to_string(id) +
+                 "/cancel HTTP/1.1\r\nHost: test\r\nConnection: close\r\n\r\n");
+  EXPECT_EQ(answer.rfind("HTTP/1.1 200", 0), 0u) << answer;
+  EXPECT_EQ(store_->Get(id)->state, JobState::kCanceled);
+}
+
+TEST_F(ApiServerTest, CompletedJobCannotBeCanceled) {
+  const uint64_t id = SubmitOk();
+  ASSERT_TRUE(store_->ClaimNext());
+  ASSERT_TRUE(store_->Complete(id, json::object()));
+  ExpectError(client_->Post(("/api/v1/jobs/" + std::to_string(id) + "/cancel").c_str()), 409,
+              "job_finished");
+  EXPECT_TRUE(farm_.Canceled().empty());
+}
+
+// --- frames ------------------------------------------------------------------------------
+
+TEST_F(ApiServerTest, FrameFilesComeBackByteForByte) {
+  const uint64_t id = SubmitOk();
+  fs::create_directories(FramePath(id, 3, "png").parent_path());
+  std::string png("\x89PNG\r\n\x1a\n", 8);
+  for (int i = 0; i < 200000; ++i) png += static_cast<char>(i * 7 % 256);  // several chunks
+  std::ofstream(FramePath(id, 3, "png"), std::ios::binary) << png;
+  const std::string exr = "v/1\x01 not really an exr";
+  std::ofstream(FramePath(id, 3, "exr"), std::ios::binary) << exr;
+
+  httplib::Result result = Get("/api/v1/jobs/" + std::to_string(id) + "/frames/3.png");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(result->get_header_value("Content-Type"), "image/png");
+  EXPECT_TRUE(result->body == png);
+
+  result = Get("/api/v1/jobs/" + std::to_string(id) + "/frames/3.exr");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200);
+  EXPECT_EQ(result->get_header_value("Content-Type"), "image/x-exr");
+  EXPECT_EQ(result->body, exr);
+}
+
+TEST_F(ApiServerTest, FrameErrors) {
+  const uint64_t id = SubmitOk();
+  const std::string frames = "/api/v1/jobs/" + std::to_string(id) + "/frames/";
+  ExpectError(Get(frames + "4.png"), 404, "frame_not_ready");
+  ExpectError(Get(frames + "10.png"), 400, "invalid_parameter");
+  ExpectError(Get(frames + "4.jpg"), 400, "invalid_parameter");
+  ExpectError(Get(frames + "4"), 400, "invalid_parameter");
+  ExpectError(Get(frames + "-1.png"), 400, "invalid_parameter");
+  ExpectError(Get(frames + "..%2F..%2Fjobs.sqlite"), 404, "not_found");
+  ExpectError(Get(frames + "%2e%2e.png"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs/99/frames/0.png"), 404, "job_not_found");
+}
+
+// --- workers, health, metrics, routing -------------------------------------------------
+
+TEST_F(ApiServerTest, WorkersComeFromTheFarmSnapshot) {
+  FarmSnapshot snapshot;
+  WorkerSnapshot worker;
+  worker.name = "node-1/4242";
+  worker.capacity = 4;
+  worker.threads = 16;
+  worker.inFlight = 3;
+  worker.tasksDone = 120;
+  worker.pixelsDone = 99999;
+  worker.traceSeconds = 12.5;
+  worker.secondsSinceHeard = 0.25;
+  worker.connectedSeconds = 60;
+  snapshot.workers.push_back(worker);
+  snapshot.queuedTasks = 7;
+  snapshot.inFlightTasks = 3;
+  farm_.SetSnapshot(snapshot);
+
+  httplib::Result result = Get("/api/v1/workers");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200);
+  EXPECT_EQ(json::parse(result->body),
+            (json{{"workers",
+                   {{{"name", "node-1/4242"}, {"capacity", 4}, {"threads", 16}, {"in_flight", 3},
+                     {"tasks_done", 120}, {"pixels_done", 99999}, {"trace_seconds", 12.5},
+                     {"seconds_since_heard", 0.25}, {"connected_seconds", 60.0}}}},
+                  {"queued_tasks", 7},
+                  {"in_flight_tasks", 3}}));
+}
+
+TEST_F(ApiServerTest, Healthz) {
+  httplib::Result result = Get("/healthz");
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 200);
+  EXPECT_EQ(json::parse(result->body), (json{{"status", "ok"}}));
+}
+
+TEST_F(ApiServerTest, UnknownRouteIs404AndWrongMethodIs405) {
+  ExpectError(Get("/api/v2/jobs"), 404, "not_found");
+  ExpectError(Get("/"), 404, "not_found");
+  ExpectError(client_->Delete("/nothing/here"), 404, "not_found");
+
+  httplib::Result wrong = client_->Delete("/api/v1/jobs/1");
+  ExpectError(wrong, 405, "method_not_allowed");
+  EXPECT_EQ(wrong->get_header_value("Allow"), "GET, HEAD");
+  wrong = client_->Put("/api/v1/jobs", "{}", "application/json");
+  ExpectError(wrong, 405, "method_not_allowed");
+  EXPECT_EQ(wrong->get_header_value("Allow"), "POST, GET, HEAD");
+  ExpectError(Get("/api/v1/jobs/1/cancel"), 405, "method_not_allowed");
+  ExpectError(Post("/healthz", json::object()), 405, "method_not_allowed");
+
+  httplib::Result options = client_->Options("/api/v1/workers");
+  ASSERT_TRUE(options);
+  EXPECT_EQ(options->status, 204);
+  EXPECT_EQ(options->get_header_value("Allow"), "GET, HEAD");
+}
+
+TEST_F(ApiServerTest, MetricsPassPromtool) {
+  httplib::Result result = Get("/metrics");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200);
+  EXPECT_EQ(result->get_header_value("Content-Type"), "text/plain; version=0.0.4");
+  EXPECT_NE(result->body.find("tcfarm_test_renders_total{strategy=\"search\"} 3"), std::string::npos)
+      << result->body;
+
+  const char* promtool = "/usr/bin/promtool";
+  if (!fs::exists(promtool)) GTEST_SKIP() << "no " << promtool;
+  const fs::path text = folder_ / "metrics.txt";
+  std::ofstream(text, std::ios::binary) << result->body;
+  int status = 0;
+  const std::string output =
+      RunCommand(std::string(promtool) + " check metrics < '" + text.string() + "' 2>&1", &status);
+  EXPECT_EQ(status, 0) << output;
+}
+
+TEST_F(ApiServerTest, ConcurrentClientsSeeConsistentJobs) {
+  constexpr int kThreads = 4;
+  constexpr int kJobsPerThread = 5;
+  std::vector<std::thread> threads;
+  std::atomic<int> created{0};
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([this, &created] {
+      httplib::Client client("127.0.0.1", port_);
+      for (int i = 0; i < kJobsPerThread; ++i) {
+        httplib::Result result = client.Post("/api/v1/jobs", Submission().dump(), "application/json");
+        if (result && result->status == 201) ++created;
+        client.Get("/api/v1/jobs?limit=5");
+      }
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  EXPECT_EQ(created.load(), kThreads * kJobsPerThread);
+  EXPECT_EQ(json::parse(Get("/api/v1/jobs?limit=1000")->body).at("jobs").size(),
+            static_cast<size_t>(kThreads * kJobsPerThread));
+}
+
+TEST(ApiServerStartTest, BusyPortThrowsNamingTheAddress) {
+  const fs::path file = fs::temp_directory_path() /
+                        ("tcfarm_api_busy_" + std::to_string(std::random_device()()) + ".sqlite");
+  {
+    JobStore store(file);
+    FakeFarm farm;
+    ApiOptions options;
+    options.host = "127.0.0.1";
+    options.port = 0;
+    ApiServer first(store, farm, nullptr, options);
+    options.port = first.Start();
+    ApiServer second(store, farm, nullptr, options);
+    try {
+      second.Start();
+      ADD_FAILURE() << "second server started on a taken port";
+    } catch (const std::runtime_error& error) {
+      EXPECT_EQ(std::string(error.what()), "cannot listen on 127.0.0.1:" + std::to_string(options.port));
+    }
+    first.Stop();
+    first.Stop();  // twice is harmless
+  }
+  fs::remove(file);
+}
+
+TEST(ApiServerStartTest, DashboardFilesAreServedAtTheRootBesideTheApi) {
+  const fs::path folder =
+      fs::temp_directory_path() / ("tcfarm_api_dashboard_" + std::to_string(std::random_device()()));
+  fs::create_directories(folder / "web");
+  std::ofstream(folder / "web" / "index.html") << "<html>tcfarm</html>";
+  {
+    JobStore store(folder / "jobs.sqlite");
+    FakeFarm farm;
+    ApiOptions options;
+    options.host = "127.0.0.1";
+    options.port = 0;
+    options.dashboardDirectory = folder / "web";
+    ApiServer server(store, farm, nullptr, options);
+    httplib::Client client("127.0.0.1", server.Start());
+    httplib::Result page = client.Get("/");
+    ASSERT_TRUE(page);
+    EXPECT_EQ(page->status, 200);
+    EXPECT_EQ(page->body, "<html>tcfarm</html>");
+    httplib::Result health = client.Get("/healthz");
+    ASSERT_TRUE(health);
+    EXPECT_EQ(health->status, 200);
+    ExpectError(client.Get("/missing.js"), 404, "not_found");
+
+    options.dashboardDirectory = folder / "no-such-folder";
+    ApiServer broken(store, farm, nullptr, options);
+    EXPECT_THROW(broken.Start(), std::runtime_error);
+  }
+  fs::remove_all(folder);
+}
+
+// --- the OpenAPI contract ------------------------------------------------------------------
+
+TEST(OpenApiSpecTest, IsValidOpenApi) {
+  ASSERT_TRUE(fs::exists(kOpenApiSpec)) << kOpenApiSpec;
+  const std::string python = PythonWith("openapi_spec_validator");
+  if (python.empty()) GTEST_SKIP() << "no python with openapi_spec_validator";
+  int status = 0;
+  const std::string output =
+      RunCommand("'" + python + "' -m openapi_spec_validator '" + kOpenApiSpec.string() + "' 2>&1",
+                 &status);
+  EXPECT_EQ(status, 0) << output;
+}
+
+// Every response body the server writes must match its schema in the spec, so the spec
+// cannot drift from the code unnoticed (the schemas forbid unlisted properties).
+TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
+  const std::string python = PythonWith("yaml, openapi_schema_validator");
+  if (python.empty()) {
+    GTEST_SKIP() << "no python with yaml and openapi_schema_validator";
+  }
+  const uint64_t running = SubmitOk();  // the oldest: ClaimNext takes it
+  const uint64_t queued = SubmitOk();
+  const uint64_t failed = SubmitOk();
+  ASSERT_TRUE(store_->Fail(failed, "no worker can hold it"));
+  ASSERT_EQ(store_->ClaimNext()->id, running);
+  ASSERT_TRUE(store_->RecordFrame(running, 0, 10, 38));
+  FarmSnapshot snapshot;
+  snapshot.runningStats[running] = json{{"bins_done", 0}};
+  WorkerSnapshot worker;
+  worker.name = "w";
+  snapshot.workers.push_back(worker);
+  farm_.SetSnapshot(snapshot);
+
+  json checks = json::array();
+  auto add = [&checks](const std::string& schema, const httplib::Result& result) {
+    ASSERT_TRUE(result);
+    checks.push_back({schema, json::parse(result->body)});
+  };
+  add("Job", Get("/api/v1/jobs/" + std::to_string(queued)));
+  add("Job", Get("/api/v1/jobs/" + std::to_string(running)));
+  add("Job", Get("/api/v1/jobs/" + std::to_string(failed)));
+  add("Job", client_->Post(("/api/v1/jobs/" + std::to_string(queued) + "/cancel").c_str()));
+  add("JobList", Get("/api/v1/jobs"));
+  add("WorkerList", Get("/api/v1/workers"));
+  add("Health", Get("/healthz"));
+  add("Error", Post("/api/v1/jobs", json{{"scene", 1}}));
+  add("Error", Get("/api/v1/jobs/555"));
+  add("Error", Get("/nowhere"));
+  add("Error", client_->Delete("/api/v1/jobs"));
+  json tooLarge = Submission();
+  tooLarge["name"] = std::string(kMaxBodyBytes, 'x');
+  add("Error", Post("/api/v1/jobs", tooLarge));
+
+  const fs::path instances = folder_ / "instances.json";
+  std::ofstream(instances) << checks.dump();
+  const fs::path script = folder_ / "check.py";
+  std::ofstream(script) << R"(import json, sys, yaml
+from openapi_schema_validator import OAS30Validator
+spec = yaml.safe_load(open(sys.argv[1]))
+failures = 0
+for name, instance in json.load(open(sys.argv[2])):
+    schema = {"$ref": "#/components/schemas/" + name, "components": spec["components"]}
+    for error in OAS30Validator(schema).iter_errors(instance):
+        failures += 1
+        print(name, list(error.absolute_path), error.message)
+sys.exit(1 if failures else 0)
+)";
+  int status = 0;
+  const std::string output = RunCommand(
+      "'" + python + "' '" + script.string() + "' '" + kOpenApiSpec.string() + "' '" +
+          instances.string() + "' 2>&1",
+      &status);
+  EXPECT_EQ(status, 0) << output;
+}
+
+// The spec names exactly the routes the server has.
+TEST(OpenApiSpecTest, DescribesEveryRoute) {
+  std::ifstream in(kOpenApiSpec);
+  ASSERT_TRUE(in) << kOpenApiSpec;
+  std::stringstream text;
+  text << in.rdbuf();
+  for (const char* path : {"/api/v1/jobs:", "/api/v1/jobs/{id}:", "/api/v1/jobs/{id}/cancel:",
+                           "/api/v1/jobs/{id}/frames/{frame}.png:", "/api/v1/jobs/{id}/frames/{frame}.exr:",
+                           "/api/v1/workers:", "/healthz:", "/metrics:"}) {
+    EXPECT_NE(text.str().find(std::string("\n  ") + path), std::string::npos) << path;
+  }
+}
+
+}  // namespace
+}  // namespace tcfarm

@@ -1,0 +1,98 @@
+#include "http/job_json.h"
+
+#include <ctime>
+#include <cstdio>
+
+namespace tcfarm::http {
+
+using nlohmann::json;
+
+FrameSize RenderSizeOfScene(const std::string& sceneJson) {
+  // The callback drops every top-level member but "render" as the parser reaches it, so
+  // meshes are tokenized but never stored.
+  json::parser_callback_t keepRenderOnly = [](int depth, json::parse_event_t event, json& parsed) {
+    return !(event == json::parse_event_t::key && depth == 1 && parsed != "render");
+  };
+  try {
+    const json scene = json::parse(sceneJson, keepRenderOnly);
+    const json& render = scene.at("render");
+    return FrameSize{render.at("width").get<int>(), render.at("height").get<int>()};
+  } catch (const json::exception&) {
+    return FrameSize{};
+  }
+}
+
+json IsoUtcOrNull(int64_t unixMs) {
+  if (unixMs <= 0) return nullptr;
+  const std::time_t seconds = static_cast<std::time_t>(unixMs / 1000);
+  std::tm utc{};
+  gmtime_r(&seconds, &utc);
+  char text[64];  // room for any int year the compiler can imagine
+  std::snprintf(text, sizeof text, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", utc.tm_year + 1900,
+                utc.tm_mon + 1, utc.tm_mday, utc.tm_hour, utc.tm_min, utc.tm_sec,
+                static_cast<int>(unixMs % 1000));
+  return text;
+}
+
+std::string JobPath(uint64_t id) { return "/api/v1/jobs/" + std::to_string(id); }
+
+json JobJson(const JobRecord& record, FrameSize frameSize, const json* liveStats) {
+  const int count = record.FrameCount();
+  json stats = record.stats.is_object() ? record.stats : json::object();
+  if (liveStats != nullptr && liveStats->is_object()) stats.merge_patch(*liveStats);
+
+  json job{
+      {"id", record.id},
+      {"name", record.spec.name},
+      {"state", ToString(record.state)},
+      {"strategy", record.spec.strategy},
+      {"bin_width", record.spec.binWidth},
+      {"tolerance", record.spec.tolerance},
+      {"priority", record.spec.priority},
+      {"width", frameSize.width},
+      {"height", frameSize.height},
+      {"frames",
+       {{"start", record.spec.firstFrame},
+        {"end", record.spec.lastFrame},
+        {"count", count},
+        {"done", record.framesDone}}},
+      {"progress", count > 0 ? static_cast<double>(record.framesDone) / count : 0.0},
+      {"pixels_traced", record.tracedPixels},
+      {"pixels_copied", record.copiedPixels},
+      {"traced_pixel_ratio", record.TracedPixelRatio(frameSize.Pixels())},
+      {"submitted_at", IsoUtcOrNull(record.submittedMs)},
+      {"started_at", IsoUtcOrNull(record.startedMs)},
+      {"finished_at", IsoUtcOrNull(record.finishedMs)},
+      {"stats", std::move(stats)},
+      {"links",
+       {{"self", JobPath(record.id)}, {"frames", JobPath(record.id) + "/frames/{frame}.png"}}},
+  };
+  if (record.state == JobState::kFailed) job["error"] = record.error;
+  return job;
+}
+
+json JobDetailJson(const JobRecord& record, FrameSize frameSize, const json* liveStats) {
+  json job = JobJson(record, frameSize, liveStats);
+  job["traced_per_frame"] = record.tracedPerFrame;
+  return job;
+}
+
+json WorkersJson(const FarmSnapshot& snapshot) {
+  json workers = json::array();
+  for (const WorkerSnapshot& worker : snapshot.workers) {
+    workers.push_back({{"name", worker.name},
+                       {"capacity", worker.capacity},
+                       {"threads", worker.threads},
+                       {"in_flight", worker.inFlight},
+                       {"tasks_done", worker.tasksDone},
+                       {"pixels_done", worker.pixelsDone},
+                       {"trace_seconds", worker.traceSeconds},
+                       {"seconds_since_heard", worker.secondsSinceHeard},
+                       {"connected_seconds", worker.connectedSeconds}});
+  }
+  return json{{"workers", std::move(workers)},
+              {"queued_tasks", snapshot.queuedTasks},
+              {"in_flight_tasks", snapshot.inFlightTasks}};
+}
+
+}  // namespace tcfarm::http

@@ -1,0 +1,284 @@
+#include "http/submit_request.h"
+
+#include <cmath>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "http/api_error.h"
+#include "scene/scene.h"
+#include "wire/sha256.h"
+
+namespace tcfarm::http {
+namespace {
+
+using nlohmann::json;
+
+constexpr const char* kTopLevelFields[] = {"scene",     "name",      "frames",  "strategy",
+                                           "bin_width", "tolerance", "priority"};
+constexpr int kDefaultBinWidth = 10;
+constexpr size_t kShownValueBytes = 60;  // enough to recognize a value, short enough to read
+
+// Messages read like the scene parser's: "<pointer without the leading '/'>: <problem>;
+// expected <what>", so a client sees one style for every field.
+[[noreturn]] void Fail(const char* code, const std::string& pointer, const std::string& problem,
+                       const std::string& expected) {
+  const std::string where = pointer.empty() ? "request body" : pointer.substr(1);
+  throw ApiError(400, code, where + ": " + problem + "; expected " + expected, pointer);
+}
+
+std::string Show(const json& value) {
+  std::string text = DumpJson(value);
+  if (text.size() > kShownValueBytes) text = text.substr(0, kShownValueBytes) + "...";
+  return text;
+}
+
+std::string StripExceptionPrefix(const std::string& what) {
+  const size_t end = what.find("] ");
+  return what.rfind("[json.exception.", 0) == 0 && end != std::string::npos ? what.substr(end + 2)
+                                                                            : what;
+}
+
+// nlohmann keeps the last of two equal keys without a word; this parser callback refuses
+// them instead, naming where (the scene inside the body is re-serialized before
+// ParseScene sees it, so its own duplicate check could not catch them).
+class DuplicateKeyGuard {
+ public:
+  bool OnEvent(json::parse_event_t event, const json& parsed) {
+    switch (event) {
+      case json::parse_event_t::object_start:
+        BeginElement();
+        levels_.push_back(Level{true, {}, {}, -1});
+        break;
+      case json::parse_event_t::array_start:
+        BeginElement();
+        levels_.push_back(Level{false, {}, {}, -1});
+        break;
+      case json::parse_event_t::object_end:
+      case json::parse_event_t::array_end:
+        levels_.pop_back();
+        break;
+      case json::parse_event_t::key:
+        OnKey(parsed.get<std::string>());
+        break;
+      case json::parse_event_t::value:
+        BeginElement();
+        break;
+    }
+    return true;
+  }
+
+ private:
+  struct Level {
+    bool isObject;
+    std::vector<std::string> keys;  // objects in requests are small: a scan beats a set
+    std::string key;
+    long index;
+  };
+
+  void BeginElement() {
+    if (!levels_.empty() && !levels_.back().isObject) ++levels_.back().index;
+  }
+
+  void OnKey(const std::string& key) {
+    Level& level = levels_.back();
+    for (const std::string& seen : level.keys) {
+      if (seen == key) {
+        Fail(error_code::kInvalidJson, EnclosingPointer() + "/" + EscapePointerToken(key),
+             "duplicate field \"" + key + "\"", "each field at most once per object");
+      }
+    }
+    level.keys.push_back(key);
+    level.key = key;
+  }
+
+  std::string EnclosingPointer() const {
+    std::string pointer;
+    for (size_t i = 0; i + 1 < levels_.size(); ++i) {
+      const Level& level = levels_[i];
+      pointer += "/" + (level.isObject ? EscapePointerToken(level.key) : std::to_string(level.index));
+    }
+    return pointer;
+  }
+
+  std::vector<Level> levels_;
+};
+
+json ParseBody(const std::string& body) {
+  DuplicateKeyGuard guard;
+  json::parser_callback_t callback = [&guard](int, json::parse_event_t event, json& parsed) {
+    return guard.OnEvent(event, parsed);
+  };
+  try {
+    return json::parse(body, callback);
+  } catch (const json::parse_error& error) {
+    throw ApiError(400, error_code::kInvalidJson,
+                   "request body is not valid JSON: " + StripExceptionPrefix(error.what()));
+  } catch (const json::out_of_range& error) {
+    // nlohmann refuses numbers that overflow a double (1e999) this way.
+    throw ApiError(400, error_code::kInvalidJson,
+                   "request body is not valid JSON: " + StripExceptionPrefix(error.what()));
+  }
+}
+
+bool IsIntegral(const json& value) {
+  if (value.is_number_integer()) return true;
+  if (!value.is_number_float()) return false;
+  const double number = value.get<double>();
+  return std::isfinite(number) && std::floor(number) == number;
+}
+
+int ReadInteger(const json& value, const std::string& pointer, int low, int high,
+                const std::string& expected) {
+  if (!IsIntegral(value)) {
+    Fail(error_code::kInvalidField, pointer, Show(value) + " is not an integer", expected);
+  }
+  // The limits are far below 2^53, so comparing as double is exact where it matters.
+  const double number = value.get<double>();
+  if (number < low || number > high) {
+    Fail(error_code::kInvalidField, pointer, Show(value) + " is out of range", expected);
+  }
+  return static_cast<int>(number);
+}
+
+std::string IntegerRange(int low, int high) {
+  return "an integer in [" + std::to_string(low) + ", " + std::to_string(high) + "]";
+}
+
+void CheckKnownFields(const json& request) {
+  std::string known;
+  for (const char* field : kTopLevelFields) known += std::string(known.empty() ? "" : ", ") + field;
+  for (const auto& item : request.items()) {
+    bool isKnown = false;
+    for (const char* field : kTopLevelFields) isKnown = isKnown || item.key() == field;
+    if (!isKnown) {
+      Fail(error_code::kUnknownField, "/" + EscapePointerToken(item.key()), "unknown field",
+           "only the fields " + known);
+    }
+  }
+}
+
+std::string ReadName(const json& request) {
+  const auto name = request.find("name");
+  if (name == request.end()) return "";
+  const std::string expected = "a string of at most " + std::to_string(kMaxNameBytes) + " bytes";
+  if (!name->is_string()) {
+    Fail(error_code::kInvalidField, "/name", Show(*name) + " is not a string", expected);
+  }
+  if (name->get_ref<const std::string&>().size() > kMaxNameBytes) {
+    Fail(error_code::kInvalidField, "/name", "the name is too long", expected);
+  }
+  return name->get<std::string>();
+}
+
+std::string ReadStrategy(const json& request) {
+  const auto strategy = request.find("strategy");
+  if (strategy == request.end()) return kAcceptedStrategies[0];
+  std::string expected = "one of";
+  for (const char* accepted : kAcceptedStrategies) {
+    expected += std::string(expected == "one of" ? " \"" : ", \"") + accepted + "\"";
+  }
+  if (strategy->is_string()) {
+    for (const char* accepted : kAcceptedStrategies) {
+      if (*strategy == accepted) return accepted;
+    }
+  }
+  Fail(error_code::kInvalidField, "/strategy", Show(*strategy) + " is not a supported strategy", expected);
+}
+
+int ReadOptionalInteger(const json& request, const char* field, int low, int high, int fallback) {
+  const auto value = request.find(field);
+  if (value == request.end()) return fallback;
+  return ReadInteger(*value, std::string("/") + field, low, high, IntegerRange(low, high));
+}
+
+double ReadTolerance(const json& request) {
+  const auto tolerance = request.find("tolerance");
+  if (tolerance == request.end()) return 0;
+  const std::string expected = "a finite number >= 0";
+  if (!tolerance->is_number()) {
+    Fail(error_code::kInvalidField, "/tolerance", Show(*tolerance) + " is not a number", expected);
+  }
+  const double value = tolerance->get<double>();
+  if (!std::isfinite(value) || value < 0) {
+    Fail(error_code::kInvalidField, "/tolerance", Show(*tolerance) + " is out of range", expected);
+  }
+  return value;
+}
+
+Scene ReadScene(const json& request) {
+  const auto scene = request.find("scene");
+  if (scene == request.end()) {
+    Fail(error_code::kMissingField, "/scene", "missing", "a scene object (proto/scene.md)");
+  }
+  try {
+    // No base directory: a scene from the network must inline its meshes, never name a
+    // file on the coordinator's disk.
+    return ParseScene(scene->dump());
+  } catch (const SceneError& error) {
+    // SceneError's text already reads "scene<pointer>: ...", which is this body's pointer.
+    throw ApiError(400, error_code::kInvalidScene, error.what(), "/scene" + error.pointer());
+  }
+}
+
+std::pair<int, int> ReadFrameRange(const json& request, const RenderSettings& render) {
+  const int first = render.firstFrame;
+  const int last = render.LastFrame();
+  const auto frames = request.find("frames");
+  if (frames == request.end()) return {first, last};
+  if (!frames->is_object()) {
+    Fail(error_code::kInvalidField, "/frames", Show(*frames) + " is not an object",
+         "{\"start\": first frame, \"end\": last frame}, both inclusive");
+  }
+  for (const auto& item : frames->items()) {
+    if (item.key() != "start" && item.key() != "end") {
+      Fail(error_code::kUnknownField, "/frames/" + EscapePointerToken(item.key()), "unknown field",
+           "only the fields start, end");
+    }
+  }
+  const std::string inScene = "an integer in the scene's frame range [" + std::to_string(first) +
+                              ", " + std::to_string(last) + "]";
+  const int start = frames->contains("start")
+                        ? ReadInteger(frames->at("start"), "/frames/start", first, last, inScene)
+                        : first;
+  const int end = frames->contains("end")
+                      ? ReadInteger(frames->at("end"), "/frames/end", first, last, inScene)
+                      : last;
+  if (end < start) {
+    Fail(error_code::kInvalidField, "/frames/end",
+         std::to_string(end) + " is before frames/start " + std::to_string(start),
+         "an end frame at or after the start frame");
+  }
+  return {start, end};
+}
+
+}  // namespace
+
+Submission ParseSubmission(const std::string& body) {
+  const json request = ParseBody(body);
+  if (!request.is_object()) {
+    Fail(error_code::kInvalidField, "", Show(request) + " is not an object",
+         "a JSON object with at least a \"scene\"");
+  }
+  CheckKnownFields(request);
+
+  Submission submission;
+  JobSpec& spec = submission.spec;
+  // Cheap fields first, so a typo in one of them is reported before a long scene parse.
+  spec.name = ReadName(request);
+  spec.strategy = ReadStrategy(request);
+  spec.binWidth = ReadOptionalInteger(request, "bin_width", kMinBinWidth, kMaxBinWidth, kDefaultBinWidth);
+  spec.tolerance = ReadTolerance(request);
+  spec.priority = ReadOptionalInteger(request, "priority", kMinPriority, kMaxPriority, 0);
+
+  const Scene scene = ReadScene(request);
+  std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);
+  // The canonical text, not the client's: equal scenes get equal hashes, whatever their
+  // key order or spacing, so workers cache them once.
+  spec.sceneJson = SerializeScene(scene);
+  spec.sceneHash = wire::Sha256Hex(spec.sceneJson);
+  submission.frameSize = FrameSize{scene.render.width, scene.render.height};
+  return submission;
+}
+
+}  // namespace tcfarm::http
