@@ -80,10 +80,13 @@ void Dispatcher::Enqueue(DispatchTask task) {
 
 size_t Dispatcher::PendingTasks() const { return pendingCount_; }
 
-void Dispatcher::Poll(Milliseconds timeout, DispatchSink& sink) {
+void Dispatcher::Receive(Milliseconds timeout, DispatchSink& sink) {
   zmq::pollitem_t item{static_cast<void*>(socket_), 0, ZMQ_POLLIN, 0};
   zmq::poll(&item, 1, timeout);
   ReceiveAll(sink);
+}
+
+void Dispatcher::Flush() {
   SteadyTime now = clock_.Now();
   std::vector<std::string> lost;
   Requeue(registry_.ExpireSilent(now, &lost));

@@ -71,9 +71,15 @@ class Dispatcher {
   void RemoveJob(uint64_t jobId);
   void Enqueue(DispatchTask task);
 
-  // One round: waits up to `timeout` for messages, handles all that arrived, expires
-  // silent workers, sends heartbeats, hands pending tasks to workers with credit.
-  void Poll(Milliseconds timeout, DispatchSink& sink);
+  // Waits up to `timeout` for messages and handles all that arrived.
+  void Receive(Milliseconds timeout, DispatchSink& sink);
+  // Expires silent workers, sends heartbeats, hands pending tasks to workers with credit.
+  void Flush();
+  // Receive, then Flush.
+  void Poll(Milliseconds timeout, DispatchSink& sink) {
+    Receive(timeout, sink);
+    Flush();
+  }
   // Tells every worker the coordinator is leaving.
   void SayGoodbye();
 

@@ -43,8 +43,13 @@ void Farm::Step(Milliseconds pollTimeout) {
     ClaimJobs();
   }
   ApplyCancellations();
+  // Results wake the receive at once; the planner's follow-up tasks go out in the same
+  // step, so no worker waits for the timeout.
   PumpTasks();
-  dispatcher_.Poll(runs_.empty() ? pollTimeout : Milliseconds(1), *this);
+  dispatcher_.Flush();
+  dispatcher_.Receive(pollTimeout, *this);
+  PumpTasks();
+  dispatcher_.Flush();
   CollectFrames();
   UpdateMetrics();
   if (clock_.Now() - lastSnapshot_ >= kSnapshotInterval) PublishSnapshot();
