@@ -23,14 +23,15 @@ constexpr const char* kUsage =
     "[--max-running-jobs K]\n"
     "           [--exr-compression zip[:1-9]|none|rle|zips|piz] [--writer-threads N]\n"
     "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
-    "--local-workers 0\n";
+    "--local-workers 1\n"
+    "(--local-workers 0 for a coordinator whose workers run elsewhere)\n";
 
 struct ServeOptions {
   std::string httpHost = "127.0.0.1";
   int httpPort = 8080;
   FarmOptions farm;
   std::filesystem::path database;
-  unsigned localWorkers = 0;
+  unsigned localWorkers = 1;  // the embedded local farm: one worker using all cores
   unsigned workerThreads = 0;
   std::string workerBinary;
 };
