@@ -186,9 +186,11 @@ void WorkerDaemon::TraceNext() {
   result.jobId = task.jobId;
   result.frame = task.frame;
   result.rgb.resize(indices.size() * 3);
+  if (task.window > 0) result.horizons.resize(indices.size());
   RayCounts before = tracer->Counts();
   auto start = std::chrono::steady_clock::now();
-  tracer->TracePixels(task.frame, indices.data(), indices.size(), result.rgb.data());
+  tracer->TracePixels(task.frame, indices.data(), indices.size(), result.rgb.data(), task.window,
+                      task.window > 0 ? result.horizons.data() : nullptr);
   result.traceSeconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   RayCounts after = tracer->Counts();

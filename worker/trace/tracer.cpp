@@ -2,9 +2,11 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "trace/float3.h"
+#include "trace/horizons.h"
 
 namespace tcfarm {
 namespace {
@@ -170,6 +172,34 @@ struct Tracer::FrameContext {
   bool anySecondary;  // some material reflects or refracts
 };
 
+// The ray trees of the samples of one packet, kept only when horizons are wanted.
+struct Tracer::RayTreeRecorder {
+  std::vector<RaySegment> segments[kPacketWidth];
+  bool seesSurface[kPacketWidth];
+  bool touchesMover[kPacketWidth];
+  int lane = 0;  // the sample whose secondary rays are being traced
+
+  void Reset() {
+    for (int i = 0; i < kPacketWidth; ++i) {
+      segments[i].clear();
+      seesSurface[i] = touchesMover[i] = false;
+    }
+  }
+  void Add(int forLane, Float3 origin, Float3 direction, float length) {
+    segments[forLane].push_back({origin, direction, length});
+  }
+  int Horizon(int forLane, const HorizonOracle& oracle) const {
+    if (touchesMover[forLane]) return oracle.frame() + 1;
+    int horizon = oracle.CameraCap();
+    if (seesSurface[forLane]) horizon = std::min(horizon, oracle.LightCap());
+    for (const RaySegment& segment : segments[forLane]) {
+      if (horizon == oracle.frame() + 1) break;
+      horizon = std::min(horizon, oracle.FirstMeeting(segment));
+    }
+    return horizon;
+  }
+};
+
 // One thread's view of a frame: shades hits, casts secondary rays, counts rays.
 class Tracer::PixelTracer {
  public:
@@ -185,6 +215,8 @@ class Tracer::PixelTracer {
   void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
   Float3 TraceRay(Float3 origin, Float3 direction, int depth);
   const RayCounts& counts() const { return counts_; }
+  // Records every ray of the packets traced from now on (for horizons).
+  void Record(RayTreeRecorder* recorder) { recorder_ = recorder; }
 
  private:
   struct SurfaceHit {
@@ -193,6 +225,7 @@ class Tracer::PixelTracer {
     Float3 direction;  // unit direction of the arriving ray
     bool fromInside;   // arrived against the geometric normal (leaving a solid)
     float offset;      // distance that clears the hit point's rounding error
+    int shape;
     int material;
   };
 
@@ -210,6 +243,7 @@ class Tracer::PixelTracer {
                            float distance) const;
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
+  void NoteSurface(int lane, const SurfaceHit& hit);
   Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
     return hit.position + hit.normal * (transmitted ? -hit.offset : hit.offset);
   }
@@ -219,6 +253,7 @@ class Tracer::PixelTracer {
   RTCIntersectContext context_;
   RTCIntersectContext coherentContext_;
   RayCounts counts_;
+  RayTreeRecorder* recorder_ = nullptr;
 };
 
 Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Float3 direction,
@@ -228,6 +263,7 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
   hit.direction = direction;
   hit.offset = kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t);
   int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
+  hit.shape = shape;
   hit.material = scene_.shapes[shape].material;
   const std::vector<Float3>& faces = (*frame_.faceNormals)[shape];
   Float3 normal = faces.empty() ? raw.geometricNormal : faces[raw.primitiveId];
@@ -308,7 +344,9 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
   rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(frame_.geometry->scene(), &context_, &rayHit);
-  if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return frame_.background;
+  bool missed = rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID;
+  if (recorder_) recorder_->Add(recorder_->lane, origin, direction, missed ? kInfinity : rayHit.ray.tfar);
+  if (missed) return frame_.background;
 
   SurfaceHit hit = MakeHit(origin, direction,
                            {rayHit.ray.tfar,
@@ -316,6 +354,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
                             rayHit.hit.instID[0],
                             rayHit.hit.geomID,
                             rayHit.hit.primID});
+  if (recorder_) NoteSurface(recorder_->lane, hit);
   Float3 local = Ambient(hit);
   for (size_t light = 0; light < frame_.lights.size(); ++light) {
     Float3 toLight;
@@ -329,6 +368,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     shadow.tfar = distance;
     shadow.mask = ~0u;
     ++counts_.shadow;
+    if (recorder_) recorder_->Add(recorder_->lane, start, toLight, distance);
     rtcOccluded1(frame_.geometry->scene(), &context_, &shadow);
     if (shadow.tfar >= 0) local += LightContribution(hit, light, toLight, distance);
   }
@@ -363,18 +403,22 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   bool hasHit[kPacketWidth] = {};
   for (int lane = 0; lane < count; ++lane) {
     hasHit[lane] = packet.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
+    Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
+    Float3 direction{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
+    if (recorder_) {
+      recorder_->Add(lane, origin, direction, hasHit[lane] ? packet.ray.tfar[lane] : kInfinity);
+    }
     if (!hasHit[lane]) {
       color[lane] = frame_.background;
       continue;
     }
-    Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
-    Float3 direction{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
     hits[lane] = MakeHit(origin, direction,
                          {packet.ray.tfar[lane],
                           {packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]},
                           packet.hit.instID[0][lane],
                           packet.hit.geomID[lane],
                           packet.hit.primID[lane]});
+    if (recorder_) NoteSurface(lane, hits[lane]);
     color[lane] = Ambient(hits[lane]);
   }
 
@@ -397,6 +441,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       shadow.tfar[lane] = distance[lane];
       shadow.mask[lane] = ~0u;
       ++shadowCount;
+      if (recorder_) recorder_->Add(lane, start, toLight[lane], distance[lane]);
     }
     if (shadowCount == 0) continue;
     counts_.shadow += shadowCount;
@@ -409,16 +454,26 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   }
   if (!frame_.anySecondary) return;
   for (int lane = 0; lane < count; ++lane) {
-    if (hasHit[lane]) color[lane] = Combine(hits[lane], color[lane], 0);
+    if (!hasHit[lane]) continue;
+    if (recorder_) recorder_->lane = lane;
+    color[lane] = Combine(hits[lane], color[lane], 0);
   }
 }
 
+void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
+  recorder_->seesSurface[lane] = true;
+  if (scene_.shapes[hit.shape].Moves()) recorder_->touchesMover[lane] = true;
+}
+
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool)
-    : scene_(scene), geometry_(device, scene), pool_(pool) {
+    : device_(device), scene_(scene), geometry_(device, scene), pool_(pool) {
   for (const Shape& shape : scene.shapes) faceNormals_.push_back(FaceNormals(shape));
 }
 
-void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb) {
+void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,
+                         int window, int32_t* horizons) {
+  std::unique_ptr<HorizonOracle> oracle;
+  if (window > 0 && horizons) oracle = std::make_unique<HorizonOracle>(device_, scene_, frame, window);
   const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
   FrameContext context{geometry_.ForFrame(frame),
                        MakeCamera(scene_, frame),
@@ -446,9 +501,25 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       }
     }
     sampleColor.resize(itemPixel.size());
+    thread_local std::vector<int32_t> sampleHorizon;
+    thread_local RayTreeRecorder recorder;
+    if (oracle) {
+      sampleHorizon.resize(itemPixel.size());
+      tracer.Record(&recorder);
+    }
     for (size_t item = 0; item < itemPixel.size(); item += kPacketWidth) {
       int lanes = static_cast<int>(std::min<size_t>(kPacketWidth, itemPixel.size() - item));
+      if (oracle) recorder.Reset();
       tracer.TracePrimaryPacket(&itemPixel[item], &itemSample[item], lanes, &sampleColor[item]);
+      for (int lane = 0; oracle && lane < lanes; ++lane) {
+        sampleHorizon[item + lane] = recorder.Horizon(lane, *oracle);
+      }
+    }
+    // A pixel is valid while all its samples are.
+    for (size_t i = begin; oracle && i < end; ++i) {
+      int32_t horizon = oracle->Unbounded();
+      for (int s = 0; s < spp; ++s) horizon = std::min(horizon, sampleHorizon[(i - begin) * spp + s]);
+      horizons[i] = horizon;
     }
     // Average in sample order, so the sum's rounding is the same wherever the pixel goes.
     for (size_t i = begin; i < end; ++i) {

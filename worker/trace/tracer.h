@@ -41,8 +41,11 @@ class Tracer {
   Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool);
 
   // Traces pixels (linear indices y * width + x, each < width * height) of `frame` and
-  // writes 3 floats of linear RGB per pixel to `rgb`, in the order given.
-  void TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb);
+  // writes 3 floats of linear RGB per pixel to `rgb`, in the order given. With window > 0
+  // it also writes each pixel's validity horizon (trace/horizons.h) to `horizons`: a frame
+  // in [frame + 1, frame + window + 1], the last meaning "valid through the window".
+  void TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,
+                   int window = 0, int32_t* horizons = nullptr);
   // Every pixel of a frame, row by row.
   void TraceFrame(int frame, float* rgb);
 
@@ -53,8 +56,10 @@ class Tracer {
 
  private:
   struct FrameContext;
+  struct RayTreeRecorder;
   class PixelTracer;
 
+  const EmbreeDevice& device_;
   const Scene& scene_;
   SceneGeometry geometry_;
   // Per shape, per primitive: unit face normals computed in double from the scene. Embree's

@@ -1,0 +1,161 @@
+// Validity horizons against brute force: a pixel traced at frame a with horizon h must be
+// bit-identical in every frame a+1 .. h-1. Every scene here is rendered in full at every
+// frame and each promise is checked pixel by pixel.
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <numeric>
+
+#include "trace/tracer.h"
+
+namespace tcfarm {
+namespace {
+
+struct Sequence {
+  std::vector<std::vector<float>> frames;
+};
+
+Sequence RenderAll(Tracer& tracer, const Scene& scene) {
+  Sequence sequence;
+  size_t floats = static_cast<size_t>(scene.render.width) * scene.render.height * 3;
+  for (int f = scene.render.firstFrame; f <= scene.render.LastFrame(); ++f) {
+    sequence.frames.emplace_back(floats);
+    tracer.TraceFrame(f, sequence.frames.back().data());
+  }
+  return sequence;
+}
+
+struct HorizonCheck {
+  size_t broken = 0;     // promises that brute force contradicts
+  size_t unbounded = 0;  // pixels valid through the whole window
+  size_t pixels = 0;
+};
+
+// Traces frame `a` with horizons over the rest of the sequence and checks each promise.
+HorizonCheck Check(const Scene& scene, int a) {
+  EmbreeDevice device;
+  ThreadPool pool;
+  Tracer tracer(device, scene, pool);
+  Sequence all = RenderAll(tracer, scene);
+  int first = scene.render.firstFrame, last = scene.render.LastFrame();
+  size_t count = static_cast<size_t>(scene.render.width) * scene.render.height;
+  std::vector<uint32_t> pixels(count);
+  std::iota(pixels.begin(), pixels.end(), 0u);
+  std::vector<float> rgb(count * 3);
+  std::vector<int32_t> horizons(count);
+  int window = last - a;
+  tracer.TracePixels(a, pixels.data(), count, rgb.data(), window, horizons.data());
+  HorizonCheck check;
+  check.pixels = count;
+  for (size_t p = 0; p < count; ++p) {
+    EXPECT_GE(horizons[p], a + 1);
+    EXPECT_LE(horizons[p], a + window + 1);
+    check.unbounded += horizons[p] == a + window + 1;
+    for (int f = a + 1; f < horizons[p] && f <= last; ++f) {
+      if (std::memcmp(&all.frames[f - first][3 * p], &rgb[3 * p], 3 * sizeof(float)) != 0) {
+        ++check.broken;
+        break;
+      }
+    }
+  }
+  return check;
+}
+
+Scene Small(const std::string& json) { return ParseScene(json); }
+
+const char* kBackdropAndLight = R"(
+    "lights": [{"type": "point", "position": [4, 6, 8], "intensity": [120, 120, 120]}],
+    "materials": {"wall": {"diffuse": [0.7, 0.7, 0.65]},
+                  "ball": {"diffuse": [0.8, 0.2, 0.2], "specular": [0.4, 0.4, 0.4]},
+                  "mirror": {"diffuse": [0.1, 0.1, 0.1], "reflectivity": 0.7},
+                  "glass": {"diffuse": [0.05, 0.05, 0.05], "transparency": 0.8, "ior": 1.4}},
+    "background": [0.1, 0.1, 0.2],)";
+
+TEST(HorizonsTest, MovingBallWithShadowMirrorAndGlassKeepsEveryPromise) {
+  Scene scene = Small(std::string(R"({
+    "camera": {"position": [0, 0.5, 9], "look_at": [0, 0, 0]},)") + kBackdropAndLight + R"(
+    "shapes": [
+      {"type": "quad", "corner": [-8, -2, -4], "edge_u": [16, 0, 0], "edge_v": [0, 0, 10], "material": "wall"},
+      {"type": "quad", "corner": [-8, -2, -4], "edge_u": [16, 0, 0], "edge_v": [0, 10, 0], "material": "wall"},
+      {"type": "sphere", "center": [-2, -1, 0], "radius": 0.9, "material": "mirror"},
+      {"type": "sphere", "center": [2, -1, 1], "radius": 0.8, "material": "glass"},
+      {"type": "sphere", "center": [0, 0, 0], "radius": 0.4, "material": "ball",
+       "motion": {"polynomial": [[-3, 0.35], [1, -0.05], [0, 0.02]]}}
+    ],
+    "render": {"width": 64, "height": 48, "frames": {"start": 0, "count": 16}, "max_depth": 3}
+  })");
+  for (int a : {0, 7}) {
+    HorizonCheck check = Check(scene, a);
+    EXPECT_EQ(check.broken, 0u) << "frame " << a;
+    EXPECT_GT(check.unbounded, check.pixels / 3) << "frame " << a;  // not trivially a+1
+  }
+}
+
+// The paper's pathological case: a thin object crosses the screen between two frames that
+// are otherwise equal. Horizons see it coming.
+TEST(HorizonsTest, ThinFastObjectCrossingBetweenEqualFrames) {
+  Scene scene = Small(std::string(R"({
+    "camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},)") + kBackdropAndLight + R"(
+    "shapes": [
+      {"type": "quad", "corner": [-8, -6, -4], "edge_u": [16, 0, 0], "edge_v": [0, 12, 0], "material": "wall"},
+      {"type": "sphere", "center": [0, 0, 0], "radius": 0.08, "material": "ball",
+       "motion": {"keyframes": [{"frame": 0, "value": [-30, 0, 0]}, {"frame": 1, "value": [-30, 0, 0]},
+                                {"frame": 5, "value": [30, 0, 0]}, {"frame": 6, "value": [30, 0, 0]}]}}
+    ],
+    "render": {"width": 64, "height": 48, "frames": {"start": 0, "count": 8}}
+  })");
+  HorizonCheck check = Check(scene, 0);
+  EXPECT_EQ(check.broken, 0u);
+}
+
+TEST(HorizonsTest, FlickeringLightCapsLitPixels) {
+  Scene scene = Small(R"({
+    "camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},
+    "lights": [{"type": "point", "position": [3, 4, 8],
+                "intensity": {"keyframes": [{"frame": 0, "value": [100, 100, 100]}, {"frame": 3, "value": [100, 100, 100]},
+                                            {"frame": 4, "value": [20, 20, 20]}]}}],
+    "shapes": [{"type": "quad", "corner": [-3, -3, 0], "edge_u": [6, 0, 0], "edge_v": [0, 6, 0]}],
+    "background": [0.2, 0.3, 0.4],
+    "render": {"width": 32, "height": 24, "frames": {"start": 0, "count": 8}}
+  })");
+  HorizonCheck check = Check(scene, 0);
+  EXPECT_EQ(check.broken, 0u);
+  EXPECT_GT(check.unbounded, 0u);  // the background never changes
+}
+
+TEST(HorizonsTest, MovingCameraMakesEveryHorizonTheNextFrame) {
+  Scene scene = Small(R"({
+    "camera": {"position": {"polynomial": [[0, 0.1], [0], [10]]}, "look_at": [0, 0, 0]},
+    "shapes": [{"type": "quad", "corner": [-3, -3, 0], "edge_u": [6, 0, 0], "edge_v": [0, 6, 0]}],
+    "render": {"width": 16, "height": 12, "frames": {"start": 0, "count": 4}}
+  })");
+  HorizonCheck check = Check(scene, 0);
+  EXPECT_EQ(check.broken, 0u);
+  EXPECT_EQ(check.unbounded, 0u);
+}
+
+TEST(HorizonsTest, StaticSceneIsValidThroughTheWindow) {
+  Scene scene = Small(std::string(R"({
+    "camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},)") + kBackdropAndLight + R"(
+    "shapes": [{"type": "sphere", "center": [0, 0, 0], "radius": 1, "material": "mirror"}],
+    "render": {"width": 16, "height": 12, "frames": {"start": 0, "count": 5}}
+  })");
+  HorizonCheck check = Check(scene, 0);
+  EXPECT_EQ(check.unbounded, check.pixels);
+}
+
+TEST(HorizonsTest, PaperAnimationsKeepEveryPromise) {
+  for (const char* file : {"tests/scenes/paper_a_one_sphere.json",
+                           "tests/scenes/paper_b_twelve_spheres.json"}) {
+    Scene scene = LoadSceneFile(file);
+    scene.render.width = 80;
+    scene.render.height = 60;
+    scene.render.frameCount = 12;
+    HorizonCheck check = Check(scene, 0);
+    EXPECT_EQ(check.broken, 0u) << file;
+    EXPECT_GT(check.unbounded, check.pixels / 2) << file;
+  }
+}
+
+}  // namespace
+}  // namespace tcfarm
