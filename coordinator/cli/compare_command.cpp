@@ -9,6 +9,7 @@
 
 #include "frame/compare.h"
 #include "frame/frame_io.h"
+#include "frame/ssim.h"
 
 namespace tcfarm {
 namespace {
@@ -41,26 +42,32 @@ int RunCompare(const std::vector<std::string>& args) {
     std::set<std::string> names = ExrNames(folders[0]);
     if (names.empty()) throw FrameIoError("no .exr frames in " + folders[0]);
     FrameError total;
+    double ssimSum = 0;
     for (const std::string& name : names) {
-      total += CompareImages(ReadImage(std::filesystem::path(folders[0]) / name),
-                             ReadImage(std::filesystem::path(folders[1]) / name));
+      Image reference = ReadImage(std::filesystem::path(folders[0]) / name);
+      Image test = ReadImage(std::filesystem::path(folders[1]) / name);
+      total += CompareImages(reference, test);
+      ssimSum += Ssim(reference, test);
     }
     double psnr = total.Psnr();
+    double ssim = ssimSum / names.size();  // mean over frames
     if (json) {
       nlohmann::json out = {{"frames", names.size()},
                             {"pixels", total.pixels},
                             {"differing_pixels", total.differingPixels},
                             {"differing_share", total.DifferingShare()},
                             {"max_abs_error", total.maxAbsError},
-                            {"psnr_db", std::isinf(psnr) ? nlohmann::json(nullptr) : nlohmann::json(psnr)}};
+                            {"psnr_db", std::isinf(psnr) ? nlohmann::json(nullptr) : nlohmann::json(psnr)},
+                            {"ssim", ssim}};
       std::printf("%s\n", out.dump().c_str());
     } else {
       std::printf("frames %zu, pixels differing %llu of %llu (%.4f%%), max abs error %.6g, "
-                  "PSNR %s\n",
+                  "PSNR %s, SSIM %.6f\n",
                   names.size(), static_cast<unsigned long long>(total.differingPixels),
                   static_cast<unsigned long long>(total.pixels), 100 * total.DifferingShare(),
                   total.maxAbsError,
-                  std::isinf(psnr) ? "inf (identical)" : (std::to_string(psnr) + " dB").c_str());
+                  std::isinf(psnr) ? "inf (identical)" : (std::to_string(psnr) + " dB").c_str(),
+                  ssim);
     }
     return 0;
   } catch (const std::exception& e) {

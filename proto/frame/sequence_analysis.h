@@ -1,0 +1,90 @@
+// Coherence analysis of any frame sequence (paper, sections 2 and 4): pixel events and their
+// durations (Figures 3 and 4), frame-to-frame and long-term coherence (Figures 5 and 6),
+// the pixels that ever change (Figure 7), and equation 3's predicted relative cost of the
+// `search` algorithm for each bin width (Figure 8), with d measured from the sequence.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "frame/coherence.h"
+#include "frame/frame_io.h"
+
+namespace tcfarm {
+
+// Equation 3 for one bin width: relativeCost = (a + b) / N, performanceRatio = N / (a + b).
+struct BinWidthPrediction {
+  int binWidth = 0;
+  double relativeCost = 0;
+  double performanceRatio = 0;
+};
+
+struct SequenceAnalysis {
+  int frames = 0, width = 0, height = 0;
+  RunningStats frameToFrame, longTerm;
+  std::vector<double> frameToFrameByFrame;  // [f] = coherence(f, f + 1)
+  std::vector<double> longTermByFrame;      // [f - 1] = coherence(first, f), f >= 1 (Figure 6)
+  // A pixel event is a maximal run of frames over which a pixel keeps its value, bitwise.
+  std::vector<uint64_t> eventsByDuration;     // [duration in frames] = count; [0] is 0 (Figure 3)
+  std::vector<double> volumeShareByDuration;  // duration * count / (frames * pixels) (Figure 4)
+  uint64_t eventCount = 0;
+  double meanEventDuration = 0, eventDurationStdDev = 0;  // over events (population sd)
+  double d = 0;  // 1 - mean frame-to-frame coherence; 0 for a single frame (nothing changed)
+  std::vector<BinWidthPrediction> predictions;  // bin widths 2 .. min(frames, 64) (Figure 8)
+  std::vector<uint8_t> changeMask;  // width * height, 1 where the pixel ever changes (Figure 7)
+
+  double ChangedPixelShare() const;
+  // snake_case fields. The change mask is left out (one entry per pixel); its share is in.
+  nlohmann::json ToJson() const;
+};
+
+// Feed frames in order, then Finish. Memory is O(pixels): the first and the previous frame
+// and one run length per pixel, never O(frames * pixels), so sequences of any length fit.
+class SequenceAnalyzer {
+ public:
+  // Throws std::invalid_argument for an empty or malformed image, or one whose size differs
+  // from the first frame's.
+  void Add(const Image& frame);
+  int FrameCount() const { return frames_; }
+  // Throws std::logic_error before the first frame. May be called again after more Adds.
+  SequenceAnalysis Finish() const;
+
+ private:
+  void CheckShape(const Image& frame) const;
+  void Start(const Image& frame);
+  size_t AdvanceRuns(const Image& frame);  // returns the pixels equal to the previous frame
+  std::vector<uint64_t> EventsIncludingOpenRuns() const;
+
+  int frames_ = 0, width_ = 0, height_ = 0;
+  Image first_, previous_;
+  std::vector<uint32_t> runLength_;  // per pixel: frames since its current event began
+  std::vector<uint8_t> changed_;
+  std::vector<uint64_t> closedEventsByDuration_;
+  RunningStats frameToFrame_, longTerm_;
+  std::vector<double> frameToFrameByFrame_, longTermByFrame_;
+};
+
+// Largest bin width for which SequenceAnalysis carries a prediction.
+constexpr int kMaxPredictedBinWidth = 64;
+
+// Equation 3: the relative cost (a + b) / N of tracing N frames with bin width n, when a
+// share d of the pixels differ between frames. Bins share their end frames, so the N - 1
+// steps between frames make q = floor((N-1)/(n-1)) whole bins of n - 1 steps and leave
+// r = rem((N-1)/(n-1)) steps over:
+//   a = 1 + q (1 + (n-2) d)     the first frame, then per bin its far end in full and d
+//                               of the pixels in each of its n - 2 inner frames;
+//   b = 0 when r = 0, else (r-1) d + 1   the remainder, searched as one smaller bin.
+// Throws std::invalid_argument for binWidth < 2 or frames < 1.
+double Equation3RelativeCost(int frames, int binWidth, double d);
+
+// The bin width in 2..maxBinWidth of least equation-3 relative cost; the smaller on ties.
+// Equation 3 depends on n only through the number of bins B = ceil((N-1)/(n-1)):
+// (a + b) / N = (1 + B + (N-1-B) d) / N, which never rises with n (a bin end costs 1, an
+// inner frame d <= 1). So the answer is the smallest n that reaches the fewest bins under
+// the cap, and the cap is where the paper's warning about phenomena missed by too wide a bin
+// must come in. Throws std::invalid_argument for maxBinWidth < 2 or frames < 1.
+int BestBinWidth(int frames, double d, int maxBinWidth);
+
+}  // namespace tcfarm
