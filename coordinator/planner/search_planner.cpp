@@ -8,43 +8,24 @@
 #include <string>
 #include <utility>
 
+#include "planner/guarded_planner.h"
+
 namespace tcfarm {
 namespace {
 
-// Invariants of the planner itself. They throw rather than abort so that a daemon can
-// fail the one job and go on serving the others.
+constexpr const char* kPlannerName = "search planner";
+
+void Check(bool condition, const std::string& what) { planner_internal::Check(condition, kPlannerName, what); }
+
 template <typename A, typename B>
 void CheckEqual(const A& actual, const B& expected, const char* what) {
-  if (actual == expected) return;
-  std::ostringstream message;
-  message << "search planner invariant broken: " << what << " is " << actual << ", expected " << expected;
-  throw std::logic_error(message.str());
-}
-
-void Check(bool condition, const std::string& what) {
-  if (!condition) throw std::logic_error("search planner invariant broken: " + what);
-}
-
-void RequireOption(bool valid, const char* name, long long value, const char* expected) {
-  if (valid) return;
-  throw std::invalid_argument(std::string("PlannerOptions.") + name + " is " + std::to_string(value) +
-                              "; expected " + expected);
+  planner_internal::CheckEqual(actual, expected, kPlannerName, what);
 }
 
 void ValidateOptions(const PlannerOptions& options) {
-  RequireOption(options.width >= 1, "width", options.width, ">= 1");
-  RequireOption(options.height >= 1, "height", options.height, ">= 1");
-  const long long pixels = static_cast<long long>(options.width) * options.height;
-  // Pixel indices are uint32_t, and a span's end must fit as well.
-  RequireOption(pixels <= static_cast<long long>(UINT32_MAX), "width * height", pixels, "<= 4294967295");
-  RequireOption(options.frameCount >= 1, "frameCount", options.frameCount, ">= 1");
-  RequireOption(options.binWidth >= 2, "binWidth", options.binWidth, ">= 2 (2 traces every pixel)");
-  RequireOption(options.maxTaskPixels >= 1, "maxTaskPixels", options.maxTaskPixels, ">= 1");
-  RequireOption(options.maxLiveBins >= 1, "maxLiveBins", options.maxLiveBins, ">= 1");
-  if (!(std::isfinite(options.tolerance) && options.tolerance >= 0)) {
-    throw std::invalid_argument("PlannerOptions.tolerance is " + std::to_string(options.tolerance) +
-                                "; expected a finite value >= 0");
-  }
+  planner_internal::ValidateCommonOptions(options);
+  planner_internal::RequireOption(options.binWidth >= 2, "binWidth", options.binWidth,
+                                  ">= 2 (2 traces every pixel)");
 }
 
 // Bins share end frames, so bin k starts where bin k-1 ends; the last bin may be
@@ -73,9 +54,15 @@ struct EqualWithin {
 
 }  // namespace
 
-SearchPlanner::SearchPlanner(const PlannerOptions& options) : options_(options) {
+SearchPlanner::SearchPlanner(const PlannerOptions& options) : SearchPlanner(options, nullptr) {}
+
+SearchPlanner::SearchPlanner(const PlannerOptions& options, std::unique_ptr<CoarseGuard> guard)
+    : options_(options), guard_(std::move(guard)) {
   ValidateOptions(options);
   pixelCount_ = static_cast<uint32_t>(options.width) * static_cast<uint32_t>(options.height);
+  // The coarse samples are traced at every frame, so the search never needs them.
+  searchPixels_ = PixelSet::Full(pixelCount_);
+  if (guard_) searchPixels_ = searchPixels_.Difference(guard_->Samples());
   for (const auto& [left, right] : TileBins(options.frameCount, options.binWidth)) {
     Bin bin;
     bin.left = left;
@@ -85,6 +72,8 @@ SearchPlanner::SearchPlanner(const PlannerOptions& options) : options_(options) 
   released_.assign(static_cast<size_t>(options.frameCount), false);
   StartBins();
 }
+
+SearchPlanner::~SearchPlanner() = default;
 
 std::vector<TraceTask> SearchPlanner::TakeReadyTasks() {
   std::vector<TraceTask> tasks;
@@ -102,7 +91,8 @@ bool SearchPlanner::Done() const {
   return nextBin_ == bins_.size() && liveBins_ == 0 && frames_.empty() && finished_.empty();
 }
 
-bool SearchPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCount) {
+bool SearchPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCount, const int32_t* /*horizons*/,
+                             size_t /*horizonCount*/) {
   auto found = pendingTasks_.find(taskId);
   if (found == pendingTasks_.end()) {
     if (taskId != 0 && taskId < nextTaskId_) return false;  // completed before: a re-delivery
@@ -110,7 +100,7 @@ bool SearchPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCoun
                                 std::to_string(nextTaskId_ - 1));
   }
   const PendingTask& task = found->second;
-  ValidateResult(taskId, task, rgb, floatCount);
+  planner_internal::ValidateRgb(taskId, task.frame, task.pixels.size(), rgb, floatCount);
   WriteTraced(FrameAt(task.frame), task.frame, task.pixels, rgb);
 
   const uint64_t requestId = task.request;
@@ -124,27 +114,6 @@ bool SearchPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCoun
   }
   ReleaseFinishedFrames();
   return true;
-}
-
-void SearchPlanner::ValidateResult(uint64_t taskId, const PendingTask& task, const float* rgb,
-                                   size_t floatCount) const {
-  // Built only on failure: this runs for every result.
-  auto where = [&] {
-    return "result of task " + std::to_string(taskId) + " (frame " + std::to_string(task.frame) + ")";
-  };
-  const uint64_t expected = task.pixels.size() * 3;
-  if (floatCount != expected) {
-    throw std::invalid_argument(where() + " has " + std::to_string(floatCount) + " floats; expected " +
-                                std::to_string(expected) + " (3 per pixel, " + std::to_string(task.pixels.size()) +
-                                " pixels)");
-  }
-  if (rgb == nullptr && floatCount > 0) throw std::invalid_argument(where() + " has no data");
-  for (size_t i = 0; i < floatCount; ++i) {
-    if (!std::isfinite(rgb[i])) {
-      throw std::invalid_argument(where() + " has a non-finite value at float " + std::to_string(i) +
-                                  "; expected finite RGB");
-    }
-  }
 }
 
 void SearchPlanner::StartBins() {
@@ -168,17 +137,54 @@ void SearchPlanner::StartBin(size_t binIndex) {
     if (frame.knownCount == pixelCount_) continue;  // traced for the bin before
     Continuation continuation;
     continuation.bin = binIndex;
-    continuation.isEndFrame = true;
-    ++bin.endsPending;
+    continuation.isPreparation = true;
+    ++bin.preparing;
     if (frame.fullTraceRequest != 0) {
       AddContinuation(frame.fullTraceRequest, std::move(continuation));  // the bin before traces it now
     } else {
       frame.fullTraceRequest = RequestTrace(end, PixelSet::Full(pixelCount_), std::move(continuation));
     }
   }
+  // The coarse pass: the end frames' full traces hold their samples already. Each inner
+  // frame is read (when the bin is indexed) until the search starts.
+  if (guard_) {
+    for (int frame = bin.left + 1; frame < bin.right; ++frame) PrepareFrame(binIndex, frame, guard_->Samples());
+  }
   // Every new bin has a right end frame that no earlier bin traced, so it always waits
   // for at least one trace and never finishes inside StartBin.
-  Check(bin.endsPending > 0, "bin " + std::to_string(binIndex) + " starts with both end frames traced");
+  Check(bin.preparing > 0, "bin " + std::to_string(binIndex) + " starts with both end frames traced");
+}
+
+void SearchPlanner::PrepareFrame(size_t binIndex, int frame, const PixelSet& pixels) {
+  AddReader(frame);
+  Continuation continuation;
+  continuation.bin = binIndex;
+  continuation.isPreparation = true;
+  ++bins_[binIndex].preparing;
+  RequestTrace(frame, pixels, std::move(continuation));
+}
+
+// Every frame of the bin is traced at its ends, and at its coarse samples with a guard.
+void SearchPlanner::SearchPreparedBin(size_t binIndex) {
+  const Bin& bin = bins_[binIndex];
+  if (!guard_) {
+    Search(binIndex, searchPixels_, bin.left, bin.right);
+    return;
+  }
+  std::vector<const float*> frameRgb;
+  for (int frame = bin.left; frame <= bin.right; ++frame) {
+    const Frame& state = frames_.at(frame);
+    guard_->Samples().ForEach([&](uint32_t sample) {
+      if (state.state[sample] != kTraced) {
+        Check(false, "coarse sample " + std::to_string(sample) + " of frame " + std::to_string(frame) +
+                         " is not traced when bin " + std::to_string(binIndex) + " is searched");
+      }
+    });
+    frameRgb.push_back(state.rgb.data());
+  }
+  guard_->IndexBin(binIndex, bin.left, frameRgb);
+  Search(binIndex, searchPixels_, bin.left, bin.right);
+  for (int frame = bin.left + 1; frame < bin.right; ++frame) RemoveReader(frame);
 }
 
 void SearchPlanner::FinishBin(size_t binIndex) {
@@ -191,6 +197,7 @@ void SearchPlanner::FinishBin(size_t binIndex) {
   }
   RemoveReader(bin.left);
   RemoveReader(bin.right);
+  if (guard_) guard_->ForgetBin(binIndex);
   --liveBins_;
   // Release before starting the next bin so the live frames never exceed the bound.
   ReleaseFinishedFrames();
@@ -200,8 +207,8 @@ void SearchPlanner::FinishBin(size_t binIndex) {
 void SearchPlanner::RunContinuation(const Continuation& continuation) {
   Bin& bin = bins_[continuation.bin];
   --bin.waiting;
-  if (continuation.isEndFrame) {
-    if (--bin.endsPending == 0) Search(continuation.bin, PixelSet::Full(pixelCount_), bin.left, bin.right);
+  if (continuation.isPreparation) {
+    if (--bin.preparing == 0) SearchPreparedBin(continuation.bin);
   } else {
     Search(continuation.bin, continuation.pixels, continuation.left, continuation.mid);
     Search(continuation.bin, continuation.pixels, continuation.mid, continuation.right);
@@ -223,18 +230,25 @@ void SearchPlanner::Search(size_t bin, const PixelSet& pixels, int left, int rig
   } else {
     Classify(pixels, leftFrame, rightFrame, EqualWithin{options_.tolerance}, same, changed);
   }
-  const PixelSet unchanged = same.Build();
+  PixelSet unchanged = same.Build();
+  PixelSet toSearch = changed.Build();
+  if (guard_ && !unchanged.empty()) {
+    // Equal ends prove nothing where a tile's coarse samples change in between.
+    const PixelSet forced = unchanged.Intersection(guard_->PixelsOfChangedTiles(bin, left, right));
+    unchanged = unchanged.Difference(forced);
+    toSearch = toSearch.Union(forced);
+  }
   if (!unchanged.empty()) {
     for (int frame = left + 1; frame < right; ++frame) CopyPixels(leftFrame, FrameAt(frame), frame, unchanged);
   }
-  if (changed.size() == 0) return;
+  if (toSearch.empty()) return;
 
   Continuation continuation;
   continuation.bin = bin;
   continuation.left = left;
   continuation.mid = left + (right - left) / 2;  // (l+r)/2 without overflow
   continuation.right = right;
-  continuation.pixels = changed.Build();
+  continuation.pixels = std::move(toSearch);
   AddReader(continuation.left);
   AddReader(continuation.mid);
   AddReader(continuation.right);
@@ -265,7 +279,7 @@ uint64_t SearchPlanner::RequestTrace(int frame, const PixelSet& pixels, Continua
   for (PixelSet& chunk : chunks) {
     const uint64_t taskId = nextTaskId_++;
     pendingTasks_[taskId] = PendingTask{requestId, frame, chunk};
-    readyTasks_.push_back(TraceTask{taskId, frame, std::move(chunk)});
+    readyTasks_.push_back(TraceTask{taskId, frame, std::move(chunk), 0});
   }
   return requestId;
 }

@@ -15,73 +15,55 @@
 //
 // Known flaw, inherited from the paper (section 4): a pixel equal at both ends of an
 // interval but different somewhere inside it is copied, wrongly.
+//
+// GuardedPlanner (guarded_planner.h) is this planner with a coarse-raster guard plugged
+// in; without one the planner is the paper's search, and with binWidth 2 brute force.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <unordered_map>
 #include <vector>
 
 #include "pixel_set/pixel_set.h"
+#include "planner/planner.h"
 
 namespace tcfarm {
 
-struct PlannerOptions {
-  int width = 0;
-  int height = 0;
-  int frameCount = 0;  // frames 0 .. frameCount-1, relative to the job
-  int binWidth = 0;    // the paper's n >= 2; n == 2 traces every pixel of every frame
-  // 0: pixels are equal when their float RGB is bitwise equal; otherwise when no
-  // channel differs by more than tolerance.
-  float tolerance = 0;
-  uint32_t maxTaskPixels = 16384;  // larger requests are split so workers share the load
-  int maxLiveBins = 4;             // bins searched at once; bounds the frames held in memory
-};
+class CoarseGuard;
 
-struct TraceTask {
-  uint64_t id = 0;
-  int frame = 0;
-  PixelSet pixels;
-};
-
-struct FinishedFrame {
-  int frame = 0;
-  std::vector<float> rgb;        // width * height * 3, linear RGB, row-major
-  std::vector<uint8_t> traced;   // width * height; 1 where the pixel was traced, 0 where copied
-  uint64_t tracedCount = 0;
-};
-
-class SearchPlanner {
+class SearchPlanner : public Planner {
  public:
   // Throws std::invalid_argument naming the bad option and its expected range.
   explicit SearchPlanner(const PlannerOptions& options);
+  ~SearchPlanner() override;
 
-  // Every task that can be traced now. Each task is returned once; re-sending a task
-  // whose worker died is the dispatcher's business (tracing is deterministic).
-  std::vector<TraceTask> TakeReadyTasks();
+  // Every task has window 0: this planner wants no horizons.
+  std::vector<TraceTask> TakeReadyTasks() override;
 
-  // The result of a task: its RGB values in the task's pixel order (ascending index).
-  // Returns true when the result was applied and false when the task had already been
-  // completed (a re-delivered result is ignored). Throws std::invalid_argument, and
-  // changes nothing, for an id never issued, a float count other than 3 * pixels, or a
-  // non-finite value (no NaN ever reaches a frame).
-  bool OnResult(uint64_t taskId, const float* rgb, size_t floatCount);
+  // As Planner::OnResult; horizons are ignored (no task asks for them).
+  bool OnResult(uint64_t taskId, const float* rgb, size_t floatCount, const int32_t* horizons = nullptr,
+                size_t horizonCount = 0) override;
 
-  // Frames whose every pixel is known and that no live bin still reads, in no
-  // particular order; the planner forgets them once taken.
-  std::vector<FinishedFrame> TakeFinishedFrames();
+  // Frames whose every pixel is known and that no live bin still reads.
+  std::vector<FinishedFrame> TakeFinishedFrames() override;
 
-  bool Done() const;  // every frame finished and taken
+  bool Done() const override;  // every frame finished and taken
 
-  uint64_t TracedPixels() const { return tracedPixels_; }
-  uint64_t CopiedPixels() const { return copiedPixels_; }
-  // Frames being assembled (finished frames waiting in TakeFinishedFrames excluded).
+  uint64_t TracedPixels() const override { return tracedPixels_; }
+  uint64_t CopiedPixels() const override { return copiedPixels_; }
   // At most maxLiveBins * binWidth: each live bin holds at most its own frames.
-  size_t LiveFrames() const { return frames_.size(); }
+  size_t LiveFrames() const override { return frames_.size(); }
   size_t InFlightTasks() const { return pendingTasks_.size(); }  // emitted, result not yet in
 
   // Invariant violations (planner bugs, never bad input) throw std::logic_error.
+
+ protected:
+  // With a guard, every frame of a bin has its coarse samples traced before the bin is
+  // searched, and tiles whose samples change force their pixels into the search.
+  SearchPlanner(const PlannerOptions& options, std::unique_ptr<CoarseGuard> guard);
 
  private:
   enum PixelState : uint8_t { kUnknown = 0, kTraced = 1, kCopied = 2 };
@@ -89,7 +71,7 @@ class SearchPlanner {
   struct Bin {
     int left = 0;
     int right = 0;
-    int endsPending = 0;  // end-frame traces not yet back; the search starts at 0
+    int preparing = 0;    // end-frame (and coarse-sample) traces not yet back; the search starts at 0
     int waiting = 0;      // continuations of this bin not yet run; the bin is done at 0
   };
 
@@ -103,10 +85,10 @@ class SearchPlanner {
   };
 
   // What to run when a trace request is complete: either "one of the bin's end frames
-  // is traced" or "Search(pixels, left, mid) and Search(pixels, mid, right)".
+  // (or coarse samples) is traced" or "Search(pixels, left, mid) and Search(pixels, mid, right)".
   struct Continuation {
     size_t bin = 0;
-    bool isEndFrame = false;
+    bool isPreparation = false;
     int left = 0;
     int mid = 0;
     int right = 0;
@@ -126,6 +108,8 @@ class SearchPlanner {
 
   void StartBins();
   void StartBin(size_t bin);
+  void PrepareFrame(size_t bin, int frame, const PixelSet& pixels);
+  void SearchPreparedBin(size_t bin);
   void FinishBin(size_t bin);
   void Search(size_t bin, const PixelSet& pixels, int left, int right);
   template <typename Equal>
@@ -134,7 +118,6 @@ class SearchPlanner {
   uint64_t RequestTrace(int frame, const PixelSet& pixels, Continuation continuation);
   void AddContinuation(uint64_t request, Continuation continuation);
   void RunContinuation(const Continuation& continuation);
-  void ValidateResult(uint64_t taskId, const PendingTask& task, const float* rgb, size_t floatCount) const;
   void WriteTraced(Frame& frame, int frameIndex, const PixelSet& pixels, const float* rgb);
   void CopyPixels(const Frame& source, Frame& destination, int destinationIndex, const PixelSet& pixels);
   void MarkKnown(Frame& frame, int frameIndex, Span span, PixelState how);
@@ -145,6 +128,8 @@ class SearchPlanner {
 
   PlannerOptions options_;
   uint32_t pixelCount_ = 0;
+  std::unique_ptr<CoarseGuard> guard_;  // null for the plain search
+  PixelSet searchPixels_;               // what a bin searches: all pixels but the coarse samples
   std::vector<Bin> bins_;
   size_t nextBin_ = 0;   // bins start in frame order: bins before this one have started
   int liveBins_ = 0;

@@ -1,0 +1,181 @@
+#include "planner/exact_planner.h"
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace tcfarm {
+namespace {
+
+constexpr const char* kPlannerName = "exact planner";
+
+void Check(bool condition, const std::string& what) { planner_internal::Check(condition, kPlannerName, what); }
+
+void ValidateOptions(const PlannerOptions& options) {
+  planner_internal::ValidateCommonOptions(options);
+  planner_internal::RequireOption(options.binWidth >= 1, "binWidth", options.binWidth,
+                                  ">= 1 (the segment length; 1 traces every pixel)");
+}
+
+std::string PixelName(uint32_t pixel, int frame) {
+  return "pixel " + std::to_string(pixel) + " of frame " + std::to_string(frame);
+}
+
+}  // namespace
+
+ExactPlanner::ExactPlanner(const PlannerOptions& options) : options_(options) {
+  ValidateOptions(options);
+  pixelCount_ = static_cast<uint32_t>(options.width) * static_cast<uint32_t>(options.height);
+  segmentCount_ = static_cast<size_t>((static_cast<long long>(options.frameCount) + options.binWidth - 1) /
+                                      options.binWidth);
+  StartSegments();
+}
+
+std::vector<TraceTask> ExactPlanner::TakeReadyTasks() {
+  std::vector<TraceTask> tasks;
+  tasks.swap(readyTasks_);
+  return tasks;
+}
+
+std::vector<FinishedFrame> ExactPlanner::TakeFinishedFrames() {
+  std::vector<FinishedFrame> frames;
+  frames.swap(finished_);
+  return frames;
+}
+
+bool ExactPlanner::Done() const {
+  return nextSegment_ == segmentCount_ && segments_.empty() && finished_.empty();
+}
+
+bool ExactPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCount, const int32_t* horizons,
+                            size_t horizonCount) {
+  auto found = pendingTasks_.find(taskId);
+  if (found == pendingTasks_.end()) {
+    if (taskId != 0 && taskId < nextTaskId_) return false;  // completed before: a re-delivery
+    throw std::invalid_argument("result for unknown task id " + std::to_string(taskId) + "; ids issued are 1 .. " +
+                                std::to_string(nextTaskId_ - 1));
+  }
+  {
+    // Everything is checked before anything changes, so a rejected result changes nothing.
+    const PendingTask& task = found->second;
+    planner_internal::ValidateRgb(taskId, task.frame, task.pixels.size(), rgb, floatCount);
+    if (task.window > 0) {
+      planner_internal::ValidateHorizons(taskId, task.frame, task.window, task.pixels.size(), horizons,
+                                         horizonCount);
+    }
+  }
+  const PendingTask task = std::move(found->second);
+  pendingTasks_.erase(found);
+
+  auto segment = segments_.find(task.segment);
+  Check(segment != segments_.end() && segment->second.frame == task.frame,
+        "task " + std::to_string(taskId) + " at frame " + std::to_string(task.frame) + " belongs to no segment at it");
+  WriteResult(segment->second, task, rgb, horizons);
+  if (--segment->second.tasksLeft == 0) CompleteFrame(task.segment);
+  return true;
+}
+
+void ExactPlanner::StartSegments() {
+  while (segments_.size() < static_cast<size_t>(options_.maxLiveBins) && nextSegment_ < segmentCount_) {
+    StartSegment(nextSegment_++);
+  }
+}
+
+void ExactPlanner::StartSegment(size_t index) {
+  const long long first = static_cast<long long>(index) * options_.binWidth;
+  const long long end = std::min<long long>(first + options_.binWidth, options_.frameCount);
+  Segment& segment = segments_[index];
+  segment.first = static_cast<int>(first);
+  segment.last = static_cast<int>(end - 1);
+  segment.frame = segment.first;
+  segment.rgb.assign(size_t{pixelCount_} * 3, 0.0f);
+  // Nothing is known at a segment's first frame: it is traced in full.
+  segment.nextTrace.assign(pixelCount_, segment.first);
+  segment.tracing = PixelSet::Full(pixelCount_);
+  IssueTasks(index, segment);
+}
+
+// Every trace of the segment's current frame is in: finish frames (copying where
+// nothing is traced) until one has pixels to trace, or the segment ends.
+void ExactPlanner::CompleteFrame(size_t index) {
+  Segment& segment = segments_.at(index);
+  for (;;) {
+    FinishFrame(segment);
+    if (++segment.frame > segment.last) {
+      segments_.erase(index);
+      StartSegments();
+      return;
+    }
+    segment.tracing = PixelsToTraceAt(segment);
+    if (!segment.tracing.empty()) {
+      IssueTasks(index, segment);
+      return;
+    }
+  }
+}
+
+PixelSet ExactPlanner::PixelsToTraceAt(const Segment& segment) const {
+  PixelSetBuilder pixels;
+  const int32_t* nextTrace = segment.nextTrace.data();
+  for (uint32_t pixel = 0; pixel < pixelCount_; ++pixel) {
+    if (nextTrace[pixel] > segment.frame) continue;
+    if (nextTrace[pixel] < segment.frame) {
+      Check(false, PixelName(pixel, segment.frame) + " was due at frame " + std::to_string(nextTrace[pixel]) +
+                       " and has no value");
+    }
+    pixels.Add(pixel);
+  }
+  return pixels.Build();
+}
+
+void ExactPlanner::IssueTasks(size_t index, Segment& segment) {
+  // Any later frame of the segment may be the horizon; none beyond it is of use.
+  const int window = segment.last - segment.frame;
+  std::vector<PixelSet> chunks = segment.tracing.Split(options_.maxTaskPixels);
+  Check(!chunks.empty(), "empty trace at frame " + std::to_string(segment.frame));
+  segment.tasksLeft = chunks.size();
+  for (PixelSet& chunk : chunks) {
+    const uint64_t taskId = nextTaskId_++;
+    pendingTasks_[taskId] = PendingTask{index, segment.frame, window, chunk};
+    readyTasks_.push_back(TraceTask{taskId, segment.frame, std::move(chunk), window});
+  }
+}
+
+void ExactPlanner::WriteResult(Segment& segment, const PendingTask& task, const float* rgb, const int32_t* horizons) {
+  float* values = segment.rgb.data();
+  int32_t* nextTrace = segment.nextTrace.data();
+  size_t i = 0;
+  task.pixels.ForEach([&](uint32_t pixel) {
+    if (nextTrace[pixel] != task.frame) {
+      Check(false, PixelName(pixel, task.frame) + " is traced but was due at frame " +
+                       std::to_string(nextTrace[pixel]));
+    }
+    std::memcpy(values + size_t{pixel} * 3, rgb + i * 3, 3 * sizeof(float));
+    // At the segment's last frame (window 0) there is nothing left to be valid for.
+    nextTrace[pixel] = task.window > 0 ? horizons[i] : task.frame + 1;
+    ++i;
+  });
+}
+
+void ExactPlanner::FinishFrame(Segment& segment) {
+  FinishedFrame frame;
+  frame.frame = segment.frame;
+  frame.rgb = segment.rgb;
+  frame.traced.assign(pixelCount_, 0);
+  segment.tracing.ForEach([&](uint32_t pixel) {
+    // Each traced pixel has its value: its next trace lies after this frame.
+    if (segment.nextTrace[pixel] <= segment.frame) {
+      Check(false, PixelName(pixel, segment.frame) + " finishes without its traced value");
+    }
+    frame.traced[pixel] = 1;
+  });
+  frame.tracedCount = segment.tracing.size();
+  tracedPixels_ += frame.tracedCount;
+  copiedPixels_ += pixelCount_ - frame.tracedCount;
+  segment.tracing = PixelSet();
+  finished_.push_back(std::move(frame));
+}
+
+}  // namespace tcfarm
