@@ -65,7 +65,9 @@ void Farm::ClaimJobs() {
 
 void Farm::StartJob(const JobRecord& record) {
   try {
-    auto run = std::make_unique<JobRun>(record, options_.storeRoot, options_.output);
+    auto run = std::make_unique<JobRun>(
+        record, options_.storeRoot, options_.output,
+        static_cast<int>(dispatcher_.registry().workers().size()));
     const RenderSettings& r = run->scene().render;
     dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(r.width),
                        static_cast<uint32_t>(r.height), record.spec.sceneHash,

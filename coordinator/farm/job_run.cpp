@@ -1,54 +1,117 @@
 #include "farm/job_run.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 
+#include "frame/sequence_analysis.h"
+
 namespace tcfarm {
-
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene) {
-  PlannerOptions options;
-  options.width = scene.render.width;
-  options.height = scene.render.height;
-  options.frameCount = spec.lastFrame - spec.firstFrame + 1;
-  options.binWidth = spec.strategy == "brute" ? 2 : spec.binWidth;
-  options.tolerance = static_cast<float>(spec.tolerance);
-  return options;
-}
-
 namespace {
 
-std::unique_ptr<Scene> ParseStoredScene(const JobSpec& spec) {
-  return std::make_unique<Scene>(ParseScene(spec.sceneJson));
-}
+// Auto's guarded bin width: equation 3 keeps falling with n for any d < 1, while the
+// paper's measured cost flattens past n = 6 and its error keeps growing (Figure 9c);
+// 10 is where the paper stopped measuring.
+constexpr int kAutoMaxBinWidth = 10;
 
 const std::filesystem::path& CreatedDirectory(const std::filesystem::path& path) {
   std::filesystem::create_directories(path);
   return path;
 }
 
+int FrameCountOf(const JobSpec& spec) { return spec.lastFrame - spec.firstFrame + 1; }
+
+VerificationOptions VerificationFor(const JobSpec& spec, uint64_t jobId) {
+  VerificationOptions options;
+  options.seed = jobId;
+  const nlohmann::json& verify = spec.options.is_object() && spec.options.contains("verify")
+                                     ? spec.options["verify"]
+                                     : nlohmann::json();
+  if (verify.is_object()) {
+    bool all = verify.value("frames", std::string()) == "all";
+    int sample = verify.value("sample", 0);
+    options.referenceFrames = FramesToVerify(FrameCountOf(spec), all, sample);
+  }
+  if (spec.options.is_object() && spec.options.contains("spot_check_share")) {
+    options.spotCheckShare = spec.options["spot_check_share"].get<double>();
+  }
+  return options;
+}
+
 }  // namespace
 
+ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers) {
+  const int frames = FrameCountOf(spec);
+  if (spec.strategy == "brute") return {Strategy::kBrute, 2, "every pixel of every frame"};
+  if (spec.strategy != "auto") {
+    auto strategy = StrategyFromString(spec.strategy);
+    if (!strategy) throw std::invalid_argument("unknown strategy '" + spec.strategy + "'");
+    return {*strategy, spec.binWidth, "as requested"};
+  }
+  if (!scene.CameraMoves() && !scene.AnyLightChanges()) {
+    // Each segment costs one full frame; one segment per worker keeps all of them busy.
+    int segments = std::clamp(workers, 1, frames);
+    int length = (frames + segments - 1) / segments;
+    return {Strategy::kExact, std::max(1, length),
+            "camera and lights are static: exact, one segment per worker"};
+  }
+  return {Strategy::kGuarded, std::clamp(frames, 2, kAutoMaxBinWidth),
+          "the camera or a light moves: guarded search"};
+}
+
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int binWidth) {
+  PlannerOptions options;
+  options.width = scene.render.width;
+  options.height = scene.render.height;
+  options.frameCount = FrameCountOf(spec);
+  options.binWidth = binWidth;
+  options.tolerance = static_cast<float>(spec.tolerance);
+  return options;
+}
+
 JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
-               const FrameWriterOptions& output)
+               const FrameWriterOptions& output, int workers)
     : id_(record.id),
       spec_(record.spec),
-      scene_(ParseStoredScene(record.spec)),
-      directory_(storeRoot / std::to_string(record.id)),
-      planner_(PlannerOptionsFor(record.spec, *scene_)),
-      writer_(CreatedDirectory(directory_), output),
+      scene_(std::make_unique<Scene>(ParseScene(record.spec.sceneJson))),
+      resolved_(ResolveStrategy(record.spec, *scene_, workers)),
+      planner_(MakePlanner(resolved_.strategy,
+                           PlannerOptionsFor(record.spec, *scene_, resolved_.binWidth))),
+      verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),
+                    VerificationFor(record.spec, record.id)),
+      writer_(CreatedDirectory(storeRoot / std::to_string(record.id)), output),
       started_(std::chrono::steady_clock::now()) {
   spec_.sceneJson.clear();  // parsed; no need to hold the text twice
 }
 
 std::vector<DispatchTask> JobRun::TakeTasks() {
   std::vector<DispatchTask> tasks;
-  for (TraceTask& t : planner_.TakeReadyTasks()) {
-    tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), 0});
+  for (TraceTask& t : planner_->TakeReadyTasks()) {
+    tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window});
+  }
+  for (Verification::Request& r : verification_.TakeRequests()) {
+    tasks.push_back({id_, r.id | kVerificationTask, spec_.firstFrame + r.frame,
+                     std::move(r.pixels), 0});
   }
   return tasks;
 }
 
-bool JobRun::OnResult(uint64_t plannerTaskId, const wire::Result& result) {
-  if (!planner_.OnResult(plannerTaskId, result.rgb.data(), result.rgb.size())) return false;
+bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
+  if (taskId & kVerificationTask) {
+    if (!verification_.OnResult(taskId & ~kVerificationTask, result.rgb.data(), result.rgb.size())) {
+      return false;
+    }
+    verifySeconds_ += result.traceSeconds;
+  } else {
+    // Workers speak absolute frames; the planner counts from the job's first frame.
+    std::vector<int32_t> horizons(result.horizons);
+    for (int32_t& h : horizons) h -= spec_.firstFrame;
+    if (!planner_->OnResult(taskId, result.rgb.data(), result.rgb.size(),
+                            horizons.empty() ? nullptr : horizons.data(), horizons.size())) {
+      return false;
+    }
+    frameTraceSeconds_[result.frame - spec_.firstFrame] += result.traceSeconds;
+  }
   traceSeconds_ += result.traceSeconds;
   rays_[0] += result.primaryRays;
   rays_[1] += result.shadowRays;
@@ -59,11 +122,17 @@ bool JobRun::OnResult(uint64_t plannerTaskId, const wire::Result& result) {
 }
 
 int JobRun::CollectFinishedFrames(JobStore& store) {
-  std::vector<FinishedFrame> finished = planner_.TakeFinishedFrames();
+  std::vector<FinishedFrame> finished = planner_->TakeFinishedFrames();
+  const uint64_t pixels = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
   for (FinishedFrame& frame : finished) {
     int absolute = spec_.firstFrame + frame.frame;
-    uint64_t pixels = frame.traced.size();
     store.RecordFrame(id_, absolute, frame.tracedCount, pixels - frame.tracedCount);
+    if (frame.tracedCount == pixels) {
+      fullFrameSeconds_ += frameTraceSeconds_[frame.frame];
+      ++fullFrames_;
+    }
+    frameTraceSeconds_.erase(frame.frame);
+    verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
     TrackCoherence(frame.frame, frame.rgb);
     writer_.Write(absolute, Image{scene_->render.width, scene_->render.height, std::move(frame.rgb)});
     ++framesDone_;
@@ -83,22 +152,53 @@ void JobRun::TrackCoherence(int frame, const std::vector<float>& rgb) {
 
 void JobRun::FinishWriting() { writer_.Finish(); }
 
+// Predicted (equation 3, or its exact analogue) beside measured relative cost. Measured
+// is the job's tracing time over brute force's, estimated from the frames this job
+// traced in full (bin ends, segment starts), which cost what brute force pays per frame.
+nlohmann::json JobRun::CostFigures() const {
+  nlohmann::json cost;
+  const int frames = FrameCountOf(spec_);
+  if (coherence_.frameToFrame().count > 0) {
+    double d = 1 - coherence_.frameToFrame().Mean();
+    double predicted = 1;
+    if (resolved_.strategy == Strategy::kExact) {
+      double segments = std::ceil(double(frames) / resolved_.binWidth);
+      predicted = (segments + (frames - segments) * d) / frames;
+    } else if (resolved_.strategy != Strategy::kBrute && resolved_.binWidth >= 2) {
+      predicted = Equation3RelativeCost(frames, resolved_.binWidth, d);
+    }
+    cost["d"] = d;
+    cost["predicted_relative_cost"] = predicted;
+  }
+  if (fullFrames_ > 0) {
+    double bruteSeconds = fullFrameSeconds_ / fullFrames_ * frames;
+    cost["brute_trace_seconds_estimate"] = bruteSeconds;
+    cost["measured_relative_cost"] = (traceSeconds_ - verifySeconds_) / bruteSeconds;
+  }
+  return cost;
+}
+
 nlohmann::json JobRun::Stats() const {
   const uint64_t pixelsPerFrame = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
-  const uint64_t frames = static_cast<uint64_t>(spec_.lastFrame - spec_.firstFrame + 1);
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   nlohmann::json stats;
+  stats["strategy"] = {{"name", std::string(StrategyName(resolved_.strategy))},
+                       {"bin_width", resolved_.binWidth},
+                       {"reason", resolved_.reason}};
   stats["frames_done"] = framesDone_;
-  stats["pixels_traced"] = planner_.TracedPixels();
-  stats["pixels_copied"] = planner_.CopiedPixels();
-  stats["traced_pixel_ratio"] =
-      static_cast<double>(planner_.TracedPixels()) / static_cast<double>(pixelsPerFrame * frames);
+  stats["pixels_traced"] = planner_->TracedPixels();
+  stats["pixels_copied"] = planner_->CopiedPixels();
+  stats["traced_pixel_ratio"] = static_cast<double>(planner_->TracedPixels()) /
+                                static_cast<double>(pixelsPerFrame * FrameCountOf(spec_));
   stats["wall_seconds"] = wall;
-  stats["trace_seconds"] = traceSeconds_;
+  stats["trace_seconds"] = traceSeconds_ - verifySeconds_;
+  stats["verify_trace_seconds"] = verifySeconds_;
   stats["tasks"] = results_;
   stats["rays"] = {{"primary", rays_[0]}, {"shadow", rays_[1]}, {"reflection", rays_[2]},
                    {"refraction", rays_[3]}};
+  stats["cost"] = CostFigures();
+  stats["error"] = verification_.Report();
   const RunningStats& f2f = coherence_.frameToFrame();
   const RunningStats& longTerm = coherence_.longTerm();
   if (f2f.count > 0) {

@@ -1,5 +1,5 @@
-// One job being rendered: its planner, its frame writer, and the figures it reports.
-// Owned by the farm loop; not thread-safe.
+// One job being rendered: its planner, its verification, its frame writer, and the
+// figures it reports. Owned by the farm loop; not thread-safe.
 #pragma once
 
 #include <chrono>
@@ -12,54 +12,72 @@
 #include <nlohmann/json.hpp>
 
 #include "dispatch/dispatcher.h"
+#include "farm/verification.h"
 #include "frame/coherence.h"
 #include "frame/frame_writer.h"
 #include "jobs/job_store.h"
-#include "planner/search_planner.h"
+#include "planner/planner.h"
 #include "scene/scene.h"
 
 namespace tcfarm {
 
-// Planner settings of a job: `brute` is the search with bins of 2 (every frame traced).
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene);
+// The strategy and bin width (segment length for exact) a job runs with. `auto` picks
+// exact when nothing but shapes move (every pixel then has a horizon to find), else
+// guarded; the length gives each worker a segment (exact) or follows equation 3
+// (guarded). `brute` is the search with bins of 2.
+struct ResolvedStrategy {
+  Strategy strategy;
+  int binWidth;
+  std::string reason;
+};
+ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers);
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int binWidth);
 
 class JobRun {
  public:
   // Throws SceneError when the stored scene no longer parses, std::invalid_argument for
-  // planner options out of range.
+  // options out of range. `workers`: live workers now (auto sizes its segments by it).
   JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
-         const FrameWriterOptions& output = {});
+         const FrameWriterOptions& output = {}, int workers = 1);
 
   uint64_t id() const { return id_; }
   const Scene& scene() const { return *scene_; }
-  const std::filesystem::path& directory() const { return directory_; }
 
   std::vector<DispatchTask> TakeTasks();
-  // Feeds a result to the planner. Returns false when the planner had it already.
-  bool OnResult(uint64_t plannerTaskId, const wire::Result& result);
-  // Hands finished frames to the writer and records them; returns how many.
+  // Feeds a result to the planner or the verification. False when it had it already.
+  bool OnResult(uint64_t taskId, const wire::Result& result);
+  // Hands finished frames to the writer and the verification, records them; returns how many.
   int CollectFinishedFrames(JobStore& store);
-  bool Done() const { return planner_.Done(); }
+  bool Done() const { return planner_->Done() && !verification_.Pending(); }
   // Waits for the frame writer; throws FrameIoError if a frame could not be written.
   void FinishWriting();
 
   // Progress and results so far, for the job record ("stats").
   nlohmann::json Stats() const;
-  uint64_t tracedPixels() const { return planner_.TracedPixels(); }
-  uint64_t copiedPixels() const { return planner_.CopiedPixels(); }
+  uint64_t tracedPixels() const { return planner_->TracedPixels(); }
+  uint64_t copiedPixels() const { return planner_->CopiedPixels(); }
 
  private:
+  // Task ids of verification requests carry this bit; planner ids never reach it.
+  static constexpr uint64_t kVerificationTask = uint64_t{1} << 62;
+
   void TrackCoherence(int frame, const std::vector<float>& rgb);
+  nlohmann::json CostFigures() const;
 
   uint64_t id_;
   JobSpec spec_;
   std::unique_ptr<Scene> scene_;
-  std::filesystem::path directory_;
-  SearchPlanner planner_;
+  ResolvedStrategy resolved_;
+  std::unique_ptr<Planner> planner_;
+  Verification verification_;
   FrameWriter writer_;
   std::chrono::steady_clock::time_point started_;
-  double traceSeconds_ = 0;  // summed over tasks: the tracing time the job cost the farm
-  uint64_t rays_[4] = {};    // primary, shadow, reflection, refraction
+  double traceSeconds_ = 0;        // summed over tasks: the tracing time the job cost the farm
+  double verifySeconds_ = 0;       // of it, spent on verification
+  std::map<int, double> frameTraceSeconds_;   // per unfinished frame, planner tasks only
+  double fullFrameSeconds_ = 0;    // frames traced in full: brute force's cost per frame
+  int fullFrames_ = 0;
+  uint64_t rays_[4] = {};          // primary, shadow, reflection, refraction
   uint64_t results_ = 0;
   int framesDone_ = 0;
   // Coherence needs frames in order; they finish nearly in order, so few wait here.

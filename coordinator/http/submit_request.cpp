@@ -14,8 +14,9 @@ namespace {
 
 using nlohmann::json;
 
-constexpr const char* kTopLevelFields[] = {"scene",     "name",      "frames",  "strategy",
-                                           "bin_width", "tolerance", "priority"};
+constexpr const char* kTopLevelFields[] = {"scene",     "name",      "frames",   "strategy",
+                                           "bin_width", "tolerance", "priority", "verify",
+                                           "spot_check_share"};
 constexpr int kDefaultBinWidth = 10;
 constexpr size_t kShownValueBytes = 60;  // enough to recognize a value, short enough to read
 
@@ -252,6 +253,41 @@ std::pair<int, int> ReadFrameRange(const json& request, const RenderSettings& re
   return {start, end};
 }
 
+// "verify": {"frames": "all"} or {"sample": K}: frames also rendered brute force and
+// compared. Stored in the job's options for the farm.
+json ReadVerify(const json& request) {
+  const auto verify = request.find("verify");
+  if (verify == request.end()) return nullptr;
+  const std::string expected = R"({"frames": "all"} or {"sample": K} with K in [1, 100000])";
+  if (!verify->is_object() || verify->size() != 1) {
+    Fail(error_code::kInvalidField, "/verify", Show(*verify) + " is not a verification request",
+         expected);
+  }
+  if (verify->contains("frames")) {
+    if ((*verify)["frames"] != "all") {
+      Fail(error_code::kInvalidField, "/verify/frames", Show((*verify)["frames"]) + " is not \"all\"",
+           expected);
+    }
+    return {{"frames", "all"}};
+  }
+  if (!verify->contains("sample")) {
+    Fail(error_code::kUnknownField, "/verify/" + verify->begin().key(), "unknown field", expected);
+  }
+  return {{"sample", ReadInteger((*verify)["sample"], "/verify/sample", 1, 100000, expected)}};
+}
+
+// Share of copied pixels traced again as spot checks, at most 2 %.
+json ReadSpotCheckShare(const json& request) {
+  const auto share = request.find("spot_check_share");
+  if (share == request.end()) return nullptr;
+  if (!share->is_number() || !std::isfinite(share->get<double>()) || share->get<double>() < 0 ||
+      share->get<double>() > 0.02) {
+    Fail(error_code::kInvalidField, "/spot_check_share", Show(*share) + " is out of range",
+         "a number in [0, 0.02]");
+  }
+  return *share;
+}
+
 }  // namespace
 
 Submission ParseSubmission(const std::string& body) {
@@ -270,6 +306,11 @@ Submission ParseSubmission(const std::string& body) {
   spec.binWidth = ReadOptionalInteger(request, "bin_width", kMinBinWidth, kMaxBinWidth, kDefaultBinWidth);
   spec.tolerance = ReadTolerance(request);
   spec.priority = ReadOptionalInteger(request, "priority", kMinPriority, kMaxPriority, 0);
+  spec.options = json::object();
+  if (json verify = ReadVerify(request); !verify.is_null()) spec.options["verify"] = verify;
+  if (json share = ReadSpotCheckShare(request); !share.is_null()) {
+    spec.options["spot_check_share"] = share;
+  }
 
   const Scene scene = ReadScene(request);
   std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);

@@ -10,7 +10,7 @@ namespace tcfarm::http {
 
 // The strategies a submission may name today; the planners for "guarded", "exact" and
 // "auto" do not exist yet, so accepting them would queue jobs nobody can run.
-inline constexpr const char* kAcceptedStrategies[] = {"search", "brute"};
+inline constexpr const char* kAcceptedStrategies[] = {"search", "brute", "guarded", "exact", "auto"};
 
 // Field ranges. bin_width 1 would make every frame its own bin: the search strategy then
 // has no neighbouring frame to copy from, which "brute" already says more plainly.

@@ -1,0 +1,156 @@
+#include "farm/verification.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+#include "frame/ssim.h"
+
+namespace tcfarm {
+namespace {
+
+// Wilson score interval at 95 % for k successes in n trials.
+std::pair<double, double> WilsonInterval(uint64_t k, uint64_t n) {
+  if (n == 0) return {0, 1};
+  constexpr double z = 1.959963984540054;
+  double p = double(k) / n, z2n = z * z / n;
+  double centre = (p + z2n / 2) / (1 + z2n);
+  double half = z * std::sqrt(p * (1 - p) / n + z2n / (4.0 * n)) / (1 + z2n);
+  return {std::max(0.0, centre - half), std::min(1.0, centre + half)};
+}
+
+}  // namespace
+
+std::vector<int> FramesToVerify(int frameCount, bool all, int count) {
+  std::vector<int> frames;
+  if (all) count = frameCount;
+  count = std::clamp(count, 0, frameCount);
+  for (int i = 0; i < count; ++i) {
+    // Evenly spread, first and last included when count > 1.
+    int frame = count == 1 ? frameCount / 2
+                           : static_cast<int>(std::lround(double(i) * (frameCount - 1) / (count - 1)));
+    if (frames.empty() || frames.back() != frame) frames.push_back(frame);
+  }
+  return frames;
+}
+
+Verification::Verification(int width, int height, int frameCount, VerificationOptions options)
+    : width_(width),
+      height_(height),
+      frameCount_(frameCount),
+      options_(std::move(options)),
+      random_(options_.seed),
+      wantsReference_(static_cast<size_t>(frameCount), false) {
+  options_.spotCheckShare = std::clamp(options_.spotCheckShare, 0.0, kMaxSpotCheckShare);
+  for (int frame : options_.referenceFrames) {
+    if (frame < 0 || frame >= frameCount) {
+      throw std::invalid_argument("verification frame " + std::to_string(frame) +
+                                  " is outside the job's 0.." + std::to_string(frameCount - 1));
+    }
+    wantsReference_[frame] = true;
+  }
+}
+
+uint64_t Verification::Issue(int frame, PixelSet pixels) {
+  uint64_t id = nextId_++;
+  extraPixels_ += pixels.size();
+  outstanding_[id] = frame;
+  ready_.push_back({id, frame, std::move(pixels)});
+  return id;
+}
+
+void Verification::OnFrameFinished(int frame, const std::vector<float>& rgb,
+                                   const std::vector<uint8_t>& traced) {
+  size_t pixels = traced.size();
+  size_t copied = pixels - std::count(traced.begin(), traced.end(), uint8_t{1});
+  copiedPixels_ += copied;
+  totalPixels_ += pixels;
+  if (wantsReference_[frame]) {
+    ScheduleReference(frame, rgb);
+  } else if (copied > 0 && options_.spotCheckShare > 0) {
+    ScheduleSpotCheck(frame, rgb, traced);  // a verified frame needs no estimate
+  }
+}
+
+void Verification::ScheduleSpotCheck(int frame, const std::vector<float>& rgb,
+                                     const std::vector<uint8_t>& traced) {
+  size_t pixels = traced.size();
+  auto wanted = static_cast<size_t>(std::ceil(options_.spotCheckShare * pixels));
+  // Sample copied pixels uniformly: draw indices, keep copied ones, bounded attempts.
+  std::vector<uint32_t> chosen;
+  std::uniform_int_distribution<uint32_t> pick(0, static_cast<uint32_t>(pixels - 1));
+  for (size_t attempt = 0; attempt < 8 * wanted && chosen.size() < wanted; ++attempt) {
+    uint32_t p = pick(random_);
+    if (!traced[p]) chosen.push_back(p);
+  }
+  if (chosen.empty()) return;
+  std::sort(chosen.begin(), chosen.end());
+  chosen.erase(std::unique(chosen.begin(), chosen.end()), chosen.end());
+  SpotCheck check{frame, {}};
+  for (uint32_t p : chosen) check.copied.insert(check.copied.end(), &rgb[3 * p], &rgb[3 * p + 3]);
+  uint64_t id = Issue(frame, PixelSet::FromSortedIndices(chosen));
+  spotChecks_[id] = std::move(check);
+}
+
+void Verification::ScheduleReference(int frame, const std::vector<float>& rgb) {
+  uint64_t id = Issue(frame, PixelSet::Full(static_cast<uint32_t>(width_) * height_));
+  jobFramesAwaitingReference_[id] = Image{width_, height_, rgb};
+}
+
+std::vector<Verification::Request> Verification::TakeRequests() {
+  std::vector<Request> requests;
+  requests.swap(ready_);
+  return requests;
+}
+
+bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount) {
+  auto outstanding = outstanding_.find(id);
+  if (outstanding == outstanding_.end()) return false;
+  outstanding_.erase(outstanding);
+  if (auto check = spotChecks_.find(id); check != spotChecks_.end()) {
+    if (floatCount != check->second.copied.size()) throw std::invalid_argument("spot check size");
+    for (size_t i = 0; i < floatCount; i += 3) {
+      ++checkedPixels_;
+      mismatchedPixels_ += std::memcmp(&rgb[i], &check->second.copied[i], 3 * sizeof(float)) != 0;
+    }
+    spotChecks_.erase(check);
+    return true;
+  }
+  auto job = jobFramesAwaitingReference_.find(id);
+  if (job == jobFramesAwaitingReference_.end()) return false;
+  Image reference{width_, height_, std::vector<float>(rgb, rgb + floatCount)};
+  reference_ += CompareImages(reference, job->second);
+  ssimSum_ += Ssim(reference, job->second);
+  ++referenceFramesDone_;
+  jobFramesAwaitingReference_.erase(job);
+  return true;
+}
+
+nlohmann::json Verification::Report() const {
+  nlohmann::json report;
+  double copiedShare = totalPixels_ ? double(copiedPixels_) / totalPixels_ : 0;
+  auto [low, high] = WilsonInterval(mismatchedPixels_, checkedPixels_);
+  report["spot_checks"] = {
+      {"pixels_checked", checkedPixels_},
+      {"mismatches", mismatchedPixels_},
+      // Share of all pixels estimated wrong: copied share x mismatch rate among copies.
+      {"estimated_error_percent",
+       checkedPixels_ ? 100 * copiedShare * mismatchedPixels_ / double(checkedPixels_) : 0.0},
+      {"ci95_percent", {100 * copiedShare * low, 100 * copiedShare * high}}};
+  if (!options_.referenceFrames.empty()) {
+    double psnr = reference_.Psnr();
+    report["reference"] = {
+        {"frames_requested", options_.referenceFrames.size()},
+        {"frames_compared", referenceFramesDone_},
+        {"pixels_differing", reference_.differingPixels},
+        {"percent_differing", 100 * reference_.DifferingShare()},
+        {"max_abs_error", reference_.maxAbsError},
+        {"psnr_db", std::isinf(psnr) ? nlohmann::json(nullptr) : nlohmann::json(psnr)},
+        {"ssim", referenceFramesDone_ ? ssimSum_ / referenceFramesDone_ : 1.0}};
+  }
+  report["extra_pixels_traced"] = extraPixels_;
+  return report;
+}
+
+}  // namespace tcfarm

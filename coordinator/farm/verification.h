@@ -1,0 +1,90 @@
+// What a job's speed cost in error, measured while it renders.
+//
+// Spot checks (always on): a random sample of each finished frame's copied pixels is
+// traced again and compared bitwise; the mismatch rate, scaled by the copied share, is
+// an estimate of the job's share of wrong pixels, with a Wilson 95 % interval. The
+// sample costs at most kMaxSpotCheckShare extra rays.
+//
+// Verification (on request): selected frames are also rendered in full, brute force,
+// and compared with the job's frames: pixels differing, max abs error, PSNR, SSIM. A
+// frame's reference is traced only after the job's frame is finished, so memory holds
+// just the frames being verified.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <random>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "frame/compare.h"
+#include "frame/frame_io.h"
+#include "pixel_set/pixel_set.h"
+
+namespace tcfarm {
+
+struct VerificationOptions {
+  // Frames (relative to the job) to render in full for comparison; empty: none.
+  std::vector<int> referenceFrames;
+  // Share of each frame's copied pixels traced again; 0 turns spot checks off.
+  double spotCheckShare = 0.01;
+  uint64_t seed = 1;
+};
+
+// The share of a frame's pixels spot checks may trace again (the promise of <= 2 %).
+constexpr double kMaxSpotCheckShare = 0.02;
+
+// Frames to verify for a request: "all", or an evenly spread sample of `count` frames.
+std::vector<int> FramesToVerify(int frameCount, bool all, int count);
+
+class Verification {
+ public:
+  struct Request {
+    uint64_t id;
+    int frame;  // relative to the job
+    PixelSet pixels;
+  };
+
+  Verification(int width, int height, int frameCount, VerificationOptions options);
+
+  // A frame of the job is finished: schedule its spot checks and, when asked, its reference.
+  void OnFrameFinished(int frame, const std::vector<float>& rgb,
+                       const std::vector<uint8_t>& traced);
+  std::vector<Request> TakeRequests();
+  // Returns false for an id this verification did not issue (or already answered).
+  bool OnResult(uint64_t id, const float* rgb, size_t floatCount);
+  bool Pending() const { return !outstanding_.empty() || !ready_.empty(); }
+  uint64_t ExtraPixels() const { return extraPixels_; }
+
+  nlohmann::json Report() const;
+
+ private:
+  struct SpotCheck {
+    int frame;
+    std::vector<float> copied;  // the values the job copied, in pixel-set order
+  };
+  void ScheduleSpotCheck(int frame, const std::vector<float>& rgb,
+                         const std::vector<uint8_t>& traced);
+  void ScheduleReference(int frame, const std::vector<float>& rgb);
+  uint64_t Issue(int frame, PixelSet pixels);
+
+  int width_, height_, frameCount_;
+  VerificationOptions options_;
+  std::mt19937_64 random_;
+  uint64_t nextId_ = 1;
+  std::vector<Request> ready_;
+  std::map<uint64_t, int> outstanding_;  // id -> frame
+  std::map<uint64_t, SpotCheck> spotChecks_;
+  std::map<uint64_t, Image> jobFramesAwaitingReference_;
+  std::vector<bool> wantsReference_;
+  // Figures
+  uint64_t extraPixels_ = 0;
+  uint64_t checkedPixels_ = 0, mismatchedPixels_ = 0;
+  uint64_t copiedPixels_ = 0, totalPixels_ = 0;
+  FrameError reference_;
+  double ssimSum_ = 0;
+  int referenceFramesDone_ = 0;
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,125 @@
+"""Beyond the paper, end to end: exact (validity horizons), guarded, auto, and error
+measured against brute force, through real processes, sockets and HTTP."""
+import json
+
+import pytest
+
+from farm_harness import LocalFarm, compare, render_reference, small_scene
+from tcfarm.client import ApiError
+
+# A thin object crossing the screen between two frames that are otherwise equal (the
+# paper's pathological case), and a light that flickers.
+THIN_AND_FLICKER = {
+    "camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},
+    "lights": [{"type": "point", "position": [3, 4, 8],
+                "intensity": {"keyframes": [{"frame": 0, "value": [100, 100, 100]},
+                                            {"frame": 6, "value": [100, 100, 100]},
+                                            {"frame": 7, "value": [30, 30, 30]},
+                                            {"frame": 8, "value": [100, 100, 100]}]}}],
+    "materials": {"wall": {"diffuse": [0.7, 0.7, 0.65]}, "rod": {"diffuse": [0.9, 0.2, 0.1]}},
+    "shapes": [
+        {"type": "quad", "corner": [-8, -6, -4], "edge_u": [16, 0, 0], "edge_v": [0, 12, 0],
+         "material": "wall"},
+        {"type": "sphere", "center": [0, 0, 0], "radius": 0.06, "material": "rod",
+         "motion": {"keyframes": [{"frame": 0, "value": [-30, 0.5, 0]},
+                                  {"frame": 1, "value": [-30, 0.5, 0]},
+                                  {"frame": 9, "value": [30, 0.5, 0]},
+                                  {"frame": 10, "value": [30, 0.5, 0]}]}}],
+    "background": [0.1, 0.1, 0.2],
+    "render": {"width": 96, "height": 72, "frames": {"start": 0, "count": 11}},
+}
+
+
+@pytest.fixture(scope="module")
+def farm(tmp_path_factory):
+    with LocalFarm(tmp_path_factory.mktemp("farm"), workers=2) as farm:
+        farm.wait_for_workers(2)
+        yield farm
+
+
+def run_job(farm, scene, **options):
+    job = farm.client.submit(scene, **options)
+    job = farm.client.wait(job["id"], timeout=300)
+    assert job["state"] == "completed", job
+    return job
+
+
+def reference_of(scene, tmp_path_factory, name):
+    return render_reference(scene, tmp_path_factory.mktemp(name))
+
+
+@pytest.mark.parametrize("name", ["paper_a_one_sphere", "paper_b_twelve_spheres"])
+def test_exact_is_bit_identical_on_the_paper_animations(farm, scenes_dir, tmp_path_factory,
+                                                         name):
+    scene = small_scene(scenes_dir / f"{name}.json", 128, 96, 21)
+    reference = reference_of(scene, tmp_path_factory, name)
+    job = run_job(farm, scene, strategy="exact", bin_width=21)
+    error = compare(reference, farm.store / str(job["id"]))
+    assert error["differing_pixels"] == 0
+    assert job["traced_pixel_ratio"] < 0.5
+    print(f"{name} exact: traced ratio {job['traced_pixel_ratio']:.4f}")
+
+
+def test_exact_sees_thin_fast_objects_and_flickering_lights(farm, tmp_path_factory):
+    reference = reference_of(THIN_AND_FLICKER, tmp_path_factory, "thin")
+    exact = run_job(farm, THIN_AND_FLICKER, strategy="exact", bin_width=11)
+    assert compare(reference, farm.store / str(exact["id"]))["differing_pixels"] == 0
+    # The paper's search misses the object between equal bin ends: that is the flaw.
+    search = run_job(farm, THIN_AND_FLICKER, strategy="search", bin_width=11)
+    assert compare(reference, farm.store / str(search["id"]))["differing_pixels"] > 0
+
+
+def test_guarded_errs_less_than_search(farm, tmp_path_factory):
+    reference = reference_of(THIN_AND_FLICKER, tmp_path_factory, "guarded")
+    search = run_job(farm, THIN_AND_FLICKER, strategy="search", bin_width=11)
+    guarded = run_job(farm, THIN_AND_FLICKER, strategy="guarded", bin_width=11)
+    search_error = compare(reference, farm.store / str(search["id"]))["differing_pixels"]
+    guarded_error = compare(reference, farm.store / str(guarded["id"]))["differing_pixels"]
+    assert guarded_error < search_error
+
+
+def test_exact_on_a_static_scene_traces_one_frame(farm):
+    scene = json.loads(json.dumps(THIN_AND_FLICKER))
+    scene["shapes"] = scene["shapes"][:1]
+    scene["lights"][0]["intensity"] = [100, 100, 100]
+    job = run_job(farm, scene, strategy="exact", bin_width=11)
+    assert job["pixels_traced"] == 96 * 72
+
+
+def test_auto_picks_exact_for_a_still_camera_and_guarded_for_a_flight(farm, scenes_dir):
+    spheres = small_scene(scenes_dir / "paper_a_one_sphere.json", 64, 48, 9)
+    flight = small_scene(scenes_dir / "paper_c_terrain_flyover.json", 64, 48, 9)
+    assert run_job(farm, spheres, strategy="auto")["stats"]["strategy"]["name"] == "exact"
+    job = run_job(farm, flight, strategy="auto")
+    assert job["stats"]["strategy"]["name"] == "guarded"
+    assert "predicted_relative_cost" in job["stats"]["cost"]
+
+
+def test_verification_reports_what_compare_counts(farm, scenes_dir, tmp_path_factory):
+    scene = small_scene(scenes_dir / "paper_b_twelve_spheres.json", 96, 72, 19)
+    reference = reference_of(scene, tmp_path_factory, "verify")
+    job = run_job(farm, scene, strategy="search", bin_width=10, verify={"frames": "all"})
+    measured = compare(reference, farm.store / str(job["id"]))
+    reported = job["stats"]["error"]["reference"]
+    assert reported["frames_compared"] == 19
+    assert reported["pixels_differing"] == measured["differing_pixels"]
+    assert reported["ssim"] <= 1.0
+    spot = job["stats"]["error"]["spot_checks"]
+    assert spot["pixels_checked"] == 0  # every frame verified in full: no estimate needed
+    sampled = run_job(farm, scene, strategy="search", bin_width=10)
+    spot = sampled["stats"]["error"]["spot_checks"]
+    assert 0 < spot["pixels_checked"] <= 0.02 * 19 * 96 * 72
+    low, high = spot["ci95_percent"]
+    assert low <= spot["estimated_error_percent"] <= high
+
+
+def test_bad_verification_requests_are_rejected(farm, scenes_dir):
+    scene = small_scene(scenes_dir / "paper_a_one_sphere.json", 32, 24, 3)
+    for verify, pointer in (({"frames": "some"}, "/verify/frames"),
+                            ({"sample": 0}, "/verify/sample"), ("yes", "/verify")):
+        with pytest.raises(ApiError) as error:
+            farm.client.submit(scene, verify=verify)
+        assert error.value.status == 400 and error.value.pointer == pointer
+    with pytest.raises(ApiError) as error:
+        farm.client.submit(scene, spot_check_share=0.5)
+    assert error.value.pointer == "/spot_check_share"
