@@ -2,7 +2,8 @@
 brute force and with each strategy and bin width; relative cost, the theoretical cost of
 equation 3 with the measured d, pixels traced and error against brute force.
 
-  python tests/bench/paper_table.py [--bin-widths 10] [--strategies search] [--markdown FILE]
+  python tests/bench/paper_table.py [--bin-widths 2-10] [--strategies search,guarded]
+      [--exact-lengths 10,20,30,60] [--markdown FILE] [--json FILE] [--plots DIR]
 
 Relative cost is the job's tracing time over the brute-force job's tracing time, both
 summed over tasks as the workers report them, measured in the same run.
@@ -47,25 +48,35 @@ def run_job(farm, scene, **options):
     return job
 
 
-def measure_scene(farm, name, strategies, widths):
+def exact_relative_cost(frames, length, d):
+    """Exact's analogue of equation 3: each segment's first frame in full, then the
+    pixels that change (d per frame, if horizons were tight)."""
+    segments = -(-frames // length)
+    return (segments + (frames - segments) * d) / frames
+
+
+def measure_scene(farm, name, strategies, widths, exact_lengths):
     scene = json.loads((ROOT / "tests" / "scenes" / f"{name}.json").read_text())
     brute = run_job(farm, scene, strategy="brute")
     frames = brute["frames"]["count"]
     d = 1 - brute["stats"]["coherence"]["frame_to_frame"]["mean"]
     rows = []
-    for strategy in strategies:
-        for width in widths:
-            job = run_job(farm, scene, strategy=strategy, bin_width=width)
-            error = compare(farm.store / str(brute["id"]), farm.store / str(job["id"]))
-            rows.append({
-                "scene": name, "strategy": strategy, "bin_width": width, "d": d,
-                "relative_cost": job["stats"]["trace_seconds"] / brute["stats"]["trace_seconds"],
-                "relative_wall": job["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"],
-                "theoretical": equation3_relative_cost(frames, width, d),
-                "pixels_traced": job["traced_pixel_ratio"],
-                "error_percent": 100 * error["differing_share"],
-                "psnr_db": error["psnr_db"],
-            })
+    runs = [(s, w) for s in strategies for w in widths] + [("exact", l) for l in exact_lengths]
+    for strategy, width in runs:
+        job = run_job(farm, scene, strategy=strategy, bin_width=width)
+        error = compare(farm.store / str(brute["id"]), farm.store / str(job["id"]))
+        rows.append({
+            "scene": name, "strategy": strategy, "bin_width": width, "d": d,
+            "relative_cost": job["stats"]["trace_seconds"] / brute["stats"]["trace_seconds"],
+            "relative_wall": job["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"],
+            "theoretical": (exact_relative_cost(frames, width, d) if strategy == "exact"
+                            else equation3_relative_cost(frames, width, d)),
+            "wall_seconds": job["stats"]["wall_seconds"],
+            "trace_seconds": job["stats"]["trace_seconds"],
+            "pixels_traced": job["traced_pixel_ratio"],
+            "error_percent": 100 * error["differing_share"],
+            "psnr_db": error["psnr_db"],
+        })
     return rows
 
 
@@ -85,11 +96,53 @@ def markdown(rows):
     return "\n".join(lines)
 
 
+def plots(rows, directory):
+    """Figure 10 style: relative cost (measured, theoretical) and % error against bin
+    width per scene and strategy; and error against run time for every job."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    directory = pathlib.Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    scenes = sorted({r["scene"] for r in rows})
+    figure, axes = plt.subplots(len(scenes), 2, figsize=(11, 3.4 * len(scenes)), squeeze=False)
+    for i, scene in enumerate(scenes):
+        for strategy in sorted({r["strategy"] for r in rows}):
+            mine = sorted((r for r in rows if r["scene"] == scene and r["strategy"] == strategy),
+                          key=lambda r: r["bin_width"])
+            widths = [r["bin_width"] for r in mine]
+            axes[i][0].plot(widths, [r["relative_cost"] for r in mine], "o-", label=f"{strategy}")
+            axes[i][0].plot(widths, [r["theoretical"] for r in mine], ":", label=f"{strategy} theory")
+            axes[i][1].plot(widths, [r["error_percent"] for r in mine], "o-", label=strategy)
+        axes[i][0].set(title=f"{scene}: relative cost", xlabel="bin width / segment length",
+                       ylabel="cost / brute force")
+        axes[i][1].set(title=f"{scene}: pixels in error", xlabel="bin width / segment length",
+                       ylabel="% pixels differing")
+        axes[i][0].legend(fontsize=7)
+        axes[i][1].legend(fontsize=7)
+    figure.tight_layout()
+    figure.savefig(directory / "cost_and_error_by_bin_width.png", dpi=90)
+
+    figure, axis = plt.subplots(figsize=(7, 5))
+    for strategy in sorted({r["strategy"] for r in rows}):
+        mine = [r for r in rows if r["strategy"] == strategy]
+        axis.scatter([r["relative_cost"] for r in mine], [r["error_percent"] for r in mine],
+                     label=strategy)
+    axis.set(xlabel="relative cost (tracing time / brute force)", ylabel="% pixels differing",
+             title="error against run time, all paper animations")
+    axis.legend()
+    figure.tight_layout()
+    figure.savefig(directory / "error_against_run_time.png", dpi=90)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bin-widths", default="10", type=parse_widths)
     parser.add_argument("--strategies", default="search")
+    parser.add_argument("--exact-lengths", default="", type=lambda t: parse_widths(t) if t else [])
     parser.add_argument("--scenes", default=",".join(SCENES))
+    parser.add_argument("--plots")
     parser.add_argument("--markdown")
     parser.add_argument("--json")
     args = parser.parse_args()
@@ -98,7 +151,8 @@ def main():
         with LocalFarm(directory, workers=0, local_workers=1, worker_threads=0) as farm:
             farm.wait_for_workers(1)
             for name in args.scenes.split(","):
-                rows += measure_scene(farm, name, args.strategies.split(","), args.bin_widths)
+                rows += measure_scene(farm, name, args.strategies.split(","), args.bin_widths,
+                                      args.exact_lengths)
                 print(markdown([r for r in rows if r["scene"] == name]).split("\n", 2)[2],
                       flush=True)
     table = markdown(rows)
@@ -107,6 +161,8 @@ def main():
         pathlib.Path(args.markdown).write_text(table + "\n")
     if args.json:
         pathlib.Path(args.json).write_text(json.dumps(rows, indent=1) + "\n")
+    if args.plots:
+        plots(rows, args.plots)
 
 
 if __name__ == "__main__":
