@@ -161,12 +161,25 @@ void Farm::FinishJob(uint64_t jobId) {
     FailJob(jobId, e.what());
     return;
   }
-  nlohmann::json stats = run->second->Stats();
+  nlohmann::json stats = run->second->Stats(/*final=*/true);
+  CountError(stats["error"]);
   finishedTraced_ += run->second->tracedPixels();
   finishedPixels_ += run->second->tracedPixels() + run->second->copiedPixels();
   dispatcher_.RemoveJob(jobId);
   runs_.erase(run);
   if (store_.Complete(jobId, stats)) metrics_.jobsFinishedCompleted.Increment();
+}
+
+// The job's measured error, added to the farm-wide counters.
+void Farm::CountError(const nlohmann::json& error) {
+  const nlohmann::json& spot = error["spot_checks"];
+  metrics_.spotCheckPixels.Increment(spot.value("pixels_checked", 0.0));
+  metrics_.spotCheckMismatches.Increment(spot.value("mismatches", 0.0));
+  if (error.contains("reference")) {
+    const nlohmann::json& reference = error["reference"];
+    metrics_.verifiedFrames.Increment(reference.value("frames_compared", 0.0));
+    metrics_.verifiedPixelsDiffering.Increment(reference.value("pixels_differing", 0.0));
+  }
 }
 
 void Farm::FailJob(uint64_t jobId, const std::string& why) {

@@ -63,6 +63,7 @@ class Farm : public FarmControl, private DispatchSink {
   void CollectFrames();
   void FinishJob(uint64_t jobId);
   void FailJob(uint64_t jobId, const std::string& why);
+  void CountError(const nlohmann::json& error);
   void UpdateMetrics();
   void PublishSnapshot();
 

@@ -58,6 +58,14 @@ FarmMetrics::FarmMetrics()
       jobsFinishedCompleted(JobsFamily(*registry).Add({{"state", "completed"}})),
       jobsFinishedFailed(JobsFamily(*registry).Add({{"state", "failed"}})),
       jobsFinishedCanceled(JobsFamily(*registry).Add({{"state", "canceled"}})),
+      spotCheckPixels(NewCounter(*registry, "tcfarm_spot_check_pixels_total",
+                                 "Copied pixels traced again to estimate error (finished jobs)")),
+      spotCheckMismatches(NewCounter(*registry, "tcfarm_spot_check_mismatches_total",
+                                     "Spot-checked copied pixels that differed from a trace")),
+      verifiedFrames(NewCounter(*registry, "tcfarm_verified_frames_total",
+                                "Frames compared with a brute-force reference (finished jobs)")),
+      verifiedPixelsDiffering(NewCounter(*registry, "tcfarm_verified_pixels_differing_total",
+                                         "Pixels of verified frames that differ from the reference")),
       taskLatency(prometheus::BuildHistogram()
                       .Name("tcfarm_task_latency_seconds")
                       .Help("From sending a task to receiving its result")

@@ -30,6 +30,10 @@ struct FarmMetrics {
   prometheus::Counter& jobsFinishedCompleted;
   prometheus::Counter& jobsFinishedFailed;
   prometheus::Counter& jobsFinishedCanceled;
+  prometheus::Counter& spotCheckPixels;
+  prometheus::Counter& spotCheckMismatches;
+  prometheus::Counter& verifiedFrames;
+  prometheus::Counter& verifiedPixelsDiffering;
   prometheus::Histogram& taskLatency;
   prometheus::Gauge& queueDepth;      // tasks waiting for a worker
   prometheus::Gauge& tasksInFlight;

@@ -178,7 +178,7 @@ nlohmann::json JobRun::CostFigures() const {
   return cost;
 }
 
-nlohmann::json JobRun::Stats() const {
+nlohmann::json JobRun::Stats(bool final) const {
   const uint64_t pixelsPerFrame = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
@@ -206,6 +206,7 @@ nlohmann::json JobRun::Stats() const {
         {"frame_to_frame", {{"mean", f2f.Mean()}, {"min", f2f.min}, {"max", f2f.max}}},
         {"long_term", {{"mean", longTerm.Mean()}, {"min", longTerm.min}, {"max", longTerm.max}}}};
   }
+  if (final && coherence_.FrameCount() > 0) stats["analysis"] = coherence_.Finish().ToJson();
   return stats;
 }
 

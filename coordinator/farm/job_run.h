@@ -13,7 +13,7 @@
 
 #include "dispatch/dispatcher.h"
 #include "farm/verification.h"
-#include "frame/coherence.h"
+#include "frame/sequence_analysis.h"
 #include "frame/frame_writer.h"
 #include "jobs/job_store.h"
 #include "planner/planner.h"
@@ -52,8 +52,9 @@ class JobRun {
   // Waits for the frame writer; throws FrameIoError if a frame could not be written.
   void FinishWriting();
 
-  // Progress and results so far, for the job record ("stats").
-  nlohmann::json Stats() const;
+  // Progress and results so far, for the job record ("stats"). `final` adds the full
+  // coherence analysis of the output sequence (pixel events, equation 3 per bin width).
+  nlohmann::json Stats(bool final = false) const;
   uint64_t tracedPixels() const { return planner_->TracedPixels(); }
   uint64_t copiedPixels() const { return planner_->CopiedPixels(); }
 
@@ -81,7 +82,7 @@ class JobRun {
   uint64_t results_ = 0;
   int framesDone_ = 0;
   // Coherence needs frames in order; they finish nearly in order, so few wait here.
-  CoherenceTracker coherence_;
+  SequenceAnalyzer coherence_;
   int nextCoherenceFrame_ = 0;
   std::map<int, Image> waitingForCoherence_;
 };

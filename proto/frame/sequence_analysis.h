@@ -48,6 +48,9 @@ class SequenceAnalyzer {
   // from the first frame's.
   void Add(const Image& frame);
   int FrameCount() const { return frames_; }
+  // Running coherence figures, cheap to read while frames arrive.
+  const RunningStats& frameToFrame() const { return frameToFrame_; }
+  const RunningStats& longTerm() const { return longTerm_; }
   // Throws std::logic_error before the first frame. May be called again after more Adds.
   SequenceAnalysis Finish() const;
 

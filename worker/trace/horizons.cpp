@@ -27,7 +27,8 @@ BoundingSphere BoundsOf(const std::vector<Vec3>& points) {
   Vec3 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};
   double r2 = 0;
   for (const Vec3& p : points) {
-    r2 = std::max(r2, (p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y) + (p.z - c.z) * (p.z - c.z));
+    r2 = std::max(r2, (p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y) +
+                          (p.z - c.z) * (p.z - c.z));
   }
   return {c, std::sqrt(r2)};
 }
@@ -51,8 +52,6 @@ BoundingSphere ObjectBounds(const Shape& shape) {
   return {};
 }
 
-bool SameVec(const AnimatedVec3& value, int a, int b) { return value.SameAt(a, b); }
-
 // First frame in (frame, frame + window] at which `changed(f)` holds, else frame+window+1.
 template <typename Changed>
 int FirstChange(int frame, int window, Changed changed) {
@@ -62,102 +61,101 @@ int FirstChange(int frame, int window, Changed changed) {
   return frame + window + 1;
 }
 
-// Carries the running minimum through Embree's filter callback.
-struct MeetingContext {
-  RTCIntersectContext base;  // first member: Embree hands back a pointer to it
-  const std::vector<int>* proxyHorizon;
-  int earliest;
-};
+// Whether any point of the segment lies within the sphere (center c, radius r).
+bool SegmentMeetsSphere(const RaySegment& s, const float* sphere) {
+  Float3 toCenter{sphere[0] - s.origin.x, sphere[1] - s.origin.y, sphere[2] - s.origin.z};
+  float along = std::clamp(Dot(toCenter, s.direction), 0.0f, s.length);
+  Float3 gap = toCenter - s.direction * along;
+  return Dot(gap, gap) <= sphere[3] * sphere[3];
+}
 
-void RecordMeeting(const RTCFilterFunctionNArguments* args) {
-  auto* context = reinterpret_cast<MeetingContext*>(args->context);
-  for (unsigned i = 0; i < args->N; ++i) {
-    if (args->valid[i] != -1) continue;
-    unsigned primitive = RTCHitN_primID(args->hit, args->N, i);
-    context->earliest = std::min(context->earliest, (*context->proxyHorizon)[primitive]);
-    args->valid[i] = 0;  // keep traversing: a farther proxy may be of an earlier frame
+bool SegmentMeetsBox(const RaySegment& s, const Float3& lo, const Float3& hi) {
+  const float o[3] = {s.origin.x, s.origin.y, s.origin.z};
+  const float d[3] = {s.direction.x, s.direction.y, s.direction.z};
+  const float l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
+  float near = 0, far = s.length;
+  for (int axis = 0; axis < 3 && near <= far; ++axis) {
+    if (d[axis] == 0) {
+      if (o[axis] < l[axis] || o[axis] > h[axis]) return false;
+      continue;
+    }
+    float a = (l[axis] - o[axis]) / d[axis], b = (h[axis] - o[axis]) / d[axis];
+    // Widened by a relative margin against rounding: the cull may never say a false "no".
+    float slack = 1e-4f * (std::fabs(a) + std::fabs(b));
+    near = std::max(near, std::min(a, b) - slack);
+    far = std::min(far, std::max(a, b) + slack);
   }
+  return near <= far;
 }
 
 }  // namespace
 
-HorizonOracle::HorizonOracle(const EmbreeDevice& device, const Scene& scene, int frame,
-                             int window)
-    : frame_(frame), window_(window), proxies_(rtcNewScene(device.get())) {
+HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window)
+    : frame_(frame), window_(window) {
   const Camera& camera = scene.camera;
   cameraCap_ = FirstChange(frame, window, [&](int f) {
-    return !SameVec(camera.position, frame, f) || !SameVec(camera.lookAt, frame, f);
+    return !camera.position.SameAt(frame, f) || !camera.lookAt.SameAt(frame, f);
   });
   lightCap_ = FirstChange(frame, window, [&](int f) {
     return std::any_of(scene.lights.begin(), scene.lights.end(), [&](const Light& light) {
-      return !SameVec(light.position, frame, f) || !SameVec(light.direction, frame, f) ||
-             !SameVec(light.intensity, frame, f);
+      return !light.position.SameAt(frame, f) || !light.direction.SameAt(frame, f) ||
+             !light.intensity.SameAt(frame, f);
     });
   });
-  AddProxies(device, scene, std::min(frame + window, scene.render.LastFrame()));
-  rtcCommitScene(proxies_.get());
-  device.ThrowIfError("building horizon proxies");
-  // A camera inside a proxy would start every segment inside it, unseen: be conservative.
-  Vec3 eye = camera.position.Evaluate(frame);
+  int last = std::min(frame + window, scene.render.LastFrame());
   for (const Shape& shape : scene.shapes) {
-    if (!shape.Moves()) continue;
-    BoundingSphere b = ObjectBounds(shape);
-    for (int f = frame; f <= std::min(frame + window, scene.render.LastFrame()); ++f) {
-      Vec3 t = shape.translation.Evaluate(f);
-      double dx = b.center.x + t.x - eye.x, dy = b.center.y + t.y - eye.y, dz = b.center.z + t.z - eye.z;
-      double pad = kRelativeProxyPad * (std::fabs(eye.x) + std::fabs(eye.y) + std::fabs(eye.z) + b.radius);
-      if (std::sqrt(dx * dx + dy * dy + dz * dz) <= b.radius + pad) {
-        cameraCap_ = std::min(cameraCap_, std::max(f, frame + 1));
-      }
-    }
+    if (shape.Moves()) AddMover(shape, last);
   }
 }
 
-void HorizonOracle::AddProxies(const EmbreeDevice& device, const Scene& scene, int lastFrame) {
-  std::vector<float> points;  // x, y, z, radius per proxy
-  for (const Shape& shape : scene.shapes) {
-    if (!shape.Moves()) continue;
-    BoundingSphere b = ObjectBounds(shape);
-    for (int f = frame_; f <= lastFrame; ++f) {
-      Vec3 t = shape.translation.Evaluate(f);
-      Vec3 c{b.center.x + t.x, b.center.y + t.y, b.center.z + t.z};
-      double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)}) + b.radius;
-      points.insert(points.end(), {static_cast<float>(c.x), static_cast<float>(c.y),
-                                   static_cast<float>(c.z),
-                                   static_cast<float>(b.radius + kRelativeProxyPad * magnitude)});
-      proxyHorizon_.push_back(std::max(f, frame_ + 1));
+void HorizonOracle::AddMover(const Shape& shape, int lastFrame) {
+  BoundingSphere b = ObjectBounds(shape);
+  Mover mover{EmptyBox(), {}, {}};
+  for (int f = frame_; f <= lastFrame; ++f) {
+    Vec3 t = shape.translation.Evaluate(f);
+    Vec3 c{b.center.x + t.x, b.center.y + t.y, b.center.z + t.z};
+    double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)}) + b.radius;
+    // Padded, and rounded up again for the float conversion.
+    double radius = (b.radius + kRelativeProxyPad * magnitude) * (1 + 1e-6);
+    mover.proxies.insert(mover.proxies.end(),
+                         {float(c.x), float(c.y), float(c.z), float(radius)});
+    float grow = float(radius) * (1 + 1e-5f) + 1e-6f * float(magnitude);
+    if ((f - frame_) % kFramesPerChunk == 0) mover.chunks.push_back(EmptyBox());
+    for (Box* box : {&mover.swept, &mover.chunks.back()}) {
+      box->lo = {std::min(box->lo.x, float(c.x) - grow), std::min(box->lo.y, float(c.y) - grow),
+                 std::min(box->lo.z, float(c.z) - grow)};
+      box->hi = {std::max(box->hi.x, float(c.x) + grow), std::max(box->hi.y, float(c.y) + grow),
+                 std::max(box->hi.z, float(c.z) + grow)};
     }
   }
-  if (points.empty()) return;
-  anyProxy_ = true;
-  RTCGeometry geometry = rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_SPHERE_POINT);
-  size_t count = points.size() / 4;
-  auto* buffer = static_cast<float*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), count));
-  std::copy(points.begin(), points.end(), buffer);
-  rtcSetGeometryIntersectFilterFunction(geometry, RecordMeeting);
-  rtcCommitGeometry(geometry);
-  rtcAttachGeometry(proxies_.get(), geometry);
-  rtcReleaseGeometry(geometry);
+  movers_.push_back(std::move(mover));
+}
+
+HorizonOracle::Box HorizonOracle::EmptyBox() {
+  return {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
 }
 
 int HorizonOracle::FirstMeeting(const RaySegment& segment) const {
-  if (!anyProxy_) return Unbounded();
-  MeetingContext context;
-  rtcInitIntersectContext(&context.base);
-  context.proxyHorizon = &proxyHorizon_;
-  context.earliest = Unbounded();
-  RTCRayHit rayHit{};
-  rayHit.ray.org_x = segment.origin.x, rayHit.ray.org_y = segment.origin.y;
-  rayHit.ray.org_z = segment.origin.z;
-  rayHit.ray.dir_x = segment.direction.x, rayHit.ray.dir_y = segment.direction.y;
-  rayHit.ray.dir_z = segment.direction.z;
-  rayHit.ray.tnear = 0;
-  rayHit.ray.tfar = segment.length;
-  rayHit.ray.mask = ~0u;
-  rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(proxies_.get(), &context.base, &rayHit);
-  return context.earliest;
+  int earliest = Unbounded();
+  for (const Mover& mover : movers_) {
+    if (!SegmentMeetsBox(segment, mover.swept.lo, mover.swept.hi)) continue;
+    // Frames in order; only frames before the earliest meeting found so far can matter.
+    size_t frames = mover.proxies.size() / 4;
+    size_t limit = std::min(frames, static_cast<size_t>(earliest - frame_));
+    for (size_t chunk = 0; chunk * kFramesPerChunk < limit; ++chunk) {
+      if (!SegmentMeetsBox(segment, mover.chunks[chunk].lo, mover.chunks[chunk].hi)) continue;
+      size_t end = std::min(limit, (chunk + 1) * kFramesPerChunk);
+      for (size_t i = chunk * kFramesPerChunk; i < end; ++i) {
+        if (SegmentMeetsSphere(segment, &mover.proxies[4 * i])) {
+          earliest = std::max(frame_ + static_cast<int>(i), frame_ + 1);
+          limit = 0;  // the first meeting of this mover: later frames cannot be earlier
+          break;
+        }
+      }
+    }
+    if (earliest == frame_ + 1) break;
+  }
+  return earliest;
 }
 
 }  // namespace tcfarm

@@ -6,16 +6,21 @@
 // changed at f, so its value at f is bit-identical to its value at a (tracing is
 // deterministic and the sample pattern is seeded by pixel).
 //
-// Bounds are spheres padded beyond the ray offsets; a shape's bounds at frame a itself
-// count as meeting at a+1 (it may move away: a pixel in its shadow changes then). A camera
-// that changes caps every horizon, and so does a light that changes, for every pixel
-// that sees a surface (the light's direction or intensity reaches it).
+// Bounds are spheres padded beyond the ray offsets. A segment "meets" a sphere when any
+// of its points is inside, so a segment that starts inside counts too. A shape's bounds
+// at frame a itself count as meeting at a+1 (it may move away: a pixel in its shadow
+// changes then). A camera that changes caps every horizon, and so does a light that
+// changes, for every pixel that sees a surface.
+//
+// The test is plain arithmetic over a few hundred proxies per task, culled by each
+// shape's swept box and stopped at the earliest frame found: measured several times
+// faster than Embree queries with a filter callback over the same proxies, which must
+// visit every proxy a segment crosses.
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
-#include "embree/device.h"
 #include "scene/scene.h"
 #include "trace/float3.h"
 
@@ -31,7 +36,7 @@ class HorizonOracle {
  public:
   // window: frames after `frame` to look at; horizons are capped at frame + window + 1,
   // meaning "valid through the whole window".
-  HorizonOracle(const EmbreeDevice& device, const Scene& scene, int frame, int window);
+  HorizonOracle(const Scene& scene, int frame, int window);
 
   int frame() const { return frame_; }
   int window() const { return window_; }
@@ -44,13 +49,23 @@ class HorizonOracle {
   int FirstMeeting(const RaySegment& segment) const;
 
  private:
-  void AddProxies(const EmbreeDevice& device, const Scene& scene, int lastFrame);
+  struct Box {
+    Float3 lo, hi;
+  };
+  // Frames per chunk of a mover's path: a segment that misses a chunk's box skips its
+  // frames' spheres, so a miss costs a few box tests instead of one test per frame.
+  static constexpr size_t kFramesPerChunk = 8;
+  struct Mover {
+    Box swept;                    // bounds of all its proxies over the window
+    std::vector<Box> chunks;      // bounds of frames [k * kFramesPerChunk, ...)
+    std::vector<float> proxies;   // per frame a .. a+W: center xyz, radius
+  };
+  static Box EmptyBox();
+  void AddMover(const Shape& shape, int lastFrame);
 
   int frame_, window_;
   int cameraCap_, lightCap_;
-  SceneHandle proxies_;
-  std::vector<int> proxyHorizon_;  // per proxy primitive: the horizon its meeting implies
-  bool anyProxy_ = false;
+  std::vector<Mover> movers_;
 };
 
 }  // namespace tcfarm

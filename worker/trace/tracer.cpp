@@ -473,7 +473,7 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool)
 void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,
                          int window, int32_t* horizons) {
   std::unique_ptr<HorizonOracle> oracle;
-  if (window > 0 && horizons) oracle = std::make_unique<HorizonOracle>(device_, scene_, frame, window);
+  if (window > 0 && horizons) oracle = std::make_unique<HorizonOracle>(scene_, frame, window);
   const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
   FrameContext context{geometry_.ForFrame(frame),
                        MakeCamera(scene_, frame),

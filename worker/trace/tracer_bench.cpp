@@ -5,6 +5,7 @@
 //   build/worker/tracer_bench [--benchmark_min_time=2]
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -38,6 +39,34 @@ void TraceSceneFrames(benchmark::State& state, const std::string& file) {
       benchmark::Counter(rays.Total() / 1e6, benchmark::Counter::kIsRate);
   state.counters["threads"] = pool.ThreadCount();
 }
+
+// The same, also computing every pixel's validity horizon over the rest of the sequence
+// (what `exact` asks of a segment's first frame): the price of the horizons.
+void TraceSceneFramesWithHorizons(benchmark::State& state, const std::string& file) {
+  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+  EmbreeDevice device;
+  ThreadPool pool;
+  Tracer tracer(device, scene, pool);
+  size_t pixels = static_cast<size_t>(scene.render.width) * scene.render.height;
+  std::vector<uint32_t> indices(pixels);
+  for (size_t i = 0; i < pixels; ++i) indices[i] = static_cast<uint32_t>(i);
+  std::vector<float> rgb(pixels * 3);
+  std::vector<int32_t> horizons(pixels);
+  int frame = 0;
+  for (auto _ : state) {
+    int absolute = scene.render.firstFrame + frame;
+    int window = std::max(1, scene.render.LastFrame() - absolute);
+    tracer.TracePixels(absolute, indices.data(), pixels, rgb.data(), window, horizons.data());
+    benchmark::DoNotOptimize(horizons.data());
+    frame = (frame + 1) % scene.render.frameCount;
+  }
+  state.counters["frames/s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
+}
+
+BENCHMARK_CAPTURE(TraceSceneFramesWithHorizons, a_one_sphere, "paper_a_one_sphere.json")
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(TraceSceneFramesWithHorizons, b_twelve_spheres, "paper_b_twelve_spheres.json")
+    ->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_CAPTURE(TraceSceneFrames, a_one_sphere, "paper_a_one_sphere.json")
     ->Unit(benchmark::kMillisecond)->UseRealTime();
