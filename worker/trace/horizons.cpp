@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace tcfarm {
 namespace {
@@ -69,17 +70,21 @@ bool SegmentMeetsSphere(const RaySegment& s, const float* sphere) {
   return Dot(gap, gap) <= sphere[3] * sphere[3];
 }
 
-bool SegmentMeetsBox(const RaySegment& s, const Float3& lo, const Float3& hi) {
-  const float o[3] = {s.origin.x, s.origin.y, s.origin.z};
-  const float d[3] = {s.direction.x, s.direction.y, s.direction.z};
-  const float l[3] = {lo.x, lo.y, lo.z}, h[3] = {hi.x, hi.y, hi.z};
-  float near = 0, far = s.length;
-  for (int axis = 0; axis < 3 && near <= far; ++axis) {
-    if (d[axis] == 0) {
-      if (o[axis] < l[axis] || o[axis] > h[axis]) return false;
-      continue;
-    }
-    float a = (l[axis] - o[axis]) / d[axis], b = (h[axis] - o[axis]) / d[axis];
+// The segment with its direction's reciprocals, computed once for all its box tests.
+struct SlabRay {
+  float origin[3], inverse[3], length;
+  explicit SlabRay(const RaySegment& s) : origin{s.origin.x, s.origin.y, s.origin.z}, length(s.length) {
+    const float d[3] = {s.direction.x, s.direction.y, s.direction.z};
+    // A huge finite reciprocal instead of infinity keeps 0 * inf (NaN) out of the slabs.
+    for (int i = 0; i < 3; ++i) inverse[i] = d[i] == 0 ? 1e30f : 1.0f / d[i];
+  }
+};
+
+bool Meets(const SlabRay& ray, const float lo[3], const float hi[3]) {
+  float near = 0, far = ray.length;
+  for (int axis = 0; axis < 3; ++axis) {
+    float a = (lo[axis] - ray.origin[axis]) * ray.inverse[axis];
+    float b = (hi[axis] - ray.origin[axis]) * ray.inverse[axis];
     // Widened by a relative margin against rounding: the cull may never say a false "no".
     float slack = 1e-4f * (std::fabs(a) + std::fabs(b));
     near = std::max(near, std::min(a, b) - slack);
@@ -91,7 +96,7 @@ bool SegmentMeetsBox(const RaySegment& s, const Float3& lo, const Float3& hi) {
 }  // namespace
 
 HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window)
-    : frame_(frame), window_(window) {
+    : frame_(frame), window_(window), all_(EmptyBox()) {
   const Camera& camera = scene.camera;
   cameraCap_ = FirstChange(frame, window, [&](int f) {
     return !camera.position.SameAt(frame, f) || !camera.lookAt.SameAt(frame, f);
@@ -120,8 +125,9 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame) {
     mover.proxies.insert(mover.proxies.end(),
                          {float(c.x), float(c.y), float(c.z), float(radius)});
     float grow = float(radius) * (1 + 1e-5f) + 1e-6f * float(magnitude);
-    if ((f - frame_) % kFramesPerChunk == 0) mover.chunks.push_back(EmptyBox());
-    for (Box* box : {&mover.swept, &mover.chunks.back()}) {
+    size_t chunk = (f - frame_) / kFramesPerChunk;
+    if (mover.chunks.size() <= chunk) mover.chunks.push_back(EmptyBox());
+    for (Box* box : {&mover.swept, &mover.chunks.back(), &all_}) {
       box->lo = {std::min(box->lo.x, float(c.x) - grow), std::min(box->lo.y, float(c.y) - grow),
                  std::min(box->lo.z, float(c.z) - grow)};
       box->hi = {std::max(box->hi.x, float(c.x) + grow), std::max(box->hi.y, float(c.y) + grow),
@@ -136,19 +142,27 @@ HorizonOracle::Box HorizonOracle::EmptyBox() {
 }
 
 int HorizonOracle::FirstMeeting(const RaySegment& segment) const {
+  if (movers_.empty()) return Unbounded();
+  const SlabRay ray(segment);
+  auto meets = [&](const Box& box) {
+    const float lo[3] = {box.lo.x, box.lo.y, box.lo.z}, hi[3] = {box.hi.x, box.hi.y, box.hi.z};
+    return Meets(ray, lo, hi);
+  };
+  if (!meets(all_)) return Unbounded();
   int earliest = Unbounded();
   for (const Mover& mover : movers_) {
-    if (!SegmentMeetsBox(segment, mover.swept.lo, mover.swept.hi)) continue;
-    // Frames in order; only frames before the earliest meeting found so far can matter.
-    size_t frames = mover.proxies.size() / 4;
-    size_t limit = std::min(frames, static_cast<size_t>(earliest - frame_));
-    for (size_t chunk = 0; chunk * kFramesPerChunk < limit; ++chunk) {
-      if (!SegmentMeetsBox(segment, mover.chunks[chunk].lo, mover.chunks[chunk].hi)) continue;
+    if (!meets(mover.swept)) continue;
+    // Its frames in order, chunk by chunk; only frames before the earliest meeting found
+    // so far can matter, and its own first meeting ends its search.
+    size_t limit = std::min(mover.proxies.size() / 4, static_cast<size_t>(earliest - frame_));
+    bool found = false;
+    for (size_t chunk = 0; !found && chunk * kFramesPerChunk < limit; ++chunk) {
+      if (!meets(mover.chunks[chunk])) continue;
       size_t end = std::min(limit, (chunk + 1) * kFramesPerChunk);
       for (size_t i = chunk * kFramesPerChunk; i < end; ++i) {
         if (SegmentMeetsSphere(segment, &mover.proxies[4 * i])) {
           earliest = std::max(frame_ + static_cast<int>(i), frame_ + 1);
-          limit = 0;  // the first meeting of this mover: later frames cannot be earlier
+          found = true;
           break;
         }
       }

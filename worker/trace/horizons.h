@@ -57,7 +57,7 @@ class HorizonOracle {
   static constexpr size_t kFramesPerChunk = 8;
   struct Mover {
     Box swept;                    // bounds of all its proxies over the window
-    std::vector<Box> chunks;      // bounds of frames [k * kFramesPerChunk, ...)
+    std::vector<Box> chunks;      // bounds of its proxies in frames [k * kFramesPerChunk, ...)
     std::vector<float> proxies;   // per frame a .. a+W: center xyz, radius
   };
   static Box EmptyBox();
@@ -66,6 +66,7 @@ class HorizonOracle {
   int frame_, window_;
   int cameraCap_, lightCap_;
   std::vector<Mover> movers_;
+  Box all_;  // bounds of every proxy: most segments miss it and cost one test
 };
 
 }  // namespace tcfarm

@@ -1,5 +1,6 @@
 #include "trace/tracer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -473,7 +474,14 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool)
 void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,
                          int window, int32_t* horizons) {
   std::unique_ptr<HorizonOracle> oracle;
-  if (window > 0 && horizons) oracle = std::make_unique<HorizonOracle>(scene_, frame, window);
+  if (window > 0 && horizons) {
+    oracle = std::make_unique<HorizonOracle>(scene_, frame, window);
+    // A moving camera changes every pixel next frame: no ray tree can say otherwise.
+    if (oracle->CameraCap() == frame + 1) {
+      std::fill(horizons, horizons + pixelCount, frame + 1);
+      oracle.reset();
+    }
+  }
   const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
   FrameContext context{geometry_.ForFrame(frame),
                        MakeCamera(scene_, frame),
