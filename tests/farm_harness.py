@@ -58,6 +58,13 @@ class LocalFarm:
             time.sleep(0.05)
         raise TimeoutError(f"fewer than {count} workers connected after {timeout} s")
 
+    def run_job(self, scene, timeout=300, **options):
+        """Submits a job, waits for it, and insists it completed."""
+        job = self.client.submit(scene, **options)
+        job = self.client.wait(job["id"], timeout=timeout)
+        assert job["state"] == "completed", job
+        return job
+
     def metrics(self):
         import urllib.request
         with urllib.request.urlopen(self.url + "/metrics", timeout=10) as response:

@@ -40,14 +40,6 @@ def parse_widths(text):
     return [int(w) for w in text.split(",")]
 
 
-def run_job(farm, scene, **options):
-    job = farm.client.submit(scene, **options)
-    job = farm.client.wait(job["id"], poll_seconds=0.05, timeout=3600)
-    if job["state"] != "completed":
-        sys.exit(f"job {job['id']} {job['state']}: {job.get('error')}")
-    return job
-
-
 def exact_relative_cost(frames, length, d):
     """Exact's analogue of equation 3: each segment's first frame in full, then the
     pixels that change (d per frame, if horizons were tight)."""
@@ -57,13 +49,13 @@ def exact_relative_cost(frames, length, d):
 
 def measure_scene(farm, name, strategies, widths, exact_lengths):
     scene = json.loads((ROOT / "tests" / "scenes" / f"{name}.json").read_text())
-    brute = run_job(farm, scene, strategy="brute")
+    brute = farm.run_job(scene, timeout=3600, strategy="brute")
     frames = brute["frames"]["count"]
     d = 1 - brute["stats"]["coherence"]["frame_to_frame"]["mean"]
     rows = []
     runs = [(s, w) for s in strategies for w in widths] + [("exact", l) for l in exact_lengths]
     for strategy, width in runs:
-        job = run_job(farm, scene, strategy=strategy, bin_width=width)
+        job = farm.run_job(scene, timeout=3600, strategy=strategy, bin_width=width)
         error = compare(farm.store / str(brute["id"]), farm.store / str(job["id"]))
         rows.append({
             "scene": name, "strategy": strategy, "bin_width": width, "d": d,
@@ -105,6 +97,7 @@ def plots(rows, directory):
 
     directory = pathlib.Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
+    colours = {"search": "C0", "guarded": "C1", "exact": "C2"}
     scenes = sorted({r["scene"] for r in rows})
     figure, axes = plt.subplots(len(scenes), 2, figsize=(11, 3.4 * len(scenes)), squeeze=False)
     for i, scene in enumerate(scenes):
@@ -112,9 +105,13 @@ def plots(rows, directory):
             mine = sorted((r for r in rows if r["scene"] == scene and r["strategy"] == strategy),
                           key=lambda r: r["bin_width"])
             widths = [r["bin_width"] for r in mine]
-            axes[i][0].plot(widths, [r["relative_cost"] for r in mine], "o-", label=f"{strategy}")
-            axes[i][0].plot(widths, [r["theoretical"] for r in mine], ":", label=f"{strategy} theory")
-            axes[i][1].plot(widths, [r["error_percent"] for r in mine], "o-", label=strategy)
+            colour = colours.get(strategy)
+            axes[i][0].plot(widths, [r["relative_cost"] for r in mine], "o-", color=colour,
+                            label=strategy)
+            axes[i][0].plot(widths, [r["theoretical"] for r in mine], ":", color=colour,
+                            label=f"{strategy}, theory")
+            axes[i][1].plot(widths, [r["error_percent"] for r in mine], "o-", color=colour,
+                            label=strategy)
         axes[i][0].set(title=f"{scene}: relative cost", xlabel="bin width / segment length",
                        ylabel="cost / brute force")
         axes[i][1].set(title=f"{scene}: pixels in error", xlabel="bin width / segment length",
@@ -128,7 +125,7 @@ def plots(rows, directory):
     for strategy in sorted({r["strategy"] for r in rows}):
         mine = [r for r in rows if r["strategy"] == strategy]
         axis.scatter([r["relative_cost"] for r in mine], [r["error_percent"] for r in mine],
-                     label=strategy)
+                     color=colours.get(strategy), label=strategy)
     axis.set(xlabel="relative cost (tracing time / brute force)", ylabel="% pixels differing",
              title="error against run time, all paper animations")
     axis.legend()
@@ -143,9 +140,13 @@ def main():
     parser.add_argument("--exact-lengths", default="", type=lambda t: parse_widths(t) if t else [])
     parser.add_argument("--scenes", default=",".join(SCENES))
     parser.add_argument("--plots")
+    parser.add_argument("--replot", help="redraw --plots from a --json file, render nothing")
     parser.add_argument("--markdown")
     parser.add_argument("--json")
     args = parser.parse_args()
+    if args.replot:
+        plots(json.loads(pathlib.Path(args.replot).read_text()), args.plots or ".")
+        return
     rows = []
     with tempfile.TemporaryDirectory() as directory:
         with LocalFarm(directory, workers=0, local_workers=1, worker_threads=0) as farm:

@@ -25,15 +25,8 @@ def farm(tmp_path):
         yield farm
 
 
-def run_job(farm, scene, **options):
-    job = farm.client.submit(scene, **options)
-    job = farm.client.wait(job["id"], timeout=300)
-    assert job["state"] == "completed", job
-    return job
-
-
 def test_bin_width_two_is_bit_identical_to_brute_force(farm, twelve_spheres, reference):
-    job = run_job(farm, twelve_spheres, strategy="search", bin_width=2)
+    job = farm.run_job(twelve_spheres, strategy="search", bin_width=2)
     assert job["traced_pixel_ratio"] == 1.0
     error = compare(reference, farm.store / str(job["id"]))
     assert error["frames"] == 21
@@ -42,7 +35,7 @@ def test_bin_width_two_is_bit_identical_to_brute_force(farm, twelve_spheres, ref
 
 def test_bin_width_ten_traces_fewer_pixels_and_reports_its_error(farm, twelve_spheres,
                                                                  reference):
-    job = run_job(farm, twelve_spheres, strategy="search", bin_width=10)
+    job = farm.run_job(twelve_spheres, strategy="search", bin_width=10)
     assert job["traced_pixel_ratio"] < 0.8
     assert job["pixels_traced"] + job["pixels_copied"] == 21 * 160 * 120
     assert min(job["traced_per_frame"]) >= 0
@@ -91,7 +84,7 @@ def test_hostile_messages_are_dropped_and_counted(farm, twelve_spheres):
     time.sleep(0.5)
     socket.close(linger=0)
     context.term()
-    job = run_job(farm, twelve_spheres, frames={"start": 0, "end": 2}, strategy="brute")
+    job = farm.run_job(twelve_spheres, frames={"start": 0, "end": 2}, strategy="brute")
     assert job["state"] == "completed"
     malformed = [line for line in farm.metrics().splitlines()
                  if line.startswith("tcfarm_messages_malformed_total")]

@@ -37,13 +37,6 @@ def farm(tmp_path_factory):
         yield farm
 
 
-def run_job(farm, scene, **options):
-    job = farm.client.submit(scene, **options)
-    job = farm.client.wait(job["id"], timeout=300)
-    assert job["state"] == "completed", job
-    return job
-
-
 def reference_of(scene, tmp_path_factory, name):
     return render_reference(scene, tmp_path_factory.mktemp(name))
 
@@ -53,7 +46,7 @@ def test_exact_is_bit_identical_on_the_paper_animations(farm, scenes_dir, tmp_pa
                                                          name):
     scene = small_scene(scenes_dir / f"{name}.json", 128, 96, 21)
     reference = reference_of(scene, tmp_path_factory, name)
-    job = run_job(farm, scene, strategy="exact", bin_width=21)
+    job = farm.run_job(scene, strategy="exact", bin_width=21)
     error = compare(reference, farm.store / str(job["id"]))
     assert error["differing_pixels"] == 0
     assert job["traced_pixel_ratio"] < 0.5
@@ -62,17 +55,17 @@ def test_exact_is_bit_identical_on_the_paper_animations(farm, scenes_dir, tmp_pa
 
 def test_exact_sees_thin_fast_objects_and_flickering_lights(farm, tmp_path_factory):
     reference = reference_of(THIN_AND_FLICKER, tmp_path_factory, "thin")
-    exact = run_job(farm, THIN_AND_FLICKER, strategy="exact", bin_width=11)
+    exact = farm.run_job(THIN_AND_FLICKER, strategy="exact", bin_width=11)
     assert compare(reference, farm.store / str(exact["id"]))["differing_pixels"] == 0
     # The paper's search misses the object between equal bin ends: that is the flaw.
-    search = run_job(farm, THIN_AND_FLICKER, strategy="search", bin_width=11)
+    search = farm.run_job(THIN_AND_FLICKER, strategy="search", bin_width=11)
     assert compare(reference, farm.store / str(search["id"]))["differing_pixels"] > 0
 
 
 def test_guarded_errs_less_than_search(farm, tmp_path_factory):
     reference = reference_of(THIN_AND_FLICKER, tmp_path_factory, "guarded")
-    search = run_job(farm, THIN_AND_FLICKER, strategy="search", bin_width=11)
-    guarded = run_job(farm, THIN_AND_FLICKER, strategy="guarded", bin_width=11)
+    search = farm.run_job(THIN_AND_FLICKER, strategy="search", bin_width=11)
+    guarded = farm.run_job(THIN_AND_FLICKER, strategy="guarded", bin_width=11)
     search_error = compare(reference, farm.store / str(search["id"]))["differing_pixels"]
     guarded_error = compare(reference, farm.store / str(guarded["id"]))["differing_pixels"]
     assert guarded_error < search_error
@@ -82,15 +75,15 @@ def test_exact_on_a_static_scene_traces_one_frame(farm):
     scene = json.loads(json.dumps(THIN_AND_FLICKER))
     scene["shapes"] = scene["shapes"][:1]
     scene["lights"][0]["intensity"] = [100, 100, 100]
-    job = run_job(farm, scene, strategy="exact", bin_width=11)
+    job = farm.run_job(scene, strategy="exact", bin_width=11)
     assert job["pixels_traced"] == 96 * 72
 
 
 def test_auto_picks_exact_for_a_still_camera_and_guarded_for_a_flight(farm, scenes_dir):
     spheres = small_scene(scenes_dir / "paper_a_one_sphere.json", 64, 48, 9)
     flight = small_scene(scenes_dir / "paper_c_terrain_flyover.json", 64, 48, 9)
-    assert run_job(farm, spheres, strategy="auto")["stats"]["strategy"]["name"] == "exact"
-    job = run_job(farm, flight, strategy="auto")
+    assert farm.run_job(spheres, strategy="auto")["stats"]["strategy"]["name"] == "exact"
+    job = farm.run_job(flight, strategy="auto")
     assert job["stats"]["strategy"]["name"] == "guarded"
     assert "predicted_relative_cost" in job["stats"]["cost"]
 
@@ -98,7 +91,7 @@ def test_auto_picks_exact_for_a_still_camera_and_guarded_for_a_flight(farm, scen
 def test_verification_reports_what_compare_counts(farm, scenes_dir, tmp_path_factory):
     scene = small_scene(scenes_dir / "paper_b_twelve_spheres.json", 96, 72, 19)
     reference = reference_of(scene, tmp_path_factory, "verify")
-    job = run_job(farm, scene, strategy="search", bin_width=10, verify={"frames": "all"})
+    job = farm.run_job(scene, strategy="search", bin_width=10, verify={"frames": "all"})
     measured = compare(reference, farm.store / str(job["id"]))
     reported = job["stats"]["error"]["reference"]
     assert reported["frames_compared"] == 19
@@ -106,7 +99,7 @@ def test_verification_reports_what_compare_counts(farm, scenes_dir, tmp_path_fac
     assert reported["ssim"] <= 1.0
     spot = job["stats"]["error"]["spot_checks"]
     assert spot["pixels_checked"] == 0  # every frame verified in full: no estimate needed
-    sampled = run_job(farm, scene, strategy="search", bin_width=10)
+    sampled = farm.run_job(scene, strategy="search", bin_width=10)
     spot = sampled["stats"]["error"]["spot_checks"]
     assert 0 < spot["pixels_checked"] <= 0.02 * 19 * 96 * 72
     low, high = spot["ci95_percent"]
