@@ -1,15 +1,22 @@
 """tcfarm: drive a render farm from the command line.
 
-  tcfarm submit SCENE.json [--frames A:B] [--strategy search|brute] [--bin-width N] [--wait]
+  tcfarm submit SCENE.json [--frames A:B] [--strategy S] [--bin-width N] [--verify all|K] [--wait]
   tcfarm status JOB
+  tcfarm watch JOB            progress bar with ETA and the live traced-pixel ratio
   tcfarm wait JOB
+  tcfarm frames JOB --out DIR [--format png|exr]
   tcfarm cancel JOB
   tcfarm workers
+  tcfarm analyze JOB|DIR      coherence of a job's frames (from the farm) or of a folder
 """
 import argparse
 import json
 import os
+import pathlib
+import shutil
+import subprocess
 import sys
+import time
 
 from tcfarm.client import ApiError, Client
 
@@ -43,6 +50,25 @@ def _progress(job):
     sys.stderr.flush()
 
 
+class _ProgressBar:
+    """One line, redrawn: a bar, frames done, ETA from the rate so far, traced ratio."""
+
+    def __init__(self, stream=sys.stderr, width=30):
+        self.stream, self.width, self.started = stream, width, time.monotonic()
+
+    def __call__(self, job):
+        done, count = job["frames"]["done"], job["frames"]["count"]
+        filled = int(self.width * done / count) if count else 0
+        elapsed = time.monotonic() - self.started
+        eta = "?" if done == 0 else f"{elapsed * (count - done) / done:.0f}s"
+        ratio = job.get("traced_pixel_ratio")
+        ratio = "-" if ratio is None else f"{ratio:.3f}"
+        self.stream.write(f"\rjob {job['id']} [{'#' * filled}{'.' * (self.width - filled)}] "
+                          f"{done}/{count} frames, ETA {eta}, traced ratio {ratio}, "
+                          f"{job['state']}   ")
+        self.stream.flush()
+
+
 def cmd_submit(client, args):
     try:
         with open(args.scene) as f:
@@ -53,15 +79,81 @@ def cmd_submit(client, args):
         raise ApiError(0, "bad_input", f"{args.scene} is not JSON: {e}")
     job = client.submit(scene, name=args.name or os.path.basename(args.scene),
                         frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
-                        tolerance=args.tolerance, priority=args.priority)
+                        tolerance=args.tolerance, priority=args.priority, verify=args.verify)
     if not args.wait:
         print(json.dumps(job) if args.json else f"submitted job {job['id']}")
         return 0
-    job = client.wait(job["id"], on_progress=None if args.json else _progress)
+    job = client.wait(job["id"], on_progress=None if args.json else _ProgressBar())
     if not args.json:
         sys.stderr.write("\n")
     print(json.dumps(job) if args.json else _summary(job))
     return 0 if job["state"] == "completed" else 1
+
+
+def _verify(text):
+    if text == "all":
+        return {"frames": "all"}
+    try:
+        return {"sample": int(text)}
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'all' or a number of frames, got {text!r}")
+
+
+def cmd_frames(client, args):
+    job = client.job(args.job)
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = 0
+    for index, traced in enumerate(job.get("traced_per_frame", [])):
+        if traced < 0:
+            continue  # not finished yet
+        frame = job["frames"]["start"] + index
+        (out / f"frame_{frame:04d}.{args.format}").write_bytes(
+            client.frame(args.job, frame, args.format))
+        written += 1
+    print(f"{written} of {job['frames']['count']} frames of job {args.job} in {out}")
+    return 0
+
+
+def _native_analyzer():
+    """tcfarm-coordinator, for reading a folder of EXR frames exactly."""
+    found = shutil.which("tcfarm-coordinator")
+    if found:
+        return found
+    here = pathlib.Path(__file__).resolve()
+    for parent in here.parents:
+        candidate = parent / "build" / "coordinator" / "tcfarm-coordinator"
+        if candidate.exists():
+            return str(candidate)
+    return None
+
+
+def cmd_analyze(client, args):
+    if not args.target.isdigit():
+        if not pathlib.Path(args.target).is_dir():
+            raise ApiError(0, "bad_input", f"{args.target} is neither a job id nor a folder")
+        analyzer = _native_analyzer()
+        if not analyzer:
+            raise ApiError(0, "missing_tool", "analyzing a folder needs tcfarm-coordinator on "
+                                              "PATH (build the project); a job id works anywhere")
+        command = [analyzer, "analyze", args.target] + (["--json"] if args.json else [])
+        return subprocess.run(command).returncode
+    job = client.job(int(args.target))
+    analysis = (job.get("stats") or {}).get("analysis")
+    if analysis is None:
+        raise ApiError(0, "not_ready", f"job {args.target} is {job['state']}: its analysis "
+                                       "is made when it completes")
+    if args.json:
+        print(json.dumps(analysis))
+        return 0
+    f2f, long_term = analysis["frame_to_frame"], analysis["long_term"]
+    print(f"job {args.target}: {analysis['frames']} frames, frame-to-frame coherence "
+          f"{100 * f2f['mean']:.2f} % (min {100 * f2f['min']:.2f}, max {100 * f2f['max']:.2f}), "
+          f"long-term {100 * long_term['mean']:.2f} %, d = {analysis['d']:.4f}")
+    costs = ", ".join(f"n={p['bin_width']}: {p['relative_cost']:.3f}"
+                      for p in analysis["predictions"] if p["bin_width"] <= 10)
+    print(f"equation 3, relative cost by bin width: {costs}")
+    return 0
 
 
 def main(argv=None):
@@ -73,19 +165,31 @@ def main(argv=None):
     submit.add_argument("scene")
     submit.add_argument("--name")
     submit.add_argument("--frames", type=_frames)
-    submit.add_argument("--strategy", choices=["search", "brute"])
+    submit.add_argument("--strategy", choices=["auto", "exact", "guarded", "search", "brute"])
     submit.add_argument("--bin-width", type=int)
     submit.add_argument("--tolerance", type=float)
     submit.add_argument("--priority", type=int)
+    submit.add_argument("--verify", type=_verify, help="'all' or K: also render K frames "
+                                                        "brute force and report the error")
     submit.add_argument("--wait", action="store_true", help="wait, showing progress")
-    for name in ("status", "wait", "cancel"):
+    for name in ("status", "wait", "watch", "cancel"):
         sub.add_parser(name).add_argument("job", type=int)
+    frames = sub.add_parser("frames", help="download a job's finished frames")
+    frames.add_argument("job", type=int)
+    frames.add_argument("--out", required=True)
+    frames.add_argument("--format", choices=["png", "exr"], default="png")
     sub.add_parser("workers")
+    sub.add_parser("analyze", help="coherence of a job (id) or a folder of frames").add_argument(
+        "target")
     args = parser.parse_args(argv)
     client = Client(args.url)
     try:
         if args.command == "submit":
             return cmd_submit(client, args)
+        if args.command == "frames":
+            return cmd_frames(client, args)
+        if args.command == "analyze":
+            return cmd_analyze(client, args)
         if args.command == "workers":
             print(json.dumps(client.workers(), indent=1))
             return 0
@@ -93,6 +197,9 @@ def main(argv=None):
             job = client.cancel(args.job)
         elif args.command == "wait":
             job = client.wait(args.job)
+        elif args.command == "watch":
+            job = client.wait(args.job, on_progress=_ProgressBar())
+            sys.stderr.write("\n")
         else:
             job = client.job(args.job)
         print(json.dumps(job) if args.json else _summary(job))
