@@ -350,10 +350,31 @@ TEST_F(ApiServerTest, FramesMustLieInsideTheScenesRange) {
 
 TEST_F(ApiServerTest, StrategyMustBeOneThatRunsToday) {
   json body = Submission();
-  body["strategy"] = "exact";
-  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/strategy", R"(one of "search", "brute")");
+  for (const char* strategy : {"search", "brute", "guarded", "exact", "auto"}) {
+    body["strategy"] = strategy;
+    auto result = Post("/api/v1/jobs", body);
+    ASSERT_TRUE(result);
+    EXPECT_EQ(result->status, 201) << strategy << ": " << result->body;
+  }
+  body["strategy"] = "magic";
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/strategy",
+                 R"(one of "search", "brute", "guarded", "exact", "auto")");
   body["strategy"] = 3;
   ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/strategy");
+}
+
+TEST_F(ApiServerTest, VerificationRequestsAreStoredWithTheJob) {
+  json body = Submission();
+  body["verify"] = {{"sample", 3}};
+  body["spot_check_share"] = 0.015;
+  auto result = Post("/api/v1/jobs", body);
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 201) << result->body;
+  uint64_t id = json::parse(result->body)["id"].get<uint64_t>();
+  auto stored = store_->Get(id);
+  ASSERT_TRUE(stored);
+  EXPECT_EQ(stored->spec.options["verify"], json({{"sample", 3}}));
+  EXPECT_DOUBLE_EQ(stored->spec.options["spot_check_share"].get<double>(), 0.015);
 }
 
 TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
@@ -809,6 +830,8 @@ TEST(OpenApiSpecTest, DescribesEveryRoute) {
   text << in.rdbuf();
   for (const char* path : {"/api/v1/jobs:", "/api/v1/jobs/{id}:", "/api/v1/jobs/{id}/cancel:",
                            "/api/v1/jobs/{id}/frames/{frame}.png:", "/api/v1/jobs/{id}/frames/{frame}.exr:",
+                           "/api/v1/jobs/{id}/frames/{frame}/mask.png:",
+                           "/api/v1/jobs/{id}/frames/{frame}/change.png:",
                            "/api/v1/workers:", "/healthz:", "/metrics:"}) {
     EXPECT_NE(text.str().find(std::string("\n  ") + path), std::string::npos) << path;
   }
