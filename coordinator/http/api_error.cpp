@@ -8,21 +8,6 @@ nlohmann::json ApiError::Body() const {
   return nlohmann::json{{"error", std::move(error)}};
 }
 
-std::string EscapePointerToken(const std::string& token) {
-  std::string escaped;
-  escaped.reserve(token.size());
-  for (char c : token) {
-    if (c == '~') {
-      escaped += "~0";
-    } else if (c == '/') {
-      escaped += "~1";
-    } else {
-      escaped += c;
-    }
-  }
-  return escaped;
-}
-
 std::string DumpJson(const nlohmann::json& value) {
   return value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
 }

@@ -52,9 +52,6 @@ class ApiError : public std::runtime_error {
   std::optional<std::string> pointer_;
 };
 
-// RFC 6901 reference token: "~" -> "~0", "/" -> "~1".
-std::string EscapePointerToken(const std::string& token);
-
 // Serializes for a response body. Replaces invalid UTF-8 instead of throwing: error
 // messages quote whatever bytes the client sent.
 std::string DumpJson(const nlohmann::json& value);

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "http/api_error.h"
+#include "json/strict_json.h"
 #include "scene/scene.h"
 #include "wire/sha256.h"
 
@@ -34,91 +35,19 @@ std::string Show(const json& value) {
   return text;
 }
 
-std::string StripExceptionPrefix(const std::string& what) {
-  const size_t end = what.find("] ");
-  return what.rfind("[json.exception.", 0) == 0 && end != std::string::npos ? what.substr(end + 2)
-                                                                            : what;
-}
 
-// nlohmann keeps the last of two equal keys without a word; this parser callback refuses
-// them instead, naming where (the scene inside the body is re-serialized before
-// ParseScene sees it, so its own duplicate check could not catch them).
-class DuplicateKeyGuard {
- public:
-  bool OnEvent(json::parse_event_t event, const json& parsed) {
-    switch (event) {
-      case json::parse_event_t::object_start:
-        BeginElement();
-        levels_.push_back(Level{true, {}, {}, -1});
-        break;
-      case json::parse_event_t::array_start:
-        BeginElement();
-        levels_.push_back(Level{false, {}, {}, -1});
-        break;
-      case json::parse_event_t::object_end:
-      case json::parse_event_t::array_end:
-        levels_.pop_back();
-        break;
-      case json::parse_event_t::key:
-        OnKey(parsed.get<std::string>());
-        break;
-      case json::parse_event_t::value:
-        BeginElement();
-        break;
-    }
-    return true;
-  }
-
- private:
-  struct Level {
-    bool isObject;
-    std::vector<std::string> keys;  // objects in requests are small: a scan beats a set
-    std::string key;
-    long index;
-  };
-
-  void BeginElement() {
-    if (!levels_.empty() && !levels_.back().isObject) ++levels_.back().index;
-  }
-
-  void OnKey(const std::string& key) {
-    Level& level = levels_.back();
-    for (const std::string& seen : level.keys) {
-      if (seen == key) {
-        Fail(error_code::kInvalidJson, EnclosingPointer() + "/" + EscapePointerToken(key),
-             "duplicate field \"" + key + "\"", "each field at most once per object");
-      }
-    }
-    level.keys.push_back(key);
-    level.key = key;
-  }
-
-  std::string EnclosingPointer() const {
-    std::string pointer;
-    for (size_t i = 0; i + 1 < levels_.size(); ++i) {
-      const Level& level = levels_[i];
-      pointer += "/" + (level.isObject ? EscapePointerToken(level.key) : std::to_string(level.index));
-    }
-    return pointer;
-  }
-
-  std::vector<Level> levels_;
-};
-
+// Duplicate keys are refused here, at the body: the scene inside it is re-serialized
+// before ParseScene sees it, so the scene's own check could not catch them.
 json ParseBody(const std::string& body) {
-  DuplicateKeyGuard guard;
-  json::parser_callback_t callback = [&guard](int, json::parse_event_t event, json& parsed) {
-    return guard.OnEvent(event, parsed);
-  };
   try {
-    return json::parse(body, callback);
-  } catch (const json::parse_error& error) {
-    throw ApiError(400, error_code::kInvalidJson,
-                   "request body is not valid JSON: " + StripExceptionPrefix(error.what()));
-  } catch (const json::out_of_range& error) {
-    // nlohmann refuses numbers that overflow a double (1e999) this way.
-    throw ApiError(400, error_code::kInvalidJson,
-                   "request body is not valid JSON: " + StripExceptionPrefix(error.what()));
+    return ParseStrictJson(body);
+  } catch (const JsonInputError& error) {
+    if (error.pointer().empty() || error.problem().rfind("duplicate", 0) != 0) {
+      throw ApiError(400, error_code::kInvalidJson,
+                     "request body is not valid JSON: " + std::string(error.what()),
+                     error.pointer().empty() ? std::nullopt : std::optional(error.pointer()));
+    }
+    Fail(error_code::kInvalidJson, error.pointer(), error.problem(), error.expected());
   }
 }
 
