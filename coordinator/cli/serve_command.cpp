@@ -21,9 +21,12 @@ constexpr const char* kUsage =
     "[--db FILE]\n"
     "           [--local-workers N] [--worker-threads T] [--worker-binary PATH] "
     "[--max-running-jobs K]\n"
-    "           [--exr-compression zip[:1-9]|none|rle|zips|piz] [--writer-threads N]\n"
+    "           [--exr-compression zip[:1-9]|none|rle|zips|piz] [--writer-threads N] "
+    "[--dashboard DIR]\n"
     "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
     "--local-workers 1\n"
+    "          --dashboard: services/dashboard of the source tree the binary was built in, "
+    "when there\n"
     "(--local-workers 0 for a coordinator whose workers run elsewhere)\n";
 
 struct ServeOptions {
@@ -34,7 +37,22 @@ struct ServeOptions {
   unsigned localWorkers = 1;  // the embedded local farm: one worker using all cores
   unsigned workerThreads = 0;
   std::string workerBinary;
+  std::filesystem::path dashboard;  // static files served at /; empty: none
 };
+
+// The dashboard beside a build tree (build/coordinator -> ../../services/dashboard) or
+// an installed one (bin -> ../share/tcfarm/dashboard); empty when neither is there.
+std::filesystem::path FindDashboard() {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) return {};
+  const std::filesystem::path folder = self.parent_path();
+  for (const auto& candidate : {folder.parent_path().parent_path() / "services" / "dashboard",
+                                folder.parent_path() / "share" / "tcfarm" / "dashboard"}) {
+    if (std::filesystem::is_regular_file(candidate / "index.html", ec)) return candidate;
+  }
+  return {};
+}
 
 std::atomic<bool> stopRequested{false};
 void RequestStop(int) { stopRequested = true; }
@@ -62,6 +80,7 @@ void ParseHttpAddress(const std::string& text, ServeOptions* options) {
 
 ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
   ServeOptions options;
+  options.dashboard = FindDashboard();
   for (size_t i = 0; i < args.size(); ++i) {
     auto value = [&]() -> const std::string& {
       if (i + 1 >= args.size()) throw std::invalid_argument(args[i] + " needs a value");
@@ -78,7 +97,11 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     else if (flag == "--max-running-jobs") options.farm.maxRunningJobs = ParseInt(value(), flag, 1, 1024);
     else if (flag == "--exr-compression") options.farm.output.exrCompression = value();
     else if (flag == "--writer-threads") options.farm.output.threads = ParseInt(value(), flag, 1, 64);
+    else if (flag == "--dashboard") options.dashboard = value();
     else throw std::invalid_argument("unexpected argument " + flag);
+  }
+  if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {
+    throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
   if (options.database.empty()) options.database = options.farm.storeRoot / "jobs.db";
   if (!IsLosslessExrCompression(options.farm.output.exrCompression)) {
@@ -123,6 +146,7 @@ int RunServe(const std::vector<std::string>& args) {
   api.host = options.httpHost;
   api.port = options.httpPort;
   api.storeRoot = options.farm.storeRoot;
+  api.dashboardDirectory = options.dashboard;
   ApiServer server(store, farm, farm.metrics().registry, api);
   int port = server.Start();
 
@@ -135,6 +159,10 @@ int RunServe(const std::vector<std::string>& args) {
               options.httpHost.c_str(), port, workerEndpoint.c_str(), options.localWorkers,
               options.farm.storeRoot.c_str());
   std::fflush(stdout);
+  if (!options.dashboard.empty()) {
+    std::fprintf(stderr, "tcfarm-coordinator: dashboard at http://%s:%d/ from %s\n",
+                 options.httpHost.c_str(), port, options.dashboard.c_str());
+  }
 
   // Step the farm; look after the local workers a few times a second.
   auto lastCheck = clock.Now();

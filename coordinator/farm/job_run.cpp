@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 
+#include "frame/frame_io.h"
 #include "frame/sequence_analysis.h"
 
 namespace tcfarm {
@@ -133,6 +135,7 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
     }
     frameTraceSeconds_.erase(frame.frame);
     verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
+    WriteMask("mask", absolute, std::move(frame.traced));
     TrackCoherence(frame.frame, frame.rgb);
     writer_.Write(absolute, Image{scene_->render.width, scene_->render.height, std::move(frame.rgb)});
     ++framesDone_;
@@ -145,9 +148,26 @@ void JobRun::TrackCoherence(int frame, const std::vector<float>& rgb) {
   for (auto next = waitingForCoherence_.find(nextCoherenceFrame_);
        next != waitingForCoherence_.end(); next = waitingForCoherence_.find(nextCoherenceFrame_)) {
     coherence_.Add(next->second);
+    // The paper's Figure 5: white where the pixel is bitwise the previous frame's, black
+    // where it changed; the first frame has nothing to change from, so is all white.
+    const std::vector<float>& current = next->second.rgb;
+    std::vector<uint8_t> unchanged(next->second.PixelCount(), 1);
+    if (previousRgb_.size() == current.size()) {
+      for (size_t pixel = 0; pixel < unchanged.size(); ++pixel) {
+        unchanged[pixel] = std::memcmp(&current[pixel * 3], &previousRgb_[pixel * 3],
+                                       3 * sizeof(float)) == 0;
+      }
+    }
+    WriteMask("change", spec_.firstFrame + next->first, std::move(unchanged));
+    previousRgb_ = std::move(next->second.rgb);
     waitingForCoherence_.erase(next);
     ++nextCoherenceFrame_;
   }
+}
+
+void JobRun::WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask) {
+  writer_.WriteMask(MaskFileStem(kind, absoluteFrame) + ".png", scene_->render.width,
+                    scene_->render.height, std::move(mask));
 }
 
 void JobRun::FinishWriting() { writer_.Finish(); }

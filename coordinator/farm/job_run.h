@@ -62,7 +62,10 @@ class JobRun {
   // Task ids of verification requests carry this bit; planner ids never reach it.
   static constexpr uint64_t kVerificationTask = uint64_t{1} << 62;
 
+  // Feeds frames in order to the coherence analysis and writes each one's change mask.
   void TrackCoherence(int frame, const std::vector<float>& rgb);
+  // Queues STORE/<job>/<kind>_NNNN.png for the absolute frame on the frame writer.
+  void WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask);
   nlohmann::json CostFigures() const;
 
   uint64_t id_;
@@ -85,6 +88,8 @@ class JobRun {
   SequenceAnalyzer coherence_;
   int nextCoherenceFrame_ = 0;
   std::map<int, Image> waitingForCoherence_;
+  // The last frame the coherence analysis took, for the next one's change mask.
+  std::vector<float> previousRgb_;
 };
 
 }  // namespace tcfarm

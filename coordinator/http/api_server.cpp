@@ -194,6 +194,7 @@ const std::vector<ApiServer::Route>& ApiServer::Routes() {
       {"GET", "/api/v1/jobs/([^/]+)", &ApiServer::GetJob},
       {"POST", "/api/v1/jobs/([^/]+)/cancel", &ApiServer::CancelJob},
       {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)", &ApiServer::GetFrame},
+      {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)/(mask|change)\\.png", &ApiServer::GetFrameMask},
       {"GET", "/api/v1/workers", &ApiServer::ListWorkers},
       {"GET", "/healthz", &ApiServer::Health},
       {"GET", "/metrics", &ApiServer::Metrics},
@@ -382,22 +383,50 @@ void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
   WriteJson(response, JobDetail(LoadJob(id)));
 }
 
-void ApiServer::GetFrame(const httplib::Request& request, const std::string&, httplib::Response& response) {
-  const uint64_t id = ParseJobId(request.matches[1]);
-  const FrameFile file = ParseFrameFile(request.matches[2]);
+void ApiServer::CheckFrameInJob(uint64_t id, int frame) {
   const JobGeometry geometry = GeometryOf(id, nullptr);
-  if (file.frame < geometry.firstFrame || file.frame > geometry.lastFrame) {
+  if (frame < geometry.firstFrame || frame > geometry.lastFrame) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "frame " + std::to_string(file.frame) + " is outside job " + std::to_string(id) +
+                   "frame " + std::to_string(frame) + " is outside job " + std::to_string(id) +
                        "'s frames [" + std::to_string(geometry.firstFrame) + ", " +
                        std::to_string(geometry.lastFrame) + "]");
   }
+}
+
+void ApiServer::GetFrame(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  const FrameFile file = ParseFrameFile(request.matches[2]);
+  CheckFrameInJob(id, file.frame);
   const std::filesystem::path path =
       options_.storeRoot / std::to_string(id) / (FrameFileStem(file.frame) + "." + file.extension);
   if (!ServeFile(response, path, file.contentType)) {
     throw ApiError(404, error_code::kFrameNotReady,
                    "frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +
                        " is not written yet");
+  }
+}
+
+// frames/<n>/mask.png: the pixels traced at frame n (white) and copied (black);
+// frames/<n>/change.png: the pixels equal to frame n - 1's (white) and changed (black).
+void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&,
+                             httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  const std::string number = request.matches[2];
+  const std::string kind = request.matches[3];
+  constexpr size_t kMaxFrameDigits = 9;
+  if (!AllDigits(number) || number.size() > kMaxFrameDigits) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "frame \"" + number + "\" is not a frame number; expected <frame number>/" + kind +
+                       ".png");
+  }
+  const int frame = std::stoi(number);
+  CheckFrameInJob(id, frame);
+  const std::filesystem::path path =
+      options_.storeRoot / std::to_string(id) / (MaskFileStem(kind, frame) + ".png");
+  if (!ServeFile(response, path, "image/png")) {
+    throw ApiError(404, error_code::kFrameNotReady,
+                   "the " + kind + " mask of frame " + std::to_string(frame) + " of job " +
+                       std::to_string(id) + " is not written yet");
   }
 }
 

@@ -91,11 +91,14 @@ class ApiServer {
   void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetFrame(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void GetFrameMask(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void ListWorkers(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Health(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
 
   JobRecord LoadJob(uint64_t id) const;  // throws ApiError 404 job_not_found
+  // Throws 400 invalid_parameter when frame is outside job id's frames.
+  void CheckFrameInJob(uint64_t id, int frame);
   nlohmann::json JobDetail(const JobRecord& record);
   // Cached per job: the frame size needs the scene JSON, which List results lack and
   // which may be megabytes of mesh. Loads the job when neither cache nor record has it.

@@ -596,6 +596,33 @@ TEST_F(ApiServerTest, FrameErrors) {
   ExpectError(Get("/api/v1/jobs/99/frames/0.png"), 404, "job_not_found");
 }
 
+TEST_F(ApiServerTest, MaskFilesAndTheirErrors) {
+  const uint64_t id = SubmitOk();
+  const fs::path folder = FramePath(id, 3, "png").parent_path();
+  fs::create_directories(folder);
+  std::ofstream(folder / (MaskFileStem("mask", 3) + ".png"), std::ios::binary) << "traced";
+  std::ofstream(folder / (MaskFileStem("change", 3) + ".png"), std::ios::binary) << "changed";
+  const std::string frames = "/api/v1/jobs/" + std::to_string(id) + "/frames/";
+
+  httplib::Result result = Get(frames + "3/mask.png");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(result->get_header_value("Content-Type"), "image/png");
+  EXPECT_EQ(result->body, "traced");
+  result = Get(frames + "3/change.png");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(result->body, "changed");
+
+  ExpectError(Get(frames + "4/mask.png"), 404, "frame_not_ready");
+  ExpectError(Get(frames + "4/change.png"), 404, "frame_not_ready");
+  ExpectError(Get(frames + "10/mask.png"), 400, "invalid_parameter");
+  ExpectError(Get(frames + "x/mask.png"), 400, "invalid_parameter");
+  ExpectError(Get(frames + "3.png/mask.png"), 400, "invalid_parameter");
+  ExpectError(Get(frames + "3/other.png"), 404, "not_found");
+  ExpectError(Get("/api/v1/jobs/99/frames/0/mask.png"), 404, "job_not_found");
+}
+
 // --- workers, health, metrics, routing -------------------------------------------------
 
 TEST_F(ApiServerTest, WorkersComeFromTheFarmSnapshot) {

@@ -15,11 +15,11 @@ namespace {
 // and frames are written at the rate they are traced.
 constexpr int kPngCompressionLevel = 3;
 
-void WritePixels(const std::filesystem::path& path, const Image& image, OIIO::TypeDesc format,
-                 const void* pixels, const std::string& exrCompression = "") {
+void WritePixels(const std::filesystem::path& path, int width, int height, int channels,
+                 OIIO::TypeDesc format, const void* pixels, const std::string& exrCompression = "") {
   auto out = OIIO::ImageOutput::create(path.string());
   if (!out) throw FrameIoError("cannot write " + path.string() + ": " + OIIO::geterror());
-  OIIO::ImageSpec spec(image.width, image.height, 3, format);
+  OIIO::ImageSpec spec(width, height, channels, format);
   if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", exrCompression);
   if (format == OIIO::TypeDesc::UINT8) spec.attribute("png:compressionLevel", kPngCompressionLevel);
   // Write to a temporary name and rename, so a reader never sees half a frame.
@@ -101,14 +101,27 @@ void WriteExr(const std::filesystem::path& path, const Image& image,
     throw FrameIoError("cannot write " + path.string() + ": EXR compression '" + compression +
                        "' is not lossless; expected none, rle, zips, zip or piz");
   }
-  WritePixels(path, image, OIIO::TypeDesc::FLOAT, image.rgb.data(), compression);
+  WritePixels(path, image.width, image.height, 3, OIIO::TypeDesc::FLOAT, image.rgb.data(), compression);
 }
 
 void WritePng(const std::filesystem::path& path, const Image& image) {
   CheckShape(path, image);
   std::vector<uint8_t> codes(image.rgb.size());
   std::transform(image.rgb.begin(), image.rgb.end(), codes.begin(), LinearToSrgb8Fast);
-  WritePixels(path, image, OIIO::TypeDesc::UINT8, codes.data());
+  WritePixels(path, image.width, image.height, 3, OIIO::TypeDesc::UINT8, codes.data());
+}
+
+void WriteMaskPng(const std::filesystem::path& path, int width, int height,
+                  const std::vector<uint8_t>& mask) {
+  if (width <= 0 || height <= 0 || mask.size() != static_cast<size_t>(width) * height) {
+    throw FrameIoError("cannot write " + path.string() + ": mask of " + std::to_string(width) + "x" +
+                       std::to_string(height) + " holds " + std::to_string(mask.size()) +
+                       " values; expected " + std::to_string(static_cast<size_t>(width) * height));
+  }
+  std::vector<uint8_t> codes(mask.size());
+  std::transform(mask.begin(), mask.end(), codes.begin(),
+                 [](uint8_t value) { return static_cast<uint8_t>(value ? 255 : 0); });
+  WritePixels(path, width, height, 1, OIIO::TypeDesc::UINT8, codes.data());
 }
 
 Image ReadImage(const std::filesystem::path& path) {
@@ -120,7 +133,16 @@ Image ReadImage(const std::filesystem::path& path) {
   image.height = spec.height;
   image.rgb.resize(image.PixelCount() * 3);
   bool encodedSrgb = spec.format == OIIO::TypeDesc::UINT8;
-  if (!in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, image.rgb.data())) {
+  if (spec.nchannels < 3) {
+    // Greyscale (a mask): its first channel in all three.
+    std::vector<float> grey(image.PixelCount());
+    if (!in->read_image(0, 0, 0, 1, OIIO::TypeDesc::FLOAT, grey.data())) {
+      throw FrameIoError("cannot read " + path.string() + ": " + in->geterror());
+    }
+    for (size_t pixel = 0; pixel < grey.size(); ++pixel) {
+      std::fill_n(&image.rgb[pixel * 3], 3, grey[pixel]);
+    }
+  } else if (!in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, image.rgb.data())) {
     throw FrameIoError("cannot read " + path.string() + ": " + in->geterror());
   }
   if (encodedSrgb) {
@@ -133,6 +155,12 @@ std::string FrameFileStem(int frame) {
   char name[32];
   std::snprintf(name, sizeof name, "frame_%04d", frame);
   return name;
+}
+
+std::string MaskFileStem(const std::string& kind, int frame) {
+  char number[16];
+  std::snprintf(number, sizeof number, "_%04d", frame);
+  return kind + number;
 }
 
 }  // namespace tcfarm

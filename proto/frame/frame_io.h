@@ -32,11 +32,19 @@ bool IsLosslessExrCompression(const std::string& name);
 void WriteExr(const std::filesystem::path& path, const Image& image,
               const std::string& compression = "zip:1");
 void WritePng(const std::filesystem::path& path, const Image& image);
-// Reads any format OpenImageIO knows into linear float RGB (PNG is decoded from sRGB).
+// A mask as an 8-bit greyscale PNG: white (255) where mask is non-zero, black elsewhere.
+// mask holds width * height values, row-major from the top row.
+void WriteMaskPng(const std::filesystem::path& path, int width, int height,
+                  const std::vector<uint8_t>& mask);
+// Reads any format OpenImageIO knows into linear float RGB (PNG is decoded from sRGB;
+// a greyscale image's one channel fills all three).
 Image ReadImage(const std::filesystem::path& path);
 
 // "frame_0042" for frame 42: frames sort by name.
 std::string FrameFileStem(int frame);
+// "mask_0042" / "change_0042" for frame 42's traced mask and change mask (kind: "mask"
+// or "change").
+std::string MaskFileStem(const std::string& kind, int frame);
 
 // Linear value to an 8-bit sRGB code, clamped to [0, 1] first.
 uint8_t LinearToSrgb8(float linear);

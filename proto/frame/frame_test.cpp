@@ -108,6 +108,27 @@ TEST(FrameWriterTest, WritesEveryQueuedFrame) {
   EXPECT_EQ(FrameFileStem(42), "frame_0042");
 }
 
+TEST(FrameWriterTest, WritesMasksAsGreyscalePngs) {
+  auto folder = FreshFolder("masks");
+  std::vector<uint8_t> mask(6 * 4, 0);
+  mask[0] = 1;
+  mask[6 * 4 - 1] = 7;  // any non-zero is white
+  {
+    FrameWriter writer(folder, {true, true, "zip", 1, 1});
+    writer.Write(3, Gradient(6, 4));
+    writer.WriteMask(MaskFileStem("mask", 3) + ".png", 6, 4, mask);
+    writer.Finish();
+  }
+  EXPECT_EQ(MaskFileStem("change", 42), "change_0042");
+  const Image read = ReadImage(folder / "mask_0003.png");
+  ASSERT_EQ(read.width, 6);
+  ASSERT_EQ(read.height, 4);
+  for (size_t pixel = 0; pixel < mask.size(); ++pixel) {
+    EXPECT_EQ(read.rgb[pixel * 3], mask[pixel] ? 1.0f : 0.0f) << pixel;
+  }
+  EXPECT_THROW(WriteMaskPng(folder / "bad.png", 6, 4, std::vector<uint8_t>(5)), FrameIoError);
+}
+
 TEST(FrameWriterTest, RefusesLossyCompression) {
   EXPECT_THROW(FrameWriter("/tmp", {true, true, "dwaa"}), FrameIoError);
 }

@@ -27,8 +27,23 @@ FrameWriter::~FrameWriter() {
 
 void FrameWriter::Write(int frame, Image image) {
   std::unique_lock<std::mutex> lock(mutex_);
-  changed_.wait(lock, [&] { return queue_.size() < options_.maxQueuedFrames; });
-  queue_.emplace_back(frame, std::move(image));
+  changed_.wait(lock, [&] { return queuedFrames_ < options_.maxQueuedFrames; });
+  Item item;
+  item.frame = frame;
+  item.image = std::move(image);
+  queue_.push_back(std::move(item));
+  ++queuedFrames_;
+  changed_.notify_all();
+}
+
+void FrameWriter::WriteMask(std::string name, int width, int height, std::vector<uint8_t> mask) {
+  Item item;
+  item.image.width = width;
+  item.image.height = height;
+  item.maskName = std::move(name);
+  item.mask = std::move(mask);
+  std::lock_guard<std::mutex> lock(mutex_);
+  queue_.push_back(std::move(item));
   changed_.notify_all();
 }
 
@@ -38,10 +53,14 @@ void FrameWriter::Finish() {
   if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
 }
 
-void FrameWriter::WriteFiles(int frame, const Image& image) const {
-  std::filesystem::path stem = directory_ / FrameFileStem(frame);
-  if (options_.writeExr) WriteExr(stem.string() + ".exr", image, options_.exrCompression);
-  if (options_.writePng) WritePng(stem.string() + ".png", image);
+void FrameWriter::WriteFiles(const Item& item) const {
+  if (!item.maskName.empty()) {
+    WriteMaskPng(directory_ / item.maskName, item.image.width, item.image.height, item.mask);
+    return;
+  }
+  std::filesystem::path stem = directory_ / FrameFileStem(item.frame);
+  if (options_.writeExr) WriteExr(stem.string() + ".exr", item.image, options_.exrCompression);
+  if (options_.writePng) WritePng(stem.string() + ".png", item.image);
 }
 
 void FrameWriter::Run() {
@@ -49,14 +68,15 @@ void FrameWriter::Run() {
   for (;;) {
     changed_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
     if (queue_.empty()) return;  // stopping with nothing left
-    auto [frame, image] = std::move(queue_.front());
+    Item item = std::move(queue_.front());
     queue_.pop_front();
+    if (item.maskName.empty()) --queuedFrames_;
     ++writing_;
     changed_.notify_all();
     lock.unlock();
     std::exception_ptr error;
     try {
-      WriteFiles(frame, image);
+      WriteFiles(item);
     } catch (...) {
       error = std::current_exception();
     }

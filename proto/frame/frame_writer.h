@@ -38,19 +38,31 @@ class FrameWriter {
 
   // Queues frame `frame` as DIRECTORY/frame_NNNN.{exr,png}.
   void Write(int frame, Image image);
+  // Queues a mask (width * height values, white where non-zero) as DIRECTORY/NAME, an
+  // 8-bit greyscale PNG. Masks are a byte a pixel and come with frames, so they do not
+  // count towards maxQueuedFrames.
+  void WriteMask(std::string name, int width, int height, std::vector<uint8_t> mask);
   // Waits for every queued frame; rethrows the first write error.
   void Finish();
 
  private:
   void Run();
 
-  void WriteFiles(int frame, const Image& image) const;
+  // A frame, or a mask when maskName is set.
+  struct Item {
+    int frame = 0;
+    Image image;
+    std::string maskName;
+    std::vector<uint8_t> mask;
+  };
+  void WriteFiles(const Item& item) const;
 
   std::filesystem::path directory_;
   FrameWriterOptions options_;
   std::mutex mutex_;
   std::condition_variable changed_;
-  std::deque<std::pair<int, Image>> queue_;
+  std::deque<Item> queue_;
+  size_t queuedFrames_ = 0;  // frames in queue_, masks not counted
   unsigned writing_ = 0;
   bool stopping_ = false;
   std::exception_ptr error_;
