@@ -15,24 +15,14 @@
 #include <vector>
 
 #include "planner/planner.h"
+#include "planner/planner_test_support.h"
 
 namespace tcfarm {
 namespace {
 
-using Rgb = std::array<float, 3>;
-
-PlannerOptions Options(int width, int height, int frameCount, int segmentLength) {
-  PlannerOptions options;
-  options.width = width;
-  options.height = height;
-  options.frameCount = frameCount;
-  options.binWidth = segmentLength;
-  return options;
-}
-
-uint64_t PixelsPerFrame(const PlannerOptions& options) {
-  return static_cast<uint64_t>(options.width) * static_cast<uint64_t>(options.height);
-}
+using planner_test::Options;  // binWidth is the segment length here
+using planner_test::PixelsPerFrame;
+using planner_test::Rgb;
 
 int SegmentEnd(const PlannerOptions& options, int frame) {
   const long long end = (static_cast<long long>(frame) / options.binWidth + 1) * options.binWidth;

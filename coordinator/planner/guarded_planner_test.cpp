@@ -16,37 +16,16 @@
 
 #include "planner/planner.h"
 #include "planner/search_planner.h"
+#include "planner/planner_test_support.h"
 
 namespace tcfarm {
 namespace {
 
-using Rgb = std::array<float, 3>;
-// The fake tracer: a synthetic animation, the value of pixel (x, y) at a frame.
-using Animation = std::function<Rgb(int frame, int x, int y)>;
-
-PlannerOptions Options(int width, int height, int frameCount, int binWidth, int coarseTile = 8) {
-  PlannerOptions options;
-  options.width = width;
-  options.height = height;
-  options.frameCount = frameCount;
-  options.binWidth = binWidth;
-  options.coarseTile = coarseTile;
-  return options;
-}
-
-uint64_t PixelsPerFrame(const PlannerOptions& options) {
-  return static_cast<uint64_t>(options.width) * static_cast<uint64_t>(options.height);
-}
-
-std::vector<float> Trace(const TraceTask& task, const Animation& animation, int width) {
-  std::vector<float> rgb;
-  rgb.reserve(task.pixels.size() * 3);
-  task.pixels.ForEach([&](uint32_t index) {
-    const Rgb value = animation(task.frame, static_cast<int>(index % width), static_cast<int>(index / width));
-    rgb.insert(rgb.end(), value.begin(), value.end());
-  });
-  return rgb;
-}
+using planner_test::Animation;
+using planner_test::Options;
+using planner_test::PixelsPerFrame;
+using planner_test::Rgb;
+using planner_test::Trace;
 
 struct RenderRun {
   std::map<int, FinishedFrame> frames;
