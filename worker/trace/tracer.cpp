@@ -167,37 +167,29 @@ struct Tracer::FrameContext {
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
   const std::vector<std::vector<Float3>>* faceNormals;
+  const std::vector<uint8_t>* shapeMoves;  // per shape, precomputed: asked at every hit
   Float3 background;
   int maxDepth;
   int samplesPerPixel;
   bool anySecondary;  // some material reflects or refracts
 };
 
-// The ray trees of the samples of one packet, kept only when horizons are wanted.
-struct Tracer::RayTreeRecorder {
-  std::vector<RaySegment> segments[kPacketWidth];
-  bool seesSurface[kPacketWidth];
-  bool touchesMover[kPacketWidth];
+// The horizons of the samples of one packet, folded in as their rays are cast (only
+// when horizons are wanted): each ray segment and each surface seen can only lower them.
+struct Tracer::HorizonTracker {
+  const HorizonOracle* oracle = nullptr;
+  int horizon[kPacketWidth];
   int lane = 0;  // the sample whose secondary rays are being traced
 
   void Reset() {
-    for (int i = 0; i < kPacketWidth; ++i) {
-      segments[i].clear();
-      seesSurface[i] = touchesMover[i] = false;
-    }
+    for (int& h : horizon) h = oracle->CameraCap();
   }
-  void Add(int forLane, Float3 origin, Float3 direction, float length) {
-    segments[forLane].push_back({origin, direction, length});
+  void Segment(int forLane, Float3 origin, Float3 direction, float length) {
+    if (horizon[forLane] == oracle->frame() + 1) return;  // cannot get any earlier
+    horizon[forLane] = std::min(horizon[forLane], oracle->FirstMeeting({origin, direction, length}));
   }
-  int Horizon(int forLane, const HorizonOracle& oracle) const {
-    if (touchesMover[forLane]) return oracle.frame() + 1;
-    int horizon = oracle.CameraCap();
-    if (seesSurface[forLane]) horizon = std::min(horizon, oracle.LightCap());
-    for (const RaySegment& segment : segments[forLane]) {
-      if (horizon == oracle.frame() + 1) break;
-      horizon = std::min(horizon, oracle.FirstMeeting(segment));
-    }
-    return horizon;
+  void Surface(int forLane, bool moves) {
+    horizon[forLane] = std::min(horizon[forLane], moves ? oracle->frame() + 1 : oracle->LightCap());
   }
 };
 
@@ -216,8 +208,8 @@ class Tracer::PixelTracer {
   void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
   Float3 TraceRay(Float3 origin, Float3 direction, int depth);
   const RayCounts& counts() const { return counts_; }
-  // Records every ray of the packets traced from now on (for horizons).
-  void Record(RayTreeRecorder* recorder) { recorder_ = recorder; }
+  // Folds every ray of the packets traced from now on into their horizons.
+  void TrackHorizons(HorizonTracker* tracker) { horizons_ = tracker; }
 
  private:
   struct SurfaceHit {
@@ -254,7 +246,7 @@ class Tracer::PixelTracer {
   RTCIntersectContext context_;
   RTCIntersectContext coherentContext_;
   RayCounts counts_;
-  RayTreeRecorder* recorder_ = nullptr;
+  HorizonTracker* horizons_ = nullptr;
 };
 
 Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Float3 direction,
@@ -346,7 +338,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
   rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(frame_.geometry->scene(), &context_, &rayHit);
   bool missed = rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID;
-  if (recorder_) recorder_->Add(recorder_->lane, origin, direction, missed ? kInfinity : rayHit.ray.tfar);
+  if (horizons_) horizons_->Segment(horizons_->lane, origin, direction, missed ? kInfinity : rayHit.ray.tfar);
   if (missed) return frame_.background;
 
   SurfaceHit hit = MakeHit(origin, direction,
@@ -355,7 +347,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
                             rayHit.hit.instID[0],
                             rayHit.hit.geomID,
                             rayHit.hit.primID});
-  if (recorder_) NoteSurface(recorder_->lane, hit);
+  if (horizons_) NoteSurface(horizons_->lane, hit);
   Float3 local = Ambient(hit);
   for (size_t light = 0; light < frame_.lights.size(); ++light) {
     Float3 toLight;
@@ -369,7 +361,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     shadow.tfar = distance;
     shadow.mask = ~0u;
     ++counts_.shadow;
-    if (recorder_) recorder_->Add(recorder_->lane, start, toLight, distance);
+    if (horizons_) horizons_->Segment(horizons_->lane, start, toLight, distance);
     rtcOccluded1(frame_.geometry->scene(), &context_, &shadow);
     if (shadow.tfar >= 0) local += LightContribution(hit, light, toLight, distance);
   }
@@ -406,8 +398,8 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     hasHit[lane] = packet.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
     Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
     Float3 direction{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
-    if (recorder_) {
-      recorder_->Add(lane, origin, direction, hasHit[lane] ? packet.ray.tfar[lane] : kInfinity);
+    if (horizons_) {
+      horizons_->Segment(lane, origin, direction, hasHit[lane] ? packet.ray.tfar[lane] : kInfinity);
     }
     if (!hasHit[lane]) {
       color[lane] = frame_.background;
@@ -419,7 +411,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
                           packet.hit.instID[0][lane],
                           packet.hit.geomID[lane],
                           packet.hit.primID[lane]});
-    if (recorder_) NoteSurface(lane, hits[lane]);
+    if (horizons_) NoteSurface(lane, hits[lane]);
     color[lane] = Ambient(hits[lane]);
   }
 
@@ -442,7 +434,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       shadow.tfar[lane] = distance[lane];
       shadow.mask[lane] = ~0u;
       ++shadowCount;
-      if (recorder_) recorder_->Add(lane, start, toLight[lane], distance[lane]);
+      if (horizons_) horizons_->Segment(lane, start, toLight[lane], distance[lane]);
     }
     if (shadowCount == 0) continue;
     counts_.shadow += shadowCount;
@@ -456,19 +448,21 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   if (!frame_.anySecondary) return;
   for (int lane = 0; lane < count; ++lane) {
     if (!hasHit[lane]) continue;
-    if (recorder_) recorder_->lane = lane;
+    if (horizons_) horizons_->lane = lane;
     color[lane] = Combine(hits[lane], color[lane], 0);
   }
 }
 
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
-  recorder_->seesSurface[lane] = true;
-  if (scene_.shapes[hit.shape].Moves()) recorder_->touchesMover[lane] = true;
+  horizons_->Surface(lane, (*frame_.shapeMoves)[hit.shape] != 0);
 }
 
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool)
     : device_(device), scene_(scene), geometry_(device, scene), pool_(pool) {
-  for (const Shape& shape : scene.shapes) faceNormals_.push_back(FaceNormals(shape));
+  for (const Shape& shape : scene.shapes) {
+    faceNormals_.push_back(FaceNormals(shape));
+    shapeMoves_.push_back(shape.Moves());
+  }
 }
 
 void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,
@@ -488,6 +482,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        MakeLights(scene_, frame),
                        &materials,
                        &faceNormals_,
+                       &shapeMoves_,
                        ToFloat3(scene_.background),
                        scene_.render.maxDepth,
                        scene_.render.samplesPerPixel,
@@ -510,17 +505,18 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     }
     sampleColor.resize(itemPixel.size());
     thread_local std::vector<int32_t> sampleHorizon;
-    thread_local RayTreeRecorder recorder;
+    HorizonTracker tracker;
     if (oracle) {
       sampleHorizon.resize(itemPixel.size());
-      tracer.Record(&recorder);
+      tracker.oracle = oracle.get();
+      tracer.TrackHorizons(&tracker);
     }
     for (size_t item = 0; item < itemPixel.size(); item += kPacketWidth) {
       int lanes = static_cast<int>(std::min<size_t>(kPacketWidth, itemPixel.size() - item));
-      if (oracle) recorder.Reset();
+      if (oracle) tracker.Reset();
       tracer.TracePrimaryPacket(&itemPixel[item], &itemSample[item], lanes, &sampleColor[item]);
       for (int lane = 0; oracle && lane < lanes; ++lane) {
-        sampleHorizon[item + lane] = recorder.Horizon(lane, *oracle);
+        sampleHorizon[item + lane] = tracker.horizon[lane];
       }
     }
     // A pixel is valid while all its samples are.

@@ -56,7 +56,7 @@ class Tracer {
 
  private:
   struct FrameContext;
-  struct RayTreeRecorder;
+  struct HorizonTracker;
   class PixelTracer;
 
   const EmbreeDevice& device_;
@@ -67,6 +67,7 @@ class Tracer {
   // with the ray origin; a still surface must shade to the same bits from any viewpoint.
   // Empty for spheres, whose normal comes from the hit point.
   std::vector<std::vector<Float3>> faceNormals_;
+  std::vector<uint8_t> shapeMoves_;
   ThreadPool& pool_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
 };
