@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <algorithm>
 #include <numeric>
+#include <random>
 
 #include "trace/tracer.h"
 
@@ -142,6 +144,40 @@ TEST(HorizonsTest, StaticSceneIsValidThroughTheWindow) {
   })");
   HorizonCheck check = Check(scene, 0);
   EXPECT_EQ(check.unbounded, check.pixels);
+}
+
+// Tasks split pixel sets arbitrarily: a pixel's horizon, like its colour, must not depend
+// on which pixels are traced with it, in what order, or on how many threads.
+TEST(HorizonsTest, HorizonsDoNotDependOnTheOtherPixelsOfTheTask) {
+  Scene scene = LoadSceneFile("tests/scenes/paper_b_twelve_spheres.json");
+  scene.render.width = 64;
+  scene.render.height = 48;
+  const int frame = 3, window = 20;
+  const size_t count = 64 * 48;
+  EmbreeDevice device;
+  std::vector<uint32_t> all(count);
+  std::iota(all.begin(), all.end(), 0u);
+  std::vector<float> rgb(count * 3);
+  std::vector<int32_t> reference(count);
+  {
+    ThreadPool pool(1);
+    Tracer tracer(device, scene, pool);
+    tracer.TracePixels(frame, all.data(), count, rgb.data(), window, reference.data());
+  }
+  std::mt19937 random(7);
+  ThreadPool pool(3);
+  Tracer tracer(device, scene, pool);
+  for (int trial = 0; trial < 4; ++trial) {
+    std::vector<uint32_t> subset = all;
+    std::shuffle(subset.begin(), subset.end(), random);
+    subset.resize(1 + random() % count);
+    std::vector<int32_t> horizons(subset.size());
+    std::vector<float> subsetRgb(subset.size() * 3);
+    tracer.TracePixels(frame, subset.data(), subset.size(), subsetRgb.data(), window, horizons.data());
+    for (size_t i = 0; i < subset.size(); ++i) {
+      ASSERT_EQ(horizons[i], reference[subset[i]]) << "pixel " << subset[i];
+    }
+  }
 }
 
 TEST(HorizonsTest, PaperAnimationsKeepEveryPromise) {
