@@ -259,10 +259,16 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
   hit.shape = shape;
   hit.material = scene_.shapes[shape].material;
   const std::vector<Float3>& faces = (*frame_.faceNormals)[shape];
-  Float3 normal = faces.empty() ? raw.geometricNormal : faces[raw.primitiveId];
-  float length = Length(normal);
-  // A degenerate normal would put NaN into the frame; face the ray instead.
-  normal = (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : -direction;
+  Float3 normal;
+  if (!faces.empty() && (faces[raw.primitiveId].x != 0 || faces[raw.primitiveId].y != 0 ||
+                         faces[raw.primitiveId].z != 0)) {
+    normal = faces[raw.primitiveId];  // unit already
+  } else {
+    Float3 n = faces.empty() ? raw.geometricNormal : Float3{};
+    float length = Length(n);
+    // A degenerate normal would put NaN into the frame; face the ray instead.
+    normal = (length > 0 && std::isfinite(length)) ? n * (1.0f / length) : -direction;
+  }
   hit.fromInside = Dot(normal, direction) > 0;
   hit.normal = hit.fromInside ? -normal : normal;
   return hit;
