@@ -1,0 +1,92 @@
+#include "farm/verification.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+namespace tcfarm {
+namespace {
+
+constexpr int kWidth = 40, kHeight = 30;
+constexpr size_t kPixels = kWidth * kHeight;
+
+// A frame whose pixel p is p / 1000 in every channel, with every tenth pixel traced.
+std::pair<std::vector<float>, std::vector<uint8_t>> Frame() {
+  std::vector<float> rgb(kPixels * 3);
+  std::vector<uint8_t> traced(kPixels);
+  for (size_t p = 0; p < kPixels; ++p) {
+    rgb[3 * p] = rgb[3 * p + 1] = rgb[3 * p + 2] = p / 1000.0f;
+    traced[p] = p % 10 == 0;
+  }
+  return {rgb, traced};
+}
+
+// Answers every request with the true frame, except pixels in `wrong`.
+void Answer(Verification& verification, const std::set<uint32_t>& wrong = {}) {
+  auto [truth, traced] = Frame();
+  for (const auto& request : verification.TakeRequests()) {
+    std::vector<float> rgb;
+    request.pixels.ForEach([&](uint32_t p) {
+      float v = wrong.count(p) ? -1.0f : truth[3 * p];
+      rgb.insert(rgb.end(), {v, v, v});
+    });
+    EXPECT_TRUE(verification.OnResult(request.id, rgb.data(), rgb.size()));
+  }
+}
+
+TEST(VerificationTest, FramesToVerifySpreadEvenly) {
+  EXPECT_EQ(FramesToVerify(60, true, 0).size(), 60u);
+  EXPECT_EQ(FramesToVerify(60, false, 3), (std::vector<int>{0, 30, 59}));
+  EXPECT_EQ(FramesToVerify(60, false, 1), (std::vector<int>{30}));
+  EXPECT_TRUE(FramesToVerify(60, false, 0).empty());
+  EXPECT_EQ(FramesToVerify(5, false, 50).size(), 5u);
+}
+
+TEST(VerificationTest, SpotChecksStayWithinTwoPercentAndFindNothingWhenCopiesAreRight) {
+  Verification verification(kWidth, kHeight, 4, {{}, 0.5 /* clamped to 2 % */, 1});
+  for (int frame = 0; frame < 4; ++frame) {
+    auto [rgb, traced] = Frame();
+    verification.OnFrameFinished(frame, rgb, traced);
+  }
+  EXPECT_TRUE(verification.Pending());
+  EXPECT_LE(verification.ExtraPixels(), static_cast<uint64_t>(0.02 * kPixels * 4) + 4);
+  EXPECT_GT(verification.ExtraPixels(), 0u);
+  Answer(verification);
+  EXPECT_FALSE(verification.Pending());
+  auto report = verification.Report()["spot_checks"];
+  EXPECT_EQ(report["mismatches"], 0);
+  EXPECT_EQ(report["estimated_error_percent"], 0.0);
+  EXPECT_GT(report["ci95_percent"][1].get<double>(), 0.0);  // zero seen is not zero proven
+}
+
+TEST(VerificationTest, SpotChecksEstimateTheShareOfWrongCopies) {
+  // Every copied pixel wrong: the estimate is the copied share, 90 %.
+  Verification verification(kWidth, kHeight, 1, {{}, 0.02, 3});
+  auto [rgb, traced] = Frame();
+  verification.OnFrameFinished(0, rgb, traced);
+  std::set<uint32_t> all;
+  for (uint32_t p = 0; p < kPixels; ++p) all.insert(p);
+  Answer(verification, all);
+  auto report = verification.Report()["spot_checks"];
+  EXPECT_EQ(report["mismatches"], report["pixels_checked"]);
+  EXPECT_NEAR(report["estimated_error_percent"].get<double>(), 90.0, 1e-9);
+  EXPECT_LE(report["ci95_percent"][0].get<double>(), 90.0);
+}
+
+TEST(VerificationTest, ReferenceFramesAreComparedInFull) {
+  Verification verification(kWidth, kHeight, 3, {{1}, 0.01, 1});
+  for (int frame = 0; frame < 3; ++frame) {
+    auto [rgb, traced] = Frame();
+    verification.OnFrameFinished(frame, rgb, traced);
+  }
+  Answer(verification, {5, 6, 7});  // the reference differs from the job's frame in 3 pixels
+  auto reference = verification.Report()["reference"];
+  EXPECT_EQ(reference["frames_compared"], 1);
+  EXPECT_EQ(reference["pixels_differing"], 3);
+  EXPECT_LT(reference["ssim"].get<double>(), 1.0);
+  EXPECT_FALSE(verification.OnResult(12345, nullptr, 0));
+  EXPECT_THROW(Verification(kWidth, kHeight, 3, {{7}, 0.01, 1}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace tcfarm
