@@ -1,6 +1,9 @@
 // tcfarm-worker: a stateless tracing process.
 //   tcfarm-worker serve [--coordinator tcp://HOST:5555] [--threads N] [--capacity K] [--name NAME]
 //   tcfarm-worker render SCENE --frames A:B --out DIR   brute-force reference render
+//                                                       (runs tcfarm-render, installed beside it)
+#include <unistd.h>
+
 #include <atomic>
 #include <csignal>
 #include <cstdlib>
@@ -11,8 +14,6 @@
 #include <vector>
 
 #include "daemon/worker_daemon.h"
-#include "render/render_command.h"
-#include "scene/scene.h"
 
 namespace {
 
@@ -73,6 +74,23 @@ int RunServe(const std::vector<std::string>& args) {
   return 0;
 }
 
+// Replaces this process with tcfarm-render from the same folder (or PATH).
+int ExecRender(char** argv) {
+  char self[4096];
+  ssize_t length = readlink("/proc/self/exe", self, sizeof self - 1);
+  std::string beside;
+  if (length > 0) {
+    self[length] = 0;
+    beside = std::string(self);
+    beside = beside.substr(0, beside.rfind('/') + 1) + "tcfarm-render";
+  }
+  argv[0] = const_cast<char*>("tcfarm-render");
+  if (!beside.empty()) execv(beside.c_str(), argv);
+  execvp("tcfarm-render", argv);
+  std::perror("tcfarm-worker render: cannot run tcfarm-render");
+  return 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -85,15 +103,12 @@ int main(int argc, char** argv) {
   args.erase(args.begin());
   try {
     if (command == "serve") return RunServe(args);
-    if (command == "render") return tcfarm::RunRender(tcfarm::ParseRenderArguments(args));
+    if (command == "render") return ExecRender(argv + 1);
     std::fprintf(stderr, "tcfarm-worker: unknown command '%s'\n%s", command.c_str(), kUsage);
     return 2;
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "tcfarm-worker %s: %s\n", command.c_str(), e.what());
     return 2;
-  } catch (const tcfarm::SceneError& e) {
-    std::fprintf(stderr, "tcfarm-worker: %s\n", e.what());
-    return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "tcfarm-worker %s: %s\n", command.c_str(), e.what());
     return 1;
