@@ -41,14 +41,31 @@ class LocalFarm:
         for _ in range(workers):
             self.add_worker()
 
-    def add_worker(self):
+    def add_worker(self, *extra_args):
         index = len(self.workers)
         process = subprocess.Popen(
             [str(WORKER), "serve", "--coordinator", self.zmq, "--threads",
-             str(self.worker_threads), "--name", f"test-{index}"],
-            stdout=subprocess.DEVNULL, stderr=open(self.directory / f"worker{index}.log", "w"))
+             str(self.worker_threads), "--name", f"test-{index}", *extra_args],
+            stdout=subprocess.DEVNULL, stderr=open(self.worker_log(index), "w"))
         self.workers.append(process)
         return process
+
+    def worker_log(self, index):
+        return self.directory / f"worker{index}.log"
+
+    def add_worker_with_metrics(self, timeout=10):
+        """Starts a worker serving /metrics on a free port; returns (process, base URL)."""
+        index = len(self.workers)
+        process = self.add_worker("--metrics", "127.0.0.1:0")
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            match = re.search(r"metrics on (http://\S+)/metrics", self.worker_log(index).read_text())
+            if match:
+                return process, match.group(1)
+            if process.poll() is not None:
+                break
+            time.sleep(0.02)
+        raise RuntimeError(f"worker {index} did not serve metrics; see {self.worker_log(index)}")
 
     def wait_for_workers(self, count, timeout=10):
         deadline = time.monotonic() + timeout

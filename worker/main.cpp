@@ -1,5 +1,6 @@
 // tcfarm-worker: a stateless tracing process.
 //   tcfarm-worker serve [--coordinator tcp://HOST:5555] [--threads N] [--capacity K] [--name NAME]
+//                       [--metrics HOST:PORT]   serve /metrics and /healthz over HTTP
 //   tcfarm-worker render SCENE --frames A:B --out DIR   brute-force reference render
 //                                                       (runs tcfarm-render, installed beside it)
 #include <unistd.h>
@@ -20,6 +21,7 @@ namespace {
 constexpr const char* kUsage =
     "usage: tcfarm-worker serve [--coordinator tcp://HOST:PORT] [--threads N] [--capacity K] "
     "[--name NAME]\n"
+    "                           [--metrics HOST:PORT]\n"
     "       tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N]\n";
 
 std::atomic<bool> stopRequested{false};
@@ -40,9 +42,16 @@ unsigned ParseCount(const std::string& text, const std::string& flag, unsigned m
   return static_cast<unsigned>(value);
 }
 
-tcfarm::WorkerOptions ParseServeArguments(const std::vector<std::string>& args) {
-  tcfarm::WorkerOptions options;
+struct ServeArguments {
+  tcfarm::WorkerOptions worker;
+  std::string metricsAddress;  // empty: no HTTP endpoint
+};
+
+ServeArguments ParseServeArguments(const std::vector<std::string>& args) {
+  ServeArguments parsed;
+  tcfarm::WorkerOptions& options = parsed.worker;
   if (const char* env = std::getenv("TCFARM_COORDINATOR")) options.coordinator = env;
+  if (const char* env = std::getenv("TCFARM_WORKER_METRICS")) parsed.metricsAddress = env;
   for (size_t i = 0; i < args.size(); ++i) {
     auto value = [&]() -> const std::string& {
       if (i + 1 >= args.size()) throw std::invalid_argument(args[i] + " needs a value");
@@ -56,20 +65,32 @@ tcfarm::WorkerOptions ParseServeArguments(const std::vector<std::string>& args) 
       options.capacity = std::min(ParseCount(value(), "--capacity", 1), tcfarm::wire::kMaxCapacity);
     } else if (args[i] == "--name") {
       options.name = value();
+    } else if (args[i] == "--metrics") {
+      parsed.metricsAddress = value();
     } else {
       throw std::invalid_argument("unexpected argument " + args[i]);
     }
   }
-  return options;
+  return parsed;
 }
 
 int RunServe(const std::vector<std::string>& args) {
-  tcfarm::WorkerOptions options = ParseServeArguments(args);
+  const ServeArguments parsed = ParseServeArguments(args);
+  std::string metricsHost;
+  int metricsPort = 0;
+  if (!parsed.metricsAddress.empty()) {
+    tcfarm::ParseListenAddress(parsed.metricsAddress, &metricsHost, &metricsPort);
+  }
   std::signal(SIGINT, RequestStop);
   std::signal(SIGTERM, RequestStop);
   tcfarm::SystemClock clock;
-  tcfarm::WorkerDaemon daemon(options, clock);
-  std::fprintf(stderr, "tcfarm-worker: serving %s\n", options.coordinator.c_str());
+  tcfarm::WorkerDaemon daemon(parsed.worker, clock);
+  tcfarm::MetricsEndpoint endpoint(daemon.metrics().registry, [&daemon] { return daemon.Health(); });
+  if (!parsed.metricsAddress.empty()) {
+    const int port = endpoint.Start(metricsHost, metricsPort);
+    std::fprintf(stderr, "tcfarm-worker: metrics on http://%s:%d/metrics\n", metricsHost.c_str(), port);
+  }
+  std::fprintf(stderr, "tcfarm-worker: serving %s\n", parsed.worker.coordinator.c_str());
   daemon.Run(stopRequested);
   return 0;
 }

@@ -203,47 +203,14 @@ const std::vector<ApiServer::Route>& ApiServer::Routes() {
 }
 
 int ApiServer::Start() {
-  if (server_) throw std::logic_error("ApiServer::Start: already started");
   auto server = std::make_unique<httplib::Server>();
   Configure(*server);
-  int port = options_.port;
-  if (port == 0) {
-    port = server->bind_to_any_port(options_.host);
-  } else if (!server->bind_to_port(options_.host, port)) {
-    port = -1;
-  }
-  if (port < 0) {
-    throw std::runtime_error("cannot listen on " + options_.host + ":" + std::to_string(options_.port));
-  }
-  server_ = std::move(server);
-  listenReturned_ = false;
-  listenThread_ = std::thread([this] {
-    server_->listen_after_bind();
-    listenReturned_ = true;
-  });
-  // httplib's stop() does nothing until the listen loop is running, so Stop right after
-  // Start would otherwise hang in join.
-  while (!server_->is_running() && !listenReturned_) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return port;
+  return listener_.Start(std::move(server), options_.host, options_.port);
 }
 
-void ApiServer::Stop() {
-  if (!server_) return;
-  server_->stop();
-  if (listenThread_.joinable()) listenThread_.join();
-  server_.reset();
-}
+void ApiServer::Stop() { listener_.Stop(); }
 
 void ApiServer::Configure(httplib::Server& server) {
-  // httplib's default sets SO_REUSEPORT, with which a second coordinator on the same port
-  // starts "fine" and the kernel splits requests between the two. SO_REUSEADDR alone
-  // still allows a quick restart over connections in TIME_WAIT.
-  server.set_socket_options([](socket_t sock) {
-    int yes = 1;
-    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
-  });
   server.set_payload_max_length(options_.maxBodyBytes);
   for (const Route& route : Routes()) Register(server, route.method, route.pattern, route.handle);
   // Registered last, so they only see what no route matched: answers 405 or 404 in the

@@ -8,7 +8,6 @@
 // rendering.
 #pragma once
 
-#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -16,12 +15,12 @@
 #include <mutex>
 #include <regex>
 #include <string>
-#include <thread>
 #include <unordered_map>
 #include <vector>
 
 #include "farm/farm_control.h"
 #include "http/job_json.h"
+#include "net/http_listener.h"
 #include "jobs/job_store.h"
 
 namespace httplib {
@@ -113,9 +112,7 @@ class ApiServer {
   std::mutex geometryMutex_;
   std::unordered_map<uint64_t, JobGeometry> geometry_;
 
-  std::unique_ptr<httplib::Server> server_;
-  std::thread listenThread_;
-  std::atomic<bool> listenReturned_{false};
+  HttpListener listener_;
 };
 
 }  // namespace tcfarm

@@ -51,8 +51,15 @@ WorkerDaemon::WorkerDaemon(WorkerOptions options, const Clock& clock)
       pool_(options_.threads),
       scenes_(device_, pool_),
       coordinator_(options_.heartbeat, clock.Now()),
-      backoff_(options_.heartbeat) {
+      backoff_(options_.heartbeat),
+      lastLoopTurn_(clock.Now().time_since_epoch().count()) {
   if (options_.name.empty()) options_.name = DefaultName();
+  metrics_.threads.Set(pool_.ThreadCount());
+}
+
+WorkerHealth WorkerDaemon::Health() const {
+  const SteadyTime lastTurn{SteadyTime::duration(lastLoopTurn_.load())};
+  return WorkerHealth{clock_.Now() - lastTurn < kStallAfter, coordinatorAnswers_.load()};
 }
 
 WorkerDaemon::~WorkerDaemon() = default;
@@ -67,7 +74,9 @@ void WorkerDaemon::Connect() {
 
 // Everything queued belonged to the old connection: the coordinator requeues it.
 void WorkerDaemon::Reconnect(const std::atomic<bool>& stop) {
-  ++counters_.reconnects;
+  metrics_.reconnects.Increment();
+  coordinatorAnswers_ = false;
+  metrics_.coordinatorUp.Set(0);
   ready_.clear();
   waitingForScene_.clear();
   socket_.reset();
@@ -93,6 +102,7 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
     ReceiveAll();
     if (!ready_.empty()) TraceNext();
     SteadyTime now = clock_.Now();
+    lastLoopTurn_ = now.time_since_epoch().count();
     if (coordinator_.IsDead(now)) {
       Reconnect(stop);
       continue;
@@ -107,10 +117,12 @@ void WorkerDaemon::ReceiveAll() {
     try {
       wire::Message message = wire::Decode(*parts);
       coordinator_.OnHeard(clock_.Now());  // only a well-formed message proves liveness
+      if (!coordinatorAnswers_.exchange(true)) metrics_.coordinatorUp.Set(1);
       Handle(std::move(message));
     } catch (const wire::WireError& e) {
       // Never trusted, never fatal: count it and go on.
-      if (counters_.malformed++ < 10) {
+      metrics_.messagesMalformed.Increment();
+      if (metrics_.messagesMalformed.Value() <= 10) {
         std::fprintf(stderr, "worker %s: dropped a malformed message: %s\n",
                      options_.name.c_str(), e.what());
       }
@@ -136,11 +148,15 @@ void WorkerDaemon::Handle(wire::Message message) {
 
 void WorkerDaemon::OnTask(wire::Task task) {
   if (scenes_.Find(task.sceneHash)) {
+    metrics_.sceneCacheHits.Increment();
     ready_.push_back(std::move(task));
     return;
   }
   auto& waiting = waitingForScene_[task.sceneHash];
-  if (waiting.empty()) Send(wire::SceneGet{task.sceneHash});
+  if (waiting.empty()) {
+    metrics_.sceneCacheMisses.Increment();
+    Send(wire::SceneGet{task.sceneHash});
+  }
   waiting.push_back(std::move(task));
 }
 
@@ -163,7 +179,7 @@ void WorkerDaemon::OnScene(const wire::SceneData& scene) {
     for (auto& task : tasks) ready_.push_back(std::move(task));
     return;
   }
-  ++counters_.sceneErrors;
+  metrics_.sceneErrors.Increment();
   for (const auto& task : tasks) Send(wire::Error{task.taskId, scene.sceneHash, problem});
 }
 
@@ -193,13 +209,14 @@ void WorkerDaemon::TraceNext() {
                       task.window > 0 ? result.horizons.data() : nullptr);
   result.traceSeconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  RayCounts after = tracer->Counts();
-  result.primaryRays = after.primary - before.primary;
-  result.shadowRays = after.shadow - before.shadow;
-  result.reflectionRays = after.reflection - before.reflection;
-  result.refractionRays = after.refraction - before.refraction;
-  ++counters_.tasks;
-  counters_.pixels += indices.size();
+  const RayCounts after = tracer->Counts();
+  const RayCounts rays{after.primary - before.primary, after.shadow - before.shadow,
+                       after.reflection - before.reflection, after.refraction - before.refraction};
+  result.primaryRays = rays.primary;
+  result.shadowRays = rays.shadow;
+  result.reflectionRays = rays.reflection;
+  result.refractionRays = rays.refraction;
+  metrics_.RecordTask(indices.size(), rays, result.traceSeconds);
   Send(result);
 }
 

@@ -16,7 +16,9 @@
 
 #include <zmq.hpp>
 
+#include "daemon/metrics_endpoint.h"
 #include "daemon/scene_cache.h"
+#include "daemon/worker_metrics.h"
 #include "wire/liveness.h"
 #include "wire/wire.h"
 
@@ -32,14 +34,6 @@ struct WorkerOptions {
   HeartbeatPolicy heartbeat;
 };
 
-struct WorkerCounters {
-  uint64_t tasks = 0;
-  uint64_t pixels = 0;
-  uint64_t malformed = 0;  // messages dropped as malformed
-  uint64_t reconnects = 0;
-  uint64_t sceneErrors = 0;
-};
-
 class WorkerDaemon {
  public:
   WorkerDaemon(WorkerOptions options, const Clock& clock);
@@ -47,7 +41,11 @@ class WorkerDaemon {
 
   // Runs until *stop becomes true; then says DISCONNECT and returns.
   void Run(const std::atomic<bool>& stop);
-  const WorkerCounters& counters() const { return counters_; }
+  const WorkerMetrics& metrics() const { return metrics_; }
+  // Safe from any thread (the metrics endpoint asks): the loop stalls when it has not
+  // turned for kStallAfter, e.g. stuck in a task that never ends.
+  WorkerHealth Health() const;
+  static constexpr Milliseconds kStallAfter{30000};
 
  private:
   void Connect();
@@ -70,7 +68,9 @@ class WorkerDaemon {
   Backoff backoff_;
   std::deque<wire::Task> ready_;                           // scene at hand
   std::map<std::string, std::vector<wire::Task>> waitingForScene_;
-  WorkerCounters counters_;
+  WorkerMetrics metrics_;
+  std::atomic<SteadyTime::rep> lastLoopTurn_;
+  std::atomic<bool> coordinatorAnswers_{false};
 };
 
 }  // namespace tcfarm

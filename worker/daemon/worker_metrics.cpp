@@ -1,0 +1,61 @@
+#include "daemon/worker_metrics.h"
+
+namespace tcfarm {
+namespace {
+
+prometheus::Counter& NewCounter(prometheus::Registry& registry, const char* name,
+                                const char* help) {
+  return prometheus::BuildCounter().Name(name).Help(help).Register(registry).Add({});
+}
+
+prometheus::Gauge& NewGauge(prometheus::Registry& registry, const char* name, const char* help) {
+  return prometheus::BuildGauge().Name(name).Help(help).Register(registry).Add({});
+}
+
+prometheus::Family<prometheus::Counter>& RayFamily(prometheus::Registry& registry) {
+  return prometheus::BuildCounter()
+      .Name("tcfarm_worker_rays_total")
+      .Help("Rays cast by this worker, by ray type")
+      .Register(registry);
+}
+
+}  // namespace
+
+WorkerMetrics::WorkerMetrics()
+    : registry(std::make_shared<prometheus::Registry>()),
+      tasks(NewCounter(*registry, "tcfarm_worker_tasks_total", "Tasks traced")),
+      pixels(NewCounter(*registry, "tcfarm_worker_pixels_total", "Pixels traced")),
+      traceSeconds(NewCounter(*registry, "tcfarm_worker_trace_seconds_total",
+                              "Seconds spent tracing tasks")),
+      raysPrimary(RayFamily(*registry).Add({{"type", "primary"}})),
+      raysShadow(RayFamily(*registry).Add({{"type", "shadow"}})),
+      raysReflection(RayFamily(*registry).Add({{"type", "reflection"}})),
+      raysRefraction(RayFamily(*registry).Add({{"type", "refraction"}})),
+      sceneCacheHits(NewCounter(*registry, "tcfarm_worker_scene_cache_hits_total",
+                                "Tasks whose scene was already built")),
+      sceneCacheMisses(NewCounter(*registry, "tcfarm_worker_scene_cache_misses_total",
+                                  "Scenes fetched from the coordinator and built")),
+      sceneErrors(NewCounter(*registry, "tcfarm_worker_scene_errors_total",
+                             "Scenes that could not be built")),
+      messagesMalformed(NewCounter(*registry, "tcfarm_worker_messages_malformed_total",
+                                   "Inbound messages dropped as malformed")),
+      reconnects(NewCounter(*registry, "tcfarm_worker_reconnects_total",
+                            "Reconnections after the coordinator went silent")),
+      raysPerSecond(NewGauge(*registry, "tcfarm_worker_rays_per_second",
+                             "Rays per second of tracing time, last task")),
+      coordinatorUp(NewGauge(*registry, "tcfarm_worker_coordinator_up",
+                             "1 while the coordinator answers, 0 while it is silent")),
+      threads(NewGauge(*registry, "tcfarm_worker_threads", "Tracing threads")) {}
+
+void WorkerMetrics::RecordTask(size_t pixelCount, const RayCounts& rays, double seconds) {
+  tasks.Increment();
+  pixels.Increment(static_cast<double>(pixelCount));
+  traceSeconds.Increment(seconds);
+  raysPrimary.Increment(static_cast<double>(rays.primary));
+  raysShadow.Increment(static_cast<double>(rays.shadow));
+  raysReflection.Increment(static_cast<double>(rays.reflection));
+  raysRefraction.Increment(static_cast<double>(rays.refraction));
+  if (seconds > 0) raysPerSecond.Set(static_cast<double>(rays.Total()) / seconds);
+}
+
+}  // namespace tcfarm

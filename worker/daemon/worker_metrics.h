@@ -1,0 +1,40 @@
+// A worker's own Prometheus metrics: what it traced, how fast, and how its scene cache
+// and connection fare. Families are built once and their children kept, so the tracing
+// loop only increments. Scraped at the worker's /metrics (see MetricsEndpoint).
+#pragma once
+
+#include <memory>
+
+#include <prometheus/counter.h>
+#include <prometheus/gauge.h>
+#include <prometheus/registry.h>
+
+#include "trace/tracer.h"
+
+namespace tcfarm {
+
+struct WorkerMetrics {
+  WorkerMetrics();
+
+  // One finished task: its pixels, the rays it cast by type and its tracing time.
+  void RecordTask(size_t pixels, const RayCounts& rays, double traceSeconds);
+
+  std::shared_ptr<prometheus::Registry> registry;
+  prometheus::Counter& tasks;
+  prometheus::Counter& pixels;
+  prometheus::Counter& traceSeconds;
+  prometheus::Counter& raysPrimary;
+  prometheus::Counter& raysShadow;
+  prometheus::Counter& raysReflection;
+  prometheus::Counter& raysRefraction;
+  prometheus::Counter& sceneCacheHits;    // tasks whose scene was already built
+  prometheus::Counter& sceneCacheMisses;  // scenes fetched from the coordinator
+  prometheus::Counter& sceneErrors;       // scenes that failed to build
+  prometheus::Counter& messagesMalformed;
+  prometheus::Counter& reconnects;
+  prometheus::Gauge& raysPerSecond;  // rays / tracing second of the last task
+  prometheus::Gauge& coordinatorUp;  // 1 while the coordinator answers
+  prometheus::Gauge& threads;
+};
+
+}  // namespace tcfarm
