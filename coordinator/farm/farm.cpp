@@ -137,7 +137,6 @@ void Farm::OnTaskFailed(uint64_t jobId, uint64_t /*plannerTaskId*/, const std::s
 void Farm::CollectFrames() {
   std::vector<uint64_t> done;
   for (auto& [id, run] : runs_) {
-    uint64_t tracedBefore = run->tracedPixels(), copiedBefore = run->copiedPixels();
     int frames = 0;
     try {
       frames = run->CollectFinishedFrames(store_);
@@ -146,8 +145,10 @@ void Farm::CollectFrames() {
       return;  // runs_ changed
     }
     metrics_.framesWritten.Increment(frames);
-    metrics_.pixelsTraced.Increment(static_cast<double>(run->tracedPixels() - tracedBefore));
-    metrics_.pixelsCopied.Increment(static_cast<double>(run->copiedPixels() - copiedBefore));
+    // Planners count pixels as results arrive, between collections.
+    const JobRun::PixelTally pixels = run->TakeUnreportedPixels();
+    metrics_.pixelsTraced.Increment(static_cast<double>(pixels.traced));
+    metrics_.pixelsCopied.Increment(static_cast<double>(pixels.copied));
     if (run->Done()) done.push_back(id);
   }
   for (uint64_t id : done) FinishJob(id);

@@ -230,4 +230,11 @@ nlohmann::json JobRun::Stats(bool final) const {
   return stats;
 }
 
+JobRun::PixelTally JobRun::TakeUnreportedPixels() {
+  const PixelTally now{tracedPixels(), copiedPixels()};
+  const PixelTally unreported{now.traced - reported_.traced, now.copied - reported_.copied};
+  reported_ = now;
+  return unreported;
+}
+
 }  // namespace tcfarm

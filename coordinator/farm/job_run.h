@@ -57,6 +57,11 @@ class JobRun {
   nlohmann::json Stats(bool final = false) const;
   uint64_t tracedPixels() const { return planner_->TracedPixels(); }
   uint64_t copiedPixels() const { return planner_->CopiedPixels(); }
+  // Pixels traced and copied since the previous call: what the farm's counters lack.
+  struct PixelTally {
+    uint64_t traced = 0, copied = 0;
+  };
+  PixelTally TakeUnreportedPixels();
 
  private:
   // Task ids of verification requests carry this bit; planner ids never reach it.
@@ -73,6 +78,7 @@ class JobRun {
   std::unique_ptr<Scene> scene_;
   ResolvedStrategy resolved_;
   std::unique_ptr<Planner> planner_;
+  PixelTally reported_;
   Verification verification_;
   FrameWriter writer_;
   std::chrono::steady_clock::time_point started_;

@@ -1,5 +1,6 @@
 """The farm end to end: a coordinator and worker processes over real ZeroMQ sockets, jobs
 submitted over real HTTP, frames compared with the standalone brute-force render."""
+import re
 import signal
 import time
 
@@ -38,6 +39,10 @@ def test_bin_width_ten_traces_fewer_pixels_and_reports_its_error(farm, twelve_sp
     job = farm.run_job(twelve_spheres, strategy="search", bin_width=10)
     assert job["traced_pixel_ratio"] < 0.8
     assert job["pixels_traced"] + job["pixels_copied"] == 21 * 160 * 120
+    metrics = farm.metrics()
+    for name in ("pixels_traced", "pixels_copied"):
+        counted = re.search(rf"^tcfarm_{name}_total (\S+)$", metrics, re.M).group(1)
+        assert float(counted) == job[name], (name, counted)
     assert min(job["traced_per_frame"]) >= 0
     error = compare(reference, farm.store / str(job["id"]))
     # The paper's flaw: copies between equal bin ends can be wrong, but few.
