@@ -1,0 +1,104 @@
+"""deploy/k8s: schema-valid for Kubernetes (kubernetes-validate, strict: unknown fields are
+errors) and consistent with the images, the compose file and each other."""
+import re
+import subprocess
+import sys
+
+import pytest
+import yaml
+
+from farm_harness import ROOT
+
+K8S = ROOT / "deploy" / "k8s"
+MANIFESTS = sorted(K8S.glob("*.yaml"))
+KUBERNETES_VERSION = "1.30.0"
+
+
+def validate(*paths):
+    return subprocess.run([sys.executable, "-m", "kubernetes_validate", "--strict", "-k",
+                           KUBERNETES_VERSION, *map(str, paths)], capture_output=True, text=True,
+                          timeout=120)
+
+
+def resources():
+    found = {}
+    for path in MANIFESTS:
+        for document in yaml.safe_load_all(path.read_text()):
+            if document and document.get("kind") != "Kustomization":
+                found[(document["kind"], document["metadata"]["name"])] = document
+    return found
+
+
+def container(resources, deployment):
+    [only] = resources[("Deployment", deployment)]["spec"]["template"]["spec"]["containers"]
+    return only
+
+
+def flag(args, name):
+    return args[args.index(name) + 1]
+
+
+@pytest.mark.parametrize("path", [p for p in MANIFESTS if p.name != "kustomization.yaml"],
+                         ids=lambda p: p.name)
+def test_manifest_is_valid_kubernetes(path):
+    result = validate(path)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_the_validator_refuses_a_broken_manifest(tmp_path):
+    broken = (K8S / "worker.yaml").read_text().replace("replicas: 3", 'replicas: "three"')
+    broken = broken.replace("imagePullPolicy: IfNotPresent", "imagePullPolicy: IfNotPresent\n"
+                            "          restartPolicyy: Always")
+    (tmp_path / "worker.yaml").write_text(broken)
+    result = validate(tmp_path / "worker.yaml")
+    assert result.returncode != 0
+    assert "three" in result.stdout + result.stderr
+
+
+def test_kustomization_lists_every_manifest():
+    kustomization = yaml.safe_load((K8S / "kustomization.yaml").read_text())
+    listed = set(kustomization["resources"])
+    assert listed == {p.name for p in MANIFESTS if p.name != "kustomization.yaml"}
+
+
+def test_workers_reach_the_coordinator_service():
+    found = resources()
+    service = found[("Service", "tcfarm-coordinator")]
+    ports = {p["name"]: p["port"] for p in service["spec"]["ports"]}
+    coordinator = container(found, "tcfarm-coordinator")
+    worker = container(found, "tcfarm-worker")
+    assert flag(worker["args"], "--coordinator") == f"tcp://tcfarm-coordinator:{ports['zmq']}"
+    container_ports = {p["name"]: p["containerPort"] for p in coordinator["ports"]}
+    assert flag(coordinator["args"], "--http").endswith(f":{container_ports['http']}")
+    assert flag(coordinator["args"], "--zmq").endswith(f":{container_ports['zmq']}")
+    # The service selects the coordinator's pods, and only them.
+    labels = found[("Deployment", "tcfarm-coordinator")]["spec"]["template"]["metadata"]["labels"]
+    assert service["spec"]["selector"].items() <= labels.items()
+
+
+def test_probes_and_scrape_annotations_name_real_ports():
+    found = resources()
+    for name in ("tcfarm-coordinator", "tcfarm-worker"):
+        spec = container(found, name)
+        ports = {p["name"]: p["containerPort"] for p in spec["ports"]}
+        for probe in ("livenessProbe", "readinessProbe"):
+            if probe in spec:
+                assert spec[probe]["httpGet"]["port"] in ports, (name, probe)
+                assert spec[probe]["httpGet"]["path"] == "/healthz"
+        annotations = found[("Deployment", name)]["spec"]["template"]["metadata"]["annotations"]
+        assert int(annotations["prometheus.io/port"]) in ports.values(), name
+    worker = container(found, "tcfarm-worker")
+    assert flag(worker["args"], "--metrics").endswith(f":{annotations['prometheus.io/port']}")
+
+
+def test_manifests_run_the_images_compose_builds_as_their_user():
+    compose = yaml.safe_load((ROOT / "docker-compose.yml").read_text())
+    dockerfile = (ROOT / "deploy" / "Dockerfile").read_text()
+    [image_user] = set(re.findall(r"^USER (\d+)$", dockerfile, re.M))
+    found = resources()
+    for service, deployment in (("coordinator", "tcfarm-coordinator"), ("worker", "tcfarm-worker")):
+        spec = container(found, deployment)
+        assert spec["image"] == compose["services"][service]["image"]
+        pod = found[("Deployment", deployment)]["spec"]["template"]["spec"]
+        assert pod["securityContext"]["runAsNonRoot"] is True
+        assert str(pod["securityContext"]["runAsUser"]) == image_user
