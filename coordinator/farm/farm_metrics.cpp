@@ -1,29 +1,18 @@
 #include "farm/farm_metrics.h"
 
+#include "metrics/metric_builders.h"
+
 namespace tcfarm {
 namespace {
 
-prometheus::Counter& NewCounter(prometheus::Registry& registry, const char* name,
-                                const char* help) {
-  return prometheus::BuildCounter().Name(name).Help(help).Register(registry).Add({});
-}
-
-prometheus::Gauge& NewGauge(prometheus::Registry& registry, const char* name, const char* help) {
-  return prometheus::BuildGauge().Name(name).Help(help).Register(registry).Add({});
-}
-
 prometheus::Family<prometheus::Counter>& RayFamily(prometheus::Registry& registry) {
-  return prometheus::BuildCounter()
-      .Name("tcfarm_rays_total")
-      .Help("Rays cast by the workers for this coordinator, by ray type")
-      .Register(registry);
+  return NewCounterFamily(registry, "tcfarm_rays_total",
+                          "Rays cast by the workers for this coordinator, by ray type");
 }
 
 prometheus::Family<prometheus::Counter>& JobsFamily(prometheus::Registry& registry) {
-  return prometheus::BuildCounter()
-      .Name("tcfarm_jobs_finished_total")
-      .Help("Jobs that reached a final state, by state")
-      .Register(registry);
+  return NewCounterFamily(registry, "tcfarm_jobs_finished_total",
+                          "Jobs that reached a final state, by state");
 }
 
 // Task latency buckets from 1 ms to ~16 s: a task is sized for tens of milliseconds.

@@ -1,22 +1,13 @@
 #include "daemon/worker_metrics.h"
 
+#include "metrics/metric_builders.h"
+
 namespace tcfarm {
 namespace {
 
-prometheus::Counter& NewCounter(prometheus::Registry& registry, const char* name,
-                                const char* help) {
-  return prometheus::BuildCounter().Name(name).Help(help).Register(registry).Add({});
-}
-
-prometheus::Gauge& NewGauge(prometheus::Registry& registry, const char* name, const char* help) {
-  return prometheus::BuildGauge().Name(name).Help(help).Register(registry).Add({});
-}
-
 prometheus::Family<prometheus::Counter>& RayFamily(prometheus::Registry& registry) {
-  return prometheus::BuildCounter()
-      .Name("tcfarm_worker_rays_total")
-      .Help("Rays cast by this worker, by ray type")
-      .Register(registry);
+  return NewCounterFamily(registry, "tcfarm_worker_rays_total",
+                          "Rays cast by this worker, by ray type");
 }
 
 }  // namespace
