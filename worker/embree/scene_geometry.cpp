@@ -5,8 +5,10 @@
 namespace tcfarm {
 namespace {
 
-// Frames kept placed: a worker's in-flight tasks rarely span more frames than this.
-constexpr size_t kCachedFrames = 8;
+// Frames kept placed: a worker's in-flight tasks rarely span more frames than this, and
+// an `exact` task re-tests blocked shadow rays on the frames ahead of its own. A placed
+// frame is a top-level tree over one instance per moving shape: small.
+constexpr size_t kCachedFrames = 64;
 
 void FillVertices(RTCGeometry geometry, const std::vector<Vec3>& vertices) {
   auto* out = static_cast<float*>(rtcSetNewGeometryBuffer(

@@ -30,8 +30,14 @@ Sequence RenderAll(Tracer& tracer, const Scene& scene) {
 struct HorizonCheck {
   size_t broken = 0;     // promises that brute force contradicts
   size_t unbounded = 0;  // pixels valid through the whole window
+  size_t needless = 0;   // pixels due again at a+1 that are unchanged there
+  size_t changed = 0;    // pixels that differ at a+1
   size_t pixels = 0;
 };
+
+bool SamePixel(const std::vector<float>& frame, const std::vector<float>& rgb, size_t p) {
+  return std::memcmp(&frame[3 * p], &rgb[3 * p], 3 * sizeof(float)) == 0;
+}
 
 // Traces frame `a` with horizons over the rest of the sequence and checks each promise.
 HorizonCheck Check(const Scene& scene, int a) {
@@ -53,8 +59,13 @@ HorizonCheck Check(const Scene& scene, int a) {
     EXPECT_GE(horizons[p], a + 1);
     EXPECT_LE(horizons[p], a + window + 1);
     check.unbounded += horizons[p] == a + window + 1;
+    if (a < last) {
+      bool same = SamePixel(all.frames[a + 1 - first], rgb, p);
+      check.changed += !same;
+      check.needless += same && horizons[p] == a + 1;
+    }
     for (int f = a + 1; f < horizons[p] && f <= last; ++f) {
-      if (std::memcmp(&all.frames[f - first][3 * p], &rgb[3 * p], 3 * sizeof(float)) != 0) {
+      if (!SamePixel(all.frames[f - first], rgb, p)) {
         ++check.broken;
         break;
       }
@@ -123,6 +134,68 @@ TEST(HorizonsTest, FlickeringLightCapsLitPixels) {
   HorizonCheck check = Check(scene, 0);
   EXPECT_EQ(check.broken, 0u);
   EXPECT_GT(check.unbounded, 0u);  // the background never changes
+}
+
+// A ball the camera cannot see (behind it, between the light and the wall) casts a large
+// shadow that drifts: only the shadow's edges change from frame to frame. Pixels deep in
+// the shadow stay blocked and must not be traced again at every frame.
+TEST(HorizonsTest, PixelsInADriftingShadowStayValidWhileTheyStayInShadow) {
+  Scene scene = Small(R"({
+    "camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},
+    "lights": [{"type": "point", "position": [0, 0, 20], "intensity": [300, 300, 300]}],
+    "shapes": [
+      {"type": "quad", "corner": [-8, -8, 0], "edge_u": [16, 0, 0], "edge_v": [0, 16, 0]},
+      {"type": "sphere", "center": [0, 0, 12], "radius": 1,
+       "motion": {"polynomial": [[-0.5, 0.1], [0], [0]]}}
+    ],
+    "render": {"width": 64, "height": 48, "frames": {"start": 0, "count": 10}}
+  })");
+  for (int a : {0, 4}) {
+    HorizonCheck check = Check(scene, a);
+    EXPECT_EQ(check.broken, 0u) << "frame " << a;
+    EXPECT_GT(check.changed, 20u) << "frame " << a;  // the shadow's edges move
+    EXPECT_LE(check.needless, check.changed / 10) << "frame " << a;
+  }
+}
+
+// Every frame of an `exact` sequence assembled as the coordinator does (a segment's first
+// frame in full, then each frame only the pixels due there, the rest copied) equals brute
+// force bit for bit.
+TEST(HorizonsTest, ExactSequencesOfThePaperAnimationsEqualBruteForce) {
+  for (const char* file : {"tests/scenes/paper_a_one_sphere.json",
+                           "tests/scenes/paper_b_twelve_spheres.json"}) {
+    Scene scene = LoadSceneFile(file);
+    scene.render.width = 160;
+    scene.render.height = 120;
+    scene.render.frameCount = 30;
+    EmbreeDevice device;
+    ThreadPool pool;
+    Tracer tracer(device, scene, pool);
+    Sequence brute = RenderAll(tracer, scene);
+    const int first = scene.render.firstFrame, last = scene.render.LastFrame();
+    const size_t count = static_cast<size_t>(scene.render.width) * scene.render.height;
+    std::vector<int32_t> due(count, first);
+    std::vector<float> assembled(count * 3);
+    size_t traced = 0, differing = 0;
+    for (int frame = first; frame <= last; ++frame) {
+      std::vector<uint32_t> pixels;
+      for (size_t p = 0; p < count; ++p) {
+        if (due[p] == frame) pixels.push_back(static_cast<uint32_t>(p));
+      }
+      std::vector<float> rgb(pixels.size() * 3);
+      std::vector<int32_t> horizons(pixels.size());
+      tracer.TracePixels(frame, pixels.data(), pixels.size(), rgb.data(), last - frame,
+                         horizons.data());
+      for (size_t i = 0; i < pixels.size(); ++i) {
+        std::memcpy(&assembled[3 * pixels[i]], &rgb[3 * i], 3 * sizeof(float));
+        due[pixels[i]] = frame < last ? horizons[i] : frame + 1;
+      }
+      traced += pixels.size();
+      for (size_t p = 0; p < count; ++p) differing += !SamePixel(brute.frames[frame - first], assembled, p);
+    }
+    EXPECT_EQ(differing, 0u) << file;
+    EXPECT_LT(traced, count * scene.render.frameCount / 3) << file;
+  }
 }
 
 TEST(HorizonsTest, MovingCameraMakesEveryHorizonTheNextFrame) {

@@ -162,7 +162,9 @@ std::vector<Float3> FaceNormals(const Shape& shape) {
 }  // namespace
 
 struct Tracer::FrameContext {
+  int frame;
   std::shared_ptr<const FrameGeometry> geometry;
+  SceneGeometry* frames;  // places later frames, for shadow rays re-tested there
   CameraRays camera;
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
@@ -190,6 +192,25 @@ struct Tracer::HorizonTracker {
   }
   void Surface(int forLane, bool moves) {
     horizon[forLane] = std::min(horizon[forLane], moves ? oracle->frame() + 1 : oracle->LightCap());
+  }
+  // A shadow ray found blocked at the traced frame: the light adds nothing, and keeps
+  // adding nothing for as long as the ray stays blocked, whoever blocks it. The pixel is
+  // re-tested frame by frame with the very query its trace would make there (blockedAt),
+  // instead of being traced again every frame a moving shape's shadow covers it.
+  template <typename BlockedAt>
+  void BlockedShadow(int forLane, Float3 origin, Float3 direction, float length,
+                     BlockedAt blockedAt) {
+    const int frame = oracle->frame();
+    if (horizon[forLane] == frame + 1) return;
+    // No moving shape's bounds come near the ray at the traced frame: what blocks it
+    // never moves, so it stays blocked.
+    if (oracle->FirstMeeting({origin, direction, length}) > frame + 1) return;
+    for (int f = frame + 1; f < horizon[forLane]; ++f) {
+      if (!blockedAt(f)) {
+        horizon[forLane] = f;
+        return;
+      }
+    }
   }
 };
 
@@ -237,9 +258,14 @@ class Tracer::PixelTracer {
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
+  // Folds a packet lane's shadow ray toward one light into its horizon.
+  void ShadowHorizon(int lane, const RTCRay8& query, bool blocked, Float3 start, Float3 toLight,
+                     float distance);
   Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
     return hit.position + hit.normal * (transmitted ? -hit.offset : hit.offset);
   }
+  // The traceable scene of a frame after this one, placed once per chunk of pixels.
+  RTCScene SceneAhead(int frame);
 
   const FrameContext& frame_;
   const Scene& scene_;
@@ -247,7 +273,15 @@ class Tracer::PixelTracer {
   RTCIntersectContext coherentContext_;
   RayCounts counts_;
   HorizonTracker* horizons_ = nullptr;
+  std::vector<std::shared_ptr<const FrameGeometry>> framesAhead_;  // [f - frame - 1]
 };
+
+RTCScene Tracer::PixelTracer::SceneAhead(int frame) {
+  size_t index = static_cast<size_t>(frame - frame_.frame - 1);
+  if (framesAhead_.size() <= index) framesAhead_.resize(index + 1);
+  if (!framesAhead_[index]) framesAhead_[index] = frame_.frames->ForFrame(frame);
+  return framesAhead_[index]->scene();
+}
 
 Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Float3 direction,
                                                              const RawHit& raw) const {
@@ -343,9 +377,10 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
   rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(frame_.geometry->scene(), &context_, &rayHit);
-  bool missed = rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID;
-  if (horizons_) horizons_->Segment(horizons_->lane, origin, direction, missed ? kInfinity : rayHit.ray.tfar);
-  if (missed) return frame_.background;
+  if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+    if (horizons_) horizons_->Segment(horizons_->lane, origin, direction, kInfinity);
+    return frame_.background;
+  }
 
   SurfaceHit hit = MakeHit(origin, direction,
                            {rayHit.ray.tfar,
@@ -353,7 +388,11 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
                             rayHit.hit.instID[0],
                             rayHit.hit.geomID,
                             rayHit.hit.primID});
-  if (horizons_) NoteSurface(horizons_->lane, hit);
+  // The surface first: a moving one settles the horizon and spares the segment's test.
+  if (horizons_) {
+    NoteSurface(horizons_->lane, hit);
+    horizons_->Segment(horizons_->lane, origin, direction, rayHit.ray.tfar);
+  }
   Float3 local = Ambient(hit);
   for (size_t light = 0; light < frame_.lights.size(); ++light) {
     Float3 toLight;
@@ -367,9 +406,20 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     shadow.tfar = distance;
     shadow.mask = ~0u;
     ++counts_.shadow;
-    if (horizons_) horizons_->Segment(horizons_->lane, start, toLight, distance);
+    const RTCRay query = shadow;
     rtcOccluded1(frame_.geometry->scene(), &context_, &shadow);
-    if (shadow.tfar >= 0) local += LightContribution(hit, light, toLight, distance);
+    bool blocked = shadow.tfar < 0;
+    if (!blocked) local += LightContribution(hit, light, toLight, distance);
+    if (!horizons_) continue;
+    if (!blocked) {
+      horizons_->Segment(horizons_->lane, start, toLight, distance);
+      continue;
+    }
+    horizons_->BlockedShadow(horizons_->lane, start, toLight, distance, [&](int frame) {
+      RTCRay ray = query;
+      rtcOccluded1(SceneAhead(frame), &context_, &ray);
+      return ray.tfar < 0;
+    });
   }
   return Combine(hit, local, depth);
 }
@@ -404,10 +454,8 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     hasHit[lane] = packet.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
     Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
     Float3 direction{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
-    if (horizons_) {
-      horizons_->Segment(lane, origin, direction, hasHit[lane] ? packet.ray.tfar[lane] : kInfinity);
-    }
     if (!hasHit[lane]) {
+      if (horizons_) horizons_->Segment(lane, origin, direction, kInfinity);
       color[lane] = frame_.background;
       continue;
     }
@@ -417,7 +465,10 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
                           packet.hit.instID[0][lane],
                           packet.hit.geomID[lane],
                           packet.hit.primID[lane]});
-    if (horizons_) NoteSurface(lane, hits[lane]);
+    if (horizons_) {
+      NoteSurface(lane, hits[lane]);
+      horizons_->Segment(lane, origin, direction, packet.ray.tfar[lane]);
+    }
     color[lane] = Ambient(hits[lane]);
   }
 
@@ -425,14 +476,16 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   for (size_t light = 0; light < frame_.lights.size(); ++light) {
     alignas(32) int shadowValid[kPacketWidth] = {};
     alignas(32) RTCRay8 shadow{};
-    Float3 toLight[kPacketWidth];
+    Float3 toLight[kPacketWidth], start[kPacketWidth];
     float distance[kPacketWidth];
     int shadowCount = 0;
     for (int lane = 0; lane < count; ++lane) {
       if (!hasHit[lane] || !ShadowRay(hits[lane], light, &toLight[lane], &distance[lane])) continue;
-      Float3 start = Spawn(hits[lane], false);
+      start[lane] = Spawn(hits[lane], false);
       shadowValid[lane] = -1;
-      shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
+      shadow.org_x[lane] = start[lane].x;
+      shadow.org_y[lane] = start[lane].y;
+      shadow.org_z[lane] = start[lane].z;
       shadow.dir_x[lane] = toLight[lane].x;
       shadow.dir_y[lane] = toLight[lane].y;
       shadow.dir_z[lane] = toLight[lane].z;
@@ -440,15 +493,16 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       shadow.tfar[lane] = distance[lane];
       shadow.mask[lane] = ~0u;
       ++shadowCount;
-      if (horizons_) horizons_->Segment(lane, start, toLight[lane], distance[lane]);
     }
     if (shadowCount == 0) continue;
     counts_.shadow += shadowCount;
+    const RTCRay8 query = shadow;
     rtcOccluded8(shadowValid, frame_.geometry->scene(), &coherentContext_, &shadow);
     for (int lane = 0; lane < count; ++lane) {
-      if (shadowValid[lane] && shadow.tfar[lane] >= 0) {
-        color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
-      }
+      if (!shadowValid[lane]) continue;
+      bool blocked = shadow.tfar[lane] < 0;
+      if (!blocked) color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
+      if (horizons_) ShadowHorizon(lane, query, blocked, start[lane], toLight[lane], distance[lane]);
     }
   }
   if (!frame_.anySecondary) return;
@@ -457,6 +511,22 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     if (horizons_) horizons_->lane = lane;
     color[lane] = Combine(hits[lane], color[lane], 0);
   }
+}
+
+void Tracer::PixelTracer::ShadowHorizon(int lane, const RTCRay8& query, bool blocked, Float3 start,
+                                        Float3 toLight, float distance) {
+  if (!blocked) {
+    horizons_->Segment(lane, start, toLight, distance);
+    return;
+  }
+  // Re-tested alone in the same packet query the trace makes, so both agree to the bit.
+  horizons_->BlockedShadow(lane, start, toLight, distance, [&](int frame) {
+    alignas(32) int valid[kPacketWidth] = {};
+    valid[lane] = -1;
+    alignas(32) RTCRay8 ray = query;
+    rtcOccluded8(valid, SceneAhead(frame), &coherentContext_, &ray);
+    return ray.tfar[lane] < 0;
+  });
 }
 
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
@@ -483,7 +553,9 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     }
   }
   const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
-  FrameContext context{geometry_.ForFrame(frame),
+  FrameContext context{frame,
+                       geometry_.ForFrame(frame),
+                       &geometry_,
                        MakeCamera(scene_, frame),
                        MakeLights(scene_, frame),
                        &materials,
