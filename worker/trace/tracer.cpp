@@ -194,23 +194,14 @@ struct Tracer::HorizonTracker {
     horizon[forLane] = std::min(horizon[forLane], moves ? oracle->frame() + 1 : oracle->LightCap());
   }
   // A shadow ray found blocked at the traced frame: the light adds nothing, and keeps
-  // adding nothing for as long as the ray stays blocked, whoever blocks it. The pixel is
-  // re-tested frame by frame with the very query its trace would make there (blockedAt),
-  // instead of being traced again every frame a moving shape's shadow covers it.
-  template <typename BlockedAt>
-  void BlockedShadow(int forLane, Float3 origin, Float3 direction, float length,
-                     BlockedAt blockedAt) {
-    const int frame = oracle->frame();
-    if (horizon[forLane] == frame + 1) return;
-    // No moving shape's bounds come near the ray at the traced frame: what blocks it
-    // never moves, so it stays blocked.
-    if (oracle->FirstMeeting({origin, direction, length}) > frame + 1) return;
-    for (int f = frame + 1; f < horizon[forLane]; ++f) {
-      if (!blockedAt(f)) {
-        horizon[forLane] = f;
-        return;
-      }
-    }
+  // adding nothing for as long as the ray stays blocked, whoever blocks it. Such a ray is
+  // re-tested frame by frame ahead with the very query its trace would make there,
+  // instead of the pixel being traced again at every frame a moving shadow covers it.
+  // Not needed when the horizon is the next frame already, nor when no moving shape's
+  // bounds come near the ray: what blocks it never moves, so it stays blocked.
+  bool BlockedShadowMayClear(int forLane, Float3 origin, Float3 direction, float length) const {
+    return horizon[forLane] > oracle->frame() + 1 &&
+           oracle->FirstMeeting({origin, direction, length}) <= oracle->frame() + 1;
   }
 };
 
@@ -258,9 +249,8 @@ class Tracer::PixelTracer {
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
-  // Folds a packet lane's shadow ray toward one light into its horizon.
-  void ShadowHorizon(int lane, const RTCRay8& query, bool blocked, Float3 start, Float3 toLight,
-                     float distance);
+  // Folds a packet's shadow rays toward one light into their samples' horizons.
+  void ShadowHorizons(const RTCRay8& query, const int* valid, const int* blocked);
   Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
     return hit.position + hit.normal * (transmitted ? -hit.offset : hit.offset);
   }
@@ -411,15 +401,17 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     bool blocked = shadow.tfar < 0;
     if (!blocked) local += LightContribution(hit, light, toLight, distance);
     if (!horizons_) continue;
+    const int lane = horizons_->lane;
     if (!blocked) {
-      horizons_->Segment(horizons_->lane, start, toLight, distance);
+      horizons_->Segment(lane, start, toLight, distance);
       continue;
     }
-    horizons_->BlockedShadow(horizons_->lane, start, toLight, distance, [&](int frame) {
+    if (!horizons_->BlockedShadowMayClear(lane, start, toLight, distance)) continue;
+    for (int frame = frame_.frame + 1; frame < horizons_->horizon[lane]; ++frame) {
       RTCRay ray = query;
       rtcOccluded1(SceneAhead(frame), &context_, &ray);
-      return ray.tfar < 0;
-    });
+      if (ray.tfar >= 0) horizons_->horizon[lane] = frame;
+    }
   }
   return Combine(hit, local, depth);
 }
@@ -476,16 +468,14 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   for (size_t light = 0; light < frame_.lights.size(); ++light) {
     alignas(32) int shadowValid[kPacketWidth] = {};
     alignas(32) RTCRay8 shadow{};
-    Float3 toLight[kPacketWidth], start[kPacketWidth];
+    Float3 toLight[kPacketWidth];
     float distance[kPacketWidth];
     int shadowCount = 0;
     for (int lane = 0; lane < count; ++lane) {
       if (!hasHit[lane] || !ShadowRay(hits[lane], light, &toLight[lane], &distance[lane])) continue;
-      start[lane] = Spawn(hits[lane], false);
+      Float3 start = Spawn(hits[lane], false);
       shadowValid[lane] = -1;
-      shadow.org_x[lane] = start[lane].x;
-      shadow.org_y[lane] = start[lane].y;
-      shadow.org_z[lane] = start[lane].z;
+      shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
       shadow.dir_x[lane] = toLight[lane].x;
       shadow.dir_y[lane] = toLight[lane].y;
       shadow.dir_z[lane] = toLight[lane].z;
@@ -498,12 +488,13 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     counts_.shadow += shadowCount;
     const RTCRay8 query = shadow;
     rtcOccluded8(shadowValid, frame_.geometry->scene(), &coherentContext_, &shadow);
+    int blocked[kPacketWidth] = {};
     for (int lane = 0; lane < count; ++lane) {
       if (!shadowValid[lane]) continue;
-      bool blocked = shadow.tfar[lane] < 0;
-      if (!blocked) color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
-      if (horizons_) ShadowHorizon(lane, query, blocked, start[lane], toLight[lane], distance[lane]);
+      blocked[lane] = shadow.tfar[lane] < 0;
+      if (!blocked[lane]) color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
     }
+    if (horizons_) ShadowHorizons(query, shadowValid, blocked);
   }
   if (!frame_.anySecondary) return;
   for (int lane = 0; lane < count; ++lane) {
@@ -513,20 +504,36 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   }
 }
 
-void Tracer::PixelTracer::ShadowHorizon(int lane, const RTCRay8& query, bool blocked, Float3 start,
-                                        Float3 toLight, float distance) {
-  if (!blocked) {
-    horizons_->Segment(lane, start, toLight, distance);
-    return;
+void Tracer::PixelTracer::ShadowHorizons(const RTCRay8& query, const int* valid,
+                                         const int* blocked) {
+  bool walking[kPacketWidth] = {};
+  bool anyWalking = false;
+  for (int lane = 0; lane < kPacketWidth; ++lane) {
+    if (!valid[lane]) continue;
+    Float3 start{query.org_x[lane], query.org_y[lane], query.org_z[lane]};
+    Float3 toLight{query.dir_x[lane], query.dir_y[lane], query.dir_z[lane]};
+    if (!blocked[lane]) {
+      horizons_->Segment(lane, start, toLight, query.tfar[lane]);
+    } else if (horizons_->BlockedShadowMayClear(lane, start, toLight, query.tfar[lane])) {
+      walking[lane] = anyWalking = true;
+    }
   }
-  // Re-tested alone in the same packet query the trace makes, so both agree to the bit.
-  horizons_->BlockedShadow(lane, start, toLight, distance, [&](int frame) {
-    alignas(32) int valid[kPacketWidth] = {};
-    valid[lane] = -1;
+  // The lanes still blocked go on together, one packet query per frame ahead, as the
+  // trace itself would ask it there.
+  for (int frame = frame_.frame + 1; anyWalking; ++frame) {
+    alignas(32) int ahead[kPacketWidth] = {};
+    anyWalking = false;
+    for (int lane = 0; lane < kPacketWidth; ++lane) {
+      walking[lane] = walking[lane] && frame < horizons_->horizon[lane];
+      if (walking[lane]) ahead[lane] = -1, anyWalking = true;
+    }
+    if (!anyWalking) break;
     alignas(32) RTCRay8 ray = query;
-    rtcOccluded8(valid, SceneAhead(frame), &coherentContext_, &ray);
-    return ray.tfar[lane] < 0;
-  });
+    rtcOccluded8(ahead, SceneAhead(frame), &coherentContext_, &ray);
+    for (int lane = 0; lane < kPacketWidth; ++lane) {
+      if (walking[lane] && ray.tfar[lane] >= 0) horizons_->horizon[lane] = frame, walking[lane] = false;
+    }
+  }
 }
 
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {

@@ -100,21 +100,21 @@ void TraceExactSequence(benchmark::State& state, const std::string& file) {
 }
 
 BENCHMARK_CAPTURE(TraceExactSequence, a_one_sphere, "paper_a_one_sphere.json")
-    ->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
 BENCHMARK_CAPTURE(TraceExactSequence, b_twelve_spheres, "paper_b_twelve_spheres.json")
-    ->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
 
 BENCHMARK_CAPTURE(TraceSceneFramesWithHorizons, a_one_sphere, "paper_a_one_sphere.json")
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSceneFramesWithHorizons, b_twelve_spheres, "paper_b_twelve_spheres.json")
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 
 BENCHMARK_CAPTURE(TraceSceneFrames, a_one_sphere, "paper_a_one_sphere.json")
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSceneFrames, b_twelve_spheres, "paper_b_twelve_spheres.json")
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSceneFrames, c_terrain_flyover, "paper_c_terrain_flyover.json")
-    ->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 
 }  // namespace
 }  // namespace tcfarm
