@@ -135,6 +135,60 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame) {
     }
   }
   movers_.push_back(std::move(mover));
+  if (shape.type != Shape::Type::kSphere) return;
+  MovingSphere sphere{shape.radius, {}};
+  for (int f = frame_; f <= lastFrame; ++f) {
+    Vec3 t = shape.translation.Evaluate(f);
+    // In the tracer's own precision: a float centre placed by a float translation.
+    sphere.centers.push_back({double(float(shape.center.x)) + double(float(t.x)),
+                              double(float(shape.center.y)) + double(float(t.y)),
+                              double(float(shape.center.z)) + double(float(t.z))});
+  }
+  spheres_.push_back(std::move(sphere));
+}
+
+bool HorizonOracle::SurelyBlocked(const RaySegment& segment, int frame, int* hint) const {
+  if (frame <= frame_ || frame > frame_ + window_) return false;
+  const int count = static_cast<int>(spheres_.size());
+  if (*hint >= 0 && *hint < count && SphereSurelyBlocks(spheres_[*hint], segment, frame)) return true;
+  for (int i = 0; i < count; ++i) {
+    if (i != *hint && SphereSurelyBlocks(spheres_[i], segment, frame)) {
+      *hint = i;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool HorizonOracle::SphereSurelyBlocks(const MovingSphere& sphere, const RaySegment& segment,
+                                       int frame) const {
+  size_t index = static_cast<size_t>(frame - frame_);
+  if (index >= sphere.centers.size()) return false;
+  const Vec3& c = sphere.centers[index];
+  const double ox = segment.origin.x, oy = segment.origin.y, oz = segment.origin.z;
+  const double dx = segment.direction.x, dy = segment.direction.y, dz = segment.direction.z;
+  const double length = segment.length;
+  // Margins: the tracer rounds in float, relative to the coordinates' magnitude (~1e-7
+  // of it per operation); these are a hundred times that and a thousandth of the radius.
+  const double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), std::fabs(ox),
+                                     std::fabs(oy), std::fabs(oz)}) + sphere.radius;
+  const double slack = 1e-3 * sphere.radius + 1e-5 * magnitude;
+  const double inner = sphere.radius - slack, outer = sphere.radius + slack;
+  if (inner <= 0) return false;
+  const double ocx = c.x - ox, ocy = c.y - oy, ocz = c.z - oz;
+  const double dd = dx * dx + dy * dy + dz * dz;
+  const double along = (ocx * dx + ocy * dy + ocz * dz) / dd;
+  const double px = ocx - along * dx, py = ocy - along * dy, pz = ocz - along * dz;
+  const double missBy2 = px * px + py * py + pz * pz;
+  if (missBy2 >= inner * inner) return false;  // not well inside
+  if (ocx * ocx + ocy * ocy + ocz * ocz <= outer * outer) return false;  // starts inside
+  if (std::isfinite(length)) {
+    const double ex = ox + length * dx - c.x, ey = oy + length * dy - c.y, ez = oz + length * dz - c.z;
+    if (ex * ex + ey * ey + ez * ez <= outer * outer) return false;  // ends inside
+  }
+  // Where the segment enters the inner sphere: well after its start, well before its end.
+  const double enter = along - std::sqrt((inner * inner - missBy2) / dd);
+  return enter > slack && enter < length - slack;
 }
 
 HorizonOracle::Box HorizonOracle::EmptyBox() {
@@ -149,27 +203,34 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment) const {
     return Meets(ray, lo, hi);
   };
   if (!meets(all_)) return Unbounded();
-  int earliest = Unbounded();
+  // The movers whose whole path comes near the segment; usually one or two.
+  thread_local std::vector<const Mover*> near;
+  near.clear();
+  size_t frames = 0;
   for (const Mover& mover : movers_) {
     if (!meets(mover.swept)) continue;
-    // Its frames in order, chunk by chunk; only frames before the earliest meeting found
-    // so far can matter, and its own first meeting ends its search.
-    size_t limit = std::min(mover.proxies.size() / 4, static_cast<size_t>(earliest - frame_));
+    near.push_back(&mover);
+    frames = std::max(frames, mover.proxies.size() / 4);
+  }
+  // Chunk by chunk in time, every near mover at once: the first chunk with a meeting
+  // holds the answer, and later chunks are never looked at.
+  for (size_t chunk = 0; chunk * kFramesPerChunk < frames; ++chunk) {
+    size_t earliest = std::min(frames, (chunk + 1) * kFramesPerChunk);  // as a frame offset
     bool found = false;
-    for (size_t chunk = 0; !found && chunk * kFramesPerChunk < limit; ++chunk) {
-      if (!meets(mover.chunks[chunk])) continue;
-      size_t end = std::min(limit, (chunk + 1) * kFramesPerChunk);
+    for (const Mover* mover : near) {
+      if (chunk >= mover->chunks.size() || !meets(mover->chunks[chunk])) continue;
+      size_t end = std::min(earliest, mover->proxies.size() / 4);
       for (size_t i = chunk * kFramesPerChunk; i < end; ++i) {
-        if (SegmentMeetsSphere(segment, &mover.proxies[4 * i])) {
-          earliest = std::max(frame_ + static_cast<int>(i), frame_ + 1);
+        if (SegmentMeetsSphere(segment, &mover->proxies[4 * i])) {
+          earliest = i;
           found = true;
           break;
         }
       }
     }
-    if (earliest == frame_ + 1) break;
+    if (found) return std::max(frame_ + static_cast<int>(earliest), frame_ + 1);
   }
-  return earliest;
+  return Unbounded();
 }
 
 }  // namespace tcfarm

@@ -47,6 +47,12 @@ class HorizonOracle {
   int LightCap() const { return lightCap_; }
   // The first frame at which a moving shape's bounds meet the segment, else Unbounded().
   int FirstMeeting(const RaySegment& segment) const;
+  // Whether a moving sphere surely blocks the segment at `frame` (within the window): the
+  // segment runs through it well inside, from outside to outside, with margins far above
+  // the rounding of the tracer's own ray-sphere test, so that test says "blocked" too.
+  // False means "not sure", never "not blocked". `hint` carries the sphere found last
+  // time across calls for one segment: shadows move slowly, the blocker rarely changes.
+  bool SurelyBlocked(const RaySegment& segment, int frame, int* hint) const;
 
  private:
   struct Box {
@@ -60,12 +66,19 @@ class HorizonOracle {
     std::vector<Box> chunks;      // bounds of its proxies in frames [k * kFramesPerChunk, ...)
     std::vector<float> proxies;   // per frame a .. a+W: center xyz, radius
   };
+  // A moving sphere as the tracer places it: per frame a .. a+W, its centre.
+  struct MovingSphere {
+    double radius;
+    std::vector<Vec3> centers;
+  };
   static Box EmptyBox();
   void AddMover(const Shape& shape, int lastFrame);
+  bool SphereSurelyBlocks(const MovingSphere& sphere, const RaySegment& segment, int frame) const;
 
   int frame_, window_;
   int cameraCap_, lightCap_;
   std::vector<Mover> movers_;
+  std::vector<MovingSphere> spheres_;
   Box all_;  // bounds of every proxy: most segments miss it and cost one test
 };
 

@@ -199,9 +199,8 @@ struct Tracer::HorizonTracker {
   // instead of the pixel being traced again at every frame a moving shadow covers it.
   // Not needed when the horizon is the next frame already, nor when no moving shape's
   // bounds come near the ray: what blocks it never moves, so it stays blocked.
-  bool BlockedShadowMayClear(int forLane, Float3 origin, Float3 direction, float length) const {
-    return horizon[forLane] > oracle->frame() + 1 &&
-           oracle->FirstMeeting({origin, direction, length}) <= oracle->frame() + 1;
+  bool BlockedShadowMayClear(int forLane, const RaySegment& segment) const {
+    return horizon[forLane] > oracle->frame() + 1 && oracle->FirstMeeting(segment) <= oracle->frame() + 1;
   }
 };
 
@@ -406,8 +405,11 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
       horizons_->Segment(lane, start, toLight, distance);
       continue;
     }
-    if (!horizons_->BlockedShadowMayClear(lane, start, toLight, distance)) continue;
+    const RaySegment segment{start, toLight, distance};
+    if (!horizons_->BlockedShadowMayClear(lane, segment)) continue;
+    int blocker = -1;
     for (int frame = frame_.frame + 1; frame < horizons_->horizon[lane]; ++frame) {
+      if (horizons_->oracle->SurelyBlocked(segment, frame, &blocker)) continue;
       RTCRay ray = query;
       rtcOccluded1(SceneAhead(frame), &context_, &ray);
       if (ray.tfar >= 0) horizons_->horizon[lane] = frame;
@@ -507,31 +509,42 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
 void Tracer::PixelTracer::ShadowHorizons(const RTCRay8& query, const int* valid,
                                          const int* blocked) {
   bool walking[kPacketWidth] = {};
+  RaySegment segment[kPacketWidth];
+  int blocker[kPacketWidth];
   bool anyWalking = false;
   for (int lane = 0; lane < kPacketWidth; ++lane) {
     if (!valid[lane]) continue;
-    Float3 start{query.org_x[lane], query.org_y[lane], query.org_z[lane]};
-    Float3 toLight{query.dir_x[lane], query.dir_y[lane], query.dir_z[lane]};
+    segment[lane] = {{query.org_x[lane], query.org_y[lane], query.org_z[lane]},
+                     {query.dir_x[lane], query.dir_y[lane], query.dir_z[lane]},
+                     query.tfar[lane]};
+    blocker[lane] = -1;
     if (!blocked[lane]) {
-      horizons_->Segment(lane, start, toLight, query.tfar[lane]);
-    } else if (horizons_->BlockedShadowMayClear(lane, start, toLight, query.tfar[lane])) {
+      horizons_->Segment(lane, segment[lane].origin, segment[lane].direction, segment[lane].length);
+    } else if (horizons_->BlockedShadowMayClear(lane, segment[lane])) {
       walking[lane] = anyWalking = true;
     }
   }
-  // The lanes still blocked go on together, one packet query per frame ahead, as the
-  // trace itself would ask it there.
+  // The lanes still blocked go on together, frame by frame ahead: a moving sphere that
+  // surely blocks a ray settles it by arithmetic; the others are asked in one packet
+  // query, as the trace itself would ask it there.
   for (int frame = frame_.frame + 1; anyWalking; ++frame) {
     alignas(32) int ahead[kPacketWidth] = {};
     anyWalking = false;
+    bool anyAsked = false;
     for (int lane = 0; lane < kPacketWidth; ++lane) {
       walking[lane] = walking[lane] && frame < horizons_->horizon[lane];
-      if (walking[lane]) ahead[lane] = -1, anyWalking = true;
+      if (!walking[lane]) continue;
+      anyWalking = true;
+      if (!horizons_->oracle->SurelyBlocked(segment[lane], frame, &blocker[lane])) {
+        ahead[lane] = -1;
+        anyAsked = true;
+      }
     }
-    if (!anyWalking) break;
+    if (!anyAsked) continue;
     alignas(32) RTCRay8 ray = query;
     rtcOccluded8(ahead, SceneAhead(frame), &coherentContext_, &ray);
     for (int lane = 0; lane < kPacketWidth; ++lane) {
-      if (walking[lane] && ray.tfar[lane] >= 0) horizons_->horizon[lane] = frame, walking[lane] = false;
+      if (ahead[lane] && ray.tfar[lane] >= 0) horizons_->horizon[lane] = frame, walking[lane] = false;
     }
   }
 }
