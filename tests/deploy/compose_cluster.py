@@ -3,6 +3,7 @@ project on free host ports, with the engine, Compose and the base image made rea
 deploy/ensure-docker."""
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
@@ -36,10 +37,49 @@ def ensure_docker():
         raise RuntimeError("deploy/ensure-docker failed:\n" + result.stdout + result.stderr)
 
 
+# Project names carry the test process's pid, so a later run can tell the projects of
+# runs that died before tearing down (their containers restart with the engine) from
+# those of a run still going.
+PROJECT_PREFIX = "tcfarmtest"
+PROJECT_NAME = re.compile(PROJECT_PREFIX + r"(\d+)x[0-9a-f]{8}")
+
+
+def process_exists(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def compose_projects():
+    """Every Compose project name with a container, network or volume in the engine."""
+    label = '{{.Label "com.docker.compose.project"}}'
+    names = set()
+    for listing in (["ps", "-a"], ["network", "ls"], ["volume", "ls"]):
+        result = docker(*listing, "--filter", "label=com.docker.compose.project", "--format", label)
+        if result.returncode != 0:
+            raise RuntimeError(f"docker {' '.join(listing)} failed: {result.stderr}")
+        names.update(result.stdout.split())
+    return names
+
+
+def remove_stale_projects():
+    """Takes down what test runs that were killed mid-way left in the engine."""
+    for project in sorted(compose_projects()):
+        match = PROJECT_NAME.fullmatch(project)
+        if match and not process_exists(int(match.group(1))):
+            subprocess.run(compose_command() + ["-f", str(ROOT / "docker-compose.yml"), "-p", project,
+                                                "down", "-v", "--remove-orphans"],
+                           cwd=ROOT, capture_output=True, text=True, timeout=300, check=True)
+
+
 class ComposeCluster:
     def __init__(self, log_dir):
         self.log_dir = log_dir
-        self.project = "tcfarmtest" + uuid.uuid4().hex[:8]
+        self.project = f"{PROJECT_PREFIX}{os.getpid()}x{uuid.uuid4().hex[:8]}"
         self.http_port = free_port()
         self.prometheus_port = free_port()
         self.url = f"http://127.0.0.1:{self.http_port}"

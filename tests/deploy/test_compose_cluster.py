@@ -15,7 +15,7 @@ import time
 import pytest
 import requests
 
-from compose_cluster import ComposeCluster, docker, ensure_docker, inspect
+from compose_cluster import ComposeCluster, docker, ensure_docker, inspect, remove_stale_projects
 from farm_harness import ROOT, Client, compare, render_reference
 
 if os.environ.get("TCFARM_SKIP_DOCKER") == "1":
@@ -29,6 +29,7 @@ WORKERS = 3
 @pytest.fixture(scope="module")
 def cluster(tmp_path_factory):
     ensure_docker()
+    remove_stale_projects()
     cluster = ComposeCluster(tmp_path_factory.mktemp("compose"))
     cluster.build()
     try:
