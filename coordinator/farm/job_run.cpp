@@ -11,10 +11,11 @@
 namespace tcfarm {
 namespace {
 
-// Auto's guarded bin width: equation 3 keeps falling with n for any d < 1, while the
-// paper's measured cost flattens past n = 6 and its error keeps growing (Figure 9c);
-// 10 is where the paper stopped measuring.
-constexpr int kAutoMaxBinWidth = 10;
+// Auto's widest guarded bin: equation 3 keeps falling with n for any d < 1, so the width
+// is chosen by a coarse survey of the sequence (planner/bin_width_survey.h) up to this.
+// Past it the paper's measured cost has long flattened (Figure 9) while a copied pixel's
+// span, and with it the error the guard misses, keeps growing.
+constexpr int kAutoWidestBin = 16;
 
 const std::filesystem::path& CreatedDirectory(const std::filesystem::path& path) {
   std::filesystem::create_directories(path);
@@ -40,6 +41,14 @@ VerificationOptions VerificationFor(const JobSpec& spec, uint64_t jobId) {
   return options;
 }
 
+std::unique_ptr<Planner> MakeJobPlanner(const ResolvedStrategy& resolved, const PlannerOptions& options,
+                                        AutoGuardedPlanner** surveying) {
+  if (!resolved.surveyBinWidth) return MakePlanner(resolved.strategy, options);
+  auto planner = std::make_unique<AutoGuardedPlanner>(options);
+  *surveying = planner.get();
+  return planner;
+}
+
 }  // namespace
 
 ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers) {
@@ -57,8 +66,9 @@ ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int wo
     return {Strategy::kExact, std::max(1, length),
             "camera and lights are static: exact, one segment per worker"};
   }
-  return {Strategy::kGuarded, std::clamp(frames, 2, kAutoMaxBinWidth),
-          "the camera or a light moves: guarded search"};
+  return {Strategy::kGuarded, std::clamp(frames, 2, kAutoWidestBin),
+          "the camera or a light moves: guarded search, its bin width chosen by a coarse survey",
+          /*surveyBinWidth=*/true};
 }
 
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int binWidth) {
@@ -77,8 +87,8 @@ JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
       spec_(record.spec),
       scene_(std::make_unique<Scene>(ParseScene(record.spec.sceneJson))),
       resolved_(ResolveStrategy(record.spec, *scene_, workers)),
-      planner_(MakePlanner(resolved_.strategy,
-                           PlannerOptionsFor(record.spec, *scene_, resolved_.binWidth))),
+      planner_(MakeJobPlanner(resolved_, PlannerOptionsFor(record.spec, *scene_, resolved_.binWidth),
+                              &autoPlanner_)),
       verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),
                     VerificationFor(record.spec, record.id)),
       writer_(CreatedDirectory(storeRoot / std::to_string(record.id)), output),
@@ -172,6 +182,10 @@ void JobRun::WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t>
 
 void JobRun::FinishWriting() { writer_.Finish(); }
 
+int JobRun::BinWidth() const {
+  return autoPlanner_ ? autoPlanner_->ChosenBinWidth() : resolved_.binWidth;
+}
+
 // Predicted (equation 3, or its exact analogue) beside measured relative cost. Measured
 // is the job's tracing time over brute force's, estimated from the frames this job
 // traced in full (bin ends, segment starts), which cost what brute force pays per frame.
@@ -182,10 +196,10 @@ nlohmann::json JobRun::CostFigures() const {
     double d = 1 - coherence_.frameToFrame().Mean();
     double predicted = 1;
     if (resolved_.strategy == Strategy::kExact) {
-      double segments = std::ceil(double(frames) / resolved_.binWidth);
+      double segments = std::ceil(double(frames) / BinWidth());
       predicted = (segments + (frames - segments) * d) / frames;
-    } else if (resolved_.strategy != Strategy::kBrute && resolved_.binWidth >= 2) {
-      predicted = Equation3RelativeCost(frames, resolved_.binWidth, d);
+    } else if (resolved_.strategy != Strategy::kBrute && BinWidth() >= 2) {
+      predicted = Equation3RelativeCost(frames, BinWidth(), d);
     }
     cost["d"] = d;
     cost["predicted_relative_cost"] = predicted;
@@ -204,8 +218,15 @@ nlohmann::json JobRun::Stats(bool final) const {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   nlohmann::json stats;
   stats["strategy"] = {{"name", std::string(StrategyName(resolved_.strategy))},
-                       {"bin_width", resolved_.binWidth},
+                       {"bin_width", BinWidth()},
                        {"reason", resolved_.reason}};
+  if (autoPlanner_ && autoPlanner_->ChosenBinWidth() > 0) {
+    nlohmann::json survey = {{"frames", autoPlanner_->SurveyedFrames()}, {"predicted_traced_share", {}}};
+    for (const auto& [width, share] : autoPlanner_->Predictions()) {
+      survey["predicted_traced_share"][std::to_string(width)] = share;
+    }
+    stats["strategy"]["survey"] = survey;
+  }
   stats["frames_done"] = framesDone_;
   stats["pixels_traced"] = planner_->TracedPixels();
   stats["pixels_copied"] = planner_->CopiedPixels();

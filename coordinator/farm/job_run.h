@@ -16,6 +16,7 @@
 #include "frame/sequence_analysis.h"
 #include "frame/frame_writer.h"
 #include "jobs/job_store.h"
+#include "planner/auto_guarded_planner.h"
 #include "planner/planner.h"
 #include "scene/scene.h"
 
@@ -27,8 +28,9 @@ namespace tcfarm {
 // (guarded). `brute` is the search with bins of 2.
 struct ResolvedStrategy {
   Strategy strategy;
-  int binWidth;
+  int binWidth;  // with surveyBinWidth: the widest considered
   std::string reason;
+  bool surveyBinWidth = false;  // guarded's width is chosen by a coarse survey (auto)
 };
 ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers);
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int binWidth);
@@ -72,11 +74,14 @@ class JobRun {
   // Queues STORE/<job>/<kind>_NNNN.png for the absolute frame on the frame writer.
   void WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask);
   nlohmann::json CostFigures() const;
+  // The bin width (segment length) the job runs with; 0 while auto's survey runs.
+  int BinWidth() const;
 
   uint64_t id_;
   JobSpec spec_;
   std::unique_ptr<Scene> scene_;
   ResolvedStrategy resolved_;
+  AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
   std::unique_ptr<Planner> planner_;
   PixelTally reported_;
   Verification verification_;

@@ -112,4 +112,7 @@ PixelSet CoarseGuard::PixelsOfChangedTiles(size_t bin, int left, int right) cons
 
 GuardedPlanner::GuardedPlanner(const PlannerOptions& options) : SearchPlanner(options, MakeGuard(options)) {}
 
+GuardedPlanner::GuardedPlanner(const PlannerOptions& options, std::vector<std::vector<float>> coarseSamples)
+    : SearchPlanner(options, MakeGuard(options), std::move(coarseSamples)) {}
+
 }  // namespace tcfarm

@@ -78,6 +78,9 @@ class GuardedPlanner : public SearchPlanner {
   // Throws std::invalid_argument naming the bad option (coarseTile must be >= 1; 1
   // samples every pixel, which makes guarded brute force).
   explicit GuardedPlanner(const PlannerOptions& options);
+  // The same, with the coarse samples of the first frames traced already
+  // (coarseSamples[f]: frame f's, in Samples() order; see SearchPlanner).
+  GuardedPlanner(const PlannerOptions& options, std::vector<std::vector<float>> coarseSamples);
 };
 
 }  // namespace tcfarm

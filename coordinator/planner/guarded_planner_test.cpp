@@ -1,4 +1,6 @@
 #include "planner/guarded_planner.h"
+#include "planner/auto_guarded_planner.h"
+#include "planner/bin_width_survey.h"
 
 #include <gtest/gtest.h>
 
@@ -555,6 +557,116 @@ TEST(GuardedPlanner, RandomizedTileAlignedChangesNeverWorseThanSearch) {
 }
 
 // ---- the interface ----
+
+// --- auto: guarded with a bin width chosen by a coarse survey ---
+
+// A survey of `frames` frames of a w x h image in 8-pixel tiles, from an animation.
+CoarseSurvey SurveyOf(int width, int height, int frames, const Animation& animation) {
+  CoarseSurvey survey;
+  survey.width = width;
+  survey.height = height;
+  const CoarseGuard guard(width, height, 8, 0.0f);
+  for (int f = 0; f < frames; ++f) {
+    TraceTask task{1, f, guard.Samples(), 0};
+    survey.samples.push_back(Trace(task, animation, width));
+  }
+  return survey;
+}
+
+TEST(BinWidthSurvey, StaticSequenceTracesBinEndsAndSamplesOnly) {
+  // 16 x 16, 2 x 2 tiles, 9 frames, n = 5: ends 0, 4, 8 in full, samples of 6 inner frames.
+  const CoarseSurvey survey = SurveyOf(16, 16, 9, StaticAnimation);
+  EXPECT_DOUBLE_EQ(PredictGuardedTracedShare(survey, 5), (3.0 * 256 + 6.0 * 4) / (9.0 * 256));
+  // Nothing changes: one bin over all 9 frames traces least (two ends).
+  EXPECT_EQ(ChooseGuardedBinWidth(survey, 16).binWidth, 9);
+}
+
+TEST(BinWidthSurvey, PredictionEqualsGuardedWhenTilesChangeAsAWhole) {
+  // Whole tiles flicker at random frames: each tile's sample stands for its pixels, so
+  // the prediction is exactly what GuardedPlanner traces.
+  auto tileFlicker = [](int frame, int x, int y) {
+    const uint32_t tile = static_cast<uint32_t>((y / 8) * 4 + x / 8);
+    const uint32_t hash = (tile * 2654435761u) ^ (static_cast<uint32_t>(frame / 3) * 40503u);
+    return Rgb{float((hash >> 7) % 3), 0.5f, 0.25f};
+  };
+  const PlannerOptions base = Options(32, 24, 13, 2);
+  const CoarseSurvey survey = SurveyOf(32, 24, 13, tileFlicker);
+  for (int width : {2, 3, 5, 7, 13}) {
+    PlannerOptions options = base;
+    options.binWidth = width;
+    const RenderRun run = RenderGuarded(options, tileFlicker);
+    EXPECT_DOUBLE_EQ(PredictGuardedTracedShare(survey, width),
+                     double(run.traced) / (PixelsPerFrame(options) * options.frameCount))
+        << "width " << width;
+  }
+}
+
+TEST(BinWidthSurvey, ChoosesANarrowBinWhenChangesAreDenseInTime) {
+  // Every tile changes every frame: wide bins trace their middles anyway and add nothing;
+  // pixels that change once in a long while favour wide bins.
+  const CoarseSurvey busy = SurveyOf(32, 32, 17, NoisyAnimation);
+  const BinWidthChoice choice = ChooseGuardedBinWidth(busy, 16);
+  EXPECT_EQ(choice.predicted.size(), 15u);
+  EXPECT_EQ(choice.binWidth, 2);
+  auto rare = [](int frame, int x, int y) { return Rgb{float(frame / 12 + (x + y) % 2), 0, 0}; };
+  EXPECT_GE(ChooseGuardedBinWidth(SurveyOf(32, 32, 37, rare), 16).binWidth, 6);
+}
+
+TEST(BinWidthSurvey, BadSurveysAreRefusedWithWhatWasExpected) {
+  CoarseSurvey survey = SurveyOf(16, 16, 3, StaticAnimation);
+  survey.samples[1].pop_back();
+  try {
+    PredictGuardedTracedShare(survey, 2);
+    FAIL() << "a short frame was accepted";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("frame 1 holds 11 floats; expected 12"), std::string::npos)
+        << error.what();
+  }
+  EXPECT_THROW(PredictGuardedTracedShare(SurveyOf(16, 16, 3, StaticAnimation), 1), std::invalid_argument);
+}
+
+TEST(AutoGuardedPlanner, SurveysThenRendersExactlyAsGuardedWithTheChosenWidth) {
+  auto rare = [](int frame, int x, int y) { return Rgb{float(frame / 7 + (x / 8 + y / 8) % 2), 0, 0}; };
+  PlannerOptions options = Options(40, 24, 30, 16);
+  AutoGuardedPlanner planner(options);
+  size_t surveyTasks = 0;
+  const RenderRun run = Drive(planner, options, rare, 3, [&](const TraceTask& task) {
+    if (planner.ChosenBinWidth() == 0) {
+      ++surveyTasks;
+      EXPECT_EQ(task.pixels.size(), CoarseGuard(40, 24, 8, 0.0f).Samples().size());
+    }
+  });
+  EXPECT_EQ(surveyTasks, static_cast<size_t>(planner.SurveyedFrames()));
+  EXPECT_EQ(planner.SurveyedFrames(), 30);  // min(frames, 3 * 15 + 1)
+  const int chosen = planner.ChosenBinWidth();
+  ASSERT_GE(chosen, 2);
+  EXPECT_EQ(planner.Predictions().size(), 15u);
+  // The same frames, pixel for pixel and traced for traced, as guarded run with that width:
+  // the survey's samples became its coarse pass, none traced twice inside bins.
+  PlannerOptions fixed = options;
+  fixed.binWidth = chosen;
+  const RenderRun guarded = RenderGuarded(fixed, rare);
+  EXPECT_EQ(run.traced, guarded.traced);
+  for (int f = 0; f < options.frameCount; ++f) {
+    EXPECT_EQ(run.frames.at(f).rgb, guarded.frames.at(f).rgb) << "frame " << f;
+    EXPECT_EQ(run.frames.at(f).traced, guarded.frames.at(f).traced) << "frame " << f;
+  }
+  EXPECT_EQ(CountWrongPixels(run, options, rare), 0u);
+}
+
+TEST(AutoGuardedPlanner, RejectsUnknownIdsAndIgnoresRedeliveredSurveys) {
+  PlannerOptions options = Options(16, 16, 5, 4);
+  AutoGuardedPlanner planner(options);
+  std::vector<TraceTask> tasks = planner.TakeReadyTasks();
+  ASSERT_EQ(tasks.size(), 5u);
+  std::vector<float> rgb = Trace(tasks[0], StaticAnimation, 16);
+  EXPECT_THROW(planner.OnResult(7, rgb.data(), rgb.size()), std::invalid_argument);  // not issued yet
+  EXPECT_THROW(planner.OnResult(tasks[0].id, rgb.data(), rgb.size() - 1), std::invalid_argument);
+  EXPECT_TRUE(planner.OnResult(tasks[0].id, rgb.data(), rgb.size()));
+  EXPECT_FALSE(planner.OnResult(tasks[0].id, rgb.data(), rgb.size()));
+  EXPECT_EQ(planner.ChosenBinWidth(), 0);
+  EXPECT_FALSE(planner.Done());
+}
 
 TEST(Planner, StrategiesByName) {
   for (const char* name : {"brute", "search", "guarded", "exact"}) {

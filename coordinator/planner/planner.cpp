@@ -1,5 +1,6 @@
 #include "planner/planner.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -48,6 +49,16 @@ std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& op
 }
 
 namespace planner_internal {
+
+std::vector<std::pair<int, int>> TileBins(int frameCount, int binWidth) {
+  if (frameCount == 1) return {{0, 0}};
+  std::vector<std::pair<int, int>> bins;
+  const long long step = binWidth - 1;
+  for (long long left = 0; left < frameCount - 1; left += step) {
+    bins.emplace_back(static_cast<int>(left), static_cast<int>(std::min<long long>(left + step, frameCount - 1)));
+  }
+  return bins;
+}
 
 void FailCheck(const char* planner, const std::string& what) {
   throw std::logic_error(std::string(planner) + " invariant broken: " + what);

@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "pixel_set/pixel_set.h"
@@ -113,6 +114,11 @@ void CheckEqual(const A& actual, const B& expected, const char* planner, const c
 
 // Throws std::invalid_argument "PlannerOptions.<name> is <value>; expected <expected>".
 void RequireOption(bool valid, const char* name, long long value, const char* expected);
+
+// The bins of search and guarded: they share end frames, so bin k starts where bin k-1
+// ends; the last bin may be shorter. A single frame is a bin of its own whose two ends
+// coincide. Each is [left, right].
+std::vector<std::pair<int, int>> TileBins(int frameCount, int binWidth);
 
 // Everything but binWidth and coarseTile, whose ranges depend on the strategy.
 void ValidateCommonOptions(const PlannerOptions& options);

@@ -28,18 +28,6 @@ void ValidateOptions(const PlannerOptions& options) {
                                   ">= 2 (2 traces every pixel)");
 }
 
-// Bins share end frames, so bin k starts where bin k-1 ends; the last bin may be
-// shorter. A single frame is a bin of its own whose two ends coincide.
-std::vector<std::pair<int, int>> TileBins(int frameCount, int binWidth) {
-  if (frameCount == 1) return {{0, 0}};
-  std::vector<std::pair<int, int>> bins;
-  const long long step = binWidth - 1;
-  for (long long left = 0; left < frameCount - 1; left += step) {
-    bins.emplace_back(static_cast<int>(left), static_cast<int>(std::min<long long>(left + step, frameCount - 1)));
-  }
-  return bins;
-}
-
 struct BitwiseEqual {
   bool operator()(const float* a, const float* b) const { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
 };
@@ -56,14 +44,15 @@ struct EqualWithin {
 
 SearchPlanner::SearchPlanner(const PlannerOptions& options) : SearchPlanner(options, nullptr) {}
 
-SearchPlanner::SearchPlanner(const PlannerOptions& options, std::unique_ptr<CoarseGuard> guard)
-    : options_(options), guard_(std::move(guard)) {
+SearchPlanner::SearchPlanner(const PlannerOptions& options, std::unique_ptr<CoarseGuard> guard,
+                             std::vector<std::vector<float>> coarseSamples)
+    : options_(options), guard_(std::move(guard)), coarseSamples_(std::move(coarseSamples)) {
   ValidateOptions(options);
   pixelCount_ = static_cast<uint32_t>(options.width) * static_cast<uint32_t>(options.height);
   // The coarse samples are traced at every frame, so the search never needs them.
   searchPixels_ = PixelSet::Full(pixelCount_);
   if (guard_) searchPixels_ = searchPixels_.Difference(guard_->Samples());
-  for (const auto& [left, right] : TileBins(options.frameCount, options.binWidth)) {
+  for (const auto& [left, right] : planner_internal::TileBins(options.frameCount, options.binWidth)) {
     Bin bin;
     bin.left = left;
     bin.right = right;
@@ -157,6 +146,15 @@ void SearchPlanner::StartBin(size_t binIndex) {
 
 void SearchPlanner::PrepareFrame(size_t binIndex, int frame, const PixelSet& pixels) {
   AddReader(frame);
+  const size_t index = static_cast<size_t>(frame);
+  if (index < coarseSamples_.size() && !coarseSamples_[index].empty()) {
+    Check(coarseSamples_[index].size() == 3 * size_t{pixels.size()},
+          "frame " + std::to_string(frame) + " has " + std::to_string(coarseSamples_[index].size()) +
+              " floats of coarse samples for " + std::to_string(pixels.size()) + " samples");
+    WriteTraced(FrameAt(frame), frame, pixels, coarseSamples_[index].data());
+    coarseSamples_[index] = {};
+    return;
+  }
   Continuation continuation;
   continuation.bin = binIndex;
   continuation.isPreparation = true;

@@ -63,7 +63,10 @@ class SearchPlanner : public Planner {
  protected:
   // With a guard, every frame of a bin has its coarse samples traced before the bin is
   // searched, and tiles whose samples change force their pixels into the search.
-  SearchPlanner(const PlannerOptions& options, std::unique_ptr<CoarseGuard> guard);
+  // coarseSamples[f], when not empty, holds frame f's samples already traced (RGB in the
+  // guard's sample order): they are taken as that frame's traces instead of asked for.
+  SearchPlanner(const PlannerOptions& options, std::unique_ptr<CoarseGuard> guard,
+                std::vector<std::vector<float>> coarseSamples = {});
 
  private:
   enum PixelState : uint8_t { kUnknown = 0, kTraced = 1, kCopied = 2 };
@@ -128,7 +131,8 @@ class SearchPlanner : public Planner {
 
   PlannerOptions options_;
   uint32_t pixelCount_ = 0;
-  std::unique_ptr<CoarseGuard> guard_;  // null for the plain search
+  std::unique_ptr<CoarseGuard> guard_;
+  std::vector<std::vector<float>> coarseSamples_;  // traced before the planner began, per frame  // null for the plain search
   PixelSet searchPixels_;               // what a bin searches: all pixels but the coarse samples
   std::vector<Bin> bins_;
   size_t nextBin_ = 0;   // bins start in frame order: bins before this one have started

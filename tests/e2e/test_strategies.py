@@ -88,6 +88,21 @@ def test_auto_picks_exact_for_a_still_camera_and_guarded_for_a_flight(farm, scen
     assert "predicted_relative_cost" in job["stats"]["cost"]
 
 
+def test_auto_surveys_a_flight_and_renders_as_guarded_with_the_width_it_chose(farm, scenes_dir):
+    flight = small_scene(scenes_dir / "paper_c_terrain_flyover.json", 96, 72, 24)
+    job = farm.run_job(flight, strategy="auto")
+    strategy = job["stats"]["strategy"]
+    survey = strategy["survey"]
+    assert survey["frames"] == 24
+    predicted = {int(width): share for width, share in survey["predicted_traced_share"].items()}
+    assert sorted(predicted) == list(range(2, 17))
+    assert strategy["bin_width"] == min(predicted, key=lambda width: (predicted[width], width))
+    # The survey was the coarse pass: the frames and the traced count are guarded's own.
+    guarded = farm.run_job(flight, strategy="guarded", bin_width=strategy["bin_width"])
+    assert job["pixels_traced"] == guarded["pixels_traced"]
+    assert compare(farm.store / str(guarded["id"]), farm.store / str(job["id"]))["differing_pixels"] == 0
+
+
 def test_verification_reports_what_compare_counts(farm, scenes_dir, tmp_path_factory):
     scene = small_scene(scenes_dir / "paper_b_twelve_spheres.json", 96, 72, 19)
     reference = reference_of(scene, tmp_path_factory, "verify")
