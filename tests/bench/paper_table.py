@@ -2,7 +2,7 @@
 brute force and with each strategy and bin width; relative cost, the theoretical cost of
 equation 3 with the measured d, pixels traced and error against brute force.
 
-  python tests/bench/paper_table.py [--bin-widths 2-10] [--strategies search,guarded]
+  python tests/bench/paper_table.py [--bin-widths 2-10] [--strategies search,guarded,auto]
       [--exact-lengths 10,20,30,60] [--markdown FILE] [--json FILE] [--plots DIR]
 
 Relative cost is the job's tracing time over the brute-force job's tracing time, both
@@ -53,15 +53,22 @@ def measure_scene(farm, name, strategies, widths, exact_lengths):
     frames = brute["frames"]["count"]
     d = 1 - brute["stats"]["coherence"]["frame_to_frame"]["mean"]
     rows = []
-    runs = [(s, w) for s in strategies for w in widths] + [("exact", l) for l in exact_lengths]
+    runs = [(s, w) for s in strategies if s != "auto" for w in widths]
+    runs += [("exact", l) for l in exact_lengths]
+    if "auto" in strategies:
+        runs.append(("auto", None))  # it chooses its own strategy and width
     for strategy, width in runs:
-        job = farm.run_job(scene, timeout=3600, strategy=strategy, bin_width=width)
+        job = farm.run_job(scene, timeout=3600, strategy=strategy, bin_width=width or 10)
         error = compare(farm.store / str(brute["id"]), farm.store / str(job["id"]))
+        if strategy == "auto":
+            chosen = job["stats"]["strategy"]
+            width = chosen["bin_width"]
+            strategy = f"auto ({chosen['name']})"
         rows.append({
             "scene": name, "strategy": strategy, "bin_width": width, "d": d,
             "relative_cost": job["stats"]["trace_seconds"] / brute["stats"]["trace_seconds"],
             "relative_wall": job["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"],
-            "theoretical": (exact_relative_cost(frames, width, d) if strategy == "exact"
+            "theoretical": (exact_relative_cost(frames, width, d) if "exact" in strategy
                             else equation3_relative_cost(frames, width, d)),
             "wall_seconds": job["stats"]["wall_seconds"],
             "trace_seconds": job["stats"]["trace_seconds"],
@@ -97,7 +104,8 @@ def plots(rows, directory):
 
     directory = pathlib.Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    colours = {"search": "C0", "guarded": "C1", "exact": "C2"}
+    colours = {"search": "C0", "guarded": "C1", "exact": "C2", "auto (exact)": "C3",
+               "auto (guarded)": "C3"}
     scenes = sorted({r["scene"] for r in rows})
     figure, axes = plt.subplots(len(scenes), 2, figsize=(11, 3.4 * len(scenes)), squeeze=False)
     for i, scene in enumerate(scenes):

@@ -76,6 +76,18 @@ HorizonCheck Check(const Scene& scene, int a) {
 
 Scene Small(const std::string& json) { return ParseScene(json); }
 
+const char* const kPaperAnimations[] = {"tests/scenes/paper_a_one_sphere.json",
+                                        "tests/scenes/paper_b_twelve_spheres.json"};
+
+// A paper animation, smaller and shorter.
+Scene PaperAnimation(const char* file, int width, int height, int frames) {
+  Scene scene = LoadSceneFile(file);
+  scene.render.width = width;
+  scene.render.height = height;
+  scene.render.frameCount = frames;
+  return scene;
+}
+
 const char* kBackdropAndLight = R"(
     "lights": [{"type": "point", "position": [4, 6, 8], "intensity": [120, 120, 120]}],
     "materials": {"wall": {"diffuse": [0.7, 0.7, 0.65]},
@@ -162,12 +174,8 @@ TEST(HorizonsTest, PixelsInADriftingShadowStayValidWhileTheyStayInShadow) {
 // frame in full, then each frame only the pixels due there, the rest copied) equals brute
 // force bit for bit.
 TEST(HorizonsTest, ExactSequencesOfThePaperAnimationsEqualBruteForce) {
-  for (const char* file : {"tests/scenes/paper_a_one_sphere.json",
-                           "tests/scenes/paper_b_twelve_spheres.json"}) {
-    Scene scene = LoadSceneFile(file);
-    scene.render.width = 160;
-    scene.render.height = 120;
-    scene.render.frameCount = 30;
+  for (const char* file : kPaperAnimations) {
+    Scene scene = PaperAnimation(file, 160, 120, 30);
     EmbreeDevice device;
     ThreadPool pool;
     Tracer tracer(device, scene, pool);
@@ -254,13 +262,8 @@ TEST(HorizonsTest, HorizonsDoNotDependOnTheOtherPixelsOfTheTask) {
 }
 
 TEST(HorizonsTest, PaperAnimationsKeepEveryPromise) {
-  for (const char* file : {"tests/scenes/paper_a_one_sphere.json",
-                           "tests/scenes/paper_b_twelve_spheres.json"}) {
-    Scene scene = LoadSceneFile(file);
-    scene.render.width = 80;
-    scene.render.height = 60;
-    scene.render.frameCount = 12;
-    HorizonCheck check = Check(scene, 0);
+  for (const char* file : kPaperAnimations) {
+    HorizonCheck check = Check(PaperAnimation(file, 80, 60, 12), 0);
     EXPECT_EQ(check.broken, 0u) << file;
     EXPECT_GT(check.unbounded, check.pixels / 2) << file;
   }
