@@ -112,8 +112,16 @@ def plots(rows, directory):
         for strategy in sorted({r["strategy"] for r in rows}):
             mine = sorted((r for r in rows if r["scene"] == scene and r["strategy"] == strategy),
                           key=lambda r: r["bin_width"])
+            if not mine:
+                continue
             widths = [r["bin_width"] for r in mine]
             colour = colours.get(strategy)
+            if strategy.startswith("auto"):  # one job: the width it chose, marked
+                axes[i][0].scatter(widths, [r["relative_cost"] for r in mine], marker="*", s=160,
+                                   color=colour, zorder=3, label=strategy)
+                axes[i][1].scatter(widths, [r["error_percent"] for r in mine], marker="*", s=160,
+                                   color=colour, zorder=3, label=strategy)
+                continue
             axes[i][0].plot(widths, [r["relative_cost"] for r in mine], "o-", color=colour,
                             label=strategy)
             axes[i][0].plot(widths, [r["theoretical"] for r in mine], ":", color=colour,
