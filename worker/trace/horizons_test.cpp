@@ -8,6 +8,7 @@
 #include <numeric>
 #include <random>
 
+#include "trace/scaled_scene.h"
 #include "trace/tracer.h"
 
 namespace tcfarm {
@@ -171,38 +172,59 @@ TEST(HorizonsTest, PixelsInADriftingShadowStayValidWhileTheyStayInShadow) {
 }
 
 // Every frame of an `exact` sequence assembled as the coordinator does (a segment's first
-// frame in full, then each frame only the pixels due there, the rest copied) equals brute
-// force bit for bit.
+// frame in full, then each frame only the pixels due there, the rest copied). Returns the
+// pixels that differ from brute force, and the pixels traced.
+struct ExactRun {
+  size_t differing = 0, traced = 0, pixels = 0;
+};
+
+ExactRun RunExactSequence(const Scene& scene) {
+  EmbreeDevice device;
+  ThreadPool pool;
+  Tracer tracer(device, scene, pool);
+  Sequence brute = RenderAll(tracer, scene);
+  const int first = scene.render.firstFrame, last = scene.render.LastFrame();
+  const size_t count = static_cast<size_t>(scene.render.width) * scene.render.height;
+  std::vector<int32_t> due(count, first);
+  std::vector<float> assembled(count * 3);
+  ExactRun run;
+  run.pixels = count * scene.render.frameCount;
+  for (int frame = first; frame <= last; ++frame) {
+    std::vector<uint32_t> pixels;
+    for (size_t p = 0; p < count; ++p) {
+      if (due[p] == frame) pixels.push_back(static_cast<uint32_t>(p));
+    }
+    std::vector<float> rgb(pixels.size() * 3);
+    std::vector<int32_t> horizons(pixels.size());
+    tracer.TracePixels(frame, pixels.data(), pixels.size(), rgb.data(), last - frame, horizons.data());
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      std::memcpy(&assembled[3 * pixels[i]], &rgb[3 * i], 3 * sizeof(float));
+      due[pixels[i]] = frame < last ? horizons[i] : frame + 1;
+    }
+    run.traced += pixels.size();
+    for (size_t p = 0; p < count; ++p) run.differing += !SamePixel(brute.frames[frame - first], assembled, p);
+  }
+  return run;
+}
+
 TEST(HorizonsTest, ExactSequencesOfThePaperAnimationsEqualBruteForce) {
   for (const char* file : kPaperAnimations) {
-    Scene scene = PaperAnimation(file, 160, 120, 30);
-    EmbreeDevice device;
-    ThreadPool pool;
-    Tracer tracer(device, scene, pool);
-    Sequence brute = RenderAll(tracer, scene);
-    const int first = scene.render.firstFrame, last = scene.render.LastFrame();
-    const size_t count = static_cast<size_t>(scene.render.width) * scene.render.height;
-    std::vector<int32_t> due(count, first);
-    std::vector<float> assembled(count * 3);
-    size_t traced = 0, differing = 0;
-    for (int frame = first; frame <= last; ++frame) {
-      std::vector<uint32_t> pixels;
-      for (size_t p = 0; p < count; ++p) {
-        if (due[p] == frame) pixels.push_back(static_cast<uint32_t>(p));
-      }
-      std::vector<float> rgb(pixels.size() * 3);
-      std::vector<int32_t> horizons(pixels.size());
-      tracer.TracePixels(frame, pixels.data(), pixels.size(), rgb.data(), last - frame,
-                         horizons.data());
-      for (size_t i = 0; i < pixels.size(); ++i) {
-        std::memcpy(&assembled[3 * pixels[i]], &rgb[3 * i], 3 * sizeof(float));
-        due[pixels[i]] = frame < last ? horizons[i] : frame + 1;
-      }
-      traced += pixels.size();
-      for (size_t p = 0; p < count; ++p) differing += !SamePixel(brute.frames[frame - first], assembled, p);
-    }
-    EXPECT_EQ(differing, 0u) << file;
-    EXPECT_LT(traced, count * scene.render.frameCount / 3) << file;
+    ExactRun run = RunExactSequence(PaperAnimation(file, 160, 120, 30));
+    EXPECT_EQ(run.differing, 0u) << file;
+    EXPECT_LT(run.traced, run.pixels / 3) << file;
+  }
+}
+
+// Proxy padding, sure-blocked margins and ray offsets all scale with the coordinates: the
+// same animation in millimetres or in tens of kilometres keeps every promise, and still
+// saves as much.
+TEST(HorizonsTest, ExactSequencesAtExtremeScalesEqualBruteForce) {
+  const Scene scene = PaperAnimation(kPaperAnimations[1], 96, 72, 16);
+  const ExactRun unit = RunExactSequence(scene);
+  for (double scale : {1e-3, 1e4}) {
+    ExactRun run = RunExactSequence(test::ScaleScene(scene, scale));
+    EXPECT_EQ(run.differing, 0u) << "scale " << scale;
+    EXPECT_LT(run.traced, unit.traced * 11 / 10) << "scale " << scale;
   }
 }
 
