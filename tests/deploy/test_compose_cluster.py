@@ -61,6 +61,17 @@ def wait_for(condition, what, timeout=60, interval=0.5):
         time.sleep(interval)
 
 
+def busy_worker_container(client, cluster):
+    containers = cluster.running_containers("worker")
+    for worker in client.workers()["workers"]:
+        if worker["in_flight"] > 0:
+            host = worker["name"].rsplit(":", 1)[0]
+            for container in containers:
+                if container.startswith(host):
+                    return container
+    return None
+
+
 @pytest.fixture(scope="module")
 def finished_job(cluster, scene, reference, tmp_path_factory):
     """The animation rendered by the cluster while one worker container is killed."""
@@ -69,7 +80,10 @@ def finished_job(cluster, scene, reference, tmp_path_factory):
     job = client.submit(scene, strategy="exact")
     wait_for(lambda: client.job(job["id"])["frames"]["done"] >= 1, "the first frame", timeout=300,
              interval=0.05)
-    victim = cluster.running_containers("worker")[0]
+    # The victim is a worker holding tasks (its name is its container's hostname, the
+    # container id's first 12 digits, a colon and its pid): its work must be taken back.
+    victim = wait_for(lambda: busy_worker_container(client, cluster), "a worker holding tasks",
+                      timeout=120, interval=0.02)
     assert client.job(job["id"])["state"] == "running", "the job ended before a worker was killed"
     assert docker("kill", "--signal", "KILL", victim).returncode == 0
     job = client.wait(job["id"], timeout=900)
