@@ -12,6 +12,12 @@
 // changes then). A camera that changes caps every horizon, and so does a light that
 // changes, for every pixel that sees a surface.
 //
+// A shadow ray blocked at frame a is the exception (the tracer follows it, see
+// tracer.cpp): a blocked light adds nothing, whoever blocks it, so the pixel keeps its
+// value while the ray stays blocked. The tracer re-tests such a ray on the frames ahead
+// with its own Embree query, or settles a frame by SurelyBlocked when a moving sphere
+// blocks it beyond doubt.
+//
 // The test is plain arithmetic over a few hundred proxies per task, culled by each
 // shape's swept box and stopped at the earliest frame found: measured several times
 // faster than Embree queries with a filter callback over the same proxies, which must
