@@ -117,6 +117,9 @@ function initCharts() {
         pointRadius: 6, pointStyle: "rectRot" },
       { label: "measured, this job", data: [], borderColor: COLORS.red, backgroundColor: COLORS.red,
         pointRadius: 6 },
+      { label: "auto's survey: predicted traced share", data: [], showLine: true,
+        borderColor: COLORS.orange, backgroundColor: COLORS.orange, pointRadius: 2, borderWidth: 1.5,
+        borderDash: [5, 4] },
     ] },
     options: { scales: { x: { type: "linear", title: { display: true, text: "bin width n" } },
                          y: { min: 0, title: { display: true, text: "relative cost" } } } },
@@ -139,13 +142,14 @@ function initCharts() {
 // Sets the datasets' points, redraws, and records how many points were drawn.
 function setChartData(id, datasets) {
   const chart = state.charts[id];
-  let points = 0;
-  datasets.forEach((data, i) => {
+  const counts = datasets.map((data, i) => {
     chart.data.datasets[i].data = data;
-    points += data.filter((p) => p && p.y !== null && p.y !== undefined).length;
+    return data.filter((p) => p && p.y !== null && p.y !== undefined).length;
   });
   chart.update("none");
-  $(id).setAttribute("data-points", String(points));
+  // Points drawn, in all and per dataset: what a test of the page can read back.
+  $(id).setAttribute("data-points", String(counts.reduce((a, b) => a + b, 0)));
+  $(id).setAttribute("data-points-by-dataset", counts.join(","));
 }
 
 // --- jobs -----------------------------------------------------------------------------
@@ -242,7 +246,12 @@ function renderCostChart(job) {
   const curve = predictions.map((p) => ({ x: p.bin_width, y: p.relative_cost }));
   const predicted = cost.predicted_relative_cost !== undefined ? [{ x: width, y: cost.predicted_relative_cost }] : [];
   const measured = cost.measured_relative_cost !== undefined ? [{ x: width, y: cost.measured_relative_cost }] : [];
-  setChartData("chart-cost", [curve, predicted, measured]);
+  // auto's guarded jobs: what its survey predicted for each width it weighed.
+  const survey = (stats.strategy && stats.strategy.survey) || {};
+  const surveyed = Object.entries(survey.predicted_traced_share || {})
+    .map(([n, share]) => ({ x: Number(n), y: share }))
+    .sort((a, b) => a.x - b.x);
+  setChartData("chart-cost", [curve, predicted, measured, surveyed]);
 }
 
 function errorFigures(job) {

@@ -123,6 +123,17 @@ def test_dashboard_shows_a_running_and_a_completed_job(farm, scenes_dir, tmp_pat
     assert f"/frames/{last}/mask.png" in page.by_id["mask-image"]["src"]
 
 
+def test_cost_chart_shows_what_autos_survey_predicted(farm, scenes_dir, tmp_path):
+    flight = small_scene(scenes_dir / "paper_c_terrain_flyover.json", WIDTH, HEIGHT, FRAMES)
+    job = farm.run_job(flight, strategy="auto")
+    predicted = job["stats"]["strategy"]["survey"]["predicted_traced_share"]
+    page = Elements(chromium(f"{farm.url}/#job={job['id']}", tmp_path / "profile", "--dump-dom"))
+    by_dataset = [int(n) for n in page.by_id["chart-cost"]["data-points-by-dataset"].split(",")]
+    # equation 3's curve, predicted, measured, then one point per width the survey weighed
+    assert len(by_dataset) == 4
+    assert by_dataset[3] == len(predicted) >= 2
+
+
 def test_masks_are_the_traced_pixels_and_the_unchanged_ones(farm, scenes_dir):
     scene = small_scene(scenes_dir / "paper_a_one_sphere.json", WIDTH, HEIGHT, 12)
     job = farm.run_job(scene, strategy="search", bin_width=6)
