@@ -24,7 +24,7 @@ const std::filesystem::path& CreatedDirectory(const std::filesystem::path& path)
 
 int FrameCountOf(const JobSpec& spec) { return spec.lastFrame - spec.firstFrame + 1; }
 
-VerificationOptions VerificationFor(const JobSpec& spec, uint64_t jobId) {
+VerificationOptions VerificationFor(const JobSpec& spec, uint64_t jobId, Strategy strategy) {
   VerificationOptions options;
   options.seed = jobId;
   const nlohmann::json& verify = spec.options.is_object() && spec.options.contains("verify")
@@ -37,6 +37,13 @@ VerificationOptions VerificationFor(const JobSpec& spec, uint64_t jobId) {
   }
   if (spec.options.is_object() && spec.options.contains("spot_check_share")) {
     options.spotCheckShare = spec.options["spot_check_share"].get<double>();
+  }
+  // exact traces no frame plainly in full (segment starts carry horizons, which cost
+  // more than the frame), so nothing of its own prices brute force. One brute-force
+  // frame does, and the last one is the most copied into: compared bit for bit, it also
+  // checks the horizons on the job's own animation.
+  if (strategy == Strategy::kExact && options.referenceFrames.empty()) {
+    options.referenceFrames = {FrameCountOf(spec) - 1};
   }
   return options;
 }
@@ -90,7 +97,7 @@ JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
       planner_(MakeJobPlanner(resolved_, PlannerOptionsFor(record.spec, *scene_, resolved_.binWidth),
                               &autoPlanner_)),
       verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),
-                    VerificationFor(record.spec, record.id)),
+                    VerificationFor(record.spec, record.id, resolved_.strategy)),
       writer_(CreatedDirectory(storeRoot / std::to_string(record.id)), output),
       started_(std::chrono::steady_clock::now()) {
   spec_.sceneJson.clear();  // parsed; no need to hold the text twice
@@ -110,11 +117,17 @@ std::vector<DispatchTask> JobRun::TakeTasks() {
 
 bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
   if (taskId & kVerificationTask) {
+    const bool reference = verification_.IsReference(taskId & ~kVerificationTask);
     if (!verification_.OnResult(taskId & ~kVerificationTask, result.rgb.data(), result.rgb.size())) {
       return false;
     }
     verifySeconds_ += result.traceSeconds;
+    if (reference) {
+      referenceSeconds_ += result.traceSeconds;
+      referencePixels_ += result.rgb.size() / 3;
+    }
   } else {
+    if (!result.horizons.empty()) framesWithHorizons_.insert(result.frame - spec_.firstFrame);
     // Workers speak absolute frames; the planner counts from the job's first frame.
     std::vector<int32_t> horizons(result.horizons);
     for (int32_t& h : horizons) h -= spec_.firstFrame;
@@ -139,11 +152,13 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
   for (FinishedFrame& frame : finished) {
     int absolute = spec_.firstFrame + frame.frame;
     store.RecordFrame(id_, absolute, frame.tracedCount, pixels - frame.tracedCount);
-    if (frame.tracedCount == pixels) {
+    // Traced in full and plainly (no horizons): what brute force pays for a frame.
+    if (frame.tracedCount == pixels && framesWithHorizons_.count(frame.frame) == 0) {
       fullFrameSeconds_ += frameTraceSeconds_[frame.frame];
       ++fullFrames_;
     }
     frameTraceSeconds_.erase(frame.frame);
+    framesWithHorizons_.erase(frame.frame);
     verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
     WriteMask("mask", absolute, std::move(frame.traced));
     TrackCoherence(frame.frame, frame.rgb);
@@ -204,8 +219,18 @@ nlohmann::json JobRun::CostFigures() const {
     cost["d"] = d;
     cost["predicted_relative_cost"] = predicted;
   }
-  if (fullFrames_ > 0) {
-    double bruteSeconds = fullFrameSeconds_ / fullFrames_ * frames;
+  // Brute force's tracing time, from reference frames (brute force itself) where the job
+  // has them, else from its own frames traced plainly in full.
+  double bruteSeconds = 0;
+  if (referencePixels_ > 0) {
+    bruteSeconds = referenceSeconds_ / double(referencePixels_) * double(scene_->render.width) *
+                   scene_->render.height * frames;
+    cost["brute_estimate_from"] = "reference frames";
+  } else if (fullFrames_ > 0) {
+    bruteSeconds = fullFrameSeconds_ / fullFrames_ * frames;
+    cost["brute_estimate_from"] = "frames traced in full";
+  }
+  if (bruteSeconds > 0) {
     cost["brute_trace_seconds_estimate"] = bruteSeconds;
     cost["measured_relative_cost"] = (traceSeconds_ - verifySeconds_) / bruteSeconds;
   }

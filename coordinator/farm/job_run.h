@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <set>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -90,8 +91,11 @@ class JobRun {
   double traceSeconds_ = 0;        // summed over tasks: the tracing time the job cost the farm
   double verifySeconds_ = 0;       // of it, spent on verification
   std::map<int, double> frameTraceSeconds_;   // per unfinished frame, planner tasks only
-  double fullFrameSeconds_ = 0;    // frames traced in full: brute force's cost per frame
+  double fullFrameSeconds_ = 0;    // frames traced plainly in full: brute force's cost per frame
   int fullFrames_ = 0;
+  std::set<int> framesWithHorizons_;  // unfinished frames some task traced with horizons
+  double referenceSeconds_ = 0;    // reference frames: brute force itself
+  uint64_t referencePixels_ = 0;
   uint64_t rays_[4] = {};          // primary, shadow, reflection, refraction
   uint64_t results_ = 0;
   int framesDone_ = 0;

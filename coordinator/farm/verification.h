@@ -54,6 +54,8 @@ class Verification {
   std::vector<Request> TakeRequests();
   // Returns false for an id this verification did not issue (or already answered).
   bool OnResult(uint64_t id, const float* rgb, size_t floatCount);
+  // Whether an outstanding request traces part of a reference frame (not a spot check).
+  bool IsReference(uint64_t id) const { return outstanding_.count(id) > 0 && spotChecks_.count(id) == 0; }
   bool Pending() const { return !outstanding_.empty() || !ready_.empty(); }
   uint64_t ExtraPixels() const { return extraPixels_; }
 

@@ -51,6 +51,16 @@ def test_exact_is_bit_identical_on_the_paper_animations(farm, scenes_dir, tmp_pa
     assert error["differing_pixels"] == 0
     assert job["traced_pixel_ratio"] < 0.5
     print(f"{name} exact: traced ratio {job['traced_pixel_ratio']:.4f}")
+    # Unasked, exact renders its last frame brute force as well: that frame, the most
+    # copied into, is compared bit for bit, and it prices brute force for the job's cost
+    # (exact's own full frames carry horizons and would overprice it).
+    reference_check = job["stats"]["error"]["reference"]
+    assert reference_check["frames_compared"] == 1
+    assert reference_check["pixels_differing"] == 0
+    cost = job["stats"]["cost"]
+    assert cost["brute_estimate_from"] == "reference frames"
+    assert cost["measured_relative_cost"] == pytest.approx(
+        job["stats"]["trace_seconds"] / cost["brute_trace_seconds_estimate"])
 
 
 def test_exact_sees_thin_fast_objects_and_flickering_lights(farm, tmp_path_factory):
@@ -115,6 +125,8 @@ def test_verification_reports_what_compare_counts(farm, scenes_dir, tmp_path_fac
     spot = job["stats"]["error"]["spot_checks"]
     assert spot["pixels_checked"] == 0  # every frame verified in full: no estimate needed
     sampled = farm.run_job(scene, strategy="search", bin_width=10)
+    assert "reference" not in sampled["stats"]["error"]  # search verifies only when asked
+    assert sampled["stats"]["cost"]["brute_estimate_from"] == "frames traced in full"
     spot = sampled["stats"]["error"]["spot_checks"]
     assert 0 < spot["pixels_checked"] <= 0.02 * 19 * 96 * 72
     low, high = spot["ci95_percent"]
