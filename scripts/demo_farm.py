@@ -1,5 +1,6 @@
-"""The main job: render an example animation on a local farm and report what temporal
-coherence bought (traced-pixel ratio, time) and what it cost (error against brute force).
+"""The main job: render an example animation on a local farm with brute force, the paper's
+search and auto, and report what temporal coherence bought (traced-pixel ratio, time) and
+what it cost (error against brute force).
 
   python scripts/demo_farm.py [--scene tests/scenes/paper_b_twelve_spheres.json] [--bin-width 10]
 """
@@ -38,22 +39,33 @@ def main():
         farm.wait_for_workers(1)
         print(f"local farm: {farm.url} (workers on {farm.zmq}), frames in {farm.store}")
         brute = run(farm, scene, "brute", strategy="brute")
-        search = run(farm, scene, f"search n={args.bin_width}", strategy="search",
-                     bin_width=args.bin_width)
-        error = compare(farm.store / str(brute["id"]), farm.store / str(search["id"]))
+        jobs = [run(farm, scene, f"search n={args.bin_width}", strategy="search",
+                    bin_width=args.bin_width),
+                run(farm, scene, "auto", strategy="auto")]
+        errors = [compare(farm.store / str(brute["id"]), farm.store / str(job["id"]))
+                  for job in jobs]
 
     name = pathlib.Path(args.scene).stem
-    for job in (brute, search):
+    for job in [brute] + jobs:
         stats = job["stats"]
-        print(f"{name} {job['name']:>13}: traced-pixel ratio {job['traced_pixel_ratio']:.4f}, "
+        print(f"{name} {label(job):>17}: traced-pixel ratio {job['traced_pixel_ratio']:.4f}, "
               f"wall {stats['wall_seconds']:.2f} s, trace {stats['trace_seconds']:.2f} s")
-    relative = search["stats"]["trace_seconds"] / brute["stats"]["trace_seconds"]
-    wall = search["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"]
-    psnr = "inf" if error["psnr_db"] is None else f"{error['psnr_db']:.1f} dB"
-    print(f"search n={args.bin_width} against brute force: relative cost {relative:.3f} "
-          f"(trace time), {wall:.3f} (wall); error: {error['differing_pixels']} pixels differ "
-          f"({100 * error['differing_share']:.3f} %), max abs {error['max_abs_error']:.4g}, "
-          f"PSNR {psnr}")
+    for job, error in zip(jobs, errors):
+        relative = job["stats"]["trace_seconds"] / brute["stats"]["trace_seconds"]
+        wall = job["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"]
+        psnr = "inf" if error["psnr_db"] is None else f"{error['psnr_db']:.1f} dB"
+        print(f"{label(job)} against brute force: relative cost {relative:.3f} (trace time), "
+              f"{wall:.3f} (wall); error: {error['differing_pixels']} pixels differ "
+              f"({100 * error['differing_share']:.3f} %), max abs {error['max_abs_error']:.4g}, "
+              f"PSNR {psnr}")
+
+
+def label(job):
+    """The job's name, with what auto chose."""
+    if job["name"] != "auto":
+        return job["name"]
+    strategy = job["stats"]["strategy"]
+    return f"auto: {strategy['name']} {strategy['bin_width']}"
 
 
 if __name__ == "__main__":
