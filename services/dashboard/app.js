@@ -50,7 +50,9 @@ function strategyOf(job) {
   const s = job.stats && job.stats.strategy;
   const name = s ? s.name : job.strategy;
   const width = s ? s.bin_width : job.bin_width;
-  return name === "brute" ? "brute" : `${name} n=${width}`;
+  if (name === "brute") return "brute";
+  if (width === 0) return `${name}, surveying for n`;  // auto's survey has not chosen yet
+  return name === "exact" ? `exact L=${width}` : `${name} n=${width}`;
 }
 
 async function getJson(path) {
