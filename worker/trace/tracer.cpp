@@ -488,7 +488,8 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     }
     if (shadowCount == 0) continue;
     counts_.shadow += shadowCount;
-    const RTCRay8 query = shadow;
+    alignas(32) RTCRay8 query;
+    if (horizons_) query = shadow;  // as asked: Embree overwrites tfar with the answer
     rtcOccluded8(shadowValid, frame_.geometry->scene(), &coherentContext_, &shadow);
     int blocked[kPacketWidth] = {};
     for (int lane = 0; lane < count; ++lane) {
