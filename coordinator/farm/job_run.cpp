@@ -127,7 +127,6 @@ bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
       referencePixels_ += result.rgb.size() / 3;
     }
   } else {
-    if (!result.horizons.empty()) framesWithHorizons_.insert(result.frame - spec_.firstFrame);
     // Workers speak absolute frames; the planner counts from the job's first frame.
     std::vector<int32_t> horizons(result.horizons);
     for (int32_t& h : horizons) h -= spec_.firstFrame;
@@ -136,6 +135,7 @@ bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
       return false;
     }
     frameTraceSeconds_[result.frame - spec_.firstFrame] += result.traceSeconds;
+    if (!result.horizons.empty()) framesWithHorizons_.insert(result.frame - spec_.firstFrame);
   }
   traceSeconds_ += result.traceSeconds;
   rays_[0] += result.primaryRays;
@@ -202,8 +202,9 @@ int JobRun::BinWidth() const {
 }
 
 // Predicted (equation 3, or its exact analogue) beside measured relative cost. Measured
-// is the job's tracing time over brute force's, estimated from the frames this job
-// traced in full (bin ends, segment starts), which cost what brute force pays per frame.
+// is the job's tracing time over brute force's, estimated from its reference frames when
+// it has any (brute force itself), else from the frames it traced plainly in full (bin
+// ends), which cost what brute force pays per frame.
 nlohmann::json JobRun::CostFigures() const {
   nlohmann::json cost;
   const int frames = FrameCountOf(spec_);
