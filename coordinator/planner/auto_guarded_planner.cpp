@@ -34,6 +34,7 @@ AutoGuardedPlanner::AutoGuardedPlanner(const PlannerOptions& options)
   survey_.tile = static_cast<uint32_t>(options.coarseTile);
   survey_.tolerance = options.tolerance;
   const int frames = SurveyFrames(options);
+  surveyedFrames_ = frames;
   const size_t floatsPerFrame = 3 * size_t{guard_.Samples().size()};
   survey_.samples.assign(static_cast<size_t>(frames), std::vector<float>(floatsPerFrame));
   chunks_ = guard_.Samples().Split(options.maxTaskPixels);
@@ -88,10 +89,9 @@ void AutoGuardedPlanner::StartGuarded() {
   PlannerOptions chosen = options_;
   chosen.binWidth = choice_.binWidth;
   // The survey is the guarded planner's coarse pass over those frames; the planner
-  // takes it over, so the survey keeps only its size.
-  guarded_ = std::make_unique<GuardedPlanner>(chosen, survey_.samples);
-  const size_t frames = survey_.samples.size();
-  survey_.samples.assign(frames, {});
+  // takes the samples over.
+  guarded_ = std::make_unique<GuardedPlanner>(chosen, std::move(survey_.samples));
+  survey_.samples.clear();
 }
 
 std::vector<FinishedFrame> AutoGuardedPlanner::TakeFinishedFrames() {

@@ -40,7 +40,7 @@ class AutoGuardedPlanner : public Planner {
   int ChosenBinWidth() const { return guarded_ ? choice_.binWidth : 0; }
   // Each width's predicted traced share of the surveyed frames; empty while surveying.
   const std::vector<std::pair<int, double>>& Predictions() const { return choice_.predicted; }
-  int SurveyedFrames() const { return static_cast<int>(survey_.samples.size()); }
+  int SurveyedFrames() const { return surveyedFrames_; }
 
  private:
   // Survey task ids carry this bit; GuardedPlanner's ids count up from 1 and never reach it.
@@ -50,7 +50,8 @@ class AutoGuardedPlanner : public Planner {
 
   PlannerOptions options_;
   CoarseGuard guard_;  // the tiles and samples GuardedPlanner will use
-  CoarseSurvey survey_;
+  CoarseSurvey survey_;  // its samples go to the guarded planner once it starts
+  int surveyedFrames_ = 0;
   std::vector<PixelSet> chunks_;      // a frame's samples, split as tasks
   std::vector<size_t> chunkOffsets_;  // where each chunk's floats go in a frame's samples
   std::vector<bool> surveyed_;        // per survey task: its result is in

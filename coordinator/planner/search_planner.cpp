@@ -57,6 +57,10 @@ SearchPlanner::SearchPlanner(const PlannerOptions& options, std::unique_ptr<Coar
     bin.left = left;
     bin.right = right;
     bins_.push_back(bin);
+    // Bin ends are traced in full, samples included: their given samples are never used.
+    for (int end : {left, right}) {
+      if (static_cast<size_t>(end) < coarseSamples_.size()) coarseSamples_[end] = {};
+    }
   }
   released_.assign(static_cast<size_t>(options.frameCount), false);
   StartBins();
