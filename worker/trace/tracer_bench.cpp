@@ -127,6 +127,43 @@ void TraceExactSetsWithoutHorizons(benchmark::State& state, const std::string& f
   state.counters["traced_ratio"] = TracedRatio(sets, scene);
 }
 
+// Per-pixel cost of pixel sets of one frame of the 12-sphere animation: a full frame, three
+// sparse patterns, and the set `exact` traces at frame 30. Sparseness itself costs
+// nothing; exact's pixels cost more because they are the dear ones (moving spheres,
+// shadow edges).
+enum class Subset { kFull, kCheckerboard, kEveryOtherRow, kTiles16, kExactAt30 };
+
+void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
+  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/paper_b_twelve_spheres.json");
+  EmbreeDevice device;
+  ThreadPool pool;
+  Tracer tracer(device, scene, pool);
+  const int frame = 30;
+  std::vector<uint32_t> pixels;
+  if (subset == Subset::kExactAt30) {
+    pixels = ExactPixelSets(tracer, scene)[frame - scene.render.firstFrame];
+  } else {
+    for (uint32_t y = 0; y < static_cast<uint32_t>(scene.render.height); ++y) {
+      for (uint32_t x = 0; x < static_cast<uint32_t>(scene.render.width); ++x) {
+        bool keep = subset == Subset::kFull || (subset == Subset::kCheckerboard && (x + y) % 2 == 0) ||
+                    (subset == Subset::kEveryOtherRow && y % 2 == 0) ||
+                    (subset == Subset::kTiles16 && (x / 16 + y / 16) % 2 == 0);
+        if (keep) pixels.push_back(y * scene.render.width + x);
+      }
+    }
+  }
+  std::vector<float> rgb(pixels.size() * 3);
+  for (auto _ : state) tracer.TracePixels(frame, pixels.data(), pixels.size(), rgb.data());
+  state.counters["ns/pixel"] = benchmark::Counter(
+      double(state.iterations()) * pixels.size(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, full, Subset::kFull)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, checkerboard, Subset::kCheckerboard)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, every_other_row, Subset::kEveryOtherRow)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, tiles16, Subset::kTiles16)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, exact_set_at_30, Subset::kExactAt30)->MeasureProcessCPUTime()->UseRealTime();
+
 BENCHMARK_CAPTURE(TraceExactSequence, a_one_sphere, "paper_a_one_sphere.json")
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
 BENCHMARK_CAPTURE(TraceExactSequence, b_twelve_spheres, "paper_b_twelve_spheres.json")
