@@ -220,7 +220,7 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment) const {
     for (const Mover* mover : near) {
       if (chunk >= mover->chunks.size() || !meets(mover->chunks[chunk])) continue;
       size_t end = std::min(earliest, mover->proxies.size() / 4);
-      for (size_t i = chunk * kFramesPerChunk; i < end; ++i) {
+      for (size_t i = std::max<size_t>(chunk * kFramesPerChunk, 1); i < end; ++i) {
         if (SegmentMeetsSphere(segment, &mover->proxies[4 * i])) {
           earliest = i;
           found = true;
@@ -228,9 +228,15 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment) const {
         }
       }
     }
-    if (found) return std::max(frame_ + static_cast<int>(earliest), frame_ + 1);
+    if (found) return frame_ + static_cast<int>(earliest);
   }
   return Unbounded();
+}
+
+bool HorizonOracle::MayBeBlockedByMover(const RaySegment& segment) const {
+  return std::any_of(movers_.begin(), movers_.end(), [&](const Mover& mover) {
+    return SegmentMeetsSphere(segment, &mover.proxies[0]);  // its bounds at frame()
+  });
 }
 
 }  // namespace tcfarm

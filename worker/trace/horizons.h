@@ -7,10 +7,12 @@
 // deterministic and the sample pattern is seeded by pixel).
 //
 // Bounds are spheres padded beyond the ray offsets. A segment "meets" a sphere when any
-// of its points is inside, so a segment that starts inside counts too. A shape's bounds
-// at frame a itself count as meeting at a+1 (it may move away: a pixel in its shadow
-// changes then). A camera that changes caps every horizon, and so does a light that
-// changes, for every pixel that sees a surface.
+// of its points is inside, so a segment that starts inside counts too. Segments are
+// tested from frame a+1 on: the trace at a found them clear of every shape (a segment
+// ends at the first surface it meets, and a surface that moves caps the horizon at a+1
+// by itself), so the shapes' places at a cannot change the pixel. A camera that changes
+// caps every horizon, and so does a light that changes, for every pixel that sees a
+// surface.
 //
 // A shadow ray blocked at frame a is the exception (the tracer follows it, see
 // tracer.cpp): a blocked light adds nothing, whoever blocks it, so the pixel keeps its
@@ -51,8 +53,13 @@ class HorizonOracle {
   int CameraCap() const { return cameraCap_; }
   // Cap for a pixel whose ray tree reaches a surface (a light changes).
   int LightCap() const { return lightCap_; }
-  // The first frame at which a moving shape's bounds meet the segment, else Unbounded().
+  // The first frame after frame() at which a moving shape's bounds meet the segment,
+  // else Unbounded(). For segments the trace found clear of every shape at frame().
   int FirstMeeting(const RaySegment& segment) const;
+  // Whether a moving shape's bounds meet the segment at frame() itself: for a blocked
+  // shadow ray, whether what blocks it may be a shape that moves. When none may, a still
+  // shape blocks it, and keeps blocking it at every frame.
+  bool MayBeBlockedByMover(const RaySegment& segment) const;
   // Whether a moving sphere surely blocks the segment at `frame` (within the window): the
   // segment runs through it well inside, from outside to outside, with margins far above
   // the rounding of the tracer's own ray-sphere test, so that test says "blocked" too.

@@ -198,9 +198,10 @@ struct Tracer::HorizonTracker {
   // re-tested frame by frame ahead with the very query its trace would make there,
   // instead of the pixel being traced again at every frame a moving shadow covers it.
   // Not needed when the horizon is the next frame already, nor when no moving shape's
-  // bounds come near the ray: what blocks it never moves, so it stays blocked.
+  // bounds come near the ray at the traced frame: what blocks it never moves, so it
+  // stays blocked.
   bool BlockedShadowMayClear(int forLane, const RaySegment& segment) const {
-    return horizon[forLane] > oracle->frame() + 1 && oracle->FirstMeeting(segment) <= oracle->frame() + 1;
+    return horizon[forLane] > oracle->frame() + 1 && oracle->MayBeBlockedByMover(segment);
   }
 };
 
