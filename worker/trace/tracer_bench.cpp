@@ -127,6 +127,42 @@ void TraceExactSetsWithoutHorizons(benchmark::State& state, const std::string& f
   state.counters["traced_ratio"] = TracedRatio(sets, scene);
 }
 
+// How near `exact` comes to tracing only what changes. Brute force decides: a pixel
+// "changes" at frame f when its value differs from frame f-1; a trace after the first
+// frame is needless when the pixel did not change. Missed changes would be errors (the
+// tests hold them at 0); they are counted here too.
+void ExactNeedlessTraces(benchmark::State& state, const std::string& file) {
+  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+  EmbreeDevice device;
+  ThreadPool pool;
+  Tracer tracer(device, scene, pool);
+  const size_t pixels = static_cast<size_t>(scene.render.width) * scene.render.height;
+  size_t traced = 0, changed = 0, needless = 0, missed = 0;
+  for (auto _ : state) {
+    const std::vector<std::vector<uint32_t>> sets = ExactPixelSets(tracer, scene);
+    std::vector<float> previous(3 * pixels), current(3 * pixels);
+    tracer.TraceFrame(scene.render.firstFrame, previous.data());
+    traced = changed = needless = missed = 0;
+    for (size_t f = 1; f < sets.size(); ++f) {
+      tracer.TraceFrame(scene.render.firstFrame + static_cast<int>(f), current.data());
+      std::vector<bool> inSet(pixels, false);
+      for (uint32_t p : sets[f]) inSet[p] = true;
+      for (size_t p = 0; p < pixels; ++p) {
+        bool differs = !std::equal(&previous[3 * p], &previous[3 * p] + 3, &current[3 * p]);
+        changed += differs;
+        traced += inSet[p];
+        needless += inSet[p] && !differs;
+        missed += differs && !inSet[p];
+      }
+      std::swap(previous, current);
+    }
+  }
+  state.counters["traced_after_first"] = static_cast<double>(traced);
+  state.counters["changed"] = static_cast<double>(changed);
+  state.counters["needless"] = static_cast<double>(needless);
+  state.counters["missed"] = static_cast<double>(missed);
+}
+
 // Per-pixel cost of pixel sets of one frame of the 12-sphere animation: a full frame, three
 // sparse patterns, and the set `exact` traces at frame 30. Sparseness itself costs
 // nothing; exact's pixels cost more because they are the dear ones (moving spheres,
@@ -168,6 +204,11 @@ BENCHMARK_CAPTURE(TraceExactSequence, a_one_sphere, "paper_a_one_sphere.json")
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
 BENCHMARK_CAPTURE(TraceExactSequence, b_twelve_spheres, "paper_b_twelve_spheres.json")
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
+
+BENCHMARK_CAPTURE(ExactNeedlessTraces, a_one_sphere, "paper_a_one_sphere.json")
+    ->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK_CAPTURE(ExactNeedlessTraces, b_twelve_spheres, "paper_b_twelve_spheres.json")
+    ->Unit(benchmark::kMillisecond)->Iterations(1);
 
 BENCHMARK_CAPTURE(TraceExactSetsWithoutHorizons, a_one_sphere, "paper_a_one_sphere.json")
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
