@@ -56,9 +56,7 @@ AutoGuardedPlanner::AutoGuardedPlanner(const PlannerOptions& options)
 
 std::vector<TraceTask> AutoGuardedPlanner::TakeReadyTasks() {
   if (guarded_) return guarded_->TakeReadyTasks();
-  std::vector<TraceTask> tasks;
-  tasks.swap(readyTasks_);
-  return tasks;
+  return TakeAll(readyTasks_);
 }
 
 bool AutoGuardedPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCount, const int32_t* horizons,

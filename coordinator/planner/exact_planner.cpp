@@ -33,17 +33,9 @@ ExactPlanner::ExactPlanner(const PlannerOptions& options) : options_(options) {
   StartSegments();
 }
 
-std::vector<TraceTask> ExactPlanner::TakeReadyTasks() {
-  std::vector<TraceTask> tasks;
-  tasks.swap(readyTasks_);
-  return tasks;
-}
+std::vector<TraceTask> ExactPlanner::TakeReadyTasks() { return TakeAll(readyTasks_); }
 
-std::vector<FinishedFrame> ExactPlanner::TakeFinishedFrames() {
-  std::vector<FinishedFrame> frames;
-  frames.swap(finished_);
-  return frames;
-}
+std::vector<FinishedFrame> ExactPlanner::TakeFinishedFrames() { return TakeAll(finished_); }
 
 bool ExactPlanner::Done() const {
   return nextSegment_ == segmentCount_ && segments_.empty() && finished_.empty();

@@ -86,6 +86,14 @@ class Planner {
   virtual size_t LiveFrames() const = 0;
 };
 
+// Empties a planner's queue of ready tasks or finished frames into the caller's hands.
+template <typename T>
+std::vector<T> TakeAll(std::vector<T>& queue) {
+  std::vector<T> taken;
+  taken.swap(queue);
+  return taken;
+}
+
 enum class Strategy { kBrute, kSearch, kGuarded, kExact };
 
 // "brute", "search", "guarded", "exact"; nullopt for anything else.

@@ -68,17 +68,9 @@ SearchPlanner::SearchPlanner(const PlannerOptions& options, std::unique_ptr<Coar
 
 SearchPlanner::~SearchPlanner() = default;
 
-std::vector<TraceTask> SearchPlanner::TakeReadyTasks() {
-  std::vector<TraceTask> tasks;
-  tasks.swap(readyTasks_);
-  return tasks;
-}
+std::vector<TraceTask> SearchPlanner::TakeReadyTasks() { return TakeAll(readyTasks_); }
 
-std::vector<FinishedFrame> SearchPlanner::TakeFinishedFrames() {
-  std::vector<FinishedFrame> frames;
-  frames.swap(finished_);
-  return frames;
-}
+std::vector<FinishedFrame> SearchPlanner::TakeFinishedFrames() { return TakeAll(finished_); }
 
 bool SearchPlanner::Done() const {
   return nextBin_ == bins_.size() && liveBins_ == 0 && frames_.empty() && finished_.empty();
