@@ -51,9 +51,19 @@ float SrgbToLinear(float code) {
 // thresholds[k] is the smallest float that encodes to code k (k >= 1), found by
 // bisection over the float bit patterns (monotone for non-negative floats), so the
 // table agrees with LinearToSrgb8 exactly.
+//
+// Look-up goes by the top 16 bits of the float (exponent and 7 mantissa bits): across
+// one such bucket a value grows by less than 1/128, and its code by less than one (the
+// curve's steepest relative slope is 1/2.4 of the value's), so the bucket's first code
+// or the next is the answer, told apart by one threshold.
 struct SrgbThresholds {
-  float thresholds[256];
+  static constexpr int kBucketShift = 16;
+  static constexpr uint32_t kOneBits = 0x3f800000;  // 1.0f
+  float thresholds[257];
+  uint8_t bucketCode[(kOneBits >> kBucketShift) + 1];
   SrgbThresholds() {
+    thresholds[256] = INFINITY;  // no code above 255
+
     thresholds[0] = 0;
     for (int code = 1; code < 256; ++code) {
       uint32_t lo = 0, hi = 0x3f800000;  // bits of 0.0f and 1.0f
@@ -65,6 +75,18 @@ struct SrgbThresholds {
       }
       std::memcpy(&thresholds[code], &lo, sizeof lo);
     }
+    for (uint32_t bucket = 0; bucket <= (kOneBits >> kBucketShift); ++bucket) {
+      uint32_t bits = bucket << kBucketShift;
+      float first;
+      std::memcpy(&first, &bits, sizeof first);
+      bucketCode[bucket] = LinearToSrgb8(first);
+    }
+  }
+  uint8_t Code(float linear) const {
+    uint32_t bits;
+    std::memcpy(&bits, &linear, sizeof bits);
+    uint8_t code = bucketCode[bits >> kBucketShift];
+    return static_cast<uint8_t>(code + (linear >= thresholds[code + 1]));
   }
 };
 
@@ -74,8 +96,7 @@ uint8_t LinearToSrgb8Fast(float linear) {
   static const SrgbThresholds table;
   if (!(linear > 0)) return 0;  // also NaN
   if (linear >= 1) return 255;
-  const float* t = table.thresholds;
-  return static_cast<uint8_t>(std::upper_bound(t, t + 256, linear) - t - 1);
+  return table.Code(linear);
 }
 
 bool IsLosslessExrCompression(const std::string& name) {

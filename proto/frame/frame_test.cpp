@@ -59,11 +59,26 @@ TEST(FrameIoTest, PngIsSrgbEncoded) {
 }
 
 TEST(FrameIoTest, FastSrgbAgreesWithTheFormulaEverywhere) {
-  // Every float in [0, 1.5] at a stride, plus the exact code boundaries' neighbours.
+  // Every float in [0, 1.5] at a stride.
   for (uint32_t bits = 0; bits <= 0x3fc00000; bits += 997) {
     float v;
     std::memcpy(&v, &bits, sizeof v);
     ASSERT_EQ(LinearToSrgb8Fast(v), LinearToSrgb8(v)) << v;
+  }
+  // Each code's first float, found by bisection against the formula, and the float below.
+  for (int code = 1; code < 256; ++code) {
+    uint32_t lo = 0, hi = 0x3f800000;
+    while (lo < hi) {
+      uint32_t mid = lo + (hi - lo) / 2;
+      float v;
+      std::memcpy(&v, &mid, sizeof v);
+      if (LinearToSrgb8(v) >= code) hi = mid; else lo = mid + 1;
+    }
+    for (uint32_t bits : {lo - 1, lo}) {
+      float v;
+      std::memcpy(&v, &bits, sizeof v);
+      ASSERT_EQ(LinearToSrgb8Fast(v), LinearToSrgb8(v)) << v << " near code " << code;
+    }
   }
   EXPECT_EQ(LinearToSrgb8Fast(-1.0f), 0);
   EXPECT_EQ(LinearToSrgb8Fast(std::numeric_limits<float>::quiet_NaN()), 0);
