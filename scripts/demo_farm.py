@@ -14,6 +14,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 
 from farm_harness import LocalFarm, compare  # noqa: E402
+from tcfarm.client import trace_cost_seconds  # noqa: E402
 
 
 def run(farm, scene, label, **options):
@@ -49,12 +50,13 @@ def main():
     for job in [brute] + jobs:
         stats = job["stats"]
         print(f"{name} {label(job):>17}: traced-pixel ratio {job['traced_pixel_ratio']:.4f}, "
-              f"wall {stats['wall_seconds']:.2f} s, trace {stats['trace_seconds']:.2f} s")
+              f"wall {stats['wall_seconds']:.2f} s, trace {stats['trace_seconds']:.2f} s, "
+              f"trace CPU {trace_cost_seconds(stats):.2f} s")
     for job, error in zip(jobs, errors):
-        relative = job["stats"]["trace_seconds"] / brute["stats"]["trace_seconds"]
+        relative = trace_cost_seconds(job["stats"]) / trace_cost_seconds(brute["stats"])
         wall = job["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"]
         psnr = "inf" if error["psnr_db"] is None else f"{error['psnr_db']:.1f} dB"
-        print(f"{label(job)} against brute force: relative cost {relative:.3f} (trace time), "
+        print(f"{label(job)} against brute force: relative cost {relative:.3f} (trace CPU time), "
               f"{wall:.3f} (wall); error: {error['differing_pixels']} pixels differ "
               f"({100 * error['differing_share']:.3f} %), max abs {error['max_abs_error']:.4g}, "
               f"PSNR {psnr}")

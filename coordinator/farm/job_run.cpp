@@ -116,14 +116,15 @@ std::vector<DispatchTask> JobRun::TakeTasks() {
 }
 
 bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
+  const TaskTime time{result.traceSeconds, result.traceCpuSeconds.value_or(0)};
   if (taskId & kVerificationTask) {
     const bool reference = verification_.IsReference(taskId & ~kVerificationTask);
     if (!verification_.OnResult(taskId & ~kVerificationTask, result.rgb.data(), result.rgb.size())) {
       return false;
     }
-    verifySeconds_ += result.traceSeconds;
+    verifyTime_ += time;
     if (reference) {
-      referenceSeconds_ += result.traceSeconds;
+      referenceTime_ += time;
       referencePixels_ += result.rgb.size() / 3;
     }
   } else {
@@ -134,10 +135,11 @@ bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
                             horizons.empty() ? nullptr : horizons.data(), horizons.size())) {
       return false;
     }
-    frameTraceSeconds_[result.frame - spec_.firstFrame] += result.traceSeconds;
+    frameTraceTime_[result.frame - spec_.firstFrame] += time;
     if (!result.horizons.empty()) framesWithHorizons_.insert(result.frame - spec_.firstFrame);
   }
-  traceSeconds_ += result.traceSeconds;
+  traceTime_ += time;
+  cpuReported_ = cpuReported_ && result.traceCpuSeconds.has_value();
   rays_[0] += result.primaryRays;
   rays_[1] += result.shadowRays;
   rays_[2] += result.reflectionRays;
@@ -154,10 +156,10 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
     store.RecordFrame(id_, absolute, frame.tracedCount, pixels - frame.tracedCount);
     // Traced in full and plainly (no horizons): what brute force pays for a frame.
     if (frame.tracedCount == pixels && framesWithHorizons_.count(frame.frame) == 0) {
-      fullFrameSeconds_ += frameTraceSeconds_[frame.frame];
+      fullFrameTime_ += frameTraceTime_[frame.frame];
       ++fullFrames_;
     }
-    frameTraceSeconds_.erase(frame.frame);
+    frameTraceTime_.erase(frame.frame);
     framesWithHorizons_.erase(frame.frame);
     verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
     WriteMask("mask", absolute, std::move(frame.traced));
@@ -222,18 +224,27 @@ nlohmann::json JobRun::CostFigures() const {
   }
   // Brute force's tracing time, from reference frames (brute force itself) where the job
   // has them, else from its own frames traced plainly in full.
-  double bruteSeconds = 0;
+  TaskTime brute;
   if (referencePixels_ > 0) {
-    bruteSeconds = referenceSeconds_ / double(referencePixels_) * double(scene_->render.width) *
-                   scene_->render.height * frames;
+    const double scale = double(scene_->render.width) * scene_->render.height * frames / double(referencePixels_);
+    brute = {referenceTime_.wall * scale, referenceTime_.cpu * scale};
     cost["brute_estimate_from"] = "reference frames";
   } else if (fullFrames_ > 0) {
-    bruteSeconds = fullFrameSeconds_ / fullFrames_ * frames;
+    brute = {fullFrameTime_.wall / fullFrames_ * frames, fullFrameTime_.cpu / fullFrames_ * frames};
     cost["brute_estimate_from"] = "frames traced in full";
   }
-  if (bruteSeconds > 0) {
-    cost["brute_trace_seconds_estimate"] = bruteSeconds;
-    cost["measured_relative_cost"] = (traceSeconds_ - verifySeconds_) / bruteSeconds;
+  const TaskTime job = traceTime_ - verifyTime_;
+  if (brute.wall > 0) {
+    cost["brute_trace_seconds_estimate"] = brute.wall;
+    cost["measured_relative_cost_wall"] = job.wall / brute.wall;
+    cost["measured_relative_cost"] = job.wall / brute.wall;
+    cost["measured_relative_cost_basis"] = "trace seconds";
+  }
+  // CPU time where every worker reported it: it does not count waiting for shared cores.
+  if (cpuReported_ && brute.cpu > 0) {
+    cost["brute_trace_cpu_seconds_estimate"] = brute.cpu;
+    cost["measured_relative_cost"] = job.cpu / brute.cpu;
+    cost["measured_relative_cost_basis"] = "trace cpu seconds";
   }
   return cost;
 }
@@ -259,8 +270,12 @@ nlohmann::json JobRun::Stats(bool final) const {
   stats["traced_pixel_ratio"] = static_cast<double>(planner_->TracedPixels()) /
                                 static_cast<double>(pixelsPerFrame * FrameCountOf(spec_));
   stats["wall_seconds"] = wall;
-  stats["trace_seconds"] = traceSeconds_ - verifySeconds_;
-  stats["verify_trace_seconds"] = verifySeconds_;
+  stats["trace_seconds"] = traceTime_.wall - verifyTime_.wall;
+  stats["verify_trace_seconds"] = verifyTime_.wall;
+  if (cpuReported_ && results_ > 0) {
+    stats["trace_cpu_seconds"] = traceTime_.cpu - verifyTime_.cpu;
+    stats["verify_trace_cpu_seconds"] = verifyTime_.cpu;
+  }
   stats["tasks"] = results_;
   stats["rays"] = {{"primary", rays_[0]}, {"shadow", rays_[1]}, {"reflection", rays_[2]},
                    {"refraction", rays_[3]}};

@@ -36,6 +36,20 @@ struct ResolvedStrategy {
 ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers);
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int binWidth);
 
+// A task's tracing time: elapsed on the worker, and CPU time of its tracing threads. CPU
+// time is what the job costs on a shared machine, where elapsed time also counts waiting
+// for the cores.
+struct TaskTime {
+  double wall = 0;
+  double cpu = 0;
+  TaskTime& operator+=(const TaskTime& other) {
+    wall += other.wall;
+    cpu += other.cpu;
+    return *this;
+  }
+  TaskTime operator-(const TaskTime& other) const { return {wall - other.wall, cpu - other.cpu}; }
+};
+
 class JobRun {
  public:
   // Throws SceneError when the stored scene no longer parses, std::invalid_argument for
@@ -88,13 +102,14 @@ class JobRun {
   Verification verification_;
   FrameWriter writer_;
   std::chrono::steady_clock::time_point started_;
-  double traceSeconds_ = 0;        // summed over tasks: the tracing time the job cost the farm
-  double verifySeconds_ = 0;       // of it, spent on verification
-  std::map<int, double> frameTraceSeconds_;   // per unfinished frame, planner tasks only
-  double fullFrameSeconds_ = 0;    // frames traced plainly in full: brute force's cost per frame
+  TaskTime traceTime_;              // summed over tasks: the tracing time the job cost the farm
+  TaskTime verifyTime_;             // of it, spent on verification
+  bool cpuReported_ = true;         // every task's worker reported its CPU time
+  std::map<int, TaskTime> frameTraceTime_;   // per unfinished frame, planner tasks only
+  TaskTime fullFrameTime_;          // frames traced plainly in full: brute force's cost per frame
   int fullFrames_ = 0;
   std::set<int> framesWithHorizons_;  // unfinished frames some task traced with horizons
-  double referenceSeconds_ = 0;    // reference frames: brute force itself
+  TaskTime referenceTime_;          // reference frames: brute force itself
   uint64_t referencePixels_ = 0;
   uint64_t rays_[4] = {};          // primary, shadow, reflection, refraction
   uint64_t results_ = 0;

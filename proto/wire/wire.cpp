@@ -147,6 +147,8 @@ class Header {
     return value;
   }
 
+  bool Has(const char* key) const { return fields_.find(key) != fields_.end(); }
+
   bool Bool(const char* key) const {
     const json& value = Field(key);
     if (!value.is_boolean()) FailType(key, value, "a boolean");
@@ -340,6 +342,7 @@ Body EncodeBody(const Result& result) {
                  {"shadow_rays", result.shadowRays},
                  {"reflection_rays", result.reflectionRays},
                  {"refraction_rays", result.refractionRays}};
+  if (result.traceCpuSeconds) header["trace_cpu_seconds"] = *result.traceCpuSeconds;
   std::string payload;
   payload.reserve(result.rgb.size() * sizeof(float) + result.horizons.size() * sizeof(int32_t));
   AppendBytes(result.rgb, payload);
@@ -454,6 +457,7 @@ Result DecodeResult(const Header& header, const std::string& payload) {
   const uint32_t pixelCount = header.U32InRange("pixel_count", 1, kMaxPixelCount);
   const bool hasHorizons = header.Bool("has_horizons");
   result.traceSeconds = header.FiniteNonNegative("trace_seconds");
+  if (header.Has("trace_cpu_seconds")) result.traceCpuSeconds = header.FiniteNonNegative("trace_cpu_seconds");
   result.primaryRays = header.U64("primary_rays");
   result.shadowRays = header.U64("shadow_rays");
   result.reflectionRays = header.U64("reflection_rays");

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -73,6 +74,8 @@ struct Result {
   std::vector<float> rgb;         // 3 per pixel, all finite
   std::vector<int32_t> horizons;  // empty, or 1 per pixel
   double traceSeconds = 0;
+  // CPU seconds of the tracing threads, summed; absent from workers that do not report it.
+  std::optional<double> traceCpuSeconds;
   uint64_t primaryRays = 0;
   uint64_t shadowRays = 0;
   uint64_t reflectionRays = 0;

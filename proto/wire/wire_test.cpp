@@ -32,7 +32,8 @@ bool operator==(const Task& a, const Task& b) {
 }
 bool operator==(const Result& a, const Result& b) {
   return a.taskId == b.taskId && a.jobId == b.jobId && a.frame == b.frame && SameBits(a.rgb, b.rgb) &&
-         a.horizons == b.horizons && a.traceSeconds == b.traceSeconds && a.primaryRays == b.primaryRays &&
+         a.horizons == b.horizons && a.traceSeconds == b.traceSeconds &&
+         a.traceCpuSeconds == b.traceCpuSeconds && a.primaryRays == b.primaryRays &&
          a.shadowRays == b.shadowRays && a.reflectionRays == b.reflectionRays && a.refractionRays == b.refractionRays;
 }
 bool operator==(const SceneGet& a, const SceneGet& b) { return a.sceneHash == b.sceneHash; }
@@ -77,6 +78,7 @@ Result SampleResult(bool withHorizons) {
   result.rgb = {0.25f, 0.5f, 1.0f, -0.0f, std::numeric_limits<float>::denorm_min(), 3.0e38f};
   if (withHorizons) result.horizons = {15, 13};
   result.traceSeconds = 0.0125;
+  result.traceCpuSeconds = 0.02;
   result.primaryRays = 2;
   result.shadowRays = 4;
   result.reflectionRays = 1;
@@ -375,9 +377,22 @@ TEST(WireLayout, ResultPayloadIsRgbFloatsThenHorizons) {
 TEST(WireLayout, ResultHeader) {
   const json expected = {{"task_id", 42},          {"job_id", 7},       {"frame", 12},
                          {"pixel_count", 2},       {"has_horizons", true}, {"trace_seconds", 0.0125},
+                         {"trace_cpu_seconds", 0.02},
                          {"primary_rays", 2},      {"shadow_rays", 4},  {"reflection_rays", 1},
                          {"refraction_rays", 0}};
   EXPECT_EQ(HeaderOf(Encode(SampleResult(true))), expected);
+}
+
+// A worker that does not report CPU time (an older build) still has its results read.
+TEST(WireLayout, ResultWithoutCpuSecondsDecodes) {
+  Result result = SampleResult(false);
+  result.traceCpuSeconds.reset();
+  Parts parts = Encode(result);
+  EXPECT_FALSE(HeaderOf(parts).contains("trace_cpu_seconds"));
+  const Message decoded = Decode(parts);
+  ASSERT_TRUE(std::holds_alternative<Result>(decoded));
+  EXPECT_FALSE(std::get<Result>(decoded).traceCpuSeconds.has_value());
+  EXPECT_EQ(std::get<Result>(decoded), result);
 }
 
 TEST(WireLayout, ReadyHeaderBytes) {
@@ -474,6 +489,7 @@ TEST(WireHostile, MissingFields) {
   for (const Message& message : SampleMessages()) {
     const json header = HeaderOf(Encode(message));
     for (const auto& [key, value] : header.items()) {
+      if (key == "trace_cpu_seconds") continue;  // optional: ResultWithoutCpuSecondsDecodes
       const Parts parts = WithHeader(Encode(message), [&](json& edited) { edited.erase(key); });
       EXPECT_WIRE_ERROR(parts, CommandName(CommandOf(message)) + ": header field '" + key + "' is missing");
     }
@@ -514,6 +530,9 @@ TEST(WireHostile, IntegersOutOfRange) {
 }
 
 TEST(WireHostile, TraceSecondsMustBeFiniteAndNonNegative) {
+  EXPECT_WIRE_ERROR(WithField(SampleResult(true), "trace_cpu_seconds", -1.0), "'trace_cpu_seconds' is -1");
+  EXPECT_WIRE_ERROR(WithField(SampleResult(true), "trace_cpu_seconds", "slow"),
+                    "'trace_cpu_seconds' is a string; expected a number");
   EXPECT_WIRE_ERROR(WithField(SampleResult(true), "trace_seconds", -0.5), "'trace_seconds' is -0.5");
   EXPECT_WIRE_ERROR(WithField(SampleResult(true), "trace_seconds", std::numeric_limits<double>::quiet_NaN()),
                     "expected a finite number >= 0");

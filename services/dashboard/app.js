@@ -197,6 +197,7 @@ function renderSummary(job) {
     ["wall", seconds(stats.wall_seconds)],
     ["trace", seconds(stats.trace_seconds)],
   ];
+  if (stats.trace_cpu_seconds !== undefined) parts.push(["trace CPU", seconds(stats.trace_cpu_seconds)]);
   const cost = stats.cost || {};
   if (cost.d !== undefined) parts.push(["d", fixed(cost.d, 4)]);
   if (cost.predicted_relative_cost !== undefined) parts.push(["predicted cost", fixed(cost.predicted_relative_cost, 3)]);

@@ -41,6 +41,7 @@ def test_submit_and_wait_shows_progress_and_the_result(farm, scene_file):
     result = tcfarm(farm, "submit", scene_file, "--strategy", "exact", "--wait")
     assert result.returncode == 0, result.stderr
     assert "completed" in result.stdout and "traced-pixel ratio" in result.stdout
+    assert "trace CPU" in result.stdout
     assert "ETA" in result.stderr and "frames" in result.stderr
 
 

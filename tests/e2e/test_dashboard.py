@@ -111,8 +111,10 @@ def test_dashboard_shows_a_running_and_a_completed_job(farm, scenes_dir, tmp_pat
     ARTIFACTS.mkdir(exist_ok=True)
     shutil.copyfile(screenshot, ARTIFACTS / "dashboard.png")
 
-    page = Elements(chromium(url, tmp_path / "profile-dom", "--dump-dom"))
+    dom = chromium(url, tmp_path / "profile-dom", "--dump-dom")
+    page = Elements(dom)
     assert job["id"] in page.job_rows
+    assert "<b>trace CPU </b>" in dom  # the job's cost in CPU seconds, beside elapsed
     assert points(page, "chart-traced") == FRAMES
     assert points(page, "chart-coherence") == 2 * (FRAMES - 1)   # frame-to-frame, long-term
     assert points(page, "chart-cost") >= 3   # equation 3's curve, predicted and measured

@@ -57,6 +57,7 @@ def test_worker_metrics_count_the_work_it_was_given(farm):
     assert worker['tcfarm_worker_rays_total{type="refraction"}'] == 0
     assert worker["tcfarm_worker_rays_per_second"] > 0
     assert worker["tcfarm_worker_trace_seconds_total"] > 0
+    assert worker["tcfarm_worker_trace_cpu_seconds_total"] > 0
     assert worker["tcfarm_worker_coordinator_up"] == 1
     assert worker["tcfarm_worker_threads"] == 2
     # The scene is fetched once; tasks that arrive while it is being fetched wait for it.

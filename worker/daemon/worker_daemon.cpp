@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <thread>
@@ -204,11 +205,13 @@ void WorkerDaemon::TraceNext() {
   result.rgb.resize(indices.size() * 3);
   if (task.window > 0) result.horizons.resize(indices.size());
   RayCounts before = tracer->Counts();
+  const double cpuBefore = tracer->CpuSeconds();
   auto start = std::chrono::steady_clock::now();
   tracer->TracePixels(task.frame, indices.data(), indices.size(), result.rgb.data(), task.window,
                       task.window > 0 ? result.horizons.data() : nullptr);
   result.traceSeconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.traceCpuSeconds = std::max(0.0, tracer->CpuSeconds() - cpuBefore);
   const RayCounts after = tracer->Counts();
   const RayCounts rays{after.primary - before.primary, after.shadow - before.shadow,
                        after.reflection - before.reflection, after.refraction - before.refraction};
@@ -216,7 +219,7 @@ void WorkerDaemon::TraceNext() {
   result.shadowRays = rays.shadow;
   result.reflectionRays = rays.reflection;
   result.refractionRays = rays.refraction;
-  metrics_.RecordTask(indices.size(), rays, result.traceSeconds);
+  metrics_.RecordTask(indices.size(), rays, result.traceSeconds, *result.traceCpuSeconds);
   Send(result);
 }
 

@@ -18,6 +18,8 @@ WorkerMetrics::WorkerMetrics()
       pixels(NewCounter(*registry, "tcfarm_worker_pixels_total", "Pixels traced")),
       traceSeconds(NewCounter(*registry, "tcfarm_worker_trace_seconds_total",
                               "Seconds spent tracing tasks")),
+      traceCpuSeconds(NewCounter(*registry, "tcfarm_worker_trace_cpu_seconds_total",
+                                 "CPU seconds of the tracing threads, summed over threads")),
       raysPrimary(RayFamily(*registry).Add({{"type", "primary"}})),
       raysShadow(RayFamily(*registry).Add({{"type", "shadow"}})),
       raysReflection(RayFamily(*registry).Add({{"type", "reflection"}})),
@@ -38,10 +40,12 @@ WorkerMetrics::WorkerMetrics()
                              "1 while the coordinator answers, 0 while it is silent")),
       threads(NewGauge(*registry, "tcfarm_worker_threads", "Tracing threads")) {}
 
-void WorkerMetrics::RecordTask(size_t pixelCount, const RayCounts& rays, double seconds) {
+void WorkerMetrics::RecordTask(size_t pixelCount, const RayCounts& rays, double seconds,
+                               double cpuSeconds) {
   tasks.Increment();
   pixels.Increment(static_cast<double>(pixelCount));
   traceSeconds.Increment(seconds);
+  traceCpuSeconds.Increment(cpuSeconds);
   raysPrimary.Increment(static_cast<double>(rays.primary));
   raysShadow.Increment(static_cast<double>(rays.shadow));
   raysReflection.Increment(static_cast<double>(rays.reflection));

@@ -16,13 +16,15 @@ namespace tcfarm {
 struct WorkerMetrics {
   WorkerMetrics();
 
-  // One finished task: its pixels, the rays it cast by type and its tracing time.
-  void RecordTask(size_t pixels, const RayCounts& rays, double traceSeconds);
+  // One finished task: its pixels, the rays it cast by type, its tracing time elapsed and
+  // the CPU time of its tracing threads.
+  void RecordTask(size_t pixels, const RayCounts& rays, double traceSeconds, double traceCpuSeconds);
 
   std::shared_ptr<prometheus::Registry> registry;
   prometheus::Counter& tasks;
   prometheus::Counter& pixels;
   prometheus::Counter& traceSeconds;
+  prometheus::Counter& traceCpuSeconds;
   prometheus::Counter& raysPrimary;
   prometheus::Counter& raysShadow;
   prometheus::Counter& raysReflection;

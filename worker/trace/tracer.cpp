@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ctime>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -157,6 +158,12 @@ std::vector<Float3> FaceNormals(const Shape& shape) {
       break;
   }
   return normals;
+}
+
+uint64_t ThreadCpuNanoseconds() {
+  timespec now{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
+  return static_cast<uint64_t>(now.tv_sec) * 1000000000u + static_cast<uint64_t>(now.tv_nsec);
 }
 
 }  // namespace
@@ -589,6 +596,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts()};
   const int spp = context.samplesPerPixel;
   pool_.ParallelFor(pixelCount, kPixelsPerChunk, [&](size_t begin, size_t end) {
+    const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
     // Every (pixel, sample) of the chunk, in order, then packets of 8 over them. The
     // buffers live per thread: allocating them per chunk showed up in profiles.
@@ -640,6 +648,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     shadow_ += c.shadow;
     reflection_ += c.reflection;
     refraction_ += c.refraction;
+    cpuNanoseconds_ += ThreadCpuNanoseconds() - cpuAtStart;
   });
 }
 

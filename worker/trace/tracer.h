@@ -50,6 +50,10 @@ class Tracer {
   void TraceFrame(int frame, float* rgb);
 
   RayCounts Counts() const;
+  // CPU time the tracing threads have spent in TracePixels, all threads summed. Unlike
+  // elapsed time, it does not grow when other processes share the cores: the cost of a
+  // task on a shared machine.
+  double CpuSeconds() const { return cpuNanoseconds_ * 1e-9; }
   // Per-frame top-level scenes built (0 for a scene where nothing moves).
   uint64_t FrameBuilds() const { return geometry_.FrameBuilds(); }
   const Scene& scene() const { return scene_; }
@@ -70,6 +74,7 @@ class Tracer {
   std::vector<uint8_t> shapeMoves_;
   ThreadPool& pool_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
+  std::atomic<uint64_t> cpuNanoseconds_{0};
 };
 
 }  // namespace tcfarm

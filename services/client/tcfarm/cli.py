@@ -40,6 +40,8 @@ def _summary(job):
         parts.append(f"wall {stats['wall_seconds']:.2f} s")
     if "trace_seconds" in stats:
         parts.append(f"trace {stats['trace_seconds']:.2f} s")
+    if "trace_cpu_seconds" in stats:
+        parts.append(f"trace CPU {stats['trace_cpu_seconds']:.2f} s")
     if job.get("error"):
         parts.append(f"error: {job['error']}")
     return ", ".join(parts)

@@ -72,6 +72,12 @@ class Client:
             time.sleep(poll_seconds)
 
 
+def trace_cost_seconds(stats):
+    """What a job's tracing cost: CPU seconds of the tracing threads when every worker
+    reported them (waiting for shared cores does not count), else elapsed seconds."""
+    return stats.get("trace_cpu_seconds", stats["trace_seconds"])
+
+
 def _api_error(http_error):
     try:
         error = json.loads(http_error.read())["error"]
