@@ -216,11 +216,11 @@ struct Tracer::HorizonTracker {
 class Tracer::PixelTracer {
  public:
   PixelTracer(const FrameContext& frame, const Scene& scene) : frame_(frame), scene_(scene) {
-    rtcInitIntersectContext(&context_);
     // Camera rays of neighbouring pixels, and their shadow rays toward one light, travel
-    // together: Embree can traverse them as a packet.
-    rtcInitIntersectContext(&coherentContext_);
-    coherentContext_.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    // together as packets, but in Embree's incoherent mode: its coherent mode culls by
+    // the packet's common frustum, which far from the origin (1e4 and beyond) lost rays
+    // that straddle the view's axis, so a pixel's bits depended on its packet mates.
+    rtcInitIntersectContext(&context_);
   }
 
   // Traces `count` (<= 8) camera samples and writes their colours.
@@ -267,7 +267,6 @@ class Tracer::PixelTracer {
   const FrameContext& frame_;
   const Scene& scene_;
   RTCIntersectContext context_;
-  RTCIntersectContext coherentContext_;
   RayCounts counts_;
   HorizonTracker* horizons_ = nullptr;
   std::vector<std::shared_ptr<const FrameGeometry>> framesAhead_;  // [f - frame - 1]
@@ -448,7 +447,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
   }
   counts_.primary += count;
-  rtcIntersect8(valid, frame_.geometry->scene(), &coherentContext_, &packet);
+  rtcIntersect8(valid, frame_.geometry->scene(), &context_, &packet);
 
   SurfaceHit hits[kPacketWidth];
   bool hasHit[kPacketWidth] = {};
@@ -498,7 +497,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     counts_.shadow += shadowCount;
     alignas(32) RTCRay8 query;
     if (horizons_) query = shadow;  // as asked: Embree overwrites tfar with the answer
-    rtcOccluded8(shadowValid, frame_.geometry->scene(), &coherentContext_, &shadow);
+    rtcOccluded8(shadowValid, frame_.geometry->scene(), &context_, &shadow);
     int blocked[kPacketWidth] = {};
     for (int lane = 0; lane < count; ++lane) {
       if (!shadowValid[lane]) continue;
@@ -551,7 +550,7 @@ void Tracer::PixelTracer::ShadowHorizons(const RTCRay8& query, const int* valid,
     }
     if (!anyAsked) continue;
     alignas(32) RTCRay8 ray = query;
-    rtcOccluded8(ahead, SceneAhead(frame), &coherentContext_, &ray);
+    rtcOccluded8(ahead, SceneAhead(frame), &context_, &ray);
     for (int lane = 0; lane < kPacketWidth; ++lane) {
       if (ahead[lane] && ray.tfar[lane] >= 0) horizons_->horizon[lane] = frame, walking[lane] = false;
     }

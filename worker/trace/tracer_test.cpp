@@ -77,9 +77,12 @@ std::string ShowcaseScene(int width = 96, int height = 72, int samples = 1) {
   })";
 }
 
+// Also far from the origin, where packets of neighbouring rays are hardest to traverse
+// together: a pixel's bits may not depend on its packet mates there either.
 TEST(TracerTest, PixelSubsetsMatchTheFullFrameBitForBit) {
-  for (int samples : {1, 4}) {
-    Scene scene = ParseScene(ShowcaseScene(96, 72, samples));
+  const std::pair<int, Vec3> cases[] = {{1, {0, 0, 0}}, {4, {0, 0, 0}}, {1, {0, 0, 1e4}}, {1, {3e4, 3e4, 3e4}}};
+  for (const auto& [samples, offset] : cases) {
+    Scene scene = test::TranslateScene(ParseScene(ShowcaseScene(98, 72, samples)), offset);
     const int frame = 7;
     std::vector<float> full = RenderFrame(scene, frame);
 
@@ -99,9 +102,44 @@ TEST(TracerTest, PixelSubsetsMatchTheFullFrameBitForBit) {
         for (size_t i = 0; i < pixels.size(); ++i) {
           ASSERT_EQ(0, std::memcmp(&rgb[3 * i], &full[3 * pixels[i]], 3 * sizeof(float)))
               << "pixel " << pixels[i] << " traced among " << pixels.size() << " on " << threads
-              << " threads, " << samples << " samples";
+              << " threads, " << samples << " samples, scene moved by " << offset.x << ","
+              << offset.y << "," << offset.z;
         }
       }
+    }
+  }
+}
+
+// The paper's 12 balls before a backdrop that fills the view, moved 1e4 and more from the
+// origin, at a width that puts packets of 8 rays across the image's centre: no ray may
+// slip through the backdrop, and no pixel may change with the packet it is traced in.
+TEST(TracerTest, FarFromTheOriginPacketsMissNothing) {
+  for (Vec3 offset : {Vec3{0, 0, 1e4}, Vec3{3e4, 3e4, 3e4}}) {
+    Scene scene = test::TranslateScene(LoadSceneFile("tests/scenes/paper_b_twelve_spheres.json"), offset);
+    scene.render.width = 164;
+    scene.render.height = 120;
+    std::vector<float> full = RenderFrame(scene, 0);
+    const Vec3 background = scene.background;
+    size_t holes = 0;
+    for (size_t i = 0; i < full.size(); i += 3) {
+      holes += full[i] == float(background.x) && full[i + 1] == float(background.y) &&
+               full[i + 2] == float(background.z);
+    }
+    EXPECT_EQ(holes, 0u) << "scene moved by " << offset.z;
+
+    EmbreeDevice device;
+    ThreadPool pool(1);
+    Tracer tracer(device, scene, pool);
+    std::vector<uint32_t> pixels(full.size() / 3);
+    for (uint32_t shift = 1; shift < 8; ++shift) {  // every other way to cut rows into packets
+      for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = static_cast<uint32_t>((i + shift) % pixels.size());
+      std::vector<float> rgb(full.size());
+      tracer.TracePixels(0, pixels.data(), pixels.size(), rgb.data());
+      size_t differing = 0;
+      for (size_t i = 0; i < pixels.size(); ++i) {
+        differing += std::memcmp(&rgb[3 * i], &full[3 * pixels[i]], 3 * sizeof(float)) != 0;
+      }
+      EXPECT_EQ(differing, 0u) << "packets shifted by " << shift << ", scene moved by " << offset.z;
     }
   }
 }
