@@ -160,6 +160,14 @@ std::vector<Float3> FaceNormals(const Shape& shape) {
   return normals;
 }
 
+// A frame holds finite values only. Light beyond float range (a huge intensity at a tiny
+// distance) saturates to the largest float rather than going black; NaN, which no scene
+// should produce, becomes 0.
+float StorableChannel(float value) {
+  if (std::isnan(value)) return 0.0f;
+  return std::clamp(value, -std::numeric_limits<float>::max(), std::numeric_limits<float>::max());
+}
+
 uint64_t ThreadCpuNanoseconds() {
   timespec now{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
@@ -638,9 +646,9 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       for (int s = 0; s < spp; ++s) sum += sampleColor[(i - begin) * spp + s];
       Float3 mean = sum * (1.0f / spp);
       float* out = rgb + 3 * i;
-      out[0] = std::isfinite(mean.x) ? mean.x : 0.0f;
-      out[1] = std::isfinite(mean.y) ? mean.y : 0.0f;
-      out[2] = std::isfinite(mean.z) ? mean.z : 0.0f;
+      out[0] = StorableChannel(mean.x);
+      out[1] = StorableChannel(mean.y);
+      out[2] = StorableChannel(mean.z);
     }
     const RayCounts& c = tracer.counts();
     primary_ += c.primary;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -209,6 +210,24 @@ TEST(TracerTest, NoNonFiniteValueReachesAFrame) {
   for (int frame : {0, 10, 19}) {
     for (float v : RenderFrame(scene, frame)) ASSERT_TRUE(std::isfinite(v) && v >= 0);
   }
+}
+
+// A light of intensity 1e30 a micrometre above a floor: the irradiance overflows float.
+// Lit pixels saturate at the largest float; they must not come out black.
+TEST(TracerTest, LightBeyondFloatRangeSaturates) {
+  Scene scene = ParseScene(R"({
+    "camera": {"position": [0, 2e-6, 8e-6], "look_at": [0, 0, 0], "fov_degrees": 40},
+    "lights": [{"type": "point", "position": [0, 1e-6, 0], "intensity": [1e30, 1e30, 1e30]}],
+    "materials": {"m": {"diffuse": [0.5, 0.5, 0.5]}},
+    "shapes": [{"type": "quad", "corner": [-1, 0, -1], "edge_u": [0, 0, 2], "edge_v": [2, 0, 0], "material": "m"}],
+    "render": {"width": 16, "height": 12}
+  })");
+  size_t saturated = 0;
+  for (float v : RenderFrame(scene, 0)) {
+    ASSERT_TRUE(std::isfinite(v) && v >= 0);
+    saturated += v == std::numeric_limits<float>::max();
+  }
+  EXPECT_GT(saturated, 0u);
 }
 
 TEST(TracerTest, NoShadowRaysWithoutLights) {
