@@ -114,4 +114,49 @@ bool Scene::AnyMaterialRefracts() const {
 SceneError::SceneError(std::string pointer, const std::string& message)
     : std::runtime_error("scene" + pointer + ": " + message), pointer_(std::move(pointer)) {}
 
+namespace {
+
+Vec3 Plus(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+
+AnimatedVec3 Offset(const AnimatedVec3& value, const Vec3& offset) {
+  switch (value.kind()) {
+    case AnimatedVec3::Kind::kConstant:
+      return AnimatedVec3::Constant(Plus(value.constant(), offset));
+    case AnimatedVec3::Kind::kPolynomial: {
+      auto coefficients = value.coefficients();
+      coefficients[0][0] += offset.x;
+      coefficients[1][0] += offset.y;
+      coefficients[2][0] += offset.z;
+      return AnimatedVec3::Polynomial(coefficients);
+    }
+    case AnimatedVec3::Kind::kKeyframes: {
+      auto keys = value.keys();
+      for (auto& key : keys) key.value = Plus(key.value, offset);
+      return AnimatedVec3::Keyframes(keys);
+    }
+  }
+  return value;
+}
+
+}  // namespace
+
+void TranslateScene(Scene& scene, const Vec3& offset) {
+  scene.camera.position = Offset(scene.camera.position, offset);
+  scene.camera.lookAt = Offset(scene.camera.lookAt, offset);
+  for (Light& light : scene.lights) {
+    if (light.type == Light::Type::kPoint) light.position = Offset(light.position, offset);
+  }
+  for (Shape& shape : scene.shapes) {
+    shape.center = Plus(shape.center, offset);
+    shape.corner = Plus(shape.corner, offset);
+    shape.terrain.origin = Plus(shape.terrain.origin, offset);
+    for (Vec3& v : shape.mesh.vertices) v = Plus(v, offset);
+  }
+}
+
+void RebaseOnCamera(Scene& scene) {
+  const Vec3 camera = scene.camera.position.Evaluate(scene.render.firstFrame);
+  TranslateScene(scene, {-camera.x, -camera.y, -camera.z});
+}
+
 }  // namespace tcfarm

@@ -145,6 +145,16 @@ struct Scene {
   bool AnyMaterialRefracts() const;
 };
 
+// The same world moved by `offset`: camera, point lights and shapes (a shape's motion is
+// relative to its place, so it stays as it is).
+void TranslateScene(Scene& scene, const Vec3& offset);
+
+// Moves the world so that the camera stands at the origin at the first rendered frame.
+// Tracing works in float: near the viewer, where rounding shows, coordinates then keep
+// the digits that a scene far from the origin spends on its distance from it. Images
+// are the same up to that rounding; the trace of every frame sees the same moved world.
+void RebaseOnCamera(Scene& scene);
+
 // Bad scene input. pointer() is the RFC 6901 JSON pointer of the offending value
 // ("" for the whole document), what() reads "scene<pointer>: <problem>; expected <...>".
 class SceneError : public std::runtime_error {

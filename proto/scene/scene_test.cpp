@@ -906,5 +906,39 @@ TEST(SceneSerializeTest, PredicatesOfEveryFeatureScene) {
   EXPECT_FALSE(scene.shapes[1].Moves());
 }
 
+// Rebasing moves everything placed by the scene and nothing relative: the camera stands at
+// the origin at the first frame, every other position keeps its offset from it, and
+// motions (of camera, lights and shapes) stay as they are.
+TEST(SceneRebaseTest, CameraStandsAtTheOriginAndMotionsStay) {
+  Scene scene = ParseScene(R"({
+    "camera": {"position": {"keyframes": [{"frame": 2, "value": [1e6, 5, 3]}, {"frame": 9, "value": [1e6, 5, 10]}]},
+               "look_at": [1e6, 0, 0]},
+    "lights": [{"type": "point", "position": {"polynomial": [[1e6, 1], [7], [1]]}, "intensity": [1, 1, 1]},
+               {"type": "directional", "direction": [0, -1, 0], "intensity": [1, 1, 1]}],
+    "shapes": [{"type": "sphere", "center": [1e6, 1, 1], "radius": 0.5, "motion": {"polynomial": [[0, 0.5], [0], [0]]}},
+               {"type": "quad", "corner": [999990, 0, -5], "edge_u": [20, 0, 0], "edge_v": [0, 0, 10]},
+               {"type": "mesh", "vertices": [[1e6, 2, 0], [1000001, 2, 0], [1e6, 3, 0]], "triangles": [[0, 1, 2]]}],
+    "render": {"width": 4, "height": 4, "frames": {"start": 4, "count": 3}}
+  })");
+  const Scene before = scene;
+  RebaseOnCamera(scene);
+  const Vec3 camera = before.camera.position.Evaluate(4);
+  auto moved = [&](const Vec3& v) { return Vec3{v.x - camera.x, v.y - camera.y, v.z - camera.z}; };
+  EXPECT_EQ(scene.camera.position.Evaluate(4), (Vec3{0, 0, 0}));
+  for (int frame : {2, 4, 6, 9}) {
+    EXPECT_EQ(scene.camera.position.Evaluate(frame), moved(before.camera.position.Evaluate(frame))) << frame;
+    EXPECT_EQ(scene.lights[0].position.Evaluate(frame), moved(before.lights[0].position.Evaluate(frame))) << frame;
+  }
+  EXPECT_EQ(scene.camera.lookAt.Evaluate(5), moved(before.camera.lookAt.Evaluate(5)));
+  EXPECT_EQ(scene.lights[1].direction.Evaluate(5), before.lights[1].direction.Evaluate(5));
+  EXPECT_EQ(scene.shapes[0].center, moved(before.shapes[0].center));
+  EXPECT_EQ(scene.shapes[0].translation.Evaluate(6), before.shapes[0].translation.Evaluate(6));
+  EXPECT_EQ(scene.shapes[1].corner, moved(before.shapes[1].corner));
+  EXPECT_EQ(scene.shapes[1].edgeU, before.shapes[1].edgeU);
+  EXPECT_EQ(scene.shapes[2].mesh.vertices[1], moved(before.shapes[2].mesh.vertices[1]));
+  EXPECT_EQ(scene.CameraMoves(), before.CameraMoves());
+  EXPECT_EQ(scene.AnyLightChanges(), before.AnyLightChanges());
+}
+
 }  // namespace
 }  // namespace tcfarm

@@ -18,6 +18,7 @@ Tracer* SceneCache::Add(const std::string& hash, const std::string& sceneJson) {
   Entry entry;
   entry.hash = hash;
   entry.scene = std::make_unique<Scene>(ParseScene(sceneJson));
+  RebaseOnCamera(*entry.scene);  // as the reference renderer does: the same bits
   entry.tracer = std::make_unique<Tracer>(device_, *entry.scene, pool_);
   entries_.push_front(std::move(entry));
   while (entries_.size() > capacity_) entries_.pop_back();

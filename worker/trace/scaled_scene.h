@@ -51,41 +51,9 @@ inline Scene ScaleScene(Scene scene, double s) {
   return scene;
 }
 
-inline AnimatedVec3 OffsetAnimated(const AnimatedVec3& a, Vec3 offset) {
-  switch (a.kind()) {
-    case AnimatedVec3::Kind::kConstant: {
-      Vec3 c = a.constant();
-      return AnimatedVec3::Constant({c.x + offset.x, c.y + offset.y, c.z + offset.z});
-    }
-    case AnimatedVec3::Kind::kPolynomial: {
-      auto coefficients = a.coefficients();
-      const double constant[3] = {offset.x, offset.y, offset.z};
-      for (int axis = 0; axis < 3; ++axis) coefficients[axis][0] += constant[axis];
-      return AnimatedVec3::Polynomial(coefficients);
-    }
-    case AnimatedVec3::Kind::kKeyframes: {
-      auto keys = a.keys();
-      for (auto& key : keys) key.value = {key.value.x + offset.x, key.value.y + offset.y, key.value.z + offset.z};
-      return AnimatedVec3::Keyframes(keys);
-    }
-  }
-  return a;
-}
-
-inline Vec3 Offset(Vec3 v, Vec3 offset) { return {v.x + offset.x, v.y + offset.y, v.z + offset.z}; }
-
-// The same world moved by `offset`: camera, lights and shapes (motions are relative).
-inline Scene TranslateScene(Scene scene, Vec3 offset) {
-  scene.camera.position = OffsetAnimated(scene.camera.position, offset);
-  scene.camera.lookAt = OffsetAnimated(scene.camera.lookAt, offset);
-  for (Light& light : scene.lights) {
-    if (light.type == Light::Type::kPoint) light.position = OffsetAnimated(light.position, offset);
-  }
-  for (Shape& shape : scene.shapes) {
-    shape.center = Offset(shape.center, offset);
-    shape.corner = Offset(shape.corner, offset);
-    for (Vec3& v : shape.mesh.vertices) v = Offset(v, offset);
-  }
+// The same world moved by `offset`.
+inline Scene TranslatedScene(Scene scene, Vec3 offset) {
+  TranslateScene(scene, offset);
   return scene;
 }
 
