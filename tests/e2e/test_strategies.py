@@ -71,6 +71,34 @@ def test_exact_is_bit_identical_on_the_paper_animations(farm, scenes_dir, tmp_pa
     assert 0 < stats["trace_cpu_seconds"] <= stats["trace_seconds"] * os.cpu_count() * 1.05 + 0.05
 
 
+def moved(scene, offset):
+    """The paper scene moved by offset: camera, point lights and shapes' own places."""
+    scene = json.loads(json.dumps(scene))
+    shift = lambda point: [p + o for p, o in zip(point, offset)]  # noqa: E731
+    scene["camera"]["position"] = shift(scene["camera"]["position"])
+    scene["camera"]["look_at"] = shift(scene["camera"]["look_at"])
+    for light in scene["lights"]:
+        light["position"] = shift(light["position"])
+    for shape in scene["shapes"]:
+        for key in ("center", "corner"):
+            if key in shape:
+                shape[key] = shift(shape[key])
+    return scene
+
+
+def test_far_from_the_origin_exact_equals_brute_force_and_the_image_holds(
+        farm, scenes_dir, tmp_path_factory):
+    # 164 pixels a row: packets of 8 rays straddle the view's axis.
+    scene = small_scene(scenes_dir / "paper_b_twelve_spheres.json", 164, 120, 12)
+    far = moved(scene, [3e4, 3e4, 3e4])
+    reference = reference_of(far, tmp_path_factory, "far")
+    exact = farm.run_job(far, strategy="exact", bin_width=12)
+    assert compare(reference, farm.store / str(exact["id"]))["differing_pixels"] == 0
+    # And it is the scene at the origin, up to float rounding of the move itself.
+    near = compare(reference_of(scene, tmp_path_factory, "near"), reference)
+    assert near["psnr_db"] is None or near["psnr_db"] > 60, near
+
+
 def test_exact_sees_thin_fast_objects_and_flickering_lights(farm, tmp_path_factory):
     reference = reference_of(THIN_AND_FLICKER, tmp_path_factory, "thin")
     exact = farm.run_job(THIN_AND_FLICKER, strategy="exact", bin_width=11)
