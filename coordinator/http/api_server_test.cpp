@@ -294,6 +294,28 @@ TEST_F(ApiServerTest, BodyThatIsNotJsonIsInvalidJson) {
   ExpectError(PostText("/api/v1/jobs", "{\"tolerance\": 1e999}"), 400, "invalid_json");
 }
 
+// A body nested 100000 deep (and more than some 50000) once crashed the coordinator: writing it back out for a
+// message recursed once per level.
+TEST_F(ApiServerTest, DeeplyNestedBodiesAreRefusedNotFollowed) {
+  for (const std::string& open : {std::string("["), std::string("{\"a\":")}) {
+    std::string deep;
+    for (int i = 0; i < 10000; ++i) deep += open;
+    const json error = ExpectError(PostText("/api/v1/jobs", "{\"scene\": " + deep), 400, "invalid_json");
+    EXPECT_NE(error["message"].get<std::string>().find("nested deeper than 128 levels"), std::string::npos)
+        << error;
+  }
+  const json error = ExpectError(PostText("/api/v1/jobs", "{\"name\": " + std::string(200, '[') +
+                                                              std::string(200, ']') + "}"),
+                                 400, "invalid_json");
+  EXPECT_EQ(error["pointer"], "/name" + [] {
+    std::string pointer;
+    for (int i = 0; i < 127; ++i) pointer += "/0";
+    return pointer;
+  }());
+  // A scene at ordinary depth still goes through.
+  SubmitOk(Submission());
+}
+
 TEST_F(ApiServerTest, DuplicateKeysAreRefusedWithTheirPointer) {
   const std::string body =
       R"({"scene": {"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},

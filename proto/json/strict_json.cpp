@@ -15,6 +15,13 @@ class DocumentPosition {
     switch (event) {
       case json::parse_event_t::object_start:
       case json::parse_event_t::array_start:
+        // Deeper documents are refused while parsing: writing one back out (dump) recurses
+        // once per level and would overflow the stack of whoever does it.
+        if (levels_.size() >= kMaxJsonDepth) {
+          throw JsonInputError(PendingValuePointer(), "objects and arrays nested deeper than " +
+                                                          std::to_string(kMaxJsonDepth) + " levels",
+                               "at most " + std::to_string(kMaxJsonDepth) + " levels");
+        }
         BeginValue();
         levels_.push_back(Level{event == json::parse_event_t::object_start, {}, {}, -1});
         break;

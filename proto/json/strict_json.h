@@ -26,9 +26,13 @@ class JsonInputError : public std::runtime_error {
   std::string pointer_, problem_, expected_;
 };
 
+// Objects and arrays nest at most this deep: a scene needs fewer than ten levels.
+constexpr size_t kMaxJsonDepth = 128;
+
 // Parses `text`; throws JsonInputError for a syntax error ("invalid JSON at byte N: ...",
-// pointer ""), a number beyond double range (pointer of the number), or a duplicate key
-// (pointer of the second occurrence).
+// pointer ""), a number beyond double range (pointer of the number), a duplicate key
+// (pointer of the second occurrence), or nesting deeper than kMaxJsonDepth (pointer of
+// the container that goes too deep).
 nlohmann::json ParseStrictJson(const std::string& text);
 
 // "~" -> "~0", "/" -> "~1" (RFC 6901).
