@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <mutex>
 #include <random>
 #include <sstream>
@@ -402,7 +403,8 @@ TEST_F(ApiServerTest, VerificationRequestsAreStoredWithTheJob) {
 TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
   const std::vector<std::pair<std::string, json>> bad{
       {"bin_width", 1},     {"bin_width", 1001}, {"bin_width", 2.5}, {"bin_width", "10"},
-      {"tolerance", -0.1},  {"tolerance", "0"},  {"priority", 101},  {"priority", -101},
+      {"tolerance", -0.1},  {"tolerance", "0"},  {"tolerance", 3.5e38}, {"tolerance", 1e308},
+      {"priority", 101},    {"priority", -101},
       {"priority", 1e300},  {"name", 7},         {"name", std::string(300, 'x')},
   };
   for (const auto& [field, value] : bad) {
@@ -416,6 +418,8 @@ TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
   body["bin_width"] = 2.0;
   body["priority"] = 100;
   body["tolerance"] = 0;
+  SubmitOk(body);
+  body["tolerance"] = std::numeric_limits<float>::max();
   SubmitOk(body);
 }
 

@@ -1,6 +1,7 @@
 #include "http/submit_request.h"
 
 #include <cmath>
+#include <limits>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -125,12 +126,13 @@ int ReadOptionalInteger(const json& request, const char* field, int low, int hig
 double ReadTolerance(const json& request) {
   const auto tolerance = request.find("tolerance");
   if (tolerance == request.end()) return 0;
-  const std::string expected = "a finite number >= 0";
+  // Pixel values are floats: a tolerance beyond the largest float compares nothing more.
+  const std::string expected = "a number in [0, 3.4028234663852886e38]";
   if (!tolerance->is_number()) {
     Fail(error_code::kInvalidField, "/tolerance", Show(*tolerance) + " is not a number", expected);
   }
   const double value = tolerance->get<double>();
-  if (!std::isfinite(value) || value < 0) {
+  if (!(value >= 0 && value <= std::numeric_limits<float>::max())) {
     Fail(error_code::kInvalidField, "/tolerance", Show(*tolerance) + " is out of range", expected);
   }
   return value;
