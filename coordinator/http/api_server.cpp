@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <limits>
 #include <fstream>
 #include <stdexcept>
 #include <utility>
@@ -81,6 +82,25 @@ std::optional<std::string> ReadLimitedBody(const httplib::ContentReader& reader,
   return body;
 }
 
+// A client's text, quoted for a message: control bytes (a NUL would cut the message short)
+// written as \xHH, and at most 64 bytes of it.
+std::string Quoted(const std::string& text) {
+  constexpr size_t kMaxShown = 64;
+  std::string quoted = "\"";
+  for (size_t i = 0; i < text.size() && i < kMaxShown; ++i) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    if (byte < 0x20 || byte == 0x7f || byte == '"' || byte == '\\') {
+      char escaped[5];
+      std::snprintf(escaped, sizeof escaped, "\\x%02x", byte);
+      quoted += escaped;
+    } else {
+      quoted += text[i];
+    }
+  }
+  if (text.size() > kMaxShown) quoted += "...";
+  return quoted + "\"";
+}
+
 bool AllDigits(const std::string& text) {
   return !text.empty() &&
          std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
@@ -90,9 +110,10 @@ bool AllDigits(const std::string& text) {
 // sign, no spaces, no "..", so nothing a client sends can name a path outside the store.
 uint64_t ParseJobId(const std::string& text) {
   constexpr size_t kMaxDigits = 19;  // every 19-digit number fits in uint64_t
-  if (!AllDigits(text) || text.size() > kMaxDigits) {
-    throw ApiError(400, error_code::kInvalidParameter,
-                   "job id \"" + text + "\" is not a job id; expected a positive integer");
+  const std::string expected = "expected a positive integer up to 9223372036854775807";
+  if (!AllDigits(text) || text.size() > kMaxDigits ||
+      std::stoull(text) > static_cast<uint64_t>(std::numeric_limits<int64_t>::max())) {
+    throw ApiError(400, error_code::kInvalidParameter, "job id " + Quoted(text) + " is not a job id; " + expected);
   }
   return std::stoull(text);
 }
@@ -103,7 +124,7 @@ std::optional<JobState> ParseStateFilter(const httplib::Request& request) {
   std::optional<JobState> state = JobStateFromString(name);
   if (!state) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "state \"" + name + "\" is not a job state; expected one of queued, running, "
+                   "state " + Quoted(name) + " is not a job state; expected one of queued, running, "
                    "completed, failed, canceled");
   }
   return state;
@@ -115,7 +136,7 @@ int ParseLimit(const httplib::Request& request) {
   const std::string expected = "expected an integer in [1, " + std::to_string(kMaxListLimit) + "]";
   if (!AllDigits(text) || text.size() > 4 || std::stoi(text) < 1 || std::stoi(text) > kMaxListLimit) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "limit \"" + text + "\" is out of range; " + expected);
+                   "limit " + Quoted(text) + " is out of range; " + expected);
   }
   return std::stoi(text);
 }
@@ -135,12 +156,12 @@ FrameFile ParseFrameFile(const std::string& text) {
   const std::string extension = dot == std::string::npos ? "" : text.substr(dot + 1);
   if (!AllDigits(number) || number.size() > kMaxFrameDigits) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "frame file \"" + text + "\" has no frame number; " + expected);
+                   "frame file " + Quoted(text) + " has no frame number; " + expected);
   }
   if (extension == "png") return FrameFile{std::stoi(number), extension, "image/png"};
   if (extension == "exr") return FrameFile{std::stoi(number), extension, "image/x-exr"};
   throw ApiError(400, error_code::kInvalidParameter,
-                 "frame file \"" + text + "\" has an unknown extension; " + expected);
+                 "frame file " + Quoted(text) + " has an unknown extension; " + expected);
 }
 
 // Streams the file so a 16K float EXR never has to sit in memory whole. The stream stays
@@ -383,7 +404,7 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
   constexpr size_t kMaxFrameDigits = 9;
   if (!AllDigits(number) || number.size() > kMaxFrameDigits) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "frame \"" + number + "\" is not a frame number; expected <frame number>/" + kind +
+                   "frame " + Quoted(number) + " is not a frame number; expected <frame number>/" + kind +
                        ".png");
   }
   const int frame = std::stoi(number);
@@ -392,7 +413,8 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
       options_.storeRoot / std::to_string(id) / (MaskFileStem(kind, frame) + ".png");
   if (!ServeFile(response, path, "image/png")) {
     throw ApiError(404, error_code::kFrameNotReady,
-                   "the " + kind + " mask of frame " + std::to_string(frame) + " of job " +
+                   std::string(kind == "mask" ? "the traced-pixel" : "the change") + " mask of frame " +
+                       std::to_string(frame) + " of job " +
                        std::to_string(id) + " is not written yet");
   }
 }
