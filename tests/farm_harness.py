@@ -20,7 +20,8 @@ from tcfarm.client import Client  # noqa: E402
 class LocalFarm:
     """A coordinator on ephemeral loopback ports plus worker processes we control."""
 
-    def __init__(self, directory, workers=2, worker_threads=1, local_workers=0):
+    def __init__(self, directory, workers=2, worker_threads=1, local_workers=0,
+                 coordinator_args=()):
         self.directory = pathlib.Path(directory)
         self.store = self.directory / "store"
         self.worker_threads = worker_threads
@@ -28,7 +29,7 @@ class LocalFarm:
         self.coordinator = subprocess.Popen(
             [str(COORDINATOR), "serve", "--http", "127.0.0.1:0", "--zmq", "tcp://127.0.0.1:*",
              "--store", str(self.store), "--local-workers", str(local_workers),
-             "--worker-threads", str(worker_threads)],
+             "--worker-threads", str(worker_threads), *coordinator_args],
             stdout=subprocess.PIPE, stderr=open(self.directory / "coordinator.log", "w"),
             text=True)
         line = self.coordinator.stdout.readline()

@@ -23,6 +23,8 @@ constexpr const char* kUsage =
     "[--max-running-jobs K]\n"
     "           [--exr-compression zip[:1-9]|none|rle|zips|piz] [--writer-threads N] "
     "[--dashboard DIR]\n"
+    "           [--pending-frame-memory MIB]   per job, frames finished ahead of their turn; "
+    "beyond it they wait on disk (default 256)\n"
     "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
     "--local-workers 1\n"
     "          --dashboard: services/dashboard of the source tree the binary was built in, "
@@ -98,6 +100,8 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     else if (flag == "--exr-compression") options.farm.output.exrCompression = value();
     else if (flag == "--writer-threads") options.farm.output.threads = ParseInt(value(), flag, 1, 64);
     else if (flag == "--dashboard") options.dashboard = value();
+    else if (flag == "--pending-frame-memory")
+      options.farm.pendingFrameBytes = static_cast<size_t>(ParseInt(value(), flag, 0, 1 << 20)) << 20;
     else throw std::invalid_argument("unexpected argument " + flag);
   }
   if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {

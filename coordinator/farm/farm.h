@@ -31,6 +31,8 @@ struct FarmOptions {
   int maxRunningJobs = 4;
   HeartbeatPolicy heartbeat;
   FrameWriterOptions output;  // how the frame store writes each job's frames
+  // Per job: memory for frames that finish ahead of their turn; beyond it they wait on disk.
+  size_t pendingFrameBytes = JobRun::kDefaultPendingFrameBytes;
 };
 
 class Farm : public FarmControl, private DispatchSink {

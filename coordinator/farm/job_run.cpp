@@ -89,7 +89,7 @@ PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int bi
 }
 
 JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
-               const FrameWriterOptions& output, int workers)
+               const FrameWriterOptions& output, int workers, size_t pendingFrameBytes)
     : id_(record.id),
       spec_(record.spec),
       scene_(std::make_unique<Scene>(ParseScene(record.spec.sceneJson))),
@@ -99,7 +99,8 @@ JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
       verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),
                     VerificationFor(record.spec, record.id, resolved_.strategy)),
       writer_(CreatedDirectory(storeRoot / std::to_string(record.id)), output),
-      started_(std::chrono::steady_clock::now()) {
+      started_(std::chrono::steady_clock::now()),
+      waitingForCoherence_(storeRoot / std::to_string(record.id) / ".pending", pendingFrameBytes) {
   spec_.sceneJson.clear();  // parsed; no need to hold the text twice
 }
 
@@ -171,25 +172,33 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
 }
 
 void JobRun::TrackCoherence(int frame, const std::vector<float>& rgb) {
-  waitingForCoherence_.emplace(frame, Image{scene_->render.width, scene_->render.height, rgb});
-  for (auto next = waitingForCoherence_.find(nextCoherenceFrame_);
-       next != waitingForCoherence_.end(); next = waitingForCoherence_.find(nextCoherenceFrame_)) {
-    coherence_.Add(next->second);
-    // The paper's Figure 5: white where the pixel is bitwise the previous frame's, black
-    // where it changed; the first frame has nothing to change from, so is all white.
-    const std::vector<float>& current = next->second.rgb;
-    std::vector<uint8_t> unchanged(next->second.PixelCount(), 1);
-    if (previousRgb_.size() == current.size()) {
-      for (size_t pixel = 0; pixel < unchanged.size(); ++pixel) {
-        unchanged[pixel] = std::memcmp(&current[pixel * 3], &previousRgb_[pixel * 3],
-                                       3 * sizeof(float)) == 0;
-      }
-    }
-    WriteMask("change", spec_.firstFrame + next->first, std::move(unchanged));
-    previousRgb_ = std::move(next->second.rgb);
-    waitingForCoherence_.erase(next);
-    ++nextCoherenceFrame_;
+  Image image{scene_->render.width, scene_->render.height, rgb};
+  if (frame != nextCoherenceFrame_) {
+    waitingForCoherence_.Put(frame, std::move(image));
+    return;
   }
+  AddToCoherence(std::move(image));
+  while (std::optional<Image> next = waitingForCoherence_.Take(nextCoherenceFrame_)) {
+    AddToCoherence(std::move(*next));
+  }
+}
+
+// The next frame in order: into the coherence analysis, and its change mask against the
+// frame before.
+void JobRun::AddToCoherence(Image frame) {
+  coherence_.Add(frame);
+  // The paper's Figure 5: white where the pixel is bitwise the previous frame's, black
+  // where it changed; the first frame has nothing to change from, so is all white.
+  const std::vector<float>& current = frame.rgb;
+  std::vector<uint8_t> unchanged(frame.PixelCount(), 1);
+  if (previousRgb_.size() == current.size()) {
+    for (size_t pixel = 0; pixel < unchanged.size(); ++pixel) {
+      unchanged[pixel] = std::memcmp(&current[pixel * 3], &previousRgb_[pixel * 3], 3 * sizeof(float)) == 0;
+    }
+  }
+  WriteMask("change", spec_.firstFrame + nextCoherenceFrame_, std::move(unchanged));
+  previousRgb_ = std::move(frame.rgb);
+  ++nextCoherenceFrame_;
 }
 
 void JobRun::WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask) {
@@ -265,6 +274,8 @@ nlohmann::json JobRun::Stats(bool final) const {
     stats["strategy"]["survey"] = survey;
   }
   stats["frames_done"] = framesDone_;
+  // Frames that finished ahead of their turn and waited on disk, not in memory.
+  stats["frames_waited_on_disk"] = waitingForCoherence_.TotalSpilled();
   stats["pixels_traced"] = planner_->TracedPixels();
   stats["pixels_copied"] = planner_->CopiedPixels();
   stats["traced_pixel_ratio"] = static_cast<double>(planner_->TracedPixels()) /

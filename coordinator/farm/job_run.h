@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dispatch/dispatcher.h"
+#include "farm/pending_frames.h"
 #include "farm/verification.h"
 #include "frame/sequence_analysis.h"
 #include "frame/frame_writer.h"
@@ -54,8 +55,12 @@ class JobRun {
  public:
   // Throws SceneError when the stored scene no longer parses, std::invalid_argument for
   // options out of range. `workers`: live workers now (auto sizes its segments by it).
+  // pendingFrameBytes: memory for frames that finish ahead of their turn, beyond which
+  // they wait on disk (PendingFrames).
   JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
-         const FrameWriterOptions& output = {}, int workers = 1);
+         const FrameWriterOptions& output = {}, int workers = 1,
+         size_t pendingFrameBytes = kDefaultPendingFrameBytes);
+  static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
 
   uint64_t id() const { return id_; }
   const Scene& scene() const { return *scene_; }
@@ -86,6 +91,7 @@ class JobRun {
 
   // Feeds frames in order to the coherence analysis and writes each one's change mask.
   void TrackCoherence(int frame, const std::vector<float>& rgb);
+  void AddToCoherence(Image frame);
   // Queues STORE/<job>/<kind>_NNNN.png for the absolute frame on the frame writer.
   void WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask);
   nlohmann::json CostFigures() const;
@@ -114,10 +120,10 @@ class JobRun {
   uint64_t rays_[4] = {};          // primary, shadow, reflection, refraction
   uint64_t results_ = 0;
   int framesDone_ = 0;
-  // Coherence needs frames in order; they finish nearly in order, so few wait here.
+  // Coherence needs frames in order; those that finish ahead of their turn wait here.
   SequenceAnalyzer coherence_;
   int nextCoherenceFrame_ = 0;
-  std::map<int, Image> waitingForCoherence_;
+  PendingFrames waitingForCoherence_;
   // The last frame the coherence analysis took, for the next one's change mask.
   std::vector<float> previousRgb_;
 };

@@ -67,6 +67,28 @@ def test_a_worker_killed_mid_job_loses_no_pixel(tmp_path, twelve_spheres, refere
         assert "tcfarm_tasks_requeued_total" in farm.metrics()
 
 
+def test_frames_that_finish_ahead_wait_on_disk_when_memory_is_short(tmp_path, twelve_spheres,
+                                                                    farm):
+    # The paper's search finishes bins side by side, so frames reach the coherence
+    # analysis out of order. With no memory for them, they wait on disk: same record,
+    # same change masks, nothing left behind.
+    (tmp_path / "short").mkdir()
+    with LocalFarm(tmp_path / "short", workers=2,
+                   coordinator_args=("--pending-frame-memory", "0")) as short:
+        short.wait_for_workers(2)
+        spilled = short.run_job(twelve_spheres, strategy="search", bin_width=4)
+        spilled_masks = {p.name: p.read_bytes()
+                         for p in (short.store / str(spilled["id"])).glob("change_*.png")}
+        assert not (short.store / str(spilled["id"]) / ".pending").exists()
+    held = farm.run_job(twelve_spheres, strategy="search", bin_width=4)
+    assert spilled["stats"]["frames_waited_on_disk"] > 0
+    assert held["stats"]["frames_waited_on_disk"] == 0
+    assert spilled["stats"]["coherence"] == held["stats"]["coherence"]
+    held_masks = {p.name: p.read_bytes()
+                  for p in (farm.store / str(held["id"])).glob("change_*.png")}
+    assert len(spilled_masks) == 21 and spilled_masks == held_masks
+
+
 def test_a_bad_scene_fails_the_request_not_the_farm(farm, twelve_spheres):
     bad = dict(twelve_spheres, shapes=[dict(twelve_spheres["shapes"][1], radius=-2)])
     from tcfarm.client import ApiError
