@@ -7,6 +7,8 @@
 #include <memory>
 #include <stdexcept>
 
+#include <unistd.h>
+
 #include "farm/farm.h"
 #include "frame/frame_io.h"
 #include "farm/local_workers.h"
@@ -25,6 +27,8 @@ constexpr const char* kUsage =
     "[--dashboard DIR]\n"
     "           [--pending-frame-memory MIB]   per job, frames finished ahead of their turn; "
     "beyond it they wait on disk (default 256)\n"
+    "           [--job-memory MIB]   per job, the frames it holds at once; larger jobs are refused "
+    "(default: half the machine's memory)\n"
     "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
     "--local-workers 1\n"
     "          --dashboard: services/dashboard of the source tree the binary was built in, "
@@ -80,6 +84,14 @@ void ParseHttpAddress(const std::string& text, ServeOptions* options) {
   options->httpPort = ParseInt(text.substr(colon + 1), "--http port", 0, 65535);
 }
 
+// A job's default share of memory: other jobs, the workers on this machine and the
+// system need the rest.
+uint64_t HalfThePhysicalMemory() {
+  const long pages = sysconf(_SC_PHYS_PAGES), pageSize = sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || pageSize <= 0) return uint64_t{8} << 30;  // unknown: assume a 16 GiB machine
+  return static_cast<uint64_t>(pages) * static_cast<uint64_t>(pageSize) / 2;
+}
+
 ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
   ServeOptions options;
   options.dashboard = FindDashboard();
@@ -100,6 +112,8 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     else if (flag == "--exr-compression") options.farm.output.exrCompression = value();
     else if (flag == "--writer-threads") options.farm.output.threads = ParseInt(value(), flag, 1, 64);
     else if (flag == "--dashboard") options.dashboard = value();
+    else if (flag == "--job-memory")
+      options.farm.jobMemoryBytes = static_cast<uint64_t>(ParseInt(value(), flag, 1, 1 << 30)) << 20;
     else if (flag == "--pending-frame-memory")
       options.farm.pendingFrameBytes = static_cast<size_t>(ParseInt(value(), flag, 0, 1 << 20)) << 20;
     else throw std::invalid_argument("unexpected argument " + flag);
@@ -108,6 +122,7 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
   if (options.database.empty()) options.database = options.farm.storeRoot / "jobs.db";
+  if (options.farm.jobMemoryBytes == 0) options.farm.jobMemoryBytes = HalfThePhysicalMemory();
   if (!IsLosslessExrCompression(options.farm.output.exrCompression)) {
     throw std::invalid_argument("--exr-compression " + options.farm.output.exrCompression +
                                 ": expected a lossless one: none, rle, zips, zip or piz");
@@ -151,6 +166,7 @@ int RunServe(const std::vector<std::string>& args) {
   api.port = options.httpPort;
   api.storeRoot = options.farm.storeRoot;
   api.dashboardDirectory = options.dashboard;
+  api.jobMemoryBytes = options.farm.jobMemoryBytes;
   ApiServer server(store, farm, farm.metrics().registry, api);
   int port = server.Start();
 

@@ -67,7 +67,8 @@ void Farm::StartJob(const JobRecord& record) {
   try {
     auto run = std::make_unique<JobRun>(
         record, options_.storeRoot, options_.output,
-        static_cast<int>(dispatcher_.registry().workers().size()), options_.pendingFrameBytes);
+        static_cast<int>(dispatcher_.registry().workers().size()), options_.pendingFrameBytes,
+        options_.jobMemoryBytes);
     const RenderSettings& r = run->scene().render;
     dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(r.width),
                        static_cast<uint32_t>(r.height), record.spec.sceneHash,

@@ -33,6 +33,8 @@ struct FarmOptions {
   FrameWriterOptions output;  // how the frame store writes each job's frames
   // Per job: memory for frames that finish ahead of their turn; beyond it they wait on disk.
   size_t pendingFrameBytes = JobRun::kDefaultPendingFrameBytes;
+  // Per job: the coordinator's memory for its frames (0: no limit); see FramesHeldPerJob.
+  uint64_t jobMemoryBytes = 0;
 };
 
 class Farm : public FarmControl, private DispatchSink {

@@ -11,12 +11,6 @@
 namespace tcfarm {
 namespace {
 
-// Auto's widest guarded bin: equation 3 keeps falling with n for any d < 1, so the width
-// is chosen by a coarse survey of the sequence (planner/bin_width_survey.h) up to this.
-// Past it the paper's measured cost has long flattened (Figure 9) while a copied pixel's
-// span, and with it the error the guard misses, keeps growing.
-constexpr int kAutoWidestBin = 16;
-
 const std::filesystem::path& CreatedDirectory(const std::filesystem::path& path) {
   std::filesystem::create_directories(path);
   return path;
@@ -78,24 +72,35 @@ ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int wo
           /*surveyBinWidth=*/true};
 }
 
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int binWidth) {
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,
+                                 uint64_t jobMemoryBytes) {
   PlannerOptions options;
   options.width = scene.render.width;
   options.height = scene.render.height;
   options.frameCount = FrameCountOf(spec);
-  options.binWidth = binWidth;
+  options.binWidth = resolved.binWidth;
   options.tolerance = static_cast<float>(spec.tolerance);
+  if (jobMemoryBytes > 0) {
+    const uint64_t frameBytes = uint64_t(options.width) * uint64_t(options.height) * 3 * sizeof(float);
+    options.maxLiveBins = LiveBinsWithin(jobMemoryBytes, frameBytes, resolved.strategy, resolved.binWidth,
+                                         options.maxLiveBins, options.frameCount);
+    if (options.maxLiveBins == 0) {
+      throw std::invalid_argument(MemoryShortfall(jobMemoryBytes, options.width, options.height,
+                                                  resolved.strategy, resolved.binWidth, options.frameCount));
+    }
+  }
   return options;
 }
 
 JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
-               const FrameWriterOptions& output, int workers, size_t pendingFrameBytes)
+               const FrameWriterOptions& output, int workers, size_t pendingFrameBytes,
+               uint64_t jobMemoryBytes)
     : id_(record.id),
       spec_(record.spec),
       scene_(std::make_unique<Scene>(ParseScene(record.spec.sceneJson))),
       resolved_(ResolveStrategy(record.spec, *scene_, workers)),
-      planner_(MakeJobPlanner(resolved_, PlannerOptionsFor(record.spec, *scene_, resolved_.binWidth),
-                              &autoPlanner_)),
+      plannerOptions_(PlannerOptionsFor(record.spec, *scene_, resolved_, jobMemoryBytes)),
+      planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),
                     VerificationFor(record.spec, record.id, resolved_.strategy)),
       writer_(CreatedDirectory(storeRoot / std::to_string(record.id)), output),
@@ -274,6 +279,9 @@ nlohmann::json JobRun::Stats(bool final) const {
     stats["strategy"]["survey"] = survey;
   }
   stats["frames_done"] = framesDone_;
+  // Bins (segments) worked on at once: fewer than 4 when the coordinator's memory for the
+  // job would not hold their frames.
+  stats["live_bins"] = plannerOptions_.maxLiveBins;
   // Frames that finished ahead of their turn and waited on disk, not in memory.
   stats["frames_waited_on_disk"] = waitingForCoherence_.TotalSpilled();
   stats["pixels_traced"] = planner_->TracedPixels();

@@ -35,7 +35,10 @@ struct ResolvedStrategy {
   bool surveyBinWidth = false;  // guarded's width is chosen by a coarse survey (auto)
 };
 ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers);
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, int binWidth);
+// With jobMemoryBytes > 0, as many live bins (segments) as fit in it (FramesHeldPerJob);
+// throws std::invalid_argument naming the shortfall when not even one does.
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,
+                                 uint64_t jobMemoryBytes = 0);
 
 // A task's tracing time: elapsed on the worker, and CPU time of its tracing threads. CPU
 // time is what the job costs on a shared machine, where elapsed time also counts waiting
@@ -57,9 +60,11 @@ class JobRun {
   // options out of range. `workers`: live workers now (auto sizes its segments by it).
   // pendingFrameBytes: memory for frames that finish ahead of their turn, beyond which
   // they wait on disk (PendingFrames).
+  // jobMemoryBytes: the coordinator's memory for this job's frames (0: no limit); the
+  // planner works on as many bins at once as fit in it.
   JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
          const FrameWriterOptions& output = {}, int workers = 1,
-         size_t pendingFrameBytes = kDefaultPendingFrameBytes);
+         size_t pendingFrameBytes = kDefaultPendingFrameBytes, uint64_t jobMemoryBytes = 0);
   static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
 
   uint64_t id() const { return id_; }
@@ -103,6 +108,7 @@ class JobRun {
   std::unique_ptr<Scene> scene_;
   ResolvedStrategy resolved_;
   AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
+  PlannerOptions plannerOptions_;
   std::unique_ptr<Planner> planner_;
   PixelTally reported_;
   Verification verification_;

@@ -30,6 +30,7 @@ inline constexpr const char* kFrameNotReady = "frame_not_ready";       // 404
 inline constexpr const char* kMethodNotAllowed = "method_not_allowed"; // 405
 inline constexpr const char* kJobFinished = "job_finished";            // 409
 inline constexpr const char* kPayloadTooLarge = "payload_too_large";   // 413
+inline constexpr const char* kJobTooLarge = "job_too_large";           // 413, frames beyond memory
 inline constexpr const char* kInternal = "internal";                   // 500
 }  // namespace error_code
 

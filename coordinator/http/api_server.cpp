@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <limits>
 #include <fstream>
+#include <limits>
 #include <stdexcept>
 #include <utility>
 
@@ -17,6 +17,7 @@
 #include "frame/frame_io.h"
 #include "http/api_error.h"
 #include "http/submit_request.h"
+#include "planner/planner.h"
 
 namespace tcfarm {
 namespace {
@@ -324,8 +325,31 @@ void ApiServer::RouteMiss(const httplib::Request& request, const std::string&,
                  request.method + " is not allowed on " + request.path + "; allowed: " + allowed);
 }
 
+// The job's frames at their most, one bin at a time, against the coordinator's memory for
+// a job. auto is taken at its widest: guarded with the widest bin its survey may pick.
+void ApiServer::CheckJobFitsInMemory(const http::Submission& submission) const {
+  if (options_.jobMemoryBytes == 0) return;
+  const JobSpec& spec = submission.spec;
+  Strategy strategy = Strategy::kGuarded;
+  int binWidth = kAutoWidestBin;
+  if (spec.strategy != "auto") {
+    strategy = StrategyFromString(spec.strategy).value_or(Strategy::kSearch);
+    binWidth = spec.binWidth;
+  }
+  const std::string shortfall =
+      MemoryShortfall(options_.jobMemoryBytes, submission.frameSize.width, submission.frameSize.height, strategy,
+                      binWidth, spec.lastFrame - spec.firstFrame + 1);
+  if (!shortfall.empty()) {
+    throw ApiError(413, error_code::kJobTooLarge,
+                   shortfall + "; expected fewer pixels a frame, a narrower bin_width or a coordinator with "
+                               "more memory",
+                   "/scene/render");
+  }
+}
+
 void ApiServer::SubmitJob(const httplib::Request&, const std::string& body, httplib::Response& response) {
   const http::Submission submission = http::ParseSubmission(body);
+  CheckJobFitsInMemory(submission);
   const uint64_t id = store_.Submit(submission.spec);
   {
     std::lock_guard<std::mutex> lock(geometryMutex_);

@@ -20,6 +20,7 @@
 
 #include "farm/farm_control.h"
 #include "http/job_json.h"
+#include "http/submit_request.h"
 #include "net/http_listener.h"
 #include "jobs/job_store.h"
 
@@ -43,6 +44,9 @@ struct ApiOptions {
   size_t maxBodyBytes = 64u << 20;
   std::filesystem::path storeRoot = "store";  // frames: storeRoot/<job id>/frame_NNNN.{exr,png}
   std::filesystem::path dashboardDirectory;   // static files served at / when set
+  // The coordinator's memory for one job's frames (0: no limit): a job that would need
+  // more even one bin at a time is refused at submit with 413 job_too_large.
+  uint64_t jobMemoryBytes = 0;
 };
 
 class ApiServer {
@@ -86,6 +90,7 @@ class ApiServer {
   void RouteMiss(const httplib::Request& request, const std::string& body, httplib::Response& response);
 
   void SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void CheckJobFitsInMemory(const http::Submission& submission) const;
   void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);

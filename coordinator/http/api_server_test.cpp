@@ -125,6 +125,8 @@ const fs::path kOpenApiSpec = fs::path(TCFARM_SOURCE_DIR) / "proto" / "openapi.y
 
 class ApiServerTest : public ::testing::Test {
  protected:
+  static constexpr uint64_t kJobMemoryBytes = uint64_t{64} << 20;
+
   void SetUp() override {
     std::random_device random;
     folder_ = fs::temp_directory_path() /
@@ -144,6 +146,7 @@ class ApiServerTest : public ::testing::Test {
     options.port = 0;
     options.maxBodyBytes = kMaxBodyBytes;
     options.storeRoot = folder_ / "store";
+    options.jobMemoryBytes = kJobMemoryBytes;
     server_ = std::make_unique<ApiServer>(*store_, farm_, registry_, options);
     port_ = server_->Start();
     client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
@@ -315,6 +318,33 @@ TEST_F(ApiServerTest, DeeplyNestedBodiesAreRefusedNotFollowed) {
   }());
   // A scene at ordinary depth still goes through.
   SubmitOk(Submission());
+}
+
+// The coordinator holds a job's frames in memory: a job whose frames would not fit even
+// one bin at a time is refused at submit, saying why, instead of exhausting the machine.
+TEST_F(ApiServerTest, JobsWhoseFramesExceedTheMemoryForAJobAreRefused) {
+  json scene = SmallScene();
+  scene["render"]["width"] = 1024;
+  scene["render"]["height"] = 1024;  // 12 MiB a frame; a 10-frame search holds 14 of them
+  const json error = ExpectError(Post("/api/v1/jobs", Submission(scene)), 413, "job_too_large");
+  EXPECT_EQ(error["pointer"], "/scene/render");
+  EXPECT_EQ(error["message"],
+            "a 1024x1024 frame takes 12.0 MiB as float RGB, and this job holds up to 14 of them at once "
+            "(168.0 MiB) even one bin at a time; the coordinator allows 64.0 MiB per job (--job-memory); "
+            "expected fewer pixels a frame, a narrower bin_width or a coordinator with more memory");
+  // At 3 MiB a frame over 60 frames, it depends on what the planner holds: a bin of 20
+  // frames is too much, a bin of 10 fits, and so does exact's one working frame.
+  scene["render"]["width"] = 512;
+  scene["render"]["height"] = 512;
+  scene["render"]["frames"]["count"] = 60;
+  json body = Submission(scene);
+  body["bin_width"] = 20;
+  ExpectError(Post("/api/v1/jobs", body), 413, "job_too_large");
+  body["bin_width"] = 10;
+  SubmitOk(body);
+  body["strategy"] = "exact";
+  body["bin_width"] = 60;
+  SubmitOk(body);
 }
 
 TEST_F(ApiServerTest, DuplicateKeysAreRefusedWithTheirPointer) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "planner/exact_planner.h"
@@ -29,6 +30,42 @@ std::string_view StrategyName(Strategy strategy) {
       return "exact";
   }
   return "unknown";
+}
+
+int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCount) {
+  const long width = strategy == Strategy::kBrute ? 2 : binWidth;
+  const long planner = strategy == Strategy::kExact ? liveBins : liveBins * (width + 1);
+  return static_cast<int>(std::min<long>(planner + kFarmFramesPerJob, long{frameCount} + 4));
+}
+
+int LiveBinsWithin(uint64_t budgetBytes, uint64_t frameBytes, Strategy strategy, int binWidth,
+                   int maxLiveBins, int frameCount) {
+  for (int bins = maxLiveBins; bins >= 1; --bins) {
+    const long double need = static_cast<long double>(frameBytes) *
+                             FramesHeldPerJob(strategy, binWidth, bins, frameCount);
+    if (need <= budgetBytes) return bins;
+  }
+  return 0;
+}
+
+std::string MemoryShortfall(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
+                            int frameCount) {
+  const uint64_t frameBytes = uint64_t(width) * uint64_t(height) * 3 * sizeof(float);
+  if (LiveBinsWithin(budgetBytes, frameBytes, strategy, binWidth, 1, frameCount) > 0) return "";
+  const int frames = FramesHeldPerJob(strategy, binWidth, 1, frameCount);
+  auto gib = [](long double bytes) {
+    char text[32];
+    if (bytes < (1u << 30)) {
+      std::snprintf(text, sizeof text, "%.1Lf MiB", bytes / (1u << 20));
+    } else {
+      std::snprintf(text, sizeof text, "%.2Lf GiB", bytes / (1u << 30));
+    }
+    return std::string(text);
+  };
+  return "a " + std::to_string(width) + "x" + std::to_string(height) + " frame takes " + gib(frameBytes) +
+         " as float RGB, and this job holds up to " + std::to_string(frames) + " of them at once (" +
+         gib(static_cast<long double>(frameBytes) * frames) + ") even one bin at a time; the coordinator allows " +
+         gib(budgetBytes) + " per job (--job-memory)";
 }
 
 std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& options) {

@@ -96,9 +96,34 @@ std::vector<T> TakeAll(std::vector<T>& queue) {
 
 enum class Strategy { kBrute, kSearch, kGuarded, kExact };
 
+// Auto's widest guarded bin: equation 3 keeps falling with n for any d < 1, so the width
+// is chosen by a coarse survey of the sequence (planner/bin_width_survey.h) up to this.
+// Past it the paper's measured cost has long flattened (Figure 9) while a copied pixel's
+// span, and with it the error the guard misses, keeps growing.
+constexpr int kAutoWidestBin = 16;
+
 // "brute", "search", "guarded", "exact"; nullopt for anything else.
 std::optional<Strategy> StrategyFromString(std::string_view name);
 std::string_view StrategyName(Strategy strategy);
+
+// The coordinator's memory for one job, in frames of width x height float RGB (12 bytes a
+// pixel), at most: the planner's working frames with `liveBins` bins (segments) at once
+// (a search or guarded bin holds its own frames, an exact segment one working frame),
+// plus kFarmFramesPerJob the farm keeps (frames queued for writing, the coherence
+// analysis), and never more than the job's own frames plus those the farm copies.
+// Measured peaks (RSS) stay below it: 5 frames for a one-frame job, 47 for a 60-frame
+// search at n = 10.
+constexpr int kFarmFramesPerJob = 10;
+int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCount);
+// The most bins (segments), 1 .. maxLiveBins, whose frames fit in `budgetBytes`; 0 when
+// not even one bin's do.
+int LiveBinsWithin(uint64_t budgetBytes, uint64_t frameBytes, Strategy strategy, int binWidth,
+                   int maxLiveBins, int frameCount);
+
+// Why a job of width x height frames cannot fit in `budgetBytes` even one bin at a time
+// ("a 16384x16384 frame takes 3.00 GiB ..."); "" when it can.
+std::string MemoryShortfall(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
+                            int frameCount);
 
 // brute is search with binWidth 2 (options.binWidth is ignored for it). Throws
 // std::invalid_argument naming the bad option and its expected range.

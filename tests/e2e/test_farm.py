@@ -7,6 +7,7 @@ import time
 import pytest
 
 from farm_harness import LocalFarm, compare, render_reference, small_scene
+from tcfarm.client import ApiError
 
 
 @pytest.fixture(scope="module")
@@ -89,9 +90,25 @@ def test_frames_that_finish_ahead_wait_on_disk_when_memory_is_short(tmp_path, tw
     assert len(spilled_masks) == 21 and spilled_masks == held_masks
 
 
+def test_a_coordinator_short_of_memory_works_on_fewer_bins_at_once(tmp_path, twelve_spheres,
+                                                                   farm):
+    # 160x120 frames take 225 KiB; 5 MiB for the job holds one bin of 10 frames at a time
+    # with what the farm keeps, not four. The frames are the same either way.
+    (tmp_path / "short").mkdir()
+    with LocalFarm(tmp_path / "short", workers=2, coordinator_args=("--job-memory", "5")) as short:
+        short.wait_for_workers(2)
+        narrow = short.run_job(twelve_spheres, strategy="search", bin_width=10)
+        wide = farm.run_job(twelve_spheres, strategy="search", bin_width=10)
+        assert (narrow["stats"]["live_bins"], wide["stats"]["live_bins"]) == (1, 4)
+        assert compare(farm.store / str(wide["id"]),
+                       short.store / str(narrow["id"]))["differing_pixels"] == 0
+        with pytest.raises(ApiError) as refused:
+            short.client.submit(twelve_spheres, strategy="search", bin_width=20)
+        assert refused.value.status == 413 and refused.value.code == "job_too_large"
+
+
 def test_a_bad_scene_fails_the_request_not_the_farm(farm, twelve_spheres):
     bad = dict(twelve_spheres, shapes=[dict(twelve_spheres["shapes"][1], radius=-2)])
-    from tcfarm.client import ApiError
     with pytest.raises(ApiError) as error:
         farm.client.submit(bad)
     assert error.value.status == 400
