@@ -22,7 +22,8 @@ Dispatcher::Dispatcher(const std::string& endpoint, const Clock& clock, Heartbea
       policy_(policy),
       socket_(context_, zmq::socket_type::router),
       registry_(policy),
-      lastHeartbeat_(clock.Now()) {
+      lastHeartbeat_(clock.Now()),
+      lastDrained_(clock.Now()) {
   socket_.set(zmq::sockopt::linger, 0);
   // Sending to a peer that is gone fails instead of silently vanishing, so the credit
   // it would have held is never taken.
@@ -89,7 +90,7 @@ void Dispatcher::Receive(Milliseconds timeout, DispatchSink& sink) {
 void Dispatcher::Flush() {
   SteadyTime now = clock_.Now();
   std::vector<std::string> lost;
-  Requeue(registry_.ExpireSilent(now, &lost));
+  Requeue(registry_.ExpireSilent(lastDrained_, &lost));
   for (const std::string& name : lost) {
     ++counters_.workersLost;
     std::fprintf(stderr, "coordinator: worker %s went silent; its tasks are requeued\n",
@@ -102,7 +103,10 @@ void Dispatcher::Flush() {
 void Dispatcher::ReceiveAll(DispatchSink& sink) {
   for (int i = 0; i < kMaxMessagesPerPoll; ++i) {
     auto parts = wire::ReceiveParts(socket_);
-    if (!parts) return;
+    if (!parts) {
+      lastDrained_ = clock_.Now();
+      return;
+    }
     if (parts->size() < 2) {
       ++counters_.malformed;
       continue;

@@ -125,6 +125,10 @@ class Dispatcher {
   uint64_t nextTaskId_ = 1;
   size_t pendingCount_ = 0;
   SteadyTime lastHeartbeat_;
+  // When the socket was last read to the end. Workers are judged silent against it, not
+  // against now: while the coordinator is busy (finishing a large frame) their messages
+  // wait in the socket, and its own deafness is not their silence.
+  SteadyTime lastDrained_;
   DispatcherCounters counters_;
 };
 

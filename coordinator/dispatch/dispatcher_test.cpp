@@ -139,6 +139,28 @@ TEST_F(DispatcherTest, SilentWorkersTasksGoToAnotherWorker) {
   EXPECT_EQ(dispatcher_.InFlightTasks(), 0u);
 }
 
+// A coordinator that spends 6 s on something else (finishing a large frame) has not
+// heard its workers meanwhile: their messages wait in its socket, so it must not call
+// them silent before it has read them. A worker that really is silent is still found.
+TEST_F(DispatcherTest, ABusyCoordinatorReadsBeforeItBlamesItsWorkers) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 4);
+  EnqueueTasks(1, 2);
+  Pump();
+  ASSERT_EQ(worker.Tasks().size(), 2u);
+  worker.Send(wire::Heartbeat{});
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  clock_.Advance(Milliseconds(6000));  // busy: nothing read
+  dispatcher_.Flush();                 // liveness is checked before reading
+  EXPECT_EQ(dispatcher_.counters().workersLost, 0u);
+  Pump();                              // reads the heartbeat sent at the start
+  EXPECT_EQ(dispatcher_.counters().workersLost, 0u);
+  EXPECT_EQ(dispatcher_.InFlightTasks(), 2u);
+  clock_.Advance(Milliseconds(6000));  // now it is silent while the coordinator listens
+  Pump();
+  EXPECT_EQ(dispatcher_.counters().workersLost, 1u);
+  EXPECT_EQ(dispatcher_.counters().requeued, 2u);
+}
+
 TEST_F(DispatcherTest, ALateDuplicateResultIsIgnored) {
   FakeWorker first(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 1);
