@@ -16,7 +16,7 @@ namespace tcfarm {
 namespace {
 
 constexpr const char* kUsage =
-    "usage: tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N] "
+    "usage: tcfarm-render SCENE.json [--frames A:B] [--out DIR] [--threads N] "
     "[--no-exr] [--no-png] [--exr-compression zip[:1-9]|none|rle|zips|piz]";
 
 int ParseInt(const std::string& text, const std::string& what) {

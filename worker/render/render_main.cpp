@@ -7,20 +7,16 @@
 #include <vector>
 
 #include "render/render_command.h"
-#include "scene/scene.h"
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   try {
     return tcfarm::RunRender(tcfarm::ParseRenderArguments(args));
   } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "tcfarm-worker render: %s\n", e.what());
+    std::fprintf(stderr, "tcfarm-render: %s\n", e.what());
     return 2;
-  } catch (const tcfarm::SceneError& e) {
-    std::fprintf(stderr, "tcfarm-worker: %s\n", e.what());
-    return 1;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "tcfarm-worker render: %s\n", e.what());
+  } catch (const std::exception& e) {  // SceneError included: the message names the value
+    std::fprintf(stderr, "tcfarm-render: %s\n", e.what());
     return 1;
   }
 }
