@@ -1,5 +1,6 @@
 #include "cli/serve_command.h"
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -29,6 +30,7 @@ constexpr const char* kUsage =
     "beyond it they wait on disk (default 256)\n"
     "           [--job-memory MIB]   per job, the frames it holds at once; larger jobs are refused "
     "(default: half the machine's memory)\n"
+    "           [--worker-timeout MS]   silence after which a worker's tasks are requeued (default 5000)\n"
     "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
     "--local-workers 1\n"
     "          --dashboard: services/dashboard of the source tree the binary was built in, "
@@ -112,7 +114,11 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     else if (flag == "--exr-compression") options.farm.output.exrCompression = value();
     else if (flag == "--writer-threads") options.farm.output.threads = ParseInt(value(), flag, 1, 64);
     else if (flag == "--dashboard") options.dashboard = value();
-    else if (flag == "--job-memory")
+    else if (flag == "--worker-timeout") {
+      options.farm.heartbeat.timeout = Milliseconds(ParseInt(value(), flag, 100, 3600000));
+      // Heartbeats at least five to a timeout, as by default.
+      options.farm.heartbeat.interval = std::min(options.farm.heartbeat.interval, options.farm.heartbeat.timeout / 5);
+    } else if (flag == "--job-memory")
       options.farm.jobMemoryBytes = static_cast<uint64_t>(ParseInt(value(), flag, 1, 1 << 30)) << 20;
     else if (flag == "--pending-frame-memory")
       options.farm.pendingFrameBytes = static_cast<size_t>(ParseInt(value(), flag, 0, 1 << 20)) << 20;

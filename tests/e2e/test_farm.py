@@ -107,6 +107,27 @@ def test_a_coordinator_short_of_memory_works_on_fewer_bins_at_once(tmp_path, twe
         assert refused.value.status == 413 and refused.value.code == "job_too_large"
 
 
+# 8 million triangles: a worker takes seconds to build them, longer than this coordinator
+# waits for a silent worker. Built off the worker's loop, it goes on answering heartbeats.
+LARGE_TERRAIN = {
+    "camera": {"position": [0, 30, 60], "look_at": [0, 0, 0]},
+    "lights": [{"type": "directional", "direction": [-1, -2, -1], "intensity": [1, 1, 1]}],
+    "shapes": [{"type": "terrain", "origin": [-50, -2, -50], "size": [100, 100], "height": 8,
+                "cells": [2000, 2000], "seed": 7}],
+    "render": {"width": 16, "height": 12, "frames": {"start": 0, "count": 1}},
+}
+
+
+def test_a_worker_building_a_large_scene_is_not_taken_for_dead(tmp_path):
+    with LocalFarm(tmp_path, workers=1, coordinator_args=("--worker-timeout", "1500")) as farm:
+        farm.wait_for_workers(1)
+        job = farm.run_job(LARGE_TERRAIN, strategy="brute", timeout=600)
+        assert job["state"] == "completed", job
+        requeued = re.search(r"^tcfarm_tasks_requeued_total (\S+)$", farm.metrics(), re.M)
+        assert requeued is None or float(requeued.group(1)) == 0
+        assert "reconnecting" not in farm.worker_log(0).read_text()
+
+
 def test_a_bad_scene_fails_the_request_not_the_farm(farm, twelve_spheres):
     bad = dict(twelve_spheres, shapes=[dict(twelve_spheres["shapes"][1], radius=-2)])
     with pytest.raises(ApiError) as error:

@@ -7,22 +7,25 @@ Tracer* SceneCache::Find(const std::string& hash) {
     if (it->hash == hash) {
       entries_.splice(entries_.begin(), entries_, it);
       ++hits_;
-      return entries_.front().tracer.get();
+      return entries_.front().built.tracer.get();
     }
   }
   ++misses_;
   return nullptr;
 }
 
-Tracer* SceneCache::Add(const std::string& hash, const std::string& sceneJson) {
-  Entry entry;
-  entry.hash = hash;
-  entry.scene = std::make_unique<Scene>(ParseScene(sceneJson));
-  RebaseOnCamera(*entry.scene);  // as the reference renderer does: the same bits
-  entry.tracer = std::make_unique<Tracer>(device_, *entry.scene, pool_);
-  entries_.push_front(std::move(entry));
+SceneCache::Built SceneCache::Build(const std::string& sceneJson) const {
+  Built built;
+  built.scene = std::make_unique<Scene>(ParseScene(sceneJson));
+  RebaseOnCamera(*built.scene);  // as the reference renderer does: the same bits
+  built.tracer = std::make_unique<Tracer>(device_, *built.scene, pool_);
+  return built;
+}
+
+Tracer* SceneCache::Insert(const std::string& hash, Built built) {
+  entries_.push_front(Entry{hash, std::move(built)});
   while (entries_.size() > capacity_) entries_.pop_back();
-  return entries_.front().tracer.get();
+  return entries_.front().built.tracer.get();
 }
 
 }  // namespace tcfarm

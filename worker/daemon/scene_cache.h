@@ -22,11 +22,22 @@ class SceneCache {
   SceneCache(const EmbreeDevice& device, ThreadPool& pool, size_t capacity = kDefaultCapacity)
       : device_(device), pool_(pool), capacity_(capacity) {}
 
+  // A scene parsed and built, not yet in the cache.
+  struct Built {
+    std::unique_ptr<Scene> scene;  // the tracer refers to it: keep it at a fixed address
+    std::unique_ptr<Tracer> tracer;
+  };
+
   // The tracer of a cached scene, or nullptr; a hit makes it most recently used.
   Tracer* Find(const std::string& hash);
   // Parses and builds a scene received from the coordinator. Throws SceneError (bad
-  // scene) or EmbreeError; the cache is unchanged then.
-  Tracer* Add(const std::string& hash, const std::string& sceneJson);
+  // scene) or EmbreeError. Safe beside tracing and the cache's other calls: the worker
+  // builds scenes off its loop.
+  Built Build(const std::string& sceneJson) const;
+  // Caches a built scene, evicting the least recently used beyond capacity.
+  Tracer* Insert(const std::string& hash, Built built);
+  // Build, then Insert; the cache is unchanged when the build throws.
+  Tracer* Add(const std::string& hash, const std::string& sceneJson) { return Insert(hash, Build(sceneJson)); }
 
   uint64_t hits() const { return hits_; }
   uint64_t misses() const { return misses_; }
@@ -34,8 +45,7 @@ class SceneCache {
  private:
   struct Entry {
     std::string hash;
-    std::unique_ptr<Scene> scene;  // the tracer refers to it: keep it at a fixed address
-    std::unique_ptr<Tracer> tracer;
+    Built built;
   };
   const EmbreeDevice& device_;
   ThreadPool& pool_;

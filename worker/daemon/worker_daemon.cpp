@@ -80,6 +80,7 @@ void WorkerDaemon::Reconnect(const std::atomic<bool>& stop) {
   metrics_.coordinatorUp.Set(0);
   ready_.clear();
   waitingForScene_.clear();
+  for (auto& [hash, build] : building_) build.tasks.clear();  // the scene itself is still worth having
   socket_.reset();
   Milliseconds delay = backoff_.Next();
   std::fprintf(stderr, "worker %s: coordinator %s silent; reconnecting in %lld ms\n",
@@ -101,6 +102,7 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
     zmq::pollitem_t item{static_cast<void*>(*socket_), 0, ZMQ_POLLIN, 0};
     zmq::poll(&item, 1, std::chrono::milliseconds(ready_.empty() ? kIdlePollMs : 0));
     ReceiveAll();
+    CollectBuiltScenes();
     if (!ready_.empty()) TraceNext();
     SteadyTime now = clock_.Now();
     lastLoopTurn_ = now.time_since_epoch().count();
@@ -153,6 +155,10 @@ void WorkerDaemon::OnTask(wire::Task task) {
     ready_.push_back(std::move(task));
     return;
   }
+  if (auto build = building_.find(task.sceneHash); build != building_.end()) {
+    build->second.tasks.push_back(std::move(task));
+    return;
+  }
   auto& waiting = waitingForScene_[task.sceneHash];
   if (waiting.empty()) {
     metrics_.sceneCacheMisses.Increment();
@@ -166,22 +172,38 @@ void WorkerDaemon::OnScene(const wire::SceneData& scene) {
   if (waiting == waitingForScene_.end()) return;  // not asked for (or asked by an old connection)
   std::vector<wire::Task> tasks = std::move(waiting->second);
   waitingForScene_.erase(waiting);
-  std::string problem;
   if (wire::Sha256Hex(scene.sceneJson) != scene.sceneHash) {
-    problem = "scene bytes do not match hash " + scene.sceneHash;
-  } else {
+    metrics_.sceneErrors.Increment();
+    for (const auto& task : tasks) {
+      Send(wire::Error{task.taskId, scene.sceneHash, "scene bytes do not match hash " + scene.sceneHash});
+    }
+    return;
+  }
+  building_[scene.sceneHash] = SceneBuild{
+      std::async(std::launch::async, [this, json = scene.sceneJson] { return scenes_.Build(json); }),
+      std::move(tasks)};
+}
+
+void WorkerDaemon::CollectBuiltScenes() {
+  for (auto build = building_.begin(); build != building_.end();) {
+    if (build->second.built.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+      ++build;
+      continue;
+    }
+    std::string problem;
     try {
-      scenes_.Add(scene.sceneHash, scene.sceneJson);
+      scenes_.Insert(build->first, build->second.built.get());
     } catch (const std::exception& e) {
       problem = e.what();
     }
+    if (problem.empty()) {
+      for (auto& task : build->second.tasks) ready_.push_back(std::move(task));
+    } else {
+      metrics_.sceneErrors.Increment();
+      for (const auto& task : build->second.tasks) Send(wire::Error{task.taskId, build->first, problem});
+    }
+    build = building_.erase(build);
   }
-  if (problem.empty()) {
-    for (auto& task : tasks) ready_.push_back(std::move(task));
-    return;
-  }
-  metrics_.sceneErrors.Increment();
-  for (const auto& task : tasks) Send(wire::Error{task.taskId, scene.sceneHash, problem});
 }
 
 void WorkerDaemon::TraceNext() {

@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <deque>
+#include <future>
 #include <map>
 #include <memory>
 #include <string>
@@ -54,6 +55,8 @@ class WorkerDaemon {
   void Handle(wire::Message message);
   void OnTask(wire::Task task);
   void OnScene(const wire::SceneData& scene);
+  // Scenes whose build has finished: cached, and their tasks made ready (or failed).
+  void CollectBuiltScenes();
   void TraceNext();
   void Send(const wire::Message& message);
 
@@ -68,6 +71,14 @@ class WorkerDaemon {
   Backoff backoff_;
   std::deque<wire::Task> ready_;                           // scene at hand
   std::map<std::string, std::vector<wire::Task>> waitingForScene_;
+  // Scenes being built off the loop, with the tasks that wait for them: the loop keeps
+  // answering heartbeats meanwhile. A scene of millions of triangles takes longer to build
+  // than the coordinator waits for a silent worker.
+  struct SceneBuild {
+    std::future<SceneCache::Built> built;
+    std::vector<wire::Task> tasks;
+  };
+  std::map<std::string, SceneBuild> building_;
   WorkerMetrics metrics_;
   std::atomic<SteadyTime::rep> lastLoopTurn_;
   std::atomic<bool> coordinatorAnswers_{false};
