@@ -119,7 +119,17 @@ uint64_t ParseJobId(const std::string& text) {
   return std::stoull(text);
 }
 
+// A query parameter given twice is refused rather than one of its values picked.
+void RequireAtMostOnce(const httplib::Request& request, const char* name) {
+  if (request.get_param_value_count(name) > 1) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   std::string(name) + " is given " + std::to_string(request.get_param_value_count(name)) +
+                       " times; expected it at most once");
+  }
+}
+
 std::optional<JobState> ParseStateFilter(const httplib::Request& request) {
+  RequireAtMostOnce(request, "state");
   if (!request.has_param("state")) return std::nullopt;
   const std::string name = request.get_param_value("state");
   std::optional<JobState> state = JobStateFromString(name);
@@ -132,6 +142,7 @@ std::optional<JobState> ParseStateFilter(const httplib::Request& request) {
 }
 
 int ParseLimit(const httplib::Request& request) {
+  RequireAtMostOnce(request, "limit");
   if (!request.has_param("limit")) return kDefaultListLimit;
   const std::string text = request.get_param_value("limit");
   const std::string expected = "expected an integer in [1, " + std::to_string(kMaxListLimit) + "]";

@@ -436,6 +436,7 @@ TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
       {"tolerance", -0.1},  {"tolerance", "0"},  {"tolerance", 3.5e38}, {"tolerance", 1e308},
       {"priority", 101},    {"priority", -101},
       {"priority", 1e300},  {"name", 7},         {"name", std::string(300, 'x')},
+      {"spot_check_share", 0.03}, {"spot_check_share", "0"},
   };
   for (const auto& [field, value] : bad) {
     json body = Submission();
@@ -443,6 +444,10 @@ TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
     SCOPED_TRACE(field + " = " + value.dump());
     ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/" + field);
   }
+  json text = Submission();
+  text["spot_check_share"] = "0";
+  const json error = ExpectError(Post("/api/v1/jobs", text), 400, "invalid_field");
+  EXPECT_NE(error["message"].get<std::string>().find("is not a number"), std::string::npos) << error;
   // The limits themselves are fine, and an integral float is an integer.
   json body = Submission();
   body["bin_width"] = 2.0;
@@ -519,6 +524,9 @@ TEST_F(ApiServerTest, ListRefusesBadStateOrLimit) {
   ExpectError(Get("/api/v1/jobs?limit=1001"), 400, "invalid_parameter");
   ExpectError(Get("/api/v1/jobs?limit=-5"), 400, "invalid_parameter");
   ExpectError(Get("/api/v1/jobs?limit=ten"), 400, "invalid_parameter");
+  const json twice = ExpectError(Get("/api/v1/jobs?state=completed&state=failed"), 400, "invalid_parameter");
+  EXPECT_EQ(twice["message"], "state is given 2 times; expected it at most once");
+  ExpectError(Get("/api/v1/jobs?limit=1&limit=2"), 400, "invalid_parameter");
 }
 
 TEST_F(ApiServerTest, GetUnknownOrMalformedId) {

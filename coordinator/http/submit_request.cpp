@@ -211,8 +211,10 @@ json ReadVerify(const json& request) {
 json ReadSpotCheckShare(const json& request) {
   const auto share = request.find("spot_check_share");
   if (share == request.end()) return nullptr;
-  if (!share->is_number() || !std::isfinite(share->get<double>()) || share->get<double>() < 0 ||
-      share->get<double>() > 0.02) {
+  if (!share->is_number()) {
+    Fail(error_code::kInvalidField, "/spot_check_share", Show(*share) + " is not a number", "a number in [0, 0.02]");
+  }
+  if (!std::isfinite(share->get<double>()) || share->get<double>() < 0 || share->get<double>() > 0.02) {
     Fail(error_code::kInvalidField, "/spot_check_share", Show(*share) + " is out of range",
          "a number in [0, 0.02]");
   }
