@@ -8,11 +8,10 @@
 #include <memory>
 #include <stdexcept>
 
-#include <unistd.h>
-
 #include "farm/farm.h"
 #include "frame/frame_io.h"
 #include "farm/local_workers.h"
+#include "farm/machine_memory.h"
 #include "http/api_server.h"
 #include "jobs/job_store.h"
 
@@ -29,7 +28,7 @@ constexpr const char* kUsage =
     "           [--pending-frame-memory MIB]   per job, frames finished ahead of their turn; "
     "beyond it they wait on disk (default 256)\n"
     "           [--job-memory MIB]   per job, the frames it holds at once; larger jobs are refused "
-    "(default: half the machine's memory)\n"
+    "(default: half the memory it may use)\n"
     "           [--worker-timeout MS]   silence after which a worker's tasks are requeued (default 5000)\n"
     "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
     "--local-workers 1\n"
@@ -86,12 +85,10 @@ void ParseHttpAddress(const std::string& text, ServeOptions* options) {
   options->httpPort = ParseInt(text.substr(colon + 1), "--http port", 0, 65535);
 }
 
-// A job's default share of memory: other jobs, the workers on this machine and the
-// system need the rest.
-uint64_t HalfThePhysicalMemory() {
-  const long pages = sysconf(_SC_PHYS_PAGES), pageSize = sysconf(_SC_PAGE_SIZE);
-  if (pages <= 0 || pageSize <= 0) return uint64_t{8} << 30;  // unknown: assume a 16 GiB machine
-  return static_cast<uint64_t>(pages) * static_cast<uint64_t>(pageSize) / 2;
+// A job's default share of the memory this process may use (its container's limit
+// included): other jobs, workers on this machine and the system need the rest.
+uint64_t HalfTheUsableMemory() {
+  return UsableMemoryBytes().value_or(uint64_t{16} << 30) / 2;  // unknown: assume 16 GiB
 }
 
 ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
@@ -128,7 +125,7 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
   if (options.database.empty()) options.database = options.farm.storeRoot / "jobs.db";
-  if (options.farm.jobMemoryBytes == 0) options.farm.jobMemoryBytes = HalfThePhysicalMemory();
+  if (options.farm.jobMemoryBytes == 0) options.farm.jobMemoryBytes = HalfTheUsableMemory();
   if (!IsLosslessExrCompression(options.farm.output.exrCompression)) {
     throw std::invalid_argument("--exr-compression " + options.farm.output.exrCompression +
                                 ": expected a lossless one: none, rle, zips, zip or piz");
