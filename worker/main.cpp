@@ -21,7 +21,7 @@ namespace {
 constexpr const char* kUsage =
     "usage: tcfarm-worker serve [--coordinator tcp://HOST:PORT] [--threads N] [--capacity K] "
     "[--name NAME]\n"
-    "                           [--metrics HOST:PORT]\n"
+    "                           [--metrics HOST:PORT] [--coordinator-timeout MS]\n"
     "       tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N]\n";
 
 std::atomic<bool> stopRequested{false};
@@ -67,6 +67,10 @@ ServeArguments ParseServeArguments(const std::vector<std::string>& args) {
       options.name = value();
     } else if (args[i] == "--metrics") {
       parsed.metricsAddress = value();
+    } else if (args[i] == "--coordinator-timeout") {
+      // Silence after which the coordinator is taken for gone and reconnected to.
+      options.heartbeat.timeout = tcfarm::Milliseconds(ParseCount(value(), "--coordinator-timeout", 100));
+      options.heartbeat.interval = std::min(options.heartbeat.interval, options.heartbeat.timeout / 5);
     } else {
       throw std::invalid_argument("unexpected argument " + args[i]);
     }

@@ -111,7 +111,10 @@ JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
 
 std::vector<DispatchTask> JobRun::TakeTasks() {
   std::vector<DispatchTask> tasks;
-  for (TraceTask& t : planner_->TakeReadyTasks()) {
+  // While the writer is behind, the planner's tasks wait: tracing more would only pile up
+  // frames in memory.
+  const bool writerBehind = unwritten_.size() >= kMaxUnwrittenFrames;
+  for (TraceTask& t : writerBehind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
     tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window});
   }
   for (Verification::Request& r : verification_.TakeRequests()) {
@@ -155,25 +158,35 @@ bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
 }
 
 int JobRun::CollectFinishedFrames(JobStore& store) {
-  std::vector<FinishedFrame> finished = planner_->TakeFinishedFrames();
-  const uint64_t pixels = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
-  for (FinishedFrame& frame : finished) {
-    int absolute = spec_.firstFrame + frame.frame;
-    store.RecordFrame(id_, absolute, frame.tracedCount, pixels - frame.tracedCount);
-    // Traced in full and plainly (no horizons): what brute force pays for a frame.
-    if (frame.tracedCount == pixels && framesWithHorizons_.count(frame.frame) == 0) {
-      fullFrameTime_ += frameTraceTime_[frame.frame];
-      ++fullFrames_;
-    }
-    frameTraceTime_.erase(frame.frame);
-    framesWithHorizons_.erase(frame.frame);
-    verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
-    WriteMask("mask", absolute, std::move(frame.traced));
-    TrackCoherence(frame.frame, frame.rgb);
-    writer_.Write(absolute, Image{scene_->render.width, scene_->render.height, std::move(frame.rgb)});
-    ++framesDone_;
+  for (FinishedFrame& frame : planner_->TakeFinishedFrames()) unwritten_.push_back(std::move(frame));
+  // Only as much as the writer takes at once and a short turn allows: the farm loop must
+  // come back to its socket (results, heartbeats) while large frames are encoded.
+  const auto turnEnds = std::chrono::steady_clock::now() + kFinishingTurn;
+  int collected = 0;
+  while (!unwritten_.empty() && writer_.HasRoom() && std::chrono::steady_clock::now() < turnEnds) {
+    FinishFrame(store, std::move(unwritten_.front()));
+    unwritten_.pop_front();
+    ++collected;
   }
-  return static_cast<int>(finished.size());
+  return collected;
+}
+
+void JobRun::FinishFrame(JobStore& store, FinishedFrame frame) {
+  const uint64_t pixels = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
+  const int absolute = spec_.firstFrame + frame.frame;
+  store.RecordFrame(id_, absolute, frame.tracedCount, pixels - frame.tracedCount);
+  // Traced in full and plainly (no horizons): what brute force pays for a frame.
+  if (frame.tracedCount == pixels && framesWithHorizons_.count(frame.frame) == 0) {
+    fullFrameTime_ += frameTraceTime_[frame.frame];
+    ++fullFrames_;
+  }
+  frameTraceTime_.erase(frame.frame);
+  framesWithHorizons_.erase(frame.frame);
+  verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
+  WriteMask("mask", absolute, std::move(frame.traced));
+  TrackCoherence(frame.frame, frame.rgb);
+  writer_.Write(absolute, Image{scene_->render.width, scene_->render.height, std::move(frame.rgb)});
+  ++framesDone_;
 }
 
 void JobRun::TrackCoherence(int frame, const std::vector<float>& rgb) {

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -73,9 +74,15 @@ class JobRun {
   std::vector<DispatchTask> TakeTasks();
   // Feeds a result to the planner or the verification. False when it had it already.
   bool OnResult(uint64_t taskId, const wire::Result& result);
-  // Hands finished frames to the writer and the verification, records them; returns how many.
+  // Hands finished frames to the writer and the verification, records them; returns how
+  // many. Never waits for the writer: frames it has no room for wait for a later call.
   int CollectFinishedFrames(JobStore& store);
-  bool Done() const { return planner_->Done() && !verification_.Pending(); }
+  bool Done() const {
+    return planner_->Done() && !verification_.Pending() && unwritten_.empty() && writer_.Idle();
+  }
+  // Frames finished by the planner and not yet handed to the writer, beyond which the
+  // job's tasks wait (kFarmFramesPerJob counts them).
+  static constexpr size_t kMaxUnwrittenFrames = 4;
   // Waits for the frame writer; throws FrameIoError if a frame could not be written.
   void FinishWriting();
 
@@ -95,6 +102,7 @@ class JobRun {
   static constexpr uint64_t kVerificationTask = uint64_t{1} << 62;
 
   // Feeds frames in order to the coherence analysis and writes each one's change mask.
+  void FinishFrame(JobStore& store, FinishedFrame frame);
   void TrackCoherence(int frame, const std::vector<float>& rgb);
   void AddToCoherence(Image frame);
   // Queues STORE/<job>/<kind>_NNNN.png for the absolute frame on the frame writer.
@@ -108,11 +116,14 @@ class JobRun {
   std::unique_ptr<Scene> scene_;
   ResolvedStrategy resolved_;
   AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
+  // How long one CollectFinishedFrames call may spend on frames.
+  static constexpr std::chrono::milliseconds kFinishingTurn{20};
   PlannerOptions plannerOptions_;
   std::unique_ptr<Planner> planner_;
   PixelTally reported_;
   Verification verification_;
   FrameWriter writer_;
+  std::deque<FinishedFrame> unwritten_;  // taken from the planner, not yet written
   std::chrono::steady_clock::time_point started_;
   TaskTime traceTime_;              // summed over tasks: the tracing time the job cost the farm
   TaskTime verifyTime_;             // of it, spent on verification

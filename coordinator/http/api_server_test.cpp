@@ -333,14 +333,14 @@ TEST_F(ApiServerTest, JobsWhoseFramesExceedTheMemoryForAJobAreRefused) {
             "(168.0 MiB) even one bin at a time; the coordinator allows 64.0 MiB per job (--job-memory); "
             "expected fewer pixels a frame, a narrower bin_width or a coordinator with more memory");
   // At 3 MiB a frame over 60 frames, it depends on what the planner holds: a bin of 20
-  // frames is too much, a bin of 10 fits, and so does exact's one working frame.
+  // frames is too much, a bin of 5 fits, and so does exact's one working frame.
   scene["render"]["width"] = 512;
   scene["render"]["height"] = 512;
   scene["render"]["frames"]["count"] = 60;
   json body = Submission(scene);
   body["bin_width"] = 20;
   ExpectError(Post("/api/v1/jobs", body), 413, "job_too_large");
-  body["bin_width"] = 10;
+  body["bin_width"] = 5;
   SubmitOk(body);
   body["strategy"] = "exact";
   body["bin_width"] = 60;

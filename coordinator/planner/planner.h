@@ -109,11 +109,11 @@ std::string_view StrategyName(Strategy strategy);
 // The coordinator's memory for one job, in frames of width x height float RGB (12 bytes a
 // pixel), at most: the planner's working frames with `liveBins` bins (segments) at once
 // (a search or guarded bin holds its own frames, an exact segment one working frame),
-// plus kFarmFramesPerJob the farm keeps (frames queued for writing, the coherence
-// analysis), and never more than the job's own frames plus those the farm copies.
-// Measured peaks (RSS) stay below it: 5 frames for a one-frame job, 47 for a 60-frame
-// search at n = 10.
-constexpr int kFarmFramesPerJob = 10;
+// plus kFarmFramesPerJob the farm keeps (frames waiting for the writer and queued in it,
+// the coherence analysis), and never more than the job's own frames plus those the farm
+// copies. Measured peaks (RSS) stay below it: 5 frames for a one-frame job, 47 for a
+// 60-frame search at n = 10.
+constexpr int kFarmFramesPerJob = 14;
 int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCount);
 // The most bins (segments), 1 .. maxLiveBins, whose frames fit in `budgetBytes`; 0 when
 // not even one bin's do.

@@ -47,6 +47,16 @@ void FrameWriter::WriteMask(std::string name, int width, int height, std::vector
   changed_.notify_all();
 }
 
+bool FrameWriter::HasRoom() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return queuedFrames_ < options_.maxQueuedFrames;
+}
+
+bool FrameWriter::Idle() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return queue_.empty() && writing_ == 0;
+}
+
 void FrameWriter::Finish() {
   std::unique_lock<std::mutex> lock(mutex_);
   changed_.wait(lock, [&] { return queue_.empty() && writing_ == 0; });

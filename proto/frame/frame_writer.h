@@ -44,6 +44,10 @@ class FrameWriter {
   void WriteMask(std::string name, int width, int height, std::vector<uint8_t> mask);
   // Waits for every queued frame; rethrows the first write error.
   void Finish();
+  // Whether Write would return at once (fewer than maxQueuedFrames frames queued).
+  bool HasRoom() const;
+  // Whether everything queued is written (Finish would return at once).
+  bool Idle() const;
 
  private:
   void Run();
@@ -59,7 +63,7 @@ class FrameWriter {
 
   std::filesystem::path directory_;
   FrameWriterOptions options_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::condition_variable changed_;
   std::deque<Item> queue_;
   size_t queuedFrames_ = 0;  // frames in queue_, masks not counted
