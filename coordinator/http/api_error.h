@@ -57,4 +57,8 @@ class ApiError : public std::runtime_error {
 // messages quote whatever bytes the client sent.
 std::string DumpJson(const nlohmann::json& value);
 
+// A client's value quoted for a message, as JSON (control bytes escaped: a NUL cannot cut
+// the message short), at most 60 bytes of it.
+std::string ShowValue(const nlohmann::json& value);
+
 }  // namespace tcfarm::http

@@ -83,25 +83,6 @@ std::optional<std::string> ReadLimitedBody(const httplib::ContentReader& reader,
   return body;
 }
 
-// A client's text, quoted for a message: control bytes (a NUL would cut the message short)
-// written as \xHH, and at most 64 bytes of it.
-std::string Quoted(const std::string& text) {
-  constexpr size_t kMaxShown = 64;
-  std::string quoted = "\"";
-  for (size_t i = 0; i < text.size() && i < kMaxShown; ++i) {
-    const auto byte = static_cast<unsigned char>(text[i]);
-    if (byte < 0x20 || byte == 0x7f || byte == '"' || byte == '\\') {
-      char escaped[5];
-      std::snprintf(escaped, sizeof escaped, "\\x%02x", byte);
-      quoted += escaped;
-    } else {
-      quoted += text[i];
-    }
-  }
-  if (text.size() > kMaxShown) quoted += "...";
-  return quoted + "\"";
-}
-
 bool AllDigits(const std::string& text) {
   return !text.empty() &&
          std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
@@ -114,7 +95,8 @@ uint64_t ParseJobId(const std::string& text) {
   const std::string expected = "expected a positive integer up to 9223372036854775807";
   if (!AllDigits(text) || text.size() > kMaxDigits ||
       std::stoull(text) > static_cast<uint64_t>(std::numeric_limits<int64_t>::max())) {
-    throw ApiError(400, error_code::kInvalidParameter, "job id " + Quoted(text) + " is not a job id; " + expected);
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "job id " + http::ShowValue(text) + " is not a job id; " + expected);
   }
   return std::stoull(text);
 }
@@ -135,7 +117,7 @@ std::optional<JobState> ParseStateFilter(const httplib::Request& request) {
   std::optional<JobState> state = JobStateFromString(name);
   if (!state) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "state " + Quoted(name) + " is not a job state; expected one of queued, running, "
+                   "state " + http::ShowValue(name) + " is not a job state; expected one of queued, running, "
                    "completed, failed, canceled");
   }
   return state;
@@ -148,7 +130,7 @@ int ParseLimit(const httplib::Request& request) {
   const std::string expected = "expected an integer in [1, " + std::to_string(kMaxListLimit) + "]";
   if (!AllDigits(text) || text.size() > 4 || std::stoi(text) < 1 || std::stoi(text) > kMaxListLimit) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "limit " + Quoted(text) + " is out of range; " + expected);
+                   "limit " + http::ShowValue(text) + " is out of range; " + expected);
   }
   return std::stoi(text);
 }
@@ -168,12 +150,12 @@ FrameFile ParseFrameFile(const std::string& text) {
   const std::string extension = dot == std::string::npos ? "" : text.substr(dot + 1);
   if (!AllDigits(number) || number.size() > kMaxFrameDigits) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "frame file " + Quoted(text) + " has no frame number; " + expected);
+                   "frame file " + http::ShowValue(text) + " has no frame number; " + expected);
   }
   if (extension == "png") return FrameFile{std::stoi(number), extension, "image/png"};
   if (extension == "exr") return FrameFile{std::stoi(number), extension, "image/x-exr"};
   throw ApiError(400, error_code::kInvalidParameter,
-                 "frame file " + Quoted(text) + " has an unknown extension; " + expected);
+                 "frame file " + http::ShowValue(text) + " has an unknown extension; " + expected);
 }
 
 // Streams the file so a 16K float EXR never has to sit in memory whole. The stream stays
@@ -439,7 +421,7 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
   constexpr size_t kMaxFrameDigits = 9;
   if (!AllDigits(number) || number.size() > kMaxFrameDigits) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "frame " + Quoted(number) + " is not a frame number; expected <frame number>/" + kind +
+                   "frame " + http::ShowValue(number) + " is not a frame number; expected <frame number>/" + kind +
                        ".png");
   }
   const int frame = std::stoi(number);

@@ -537,11 +537,11 @@ TEST_F(ApiServerTest, GetUnknownOrMalformedId) {
   // Ids are int64: one past the largest is malformed, not merely unknown.
   ExpectError(Get("/api/v1/jobs/9223372036854775807"), 404, "job_not_found");
   ExpectError(Get("/api/v1/jobs/9223372036854775808"), 400, "invalid_parameter");
-  // A NUL in the id is shown, not allowed to cut the message short.
+  // A NUL in the id is shown escaped, not allowed to cut the message short.
   const json error = ExpectError(Get("/api/v1/jobs/1%00"), 400, "invalid_parameter");
-  EXPECT_EQ(error["message"], "job id \"1\\x00\" is not a job id; expected a positive integer up to 9223372036854775807");
+  EXPECT_EQ(error["message"], "job id \"1\\u0000\" is not a job id; expected a positive integer up to 9223372036854775807");
   const json limit = ExpectError(Get("/api/v1/jobs?limit=1%00"), 400, "invalid_parameter");
-  EXPECT_NE(limit["message"].get<std::string>().find("\\x00\" is out of range; expected"), std::string::npos) << limit;
+  EXPECT_NE(limit["message"].get<std::string>().find("\\u0000\" is out of range; expected"), std::string::npos) << limit;
 }
 
 TEST_F(ApiServerTest, RunningJobShowsLiveProgressAndStats) {

@@ -20,7 +20,6 @@ constexpr const char* kTopLevelFields[] = {"scene",     "name",      "frames",  
                                            "bin_width", "tolerance", "priority", "verify",
                                            "spot_check_share"};
 constexpr int kDefaultBinWidth = 10;
-constexpr size_t kShownValueBytes = 60;  // enough to recognize a value, short enough to read
 
 // Messages read like the scene parser's: "<pointer without the leading '/'>: <problem>;
 // expected <what>", so a client sees one style for every field.
@@ -28,12 +27,6 @@ constexpr size_t kShownValueBytes = 60;  // enough to recognize a value, short e
                        const std::string& expected) {
   const std::string where = pointer.empty() ? "request body" : pointer.substr(1);
   throw ApiError(400, code, where + ": " + problem + "; expected " + expected, pointer);
-}
-
-std::string Show(const json& value) {
-  std::string text = DumpJson(value);
-  if (text.size() > kShownValueBytes) text = text.substr(0, kShownValueBytes) + "...";
-  return text;
 }
 
 
@@ -62,12 +55,12 @@ bool IsIntegral(const json& value) {
 int ReadInteger(const json& value, const std::string& pointer, int low, int high,
                 const std::string& expected) {
   if (!IsIntegral(value)) {
-    Fail(error_code::kInvalidField, pointer, Show(value) + " is not an integer", expected);
+    Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not an integer", expected);
   }
   // The limits are far below 2^53, so comparing as double is exact where it matters.
   const double number = value.get<double>();
   if (number < low || number > high) {
-    Fail(error_code::kInvalidField, pointer, Show(value) + " is out of range", expected);
+    Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is out of range", expected);
   }
   return static_cast<int>(number);
 }
@@ -94,7 +87,7 @@ std::string ReadName(const json& request) {
   if (name == request.end()) return "";
   const std::string expected = "a string of at most " + std::to_string(kMaxNameBytes) + " bytes";
   if (!name->is_string()) {
-    Fail(error_code::kInvalidField, "/name", Show(*name) + " is not a string", expected);
+    Fail(error_code::kInvalidField, "/name", ShowValue(*name) + " is not a string", expected);
   }
   if (name->get_ref<const std::string&>().size() > kMaxNameBytes) {
     Fail(error_code::kInvalidField, "/name", "the name is too long", expected);
@@ -114,7 +107,7 @@ std::string ReadStrategy(const json& request) {
       if (*strategy == accepted) return accepted;
     }
   }
-  Fail(error_code::kInvalidField, "/strategy", Show(*strategy) + " is not a supported strategy", expected);
+  Fail(error_code::kInvalidField, "/strategy", ShowValue(*strategy) + " is not a supported strategy", expected);
 }
 
 int ReadOptionalInteger(const json& request, const char* field, int low, int high, int fallback) {
@@ -129,11 +122,11 @@ double ReadTolerance(const json& request) {
   // Pixel values are floats: a tolerance beyond the largest float compares nothing more.
   const std::string expected = "a number in [0, 3.4028234663852886e38]";
   if (!tolerance->is_number()) {
-    Fail(error_code::kInvalidField, "/tolerance", Show(*tolerance) + " is not a number", expected);
+    Fail(error_code::kInvalidField, "/tolerance", ShowValue(*tolerance) + " is not a number", expected);
   }
   const double value = tolerance->get<double>();
   if (!(value >= 0 && value <= std::numeric_limits<float>::max())) {
-    Fail(error_code::kInvalidField, "/tolerance", Show(*tolerance) + " is out of range", expected);
+    Fail(error_code::kInvalidField, "/tolerance", ShowValue(*tolerance) + " is out of range", expected);
   }
   return value;
 }
@@ -159,7 +152,7 @@ std::pair<int, int> ReadFrameRange(const json& request, const RenderSettings& re
   const auto frames = request.find("frames");
   if (frames == request.end()) return {first, last};
   if (!frames->is_object()) {
-    Fail(error_code::kInvalidField, "/frames", Show(*frames) + " is not an object",
+    Fail(error_code::kInvalidField, "/frames", ShowValue(*frames) + " is not an object",
          "{\"start\": first frame, \"end\": last frame}, both inclusive");
   }
   for (const auto& item : frames->items()) {
@@ -191,12 +184,12 @@ json ReadVerify(const json& request) {
   if (verify == request.end()) return nullptr;
   const std::string expected = R"({"frames": "all"} or {"sample": K} with K in [1, 100000])";
   if (!verify->is_object() || verify->size() != 1) {
-    Fail(error_code::kInvalidField, "/verify", Show(*verify) + " is not a verification request",
+    Fail(error_code::kInvalidField, "/verify", ShowValue(*verify) + " is not a verification request",
          expected);
   }
   if (verify->contains("frames")) {
     if ((*verify)["frames"] != "all") {
-      Fail(error_code::kInvalidField, "/verify/frames", Show((*verify)["frames"]) + " is not \"all\"",
+      Fail(error_code::kInvalidField, "/verify/frames", ShowValue((*verify)["frames"]) + " is not \"all\"",
            expected);
     }
     return {{"frames", "all"}};
@@ -212,10 +205,10 @@ json ReadSpotCheckShare(const json& request) {
   const auto share = request.find("spot_check_share");
   if (share == request.end()) return nullptr;
   if (!share->is_number()) {
-    Fail(error_code::kInvalidField, "/spot_check_share", Show(*share) + " is not a number", "a number in [0, 0.02]");
+    Fail(error_code::kInvalidField, "/spot_check_share", ShowValue(*share) + " is not a number", "a number in [0, 0.02]");
   }
   if (!std::isfinite(share->get<double>()) || share->get<double>() < 0 || share->get<double>() > 0.02) {
-    Fail(error_code::kInvalidField, "/spot_check_share", Show(*share) + " is out of range",
+    Fail(error_code::kInvalidField, "/spot_check_share", ShowValue(*share) + " is out of range",
          "a number in [0, 0.02]");
   }
   return *share;
@@ -226,7 +219,7 @@ json ReadSpotCheckShare(const json& request) {
 Submission ParseSubmission(const std::string& body) {
   const json request = ParseBody(body);
   if (!request.is_object()) {
-    Fail(error_code::kInvalidField, "", Show(request) + " is not an object",
+    Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object",
          "a JSON object with at least a \"scene\"");
   }
   CheckKnownFields(request);
