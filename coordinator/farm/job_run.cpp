@@ -81,9 +81,8 @@ PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const 
   options.binWidth = resolved.binWidth;
   options.tolerance = static_cast<float>(spec.tolerance);
   if (jobMemoryBytes > 0) {
-    const uint64_t frameBytes = uint64_t(options.width) * uint64_t(options.height) * 3 * sizeof(float);
-    options.maxLiveBins = LiveBinsWithin(jobMemoryBytes, frameBytes, resolved.strategy, resolved.binWidth,
-                                         options.maxLiveBins, options.frameCount);
+    options.maxLiveBins = LiveBinsWithin(jobMemoryBytes, options.width, options.height, resolved.strategy,
+                                         resolved.binWidth, options.maxLiveBins, options.frameCount);
     if (options.maxLiveBins == 0) {
       throw std::invalid_argument(MemoryShortfall(jobMemoryBytes, options.width, options.height,
                                                   resolved.strategy, resolved.binWidth, options.frameCount));

@@ -38,10 +38,12 @@ int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCou
   return static_cast<int>(std::min<long>(planner + kFarmFramesPerJob, long{frameCount} + 4));
 }
 
-int LiveBinsWithin(uint64_t budgetBytes, uint64_t frameBytes, Strategy strategy, int binWidth,
+uint64_t FrameBytes(int width, int height) { return uint64_t(width) * uint64_t(height) * 3 * sizeof(float); }
+
+int LiveBinsWithin(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
                    int maxLiveBins, int frameCount) {
   for (int bins = maxLiveBins; bins >= 1; --bins) {
-    const long double need = static_cast<long double>(frameBytes) *
+    const long double need = static_cast<long double>(FrameBytes(width, height)) *
                              FramesHeldPerJob(strategy, binWidth, bins, frameCount);
     if (need <= budgetBytes) return bins;
   }
@@ -50,8 +52,8 @@ int LiveBinsWithin(uint64_t budgetBytes, uint64_t frameBytes, Strategy strategy,
 
 std::string MemoryShortfall(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
                             int frameCount) {
-  const uint64_t frameBytes = uint64_t(width) * uint64_t(height) * 3 * sizeof(float);
-  if (LiveBinsWithin(budgetBytes, frameBytes, strategy, binWidth, 1, frameCount) > 0) return "";
+  if (LiveBinsWithin(budgetBytes, width, height, strategy, binWidth, 1, frameCount) > 0) return "";
+  const uint64_t frameBytes = FrameBytes(width, height);
   const int frames = FramesHeldPerJob(strategy, binWidth, 1, frameCount);
   auto gib = [](long double bytes) {
     char text[32];

@@ -115,9 +115,11 @@ std::string_view StrategyName(Strategy strategy);
 // 60-frame search at n = 10.
 constexpr int kFarmFramesPerJob = 14;
 int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCount);
+// Bytes of one width x height frame as the coordinator holds it (float RGB).
+uint64_t FrameBytes(int width, int height);
 // The most bins (segments), 1 .. maxLiveBins, whose frames fit in `budgetBytes`; 0 when
 // not even one bin's do.
-int LiveBinsWithin(uint64_t budgetBytes, uint64_t frameBytes, Strategy strategy, int binWidth,
+int LiveBinsWithin(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
                    int maxLiveBins, int frameCount);
 
 // Why a job of width x height frames cannot fit in `budgetBytes` even one bin at a time
