@@ -69,8 +69,7 @@ ServeArguments ParseServeArguments(const std::vector<std::string>& args) {
       parsed.metricsAddress = value();
     } else if (args[i] == "--coordinator-timeout") {
       // Silence after which the coordinator is taken for gone and reconnected to.
-      options.heartbeat.timeout = tcfarm::Milliseconds(ParseCount(value(), "--coordinator-timeout", 100));
-      options.heartbeat.interval = std::min(options.heartbeat.interval, options.heartbeat.timeout / 5);
+      options.heartbeat.SetTimeout(tcfarm::Milliseconds(ParseCount(value(), "--coordinator-timeout", 100)));
     } else {
       throw std::invalid_argument("unexpected argument " + args[i]);
     }

@@ -1,6 +1,5 @@
 #include "cli/serve_command.h"
 
-#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -111,11 +110,9 @@ ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
     else if (flag == "--exr-compression") options.farm.output.exrCompression = value();
     else if (flag == "--writer-threads") options.farm.output.threads = ParseInt(value(), flag, 1, 64);
     else if (flag == "--dashboard") options.dashboard = value();
-    else if (flag == "--worker-timeout") {
-      options.farm.heartbeat.timeout = Milliseconds(ParseInt(value(), flag, 100, 3600000));
-      // Heartbeats at least five to a timeout, as by default.
-      options.farm.heartbeat.interval = std::min(options.farm.heartbeat.interval, options.farm.heartbeat.timeout / 5);
-    } else if (flag == "--job-memory")
+    else if (flag == "--worker-timeout")
+      options.farm.heartbeat.SetTimeout(Milliseconds(ParseInt(value(), flag, 100, 3600000)));
+    else if (flag == "--job-memory")
       options.farm.jobMemoryBytes = static_cast<uint64_t>(ParseInt(value(), flag, 1, 1 << 30)) << 20;
     else if (flag == "--pending-frame-memory")
       options.farm.pendingFrameBytes = static_cast<size_t>(ParseInt(value(), flag, 0, 1 << 20)) << 20;

@@ -41,6 +41,12 @@ struct HeartbeatPolicy {
   Milliseconds timeout{5000};
   Milliseconds backoffInitial{500};
   Milliseconds backoffMax{8000};
+
+  // Another timeout, with heartbeats kept at least five to it, as by default.
+  void SetTimeout(Milliseconds silence) {
+    timeout = silence;
+    interval = std::min(interval, silence / 5);
+  }
 };
 
 // What one end knows about the other.

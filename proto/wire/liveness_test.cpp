@@ -41,5 +41,16 @@ TEST(LivenessTest, BackoffDoublesToItsCapAndResets) {
   EXPECT_EQ(backoff.Next(), Milliseconds(500));
 }
 
+// A shorter timeout brings heartbeats closer, five to a timeout; a longer one keeps them.
+TEST(HeartbeatPolicyTest, ATimeoutKeepsFiveHeartbeatsWithinIt) {
+  HeartbeatPolicy policy;
+  policy.SetTimeout(Milliseconds(500));
+  EXPECT_EQ(policy.timeout, Milliseconds(500));
+  EXPECT_EQ(policy.interval, Milliseconds(100));
+  HeartbeatPolicy slow;
+  slow.SetTimeout(Milliseconds(60000));
+  EXPECT_EQ(slow.interval, HeartbeatPolicy{}.interval);
+}
+
 }  // namespace
 }  // namespace tcfarm
