@@ -2,6 +2,8 @@
 
 #include <cstring>
 
+#include "embree/closest_hit.h"
+
 namespace tcfarm {
 namespace {
 
@@ -66,6 +68,7 @@ RTCGeometry NewShapeGeometry(RTCDevice device, const Shape& shape) {
 // Attaches the shape to `scene` and returns its geometry id.
 unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape) {
   RTCGeometry geometry = NewShapeGeometry(device, shape);
+  rtcSetGeometryIntersectFilterFunction(geometry, SettleTies);
   rtcCommitGeometry(geometry);
   unsigned id = rtcAttachGeometry(scene, geometry);
   rtcReleaseGeometry(geometry);

@@ -7,6 +7,7 @@
 #include <memory>
 #include <vector>
 
+#include "embree/closest_hit.h"
 #include "trace/float3.h"
 #include "trace/horizons.h"
 
@@ -223,13 +224,13 @@ struct Tracer::HorizonTracker {
 // One thread's view of a frame: shades hits, casts secondary rays, counts rays.
 class Tracer::PixelTracer {
  public:
-  PixelTracer(const FrameContext& frame, const Scene& scene) : frame_(frame), scene_(scene) {
-    // Camera rays of neighbouring pixels, and their shadow rays toward one light, travel
-    // together as packets, but in Embree's incoherent mode: its coherent mode culls by
-    // the packet's common frustum, which far from the origin (1e4 and beyond) lost rays
-    // that straddle the view's axis, so a pixel's bits depended on its packet mates.
-    rtcInitIntersectContext(&context_);
-  }
+  // Camera rays of neighbouring pixels, and their shadow rays toward one light, travel
+  // together as packets, but in Embree's incoherent mode (the context's default): its
+  // coherent mode culls by the packet's common frustum, which far from the origin (1e4
+  // and beyond) lost rays that straddle the view's axis, so a pixel's bits depended on
+  // its packet mates. Ties between coplanar surfaces are settled by the context's rule.
+  PixelTracer(const FrameContext& frame, const Scene& scene)
+      : frame_(frame), scene_(scene), context_(frame.geometry.get()) {}
 
   // Traces `count` (<= 8) camera samples and writes their colours.
   void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
@@ -274,7 +275,7 @@ class Tracer::PixelTracer {
 
   const FrameContext& frame_;
   const Scene& scene_;
-  RTCIntersectContext context_;
+  ClosestHitContext context_;
   RayCounts counts_;
   HorizonTracker* horizons_ = nullptr;
   std::vector<std::shared_ptr<const FrameGeometry>> framesAhead_;  // [f - frame - 1]
@@ -380,14 +381,15 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
   rayHit.ray.mask = ~0u;
   rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-  rtcIntersect1(frame_.geometry->scene(), &context_, &rayHit);
+  rtcIntersect1(frame_.geometry->scene(), &context_.embree, &rayHit);
   if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
     if (horizons_) horizons_->Segment(horizons_->lane, origin, direction, kInfinity);
     return frame_.background;
   }
 
+  const float hitDistance = HitDistance(rayHit.ray);
   SurfaceHit hit = MakeHit(origin, direction,
-                           {rayHit.ray.tfar,
+                           {hitDistance,
                             {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
                             rayHit.hit.instID[0],
                             rayHit.hit.geomID,
@@ -395,7 +397,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
   // The surface first: a moving one settles the horizon and spares the segment's test.
   if (horizons_) {
     NoteSurface(horizons_->lane, hit);
-    horizons_->Segment(horizons_->lane, origin, direction, rayHit.ray.tfar);
+    horizons_->Segment(horizons_->lane, origin, direction, hitDistance);
   }
   Float3 local = Ambient(hit);
   for (size_t light = 0; light < frame_.lights.size(); ++light) {
@@ -411,7 +413,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     shadow.mask = ~0u;
     ++counts_.shadow;
     const RTCRay query = shadow;
-    rtcOccluded1(frame_.geometry->scene(), &context_, &shadow);
+    rtcOccluded1(frame_.geometry->scene(), &context_.embree, &shadow);
     bool blocked = shadow.tfar < 0;
     if (!blocked) local += LightContribution(hit, light, toLight, distance);
     if (!horizons_) continue;
@@ -426,7 +428,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     for (int frame = frame_.frame + 1; frame < horizons_->horizon[lane]; ++frame) {
       if (horizons_->oracle->SurelyBlocked(segment, frame, &blocker)) continue;
       RTCRay ray = query;
-      rtcOccluded1(SceneAhead(frame), &context_, &ray);
+      rtcOccluded1(SceneAhead(frame), &context_.embree, &ray);
       if (ray.tfar >= 0) horizons_->horizon[lane] = frame;
     }
   }
@@ -455,7 +457,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
   }
   counts_.primary += count;
-  rtcIntersect8(valid, frame_.geometry->scene(), &context_, &packet);
+  rtcIntersect8(valid, frame_.geometry->scene(), &context_.embree, &packet);
 
   SurfaceHit hits[kPacketWidth];
   bool hasHit[kPacketWidth] = {};
@@ -468,15 +470,16 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       color[lane] = frame_.background;
       continue;
     }
+    const float hitDistance = HitDistance(packet.ray, lane);
     hits[lane] = MakeHit(origin, direction,
-                         {packet.ray.tfar[lane],
+                         {hitDistance,
                           {packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]},
                           packet.hit.instID[0][lane],
                           packet.hit.geomID[lane],
                           packet.hit.primID[lane]});
     if (horizons_) {
       NoteSurface(lane, hits[lane]);
-      horizons_->Segment(lane, origin, direction, packet.ray.tfar[lane]);
+      horizons_->Segment(lane, origin, direction, hitDistance);
     }
     color[lane] = Ambient(hits[lane]);
   }
@@ -505,7 +508,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     counts_.shadow += shadowCount;
     alignas(32) RTCRay8 query;
     if (horizons_) query = shadow;  // as asked: Embree overwrites tfar with the answer
-    rtcOccluded8(shadowValid, frame_.geometry->scene(), &context_, &shadow);
+    rtcOccluded8(shadowValid, frame_.geometry->scene(), &context_.embree, &shadow);
     int blocked[kPacketWidth] = {};
     for (int lane = 0; lane < count; ++lane) {
       if (!shadowValid[lane]) continue;
@@ -558,7 +561,7 @@ void Tracer::PixelTracer::ShadowHorizons(const RTCRay8& query, const int* valid,
     }
     if (!anyAsked) continue;
     alignas(32) RTCRay8 ray = query;
-    rtcOccluded8(ahead, SceneAhead(frame), &context_, &ray);
+    rtcOccluded8(ahead, SceneAhead(frame), &context_.embree, &ray);
     for (int lane = 0; lane < kPacketWidth; ++lane) {
       if (ahead[lane] && ray.tfar[lane] >= 0) horizons_->horizon[lane] = frame, walking[lane] = false;
     }

@@ -1,0 +1,149 @@
+// Coplanar surfaces: a ray meets two of them at the same distance, and which one it sees
+// must not depend on how it was traced (packet mates, pixel set, thread count, the
+// frame's placement of the moving shapes). Real assets are full of such faces.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "trace/tracer.h"
+
+namespace tcfarm {
+namespace {
+
+constexpr int kWidth = 96;
+constexpr int kHeight = 72;
+constexpr int kFrames = 12;
+
+std::string CoplanarScene(const std::string& shapes, const std::string& extraMaterials = "") {
+  return R"({
+    "camera": {"position": [0, 2, 8], "look_at": [0, 1, 0]},
+    "lights": [{"type": "point", "position": [4, 6, 3], "intensity": [30, 30, 30]},
+               {"type": "directional", "direction": [-1, -2, -1], "intensity": [0.3, 0.3, 0.3]}],
+    "materials": {"red": {"diffuse": [0.8, 0.1, 0.1], "specular": [0.3, 0.3, 0.3], "shininess": 32},
+                  "blue": {"diffuse": [0.1, 0.2, 0.8]},
+                  "floor": {"diffuse": [0.6, 0.6, 0.6]},
+                  "mirror": {"diffuse": [0.05, 0.05, 0.05], "reflectivity": 0.9})" +
+         extraMaterials + R"(},
+    "shapes": [)" + shapes + R"(],
+    "background": [0.1, 0.1, 0.2],
+    "render": {"width": )" + std::to_string(kWidth) + R"(, "height": )" + std::to_string(kHeight) +
+         R"(, "frames": {"start": 0, "count": )" + std::to_string(kFrames) +
+         R"(}, "samples_per_pixel": 1, "max_depth": 5}
+  })";
+}
+
+const char* kFloor =
+    R"({"type": "quad", "corner": [-20, 0, -20], "edge_u": [0, 0, 40], "edge_v": [40, 0, 0], "material": "floor"})";
+
+struct Variant {
+  const char* name;
+  std::string json;
+};
+
+std::vector<Variant> Variants() {
+  const std::string floor = kFloor;
+  return {
+      {"moving quad on the floor",
+       CoplanarScene(floor + R"(, {"type": "quad", "corner": [-3, 0, -1], "edge_u": [0, 0, 2],
+           "edge_v": [2, 0, 0], "material": "red", "motion": {"polynomial": [[0, 0.4], [0], [0]]}})")},
+      {"still quad on the floor beside a moving ball",
+       CoplanarScene(floor + R"(, {"type": "quad", "corner": [-1.3, 0, -1.1], "edge_u": [0, 0, 2.3],
+           "edge_v": [2.7, 0, 0], "material": "red"},
+           {"type": "sphere", "center": [2, 0.5, 0], "radius": 0.5, "material": "blue",
+            "motion": {"polynomial": [[0], [0, 0.1], [0]]}})")},
+      {"two moving coplanar quads",
+       CoplanarScene(floor + R"(, {"type": "quad", "corner": [-3, 0, -1], "edge_u": [0, 0, 2],
+           "edge_v": [2, 0, 0], "material": "red", "motion": {"polynomial": [[0, 0.3], [0], [0]]}},
+           {"type": "quad", "corner": [1, 0, -1.5], "edge_u": [0, 0, 2.5], "edge_v": [2.5, 0, 0],
+            "material": "blue", "motion": {"polynomial": [[0, -0.3], [0], [0]]}})")},
+      {"coplanar triangles of one mesh",
+       CoplanarScene(R"({"type": "mesh", "material": "floor",
+           "vertices": [[-4, 0, -4], [4, 0, -4], [4, 0, 4], [-4, 0, 4], [-3, 0, -3.3], [3.1, 0, -2.9], [0.2, 0, 3.7]],
+           "triangles": [[0, 1, 2], [0, 2, 3], [4, 5, 6], [6, 5, 4]]},
+           {"type": "sphere", "center": [-2, 0.6, 1], "radius": 0.6, "material": "red",
+            "motion": {"polynomial": [[0, 0.3], [0], [0]]}})")},
+      {"a tie seen in a mirror",
+       CoplanarScene(floor + R"(, {"type": "quad", "corner": [-3, 0, -1], "edge_u": [0, 0, 2],
+           "edge_v": [2, 0, 0], "material": "red", "motion": {"polynomial": [[0, 0.4], [0], [0]]}},
+           {"type": "quad", "corner": [-6, 0, -3], "edge_u": [12, 0, 0], "edge_v": [0, 6, 0.5],
+            "material": "mirror"},
+           {"type": "quad", "corner": [-6, 0, -3.0001], "edge_u": [12, 0, 0], "edge_v": [0, 6, 0.5],
+            "material": "blue"})")},
+  };
+}
+
+std::vector<float> TraceFull(Tracer& tracer, int frame) {
+  std::vector<float> rgb(static_cast<size_t>(kWidth) * kHeight * 3);
+  tracer.TraceFrame(frame, rgb.data());
+  return rgb;
+}
+
+bool SamePixel(const float* a, const float* b) { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
+
+// Any pixel set, in any order, on any thread count, gives the full frame's bits.
+TEST(TiesTest, EveryPixelSetSettlesATieAsTheFullFrameDoes) {
+  EmbreeDevice device;
+  std::mt19937 random(7);
+  for (const Variant& variant : Variants()) {
+    Scene scene = ParseScene(variant.json);
+    ThreadPool fullPool(2);
+    Tracer reference(device, scene, fullPool);
+    for (int frame : {0, 5, 11}) {
+      std::vector<float> full = TraceFull(reference, frame);
+      for (unsigned threads : {1u, 3u}) {
+        ThreadPool pool(threads);
+        Tracer tracer(device, scene, pool);
+        for (int trial = 0; trial < 3; ++trial) {
+          std::vector<uint32_t> pixels(full.size() / 3);
+          std::iota(pixels.begin(), pixels.end(), 0u);
+          std::shuffle(pixels.begin(), pixels.end(), random);
+          pixels.resize(1 + random() % (trial == 0 ? 40 : pixels.size()));
+          std::vector<float> rgb(pixels.size() * 3);
+          tracer.TracePixels(frame, pixels.data(), pixels.size(), rgb.data());
+          size_t differing = 0;
+          for (size_t i = 0; i < pixels.size(); ++i) {
+            differing += !SamePixel(&rgb[3 * i], &full[3 * pixels[i]]);
+          }
+          EXPECT_EQ(differing, 0u) << variant.name << ": frame " << frame << ", " << pixels.size()
+                                   << " pixels on " << threads << " threads";
+        }
+      }
+    }
+  }
+}
+
+// exact's promise at the tracer: a pixel traced at frame a with horizon h has the same bits
+// in every frame a .. h-1 as a full trace of that frame gives it.
+TEST(TiesTest, HorizonsHoldOnCoplanarSurfaces) {
+  EmbreeDevice device;
+  for (const Variant& variant : Variants()) {
+    Scene scene = ParseScene(variant.json);
+    ThreadPool pool(2);
+    Tracer tracer(device, scene, pool);
+    std::vector<std::vector<float>> frames;
+    for (int frame = 0; frame < kFrames; ++frame) frames.push_back(TraceFull(tracer, frame));
+    const size_t pixelCount = static_cast<size_t>(kWidth) * kHeight;
+    std::vector<uint32_t> pixels(pixelCount);
+    std::iota(pixels.begin(), pixels.end(), 0u);
+    std::vector<float> rgb(pixelCount * 3);
+    std::vector<int32_t> horizons(pixelCount);
+    const int window = kFrames - 1;
+    tracer.TracePixels(0, pixels.data(), pixelCount, rgb.data(), window, horizons.data());
+    size_t wrong = 0, copies = 0;
+    for (size_t p = 0; p < pixelCount; ++p) {
+      for (int frame = 1; frame < std::min(horizons[p], kFrames); ++frame, ++copies) {
+        wrong += !SamePixel(&rgb[3 * p], &frames[frame][3 * p]);
+      }
+    }
+    EXPECT_EQ(wrong, 0u) << variant.name << ": " << wrong << " of " << copies << " copies differ";
+    EXPECT_GT(copies, pixelCount) << variant.name << ": horizons should let still pixels be copied";
+  }
+}
+
+}  // namespace
+}  // namespace tcfarm
