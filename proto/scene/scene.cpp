@@ -5,96 +5,31 @@
 
 namespace tcfarm {
 
-AnimatedVec3 AnimatedVec3::Constant(Vec3 value) {
-  AnimatedVec3 result;
-  result.kind_ = Kind::kConstant;
-  result.constant_ = value;
-  return result;
+CameraPose Camera::At(double frame) const {
+  CameraPose pose{position.Evaluate(frame), lookAt.Evaluate(frame), up};
+  if (rig.IsNone()) return pose;  // the common case: inputs untouched, bits kept
+  const Affine worldFromRig = rig.WorldFromObject(frame);
+  return {worldFromRig.Apply(pose.position), worldFromRig.Apply(pose.lookAt), worldFromRig.ApplyLinear(pose.up)};
 }
 
-AnimatedVec3 AnimatedVec3::Polynomial(std::array<std::vector<double>, 3> coefficients) {
-  AnimatedVec3 result;
-  result.kind_ = Kind::kPolynomial;
-  result.coefficients_ = std::move(coefficients);
-  return result;
+Vec3 Light::PositionAt(double frame) const {
+  Vec3 p = position.Evaluate(frame);
+  return motion.IsNone() ? p : motion.WorldFromObject(frame).Apply(p);
 }
 
-AnimatedVec3 AnimatedVec3::Keyframes(std::vector<Keyframe> keys) {
-  AnimatedVec3 result;
-  result.kind_ = Kind::kKeyframes;
-  result.keys_ = std::move(keys);
-  return result;
+Vec3 Light::DirectionAt(double frame) const {
+  Vec3 d = direction.Evaluate(frame);
+  return motion.IsNone() ? d : motion.WorldFromObject(frame).ApplyLinear(d);
 }
 
-namespace {
-
-double EvaluateHorner(const std::vector<double>& coefficients, double frame) {
-  double value = 0;
-  for (auto it = coefficients.rbegin(); it != coefficients.rend(); ++it) {
-    value = value * frame + *it;
-  }
-  return value;
+bool Light::SameAt(double a, double b) const {
+  return PositionAt(a) == PositionAt(b) && DirectionAt(a) == DirectionAt(b) && intensity.SameAt(a, b);
 }
 
-// a + (b - a) * t keeps a component that does not change between two keys exactly
-// equal to the key, so a still pixel stays bit-identical while another axis moves.
-double Lerp(double a, double b, double t) { return a + (b - a) * t; }
-
-Vec3 InterpolateKeys(const std::vector<AnimatedVec3::Keyframe>& keys, double frame) {
-  if (keys.empty()) return Vec3{};
-  if (frame <= keys.front().frame) return keys.front().value;
-  if (frame >= keys.back().frame) return keys.back().value;
-  auto after = std::upper_bound(keys.begin(), keys.end(), frame,
-                                [](double f, const AnimatedVec3::Keyframe& key) { return f < key.frame; });
-  const auto& next = *after;
-  const auto& previous = *(after - 1);
-  // frame < next.frame here, so t < 1 and each key is reached only through t == 0.
-  double t = (frame - previous.frame) / (next.frame - previous.frame);
-  return Vec3{Lerp(previous.value.x, next.value.x, t), Lerp(previous.value.y, next.value.y, t),
-              Lerp(previous.value.z, next.value.z, t)};
-}
-
-}  // namespace
-
-Vec3 AnimatedVec3::Evaluate(double frame) const {
-  switch (kind_) {
-    case Kind::kConstant:
-      return constant_;
-    case Kind::kPolynomial:
-      return Vec3{EvaluateHorner(coefficients_[0], frame), EvaluateHorner(coefficients_[1], frame),
-                  EvaluateHorner(coefficients_[2], frame)};
-    case Kind::kKeyframes:
-      return InterpolateKeys(keys_, frame);
-  }
-  return constant_;
-}
-
-bool AnimatedVec3::IsAnimated() const {
-  switch (kind_) {
-    case Kind::kConstant:
-      return false;
-    case Kind::kPolynomial:
-      for (const auto& axis : coefficients_) {
-        for (size_t k = 1; k < axis.size(); ++k) {
-          if (axis[k] != 0) return true;
-        }
-      }
-      return false;
-    case Kind::kKeyframes:
-      for (const auto& key : keys_) {
-        if (key.value != keys_.front().value) return true;
-      }
-      return false;
-  }
-  return false;
-}
-
-bool Scene::CameraMoves() const { return camera.position.IsAnimated() || camera.lookAt.IsAnimated(); }
+bool Scene::CameraMoves() const { return camera.Moves(); }
 
 bool Scene::AnyLightChanges() const {
-  return std::any_of(lights.begin(), lights.end(), [](const Light& light) {
-    return light.position.IsAnimated() || light.direction.IsAnimated() || light.intensity.IsAnimated();
-  });
+  return std::any_of(lights.begin(), lights.end(), [](const Light& light) { return light.Changes(); });
 }
 
 bool Scene::AnyShapeMoves() const {
@@ -140,13 +75,26 @@ AnimatedVec3 Offset(const AnimatedVec3& value, const Vec3& offset) {
 
 }  // namespace
 
+namespace {
+
+// A motion moved with the world: what it turns and scales turns about the moved pivot.
+// A translation-only motion needs nothing, being relative to its object's place.
+void OffsetPivot(Motion& motion, const Vec3& offset) {
+  if (!motion.IsTranslationOnly()) motion.pivot = Plus(motion.pivot, offset);
+}
+
+}  // namespace
+
 void TranslateScene(Scene& scene, const Vec3& offset) {
   scene.camera.position = Offset(scene.camera.position, offset);
   scene.camera.lookAt = Offset(scene.camera.lookAt, offset);
+  OffsetPivot(scene.camera.rig, offset);
   for (Light& light : scene.lights) {
     if (light.type == Light::Type::kPoint) light.position = Offset(light.position, offset);
+    OffsetPivot(light.motion, offset);
   }
   for (Shape& shape : scene.shapes) {
+    OffsetPivot(shape.motion, offset);
     shape.center = Plus(shape.center, offset);
     shape.corner = Plus(shape.corner, offset);
     shape.terrain.origin = Plus(shape.terrain.origin, offset);
@@ -155,7 +103,7 @@ void TranslateScene(Scene& scene, const Vec3& offset) {
 }
 
 void RebaseOnCamera(Scene& scene) {
-  const Vec3 camera = scene.camera.position.Evaluate(scene.render.firstFrame);
+  const Vec3 camera = scene.camera.At(scene.render.firstFrame).position;
   TranslateScene(scene, {-camera.x, -camera.y, -camera.z});
 }
 

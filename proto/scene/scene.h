@@ -15,50 +15,17 @@
 #include <string>
 #include <vector>
 
+#include "scene/animated_vec3.h"
+#include "scene/transform.h"
+
 namespace tcfarm {
 
-struct Vec3 {
-  double x = 0, y = 0, z = 0;
-  double operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
-  double& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
-  bool operator==(const Vec3& o) const { return x == o.x && y == o.y && z == o.z; }
-  bool operator!=(const Vec3& o) const { return !(*this == o); }
-};
-
-// A vec3-valued function of frame time, as in the paper's section 5: either a constant,
-// a polynomial per axis in the frame number, or keyframes interpolated linearly (and
-// held constant before the first and after the last key).
-class AnimatedVec3 {
- public:
-  struct Keyframe {
-    double frame;
-    Vec3 value;
-  };
-
-  AnimatedVec3() = default;
-  static AnimatedVec3 Constant(Vec3 value);
-  // coefficients[axis][k] multiplies frame^k.
-  static AnimatedVec3 Polynomial(std::array<std::vector<double>, 3> coefficients);
-  // Keys must be sorted by frame with no two on the same frame (the parser checks).
-  static AnimatedVec3 Keyframes(std::vector<Keyframe> keys);
-
-  Vec3 Evaluate(double frame) const;
-  // True when Evaluate can return different values for different frames.
-  bool IsAnimated() const;
-  // True when Evaluate(a) == Evaluate(b) bit for bit (exact, not approximate).
-  bool SameAt(double a, double b) const { return Evaluate(a) == Evaluate(b); }
-
-  enum class Kind { kConstant, kPolynomial, kKeyframes };
-  Kind kind() const { return kind_; }
-  const std::array<std::vector<double>, 3>& coefficients() const { return coefficients_; }
-  const std::vector<Keyframe>& keys() const { return keys_; }
-  const Vec3& constant() const { return constant_; }
-
- private:
-  Kind kind_ = Kind::kConstant;
-  Vec3 constant_;
-  std::array<std::vector<double>, 3> coefficients_;
-  std::vector<Keyframe> keys_;
+// Where the camera is at one frame, after its rig's motion.
+struct CameraPose {
+  Vec3 position, lookAt, up;
+  bool operator==(const CameraPose& o) const {
+    return position == o.position && lookAt == o.lookAt && up == o.up;
+  }
 };
 
 struct Camera {
@@ -66,6 +33,12 @@ struct Camera {
   AnimatedVec3 lookAt;
   Vec3 up{0, 1, 0};
   double verticalFovDegrees = 45;
+  // The rig carrying position, look-at point and up vector (none by default): a camera
+  // can orbit, pan and roll as a transform of its own.
+  Motion rig;
+
+  CameraPose At(double frame) const;
+  bool Moves() const { return position.IsAnimated() || lookAt.IsAnimated() || rig.IsAnimated(); }
 };
 
 struct Light {
@@ -74,6 +47,15 @@ struct Light {
   AnimatedVec3 position;   // point lights
   AnimatedVec3 direction;  // directional lights: the direction light travels
   AnimatedVec3 intensity;  // linear RGB radiant intensity (point) or irradiance (directional)
+  Motion motion;           // carries position and direction (none by default)
+
+  Vec3 PositionAt(double frame) const;
+  Vec3 DirectionAt(double frame) const;
+  bool Changes() const {
+    return position.IsAnimated() || direction.IsAnimated() || intensity.IsAnimated() || motion.IsAnimated();
+  }
+  // Whether the light at frames a and b is the same, bit for bit.
+  bool SameAt(double a, double b) const;
 };
 
 struct Material {
@@ -99,7 +81,9 @@ struct Shape {
   Type type = Type::kSphere;
   std::string name;      // optional, for messages
   int material = 0;      // index into Scene::materials
-  AnimatedVec3 translation;  // the object's motion; constant zero when it never moves
+  // The object's motion: the geometry below is its rest pose, placed at each frame by
+  // motion.WorldFromObject(frame). None (identity at every frame) when it never moves.
+  Motion motion;
 
   // kSphere
   Vec3 center;
@@ -117,7 +101,7 @@ struct Shape {
     uint64_t seed = 1;
   } terrain;
 
-  bool Moves() const { return translation.IsAnimated(); }
+  bool Moves() const { return motion.IsAnimated(); }
 };
 
 struct RenderSettings {

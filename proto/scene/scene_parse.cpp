@@ -353,6 +353,109 @@ AnimatedVec3 ReadAnimated(const Node& node, const FrameRange& range) {
   return result;
 }
 
+// --- motion: translation, rotation, scale about a pivot --------------------------------
+
+const char* const kQuaternionExpected = "a rotation quaternion [x, y, z, w] (glTF's order), not all zero";
+const char* const kRotationExpected =
+    "a rotation: a quaternion [x, y, z, w], {\"keyframes\": [{\"frame\": f, \"value\": [x, y, z, w]}, ...]}"
+    " or a spin {\"axis\": [x, y, z], \"degrees_per_frame\": d, \"degrees\": d0}";
+const char* const kMotionExpected =
+    "a motion: an animated translation ([x, y, z], {\"polynomial\": ...} or {\"keyframes\": ...}) or "
+    "{\"translation\", \"rotation\", \"scale\", \"pivot\"}";
+// A scale component this close to 0 collapses the shape onto a plane, whose normals are
+// undefined; this far from 1 the object leaves float's useful range.
+constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
+
+Quaternion ReadQuaternion(const Node& node) {
+  ExpectArray(node, 4, kQuaternionExpected);
+  Quaternion q{ReadNumber(node.Element(3), kQuaternionExpected), ReadNumber(node.Element(0), kQuaternionExpected),
+               ReadNumber(node.Element(1), kQuaternionExpected), ReadNumber(node.Element(2), kQuaternionExpected)};
+  double squared = q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z;
+  if (!(squared >= 1e-12) || !std::isfinite(squared)) {
+    Fail(node.pointer, "quaternion " + Show(node.value) + " has no usable length", kQuaternionExpected);
+  }
+  return q;
+}
+
+AnimatedRotation ReadRotationKeyframes(const Node& node) {
+  const std::string expected = "a non-empty array of {\"frame\": number, \"value\": [x, y, z, w]}";
+  if (!node.value.is_array() || node.value.empty()) FailType(node, expected);
+  std::vector<AnimatedRotation::Keyframe> keys;
+  for (size_t i = 0; i < node.value.size(); ++i) {
+    Node key = node.Element(i);
+    ExpectObject(key, {"frame", "value"}, "a keyframe {\"frame\": number, \"value\": [x, y, z, w]}");
+    Node frameNode = Required(key, "frame", "a finite frame number");
+    double frame = ReadNumber(frameNode, "a finite frame number");
+    if (!keys.empty() && frame <= keys.back().frame) {
+      Fail(frameNode.pointer, "frame " + FormatNumber(frame) + " does not come after frame " +
+                                  FormatNumber(keys.back().frame),
+           "keyframes with strictly increasing frames");
+    }
+    keys.push_back({frame, ReadQuaternion(Required(key, "value", kQuaternionExpected))});
+  }
+  return AnimatedRotation::Keyframes(std::move(keys));
+}
+
+AnimatedRotation ReadSpin(const Node& node) {
+  ExpectObject(node, {"axis", "degrees_per_frame", "degrees"}, kRotationExpected);
+  Node axisNode = Required(node, "axis", "a non-zero rotation axis [x, y, z]");
+  Vec3 axis = ReadVec3(axisNode);
+  if (IsZeroLength(axis)) Fail(axisNode.pointer, "zero-length axis", "a non-zero rotation axis [x, y, z]");
+  const std::string degreesExpected = "finite degrees of magnitude at most 1e9";
+  double perFrame = ReadInRange(Required(node, "degrees_per_frame", degreesExpected), -1e9, 1e9, degreesExpected);
+  double atZero = node.Has("degrees") ? ReadInRange(node.Member("degrees"), -1e9, 1e9, degreesExpected) : 0;
+  return AnimatedRotation::Spin(axis, perFrame, atZero);
+}
+
+AnimatedRotation ReadRotation(const Node& node) {
+  if (node.value.is_array()) return AnimatedRotation::Constant(ReadQuaternion(node));
+  if (!node.value.is_object()) FailType(node, kRotationExpected);
+  if (node.Has("keyframes")) {
+    ExpectObject(node, {"keyframes"}, kRotationExpected);
+    return ReadRotationKeyframes(node.Member("keyframes"));
+  }
+  return ReadSpin(node);
+}
+
+void CheckScale(const AnimatedVec3& scale, const Node& node, const FrameRange& range) {
+  for (double frame : AllFrames(scale.IsAnimated(), range)) {
+    Vec3 s = scale.Evaluate(frame);
+    for (int axis = 0; axis < 3; ++axis) {
+      double magnitude = std::fabs(s[axis]);
+      if (!(magnitude >= kMinScale && magnitude <= kMaxScale)) {
+        Fail(node.pointer, "scale " + FormatVec3(s) + " at frame " + FormatNumber(frame),
+             "scale components of magnitude in [1e-6, 1e6] at every frame (negative mirrors)");
+      }
+    }
+  }
+}
+
+bool IsTransformObject(const Node& node) {
+  if (!node.value.is_object()) return false;
+  for (const char* key : {"translation", "rotation", "scale", "pivot"}) {
+    if (node.Has(key)) return true;
+  }
+  return false;
+}
+
+Motion ReadMotion(const Node& node, const FrameRange& range) {
+  Motion motion;
+  if (!IsTransformObject(node)) {
+    if (!node.value.is_array() && !node.value.is_object()) FailType(node, kMotionExpected);
+    motion.translation = ReadAnimated(node, range);
+    return motion;
+  }
+  ExpectObject(node, {"translation", "rotation", "scale", "pivot"}, kMotionExpected);
+  if (node.Has("translation")) motion.translation = ReadAnimated(node.Member("translation"), range);
+  if (node.Has("rotation")) motion.rotation = ReadRotation(node.Member("rotation"));
+  if (node.Has("scale")) {
+    motion.scale = ReadAnimated(node.Member("scale"), range);
+    CheckScale(motion.scale, node.Member("scale"), range);
+  }
+  if (node.Has("pivot")) motion.pivot = ReadVec3(node.Member("pivot"));
+  return motion;
+}
+
 void CheckNonNegative(const AnimatedVec3& value, const Node& node, const FrameRange& range) {
   for (double frame : ExtremeFrames(value, range)) {
     Vec3 v = value.Evaluate(frame);
@@ -563,8 +666,9 @@ class SceneReader {
   // camera ---------------------------------------------------------------------------
 
   Camera ReadCamera(const Node& node) {
-    ExpectObject(node, {"position", "look_at", "up", "fov_degrees"}, "a camera");
+    ExpectObject(node, {"position", "look_at", "up", "fov_degrees", "motion"}, "a camera");
     Camera camera;
+    if (node.Has("motion")) camera.rig = ReadMotion(node.Member("motion"), range_);
     camera.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
     camera.lookAt = ReadAnimated(Required(node, "look_at", kAnimatedExpected), range_);
     if (node.Has("up")) camera.up = ReadVec3(node.Member("up"));
@@ -581,18 +685,18 @@ class SceneReader {
   }
 
   void CheckCameraBasis(const Camera& camera, const Node& node) const {
-    bool animated = camera.position.IsAnimated() || camera.lookAt.IsAnimated();
-    for (double frame : AllFrames(animated, range_)) {
-      Vec3 position = camera.position.Evaluate(frame);
-      Vec3 lookAt = camera.lookAt.Evaluate(frame);
+    for (double frame : AllFrames(camera.Moves(), range_)) {
+      const CameraPose pose = camera.At(frame);
+      const Vec3& position = pose.position;
+      const Vec3& lookAt = pose.lookAt;
       Vec3 view = Subtract(lookAt, position);
       if (IsZeroLength(view) || Length(view) <= kMinViewRatio * std::max(MaxAbs(position), MaxAbs(lookAt))) {
         Fail(node.MemberPointer("look_at"), "look_at equals position " + FormatVec3(position) + " at frame " +
                                                 FormatNumber(frame),
              "a look_at point distinct from the camera position at every frame");
       }
-      if (Length(Cross(view, camera.up)) <= kMinUpSine * Length(view) * Length(camera.up)) {
-        Fail(node.MemberPointer("up"), "up " + FormatVec3(camera.up) + " is parallel to the view direction " +
+      if (Length(Cross(view, pose.up)) <= kMinUpSine * Length(view) * Length(pose.up)) {
+        Fail(node.MemberPointer("up"), "up " + FormatVec3(pose.up) + " is parallel to the view direction " +
                                            FormatVec3(view) + " at frame " + FormatNumber(frame),
              "an up vector not parallel to the view direction");
       }
@@ -615,11 +719,11 @@ class SceneReader {
     std::string type = ReadString(Required(node, "type", typeExpected), typeExpected);
     Light light;
     if (type == "point") {
-      ExpectObject(node, {"type", "position", "intensity"}, "a point light");
+      ExpectObject(node, {"type", "position", "intensity", "motion"}, "a point light");
       light.type = Light::Type::kPoint;
       light.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
     } else if (type == "directional") {
-      ExpectObject(node, {"type", "direction", "intensity"}, "a directional light");
+      ExpectObject(node, {"type", "direction", "intensity", "motion"}, "a directional light");
       light.type = Light::Type::kDirectional;
       Node direction = Required(node, "direction", kAnimatedExpected);
       light.direction = ReadAnimated(direction, range_);
@@ -627,6 +731,7 @@ class SceneReader {
     } else {
       Fail(node.MemberPointer("type"), "unknown light type " + Quote(type), typeExpected);
     }
+    if (node.Has("motion")) light.motion = ReadMotion(node.Member("motion"), range_);
     Node intensity = Required(node, "intensity", kAnimatedExpected);
     light.intensity = ReadAnimated(intensity, range_);
     CheckNonNegative(light.intensity, intensity, range_);
@@ -677,7 +782,7 @@ class SceneReader {
 
   void ReadCommonShapeFields(const Node& node, Shape& shape) {
     if (node.Has("name")) shape.name = ReadString(node.Member("name"), "a string");
-    if (node.Has("motion")) shape.translation = ReadAnimated(node.Member("motion"), range_);
+    if (node.Has("motion")) shape.motion = ReadMotion(node.Member("motion"), range_);
     if (node.Has("material")) {
       Node material = node.Member("material");
       std::string name = ReadString(material, "the name of a material");
@@ -880,11 +985,42 @@ json AnimatedJson(const AnimatedVec3& value) {
   return Vec3Json(value.constant());
 }
 
+json QuaternionJson(const Quaternion& q) { return json::array({q.x, q.y, q.z, q.w}); }
+
+json RotationJson(const AnimatedRotation& rotation) {
+  switch (rotation.kind()) {
+    case AnimatedRotation::Kind::kConstant:
+      return QuaternionJson(rotation.constant());
+    case AnimatedRotation::Kind::kKeyframes: {
+      json keys = json::array();
+      for (const auto& key : rotation.keys()) keys.push_back({{"frame", key.frame}, {"value", QuaternionJson(key.value)}});
+      return json{{"keyframes", keys}};
+    }
+    case AnimatedRotation::Kind::kSpin:
+      return json{{"axis", Vec3Json(rotation.axis())},
+                  {"degrees_per_frame", rotation.degreesPerFrame()},
+                  {"degrees", rotation.degreesAtZero()}};
+  }
+  return json::array();
+}
+
+// A translation alone is written as the paper's motion always was, so the text (and the
+// hash) of a scene without rotation or scale does not change.
+json MotionJson(const Motion& motion) {
+  if (motion.IsTranslationOnly()) return AnimatedJson(motion.translation);
+  return json{{"translation", AnimatedJson(motion.translation)},
+              {"rotation", RotationJson(motion.rotation)},
+              {"scale", AnimatedJson(motion.scale)},
+              {"pivot", Vec3Json(motion.pivot)}};
+}
+
 json CameraJson(const Camera& camera) {
-  return json{{"position", AnimatedJson(camera.position)},
+  json result{{"position", AnimatedJson(camera.position)},
               {"look_at", AnimatedJson(camera.lookAt)},
               {"up", Vec3Json(camera.up)},
               {"fov_degrees", camera.verticalFovDegrees}};
+  if (!camera.rig.IsNone()) result["motion"] = MotionJson(camera.rig);
+  return result;
 }
 
 json LightJson(const Light& light) {
@@ -896,6 +1032,7 @@ json LightJson(const Light& light) {
     result["type"] = "directional";
     result["direction"] = AnimatedJson(light.direction);
   }
+  if (!light.motion.IsNone()) result["motion"] = MotionJson(light.motion);
   return result;
 }
 
@@ -940,7 +1077,7 @@ json ShapeJson(const Shape& shape, const std::vector<Material>& materials) {
   json result = ShapeGeometryJson(shape);
   if (!shape.name.empty()) result["name"] = shape.name;
   result["material"] = materials.at(static_cast<size_t>(shape.material)).name;
-  result["motion"] = AnimatedJson(shape.translation);
+  result["motion"] = MotionJson(shape.motion);
   return result;
 }
 

@@ -616,8 +616,8 @@ TEST(SceneDefaultsTest, MaterialShapeAndTerrainDefaults) {
   EXPECT_EQ(plain.indexOfRefraction, 1.5);
   const Shape& sphere = parsed.shapes[0];
   EXPECT_EQ(sphere.material, 0);
-  EXPECT_EQ(sphere.translation.kind(), AnimatedVec3::Kind::kConstant);
-  EXPECT_EQ(sphere.translation.Evaluate(3), (Vec3{0, 0, 0}));
+  EXPECT_EQ(sphere.motion.translation.kind(), AnimatedVec3::Kind::kConstant);
+  EXPECT_EQ(sphere.motion.translation.Evaluate(3), (Vec3{0, 0, 0}));
   const Shape& terrain = parsed.shapes[1];
   EXPECT_EQ(terrain.terrain.cellsX, 100);
   EXPECT_EQ(terrain.terrain.cellsZ, 100);
@@ -884,7 +884,7 @@ TEST(SceneSerializeTest, RoundTripIsStable) {
   EXPECT_EQ(0, std::memcmp(reread.shapes[5].mesh.vertices.data(), original.shapes[5].mesh.vertices.data(),
                            original.shapes[5].mesh.vertices.size() * sizeof(Vec3)));
   EXPECT_EQ(reread.camera.position.Evaluate(7), original.camera.position.Evaluate(7));
-  EXPECT_EQ(reread.shapes[0].translation.Evaluate(5), original.shapes[0].translation.Evaluate(5));
+  EXPECT_EQ(reread.shapes[0].motion.translation.Evaluate(5), original.shapes[0].motion.translation.Evaluate(5));
   EXPECT_EQ(reread.shapes[0].material, original.shapes[0].material);
   EXPECT_EQ(reread.materials[0].name, "default");
 
@@ -932,7 +932,7 @@ TEST(SceneRebaseTest, CameraStandsAtTheOriginAndMotionsStay) {
   EXPECT_EQ(scene.camera.lookAt.Evaluate(5), moved(before.camera.lookAt.Evaluate(5)));
   EXPECT_EQ(scene.lights[1].direction.Evaluate(5), before.lights[1].direction.Evaluate(5));
   EXPECT_EQ(scene.shapes[0].center, moved(before.shapes[0].center));
-  EXPECT_EQ(scene.shapes[0].translation.Evaluate(6), before.shapes[0].translation.Evaluate(6));
+  EXPECT_EQ(scene.shapes[0].motion.translation.Evaluate(6), before.shapes[0].motion.translation.Evaluate(6));
   EXPECT_EQ(scene.shapes[1].corner, moved(before.shapes[1].corner));
   EXPECT_EQ(scene.shapes[1].edgeU, before.shapes[1].edgeU);
   EXPECT_EQ(scene.shapes[2].mesh.vertices[1], moved(before.shapes[2].mesh.vertices[1]));

@@ -83,12 +83,18 @@ RTCScene NewStaticScene(RTCDevice device) {
   return scene;
 }
 
-unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Vec3& offset) {
+unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Affine& placement) {
   RTCGeometry instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
   rtcSetGeometryInstancedScene(instance, child);
-  // Column-major 3x4: identity rotation, then the translation column.
-  const float worldFromObject[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, static_cast<float>(offset.x),
-                                     static_cast<float>(offset.y), static_cast<float>(offset.z)};
+  // Column-major 3x4: the linear part's columns, then the translation column. Computed in
+  // double and rounded once, so a translation alone places exactly as it always did.
+  float worldFromObject[12];
+  for (int column = 0; column < 3; ++column) {
+    for (int row = 0; row < 3; ++row) worldFromObject[3 * column + row] = static_cast<float>(placement.linear[row][column]);
+  }
+  worldFromObject[9] = static_cast<float>(placement.offset.x);
+  worldFromObject[10] = static_cast<float>(placement.offset.y);
+  worldFromObject[11] = static_cast<float>(placement.offset.z);
   rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, worldFromObject);
   rtcCommitGeometry(instance);
   unsigned id = rtcAttachGeometry(top, instance);
@@ -97,6 +103,40 @@ unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Ve
 }
 
 }  // namespace
+
+void FrameGeometry::SetNormalTransform(int shape, const Affine& worldFromObject) {
+  if (normalFromObject_.size() <= static_cast<size_t>(shape)) normalFromObject_.resize(shape + 1);
+  // Normals transform by the inverse transpose of the linear part: the cofactor matrix
+  // over the determinant (its sign keeps a mirrored shape's outside outside).
+  const auto& m = worldFromObject.linear;
+  double cofactor[3][3];
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 3; ++column) {
+      const int r1 = (row + 1) % 3, r2 = (row + 2) % 3, c1 = (column + 1) % 3, c2 = (column + 2) % 3;
+      cofactor[row][column] = m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1];
+    }
+  }
+  const double determinant = m[0][0] * cofactor[0][0] + m[0][1] * cofactor[0][1] + m[0][2] * cofactor[0][2];
+  NormalTransform& out = normalFromObject_[shape];
+  out.present = true;
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 3; ++column) out.matrix[row][column] = cofactor[row][column] / determinant;
+  }
+}
+
+Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
+  if (static_cast<size_t>(shape) >= normalFromObject_.size() || !normalFromObject_[shape].present) {
+    return objectNormal;
+  }
+  const auto& m = normalFromObject_[shape].matrix;
+  return {m[0][0] * objectNormal.x + m[0][1] * objectNormal.y + m[0][2] * objectNormal.z,
+          m[1][0] * objectNormal.x + m[1][1] * objectNormal.y + m[1][2] * objectNormal.z,
+          m[2][0] * objectNormal.x + m[2][1] * objectNormal.y + m[2][2] * objectNormal.z};
+}
+
+bool FrameGeometry::HasNormalTransform(int shape) const {
+  return static_cast<size_t>(shape) < normalFromObject_.size() && normalFromObject_[shape].present;
+}
 
 int FrameGeometry::ShapeOf(unsigned instanceId, unsigned geometryId) const {
   if (instanceId == RTC_INVALID_GEOMETRY_ID) return (*staticShapeOfGeometry_)[geometryId];
@@ -143,11 +183,13 @@ std::shared_ptr<FrameGeometry> SceneGeometry::BuildFrame(int frame) const {
     placed->shapeOfInstance_[id] = shape;
   };
   if (hasStaticShapes_) {
-    recordInstance(AttachInstance(device_.get(), top, staticScene_.get(), Vec3{}), -1);
+    recordInstance(AttachInstance(device_.get(), top, staticScene_.get(), Affine{}), -1);
   }
   for (const Mover& mover : movers_) {
-    Vec3 offset = scene_.shapes[mover.shape].translation.Evaluate(frame);
-    recordInstance(AttachInstance(device_.get(), top, mover.scene.get(), offset), mover.shape);
+    const Motion& motion = scene_.shapes[mover.shape].motion;
+    const Affine worldFromObject = motion.WorldFromObject(frame);
+    recordInstance(AttachInstance(device_.get(), top, mover.scene.get(), worldFromObject), mover.shape);
+    if (!motion.IsTranslationOnly()) placed->SetNormalTransform(mover.shape, worldFromObject);
   }
   rtcCommitScene(top);
   device_.ThrowIfError("placing a frame's moving shapes");

@@ -2,7 +2,7 @@
 //
 // Shapes that never move go into one static scene, built once with a high-quality BVH.
 // Each moving shape gets its own small scene, instanced into a per-frame top level with
-// its translation at that frame. When nothing moves, every frame shares the static scene
+// its transform (translation, rotation, scale) at that frame. When nothing moves, every frame shares the static scene
 // and no per-frame work happens at all (FrameBuilds() stays 0).
 #pragma once
 
@@ -23,9 +23,20 @@ class FrameGeometry {
   RTCScene scene() const { return top_.get(); }
   // The scene's shape index for a hit's (instID[0], geomID).
   int ShapeOf(unsigned instanceId, unsigned geometryId) const;
+  // Embree reports an instanced shape's normals in its object space: a shape that turns
+  // or scales needs them carried to the world (not normalised). Still and merely
+  // translated shapes return the normal as it is.
+  bool HasNormalTransform(int shape) const;
+  Vec3 NormalToWorld(int shape, const Vec3& objectNormal) const;
 
  private:
   friend class SceneGeometry;
+  struct NormalTransform {
+    bool present = false;
+    double matrix[3][3];
+  };
+  void SetNormalTransform(int shape, const Affine& worldFromObject);
+  std::vector<NormalTransform> normalFromObject_;  // by shape
   SceneHandle top_;
   const std::vector<int>* staticShapeOfGeometry_ = nullptr;
   std::vector<int> shapeOfInstance_;  // -1: the instance of the static scene

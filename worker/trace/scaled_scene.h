@@ -40,7 +40,8 @@ inline Scene ScaleScene(Scene scene, double s) {
     if (light.type == Light::Type::kPoint) light.intensity = ScaleAnimated(light.intensity, s * s);
   }
   for (Shape& shape : scene.shapes) {
-    shape.translation = ScaleAnimated(shape.translation, s);
+    shape.motion.translation = ScaleAnimated(shape.motion.translation, s);
+    shape.motion.pivot = Scale(shape.motion.pivot, s);
     shape.center = Scale(shape.center, s);
     shape.radius *= s;
     shape.corner = Scale(shape.corner, s);

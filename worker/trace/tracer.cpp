@@ -64,9 +64,10 @@ Vec3 NormalizeD(Vec3 a) {
 // The camera basis is built in double: at large coordinates the difference
 // position - lookAt loses digits in float.
 CameraRays MakeCamera(const Scene& scene, int frame) {
-  Vec3 position = scene.camera.position.Evaluate(frame);
-  Vec3 forward = NormalizeD(Sub(scene.camera.lookAt.Evaluate(frame), position));
-  Vec3 right = NormalizeD(CrossD(forward, scene.camera.up));
+  const CameraPose pose = scene.camera.At(frame);
+  const Vec3& position = pose.position;
+  Vec3 forward = NormalizeD(Sub(pose.lookAt, position));
+  Vec3 right = NormalizeD(CrossD(forward, pose.up));
   Vec3 up = CrossD(right, forward);
   const RenderSettings& r = scene.render;
   double tanHalf = std::tan(scene.camera.verticalFovDegrees * M_PI / 360.0);
@@ -89,9 +90,9 @@ std::vector<ShadingLight> MakeLights(const Scene& scene, int frame) {
     s.isPoint = light.type == Light::Type::kPoint;
     s.intensity = ToFloat3(light.intensity.Evaluate(frame));
     if (s.isPoint) {
-      s.position = ToFloat3(light.position.Evaluate(frame));
+      s.position = ToFloat3(light.PositionAt(frame));
     } else {
-      Vec3 d = NormalizeD(light.direction.Evaluate(frame));
+      Vec3 d = NormalizeD(light.DirectionAt(frame));
       s.towardLight = ToFloat3({-d.x, -d.y, -d.z});
     }
     lights.push_back(s);
@@ -298,16 +299,19 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
   hit.shape = shape;
   hit.material = scene_.shapes[shape].material;
   const std::vector<Float3>& faces = (*frame_.faceNormals)[shape];
-  Float3 normal;
-  if (!faces.empty() && (faces[raw.primitiveId].x != 0 || faces[raw.primitiveId].y != 0 ||
-                         faces[raw.primitiveId].z != 0)) {
-    normal = faces[raw.primitiveId];  // unit already
-  } else {
-    Float3 n = faces.empty() ? raw.geometricNormal : Float3{};
-    float length = Length(n);
-    // A degenerate normal would put NaN into the frame; face the ray instead.
-    normal = (length > 0 && std::isfinite(length)) ? n * (1.0f / length) : -direction;
+  // The face's normal (unit, computed in double from the scene), or Embree's for shapes
+  // without faces; in object space for a shape that turns or scales.
+  Float3 normal = faces.empty() ? raw.geometricNormal : faces[raw.primitiveId];
+  if (frame_.geometry->HasNormalTransform(shape)) {
+    Vec3 world = frame_.geometry->NormalToWorld(shape, {normal.x, normal.y, normal.z});
+    double length = std::sqrt(world.x * world.x + world.y * world.y + world.z * world.z);
+    normal = length > 0 ? ToFloat3({world.x / length, world.y / length, world.z / length}) : Float3{};
+  } else if (faces.empty()) {
+    float length = Length(normal);
+    normal = (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
   }
+  // A degenerate normal would put NaN into the frame; face the ray instead.
+  if (normal.x == 0 && normal.y == 0 && normal.z == 0) normal = -direction;
   hit.fromInside = Dot(normal, direction) > 0;
   hit.normal = hit.fromInside ? -normal : normal;
   return hit;

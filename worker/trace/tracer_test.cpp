@@ -288,7 +288,7 @@ TEST(TracerTest, NoPerFramePlacementWhenNothingMoves) {
   uint64_t builds = 0;
   RenderFrame(scene, 4, 0, nullptr, &builds);
   EXPECT_EQ(builds, 1u);  // the red ball moves
-  for (Shape& shape : scene.shapes) shape.translation = AnimatedVec3::Constant({});
+  for (Shape& shape : scene.shapes) shape.motion = Motion{};
   RenderFrame(scene, 4, 0, nullptr, &builds);
   EXPECT_EQ(builds, 0u);
 }

@@ -1,6 +1,8 @@
-// Coplanar surfaces: a ray meets two of them at the same distance, and which one it sees
-// must not depend on how it was traced (packet mates, pixel set, thread count, the
-// frame's placement of the moving shapes). Real assets are full of such faces.
+// What temporal reuse rests on, on the scenes most likely to break it: a pixel's bits do
+// not depend on how it was traced (packet mates, pixel set, thread count, the frame's
+// placement of the moving shapes), and a pixel copied up to its horizon equals a full
+// trace of every frame it is copied into. Coplanar surfaces (a ray meets two of them at
+// the same distance; real assets are full of them) and shapes that turn and grow.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -67,6 +69,17 @@ std::vector<Variant> Variants() {
            "triangles": [[0, 1, 2], [0, 2, 3], [4, 5, 6], [6, 5, 4]]},
            {"type": "sphere", "center": [-2, 0.6, 1], "radius": 0.6, "material": "red",
             "motion": {"polynomial": [[0, 0.3], [0], [0]]}})")},
+      {"a spinning cube beside a growing ball",
+       CoplanarScene(floor + R"(, {"type": "mesh", "material": "red",
+           "vertices": [[-0.5, 0.5, -0.5], [0.5, 0.5, -0.5], [0.5, 1.5, -0.5], [-0.5, 1.5, -0.5],
+                        [-0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [0.5, 1.5, 0.5], [-0.5, 1.5, 0.5]],
+           "triangles": [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                         [3, 6, 2], [3, 7, 6], [0, 4, 7], [0, 7, 3], [1, 2, 6], [1, 6, 5]],
+           "motion": {"rotation": {"axis": [0.3, 1, 0.2], "degrees_per_frame": 7}, "pivot": [0, 1, 0]}},
+           {"type": "sphere", "center": [2, 0.6, 0], "radius": 0.5, "material": "blue",
+            "motion": {"scale": {"keyframes": [{"frame": 0, "value": [1, 1, 1]}, {"frame": 3, "value": [1, 1, 1]},
+                                               {"frame": 11, "value": [1.6, 0.8, 1.6]}]},
+                       "pivot": [2, 0.1, 0]}})")},
       {"a tie seen in a mirror",
        CoplanarScene(floor + R"(, {"type": "quad", "corner": [-3, 0, -1], "edge_u": [0, 0, 2],
            "edge_v": [2, 0, 0], "material": "red", "motion": {"polynomial": [[0, 0.4], [0], [0]]}},
@@ -86,7 +99,7 @@ std::vector<float> TraceFull(Tracer& tracer, int frame) {
 bool SamePixel(const float* a, const float* b) { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
 
 // Any pixel set, in any order, on any thread count, gives the full frame's bits.
-TEST(TiesTest, EveryPixelSetSettlesATieAsTheFullFrameDoes) {
+TEST(ReuseInvariantsTest, EveryPixelSetGivesTheFullFramesBits) {
   EmbreeDevice device;
   std::mt19937 random(7);
   for (const Variant& variant : Variants()) {
@@ -119,7 +132,7 @@ TEST(TiesTest, EveryPixelSetSettlesATieAsTheFullFrameDoes) {
 
 // exact's promise at the tracer: a pixel traced at frame a with horizon h has the same bits
 // in every frame a .. h-1 as a full trace of that frame gives it.
-TEST(TiesTest, HorizonsHoldOnCoplanarSurfaces) {
+TEST(ReuseInvariantsTest, CopiesUpToTheHorizonEqualFullTraces) {
   EmbreeDevice device;
   for (const Variant& variant : Variants()) {
     Scene scene = ParseScene(variant.json);

@@ -1,0 +1,53 @@
+// Vectors of the scene and their animation over frame time.
+#pragma once
+
+#include <array>
+#include <vector>
+
+namespace tcfarm {
+
+struct Vec3 {
+  double x = 0, y = 0, z = 0;
+  double operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+  double& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+  bool operator==(const Vec3& o) const { return x == o.x && y == o.y && z == o.z; }
+  bool operator!=(const Vec3& o) const { return !(*this == o); }
+};
+
+// A vec3-valued function of frame time, as in the paper's section 5: either a constant,
+// a polynomial per axis in the frame number, or keyframes interpolated linearly (and
+// held constant before the first and after the last key).
+class AnimatedVec3 {
+ public:
+  struct Keyframe {
+    double frame;
+    Vec3 value;
+  };
+
+  AnimatedVec3() = default;
+  static AnimatedVec3 Constant(Vec3 value);
+  // coefficients[axis][k] multiplies frame^k.
+  static AnimatedVec3 Polynomial(std::array<std::vector<double>, 3> coefficients);
+  // Keys must be sorted by frame with no two on the same frame (the parser checks).
+  static AnimatedVec3 Keyframes(std::vector<Keyframe> keys);
+
+  Vec3 Evaluate(double frame) const;
+  // True when Evaluate can return different values for different frames.
+  bool IsAnimated() const;
+  // True when Evaluate(a) == Evaluate(b) bit for bit (exact, not approximate).
+  bool SameAt(double a, double b) const { return Evaluate(a) == Evaluate(b); }
+
+  enum class Kind { kConstant, kPolynomial, kKeyframes };
+  Kind kind() const { return kind_; }
+  const std::array<std::vector<double>, 3>& coefficients() const { return coefficients_; }
+  const std::vector<Keyframe>& keys() const { return keys_; }
+  const Vec3& constant() const { return constant_; }
+
+ private:
+  Kind kind_ = Kind::kConstant;
+  Vec3 constant_;
+  std::array<std::vector<double>, 3> coefficients_;
+  std::vector<Keyframe> keys_;
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,163 @@
+#include "scene/transform.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "scene/scene.h"
+
+namespace tcfarm {
+namespace {
+
+void ExpectNear(const Vec3& a, const Vec3& b, double tolerance = 1e-12) {
+  EXPECT_NEAR(a.x, b.x, tolerance);
+  EXPECT_NEAR(a.y, b.y, tolerance);
+  EXPECT_NEAR(a.z, b.z, tolerance);
+}
+
+TEST(TransformTest, QuarterTurnAboutYCarriesXOntoMinusZ) {
+  Motion motion;
+  motion.rotation = AnimatedRotation::Constant(Quaternion::FromAxisAngle({0, 1, 0}, 90));
+  ExpectNear(motion.WorldFromObject(0).Apply({1, 0, 0}), {0, 0, -1});
+}
+
+TEST(TransformTest, QuaternionsOfAnyLengthTurnAlike) {
+  Motion unit, scaled;
+  unit.rotation = AnimatedRotation::Constant({std::sqrt(0.5), 0, std::sqrt(0.5), 0});
+  scaled.rotation = AnimatedRotation::Constant({3, 0, 3, 0});
+  ExpectNear(unit.WorldFromObject(0).Apply({1, 2, 3}), scaled.WorldFromObject(0).Apply({1, 2, 3}));
+}
+
+TEST(TransformTest, ThePivotStaysWhereItIs) {
+  Motion motion;
+  motion.pivot = {2, -1, 5};
+  motion.rotation = AnimatedRotation::Spin({1, 1, 0}, 17);
+  motion.scale = AnimatedVec3::Constant({2, 3, 0.5});
+  for (int frame : {0, 3, 11}) ExpectNear(motion.WorldFromObject(frame).Apply({2, -1, 5}), {2, -1, 5}, 1e-12);
+}
+
+TEST(TransformTest, ScaleThenRotateThenTranslate) {
+  Motion motion;
+  motion.translation = AnimatedVec3::Constant({10, 0, 0});
+  motion.rotation = AnimatedRotation::Constant(Quaternion::FromAxisAngle({0, 0, 1}, 90));
+  motion.scale = AnimatedVec3::Constant({2, 1, 1});
+  // (1,0,0) scaled to (2,0,0), turned to (0,2,0), moved to (10,2,0).
+  ExpectNear(motion.WorldFromObject(0).Apply({1, 0, 0}), {10, 2, 0});
+  EXPECT_NEAR(motion.WorldFromObject(0).MaxStretch(), 2, 1e-12);
+}
+
+TEST(TransformTest, TranslationAloneIsExactlyTheOldMotion) {
+  Motion motion;
+  motion.translation = AnimatedVec3::Polynomial({std::vector<double>{0.1, 0.3}, {0}, {0, 0, 0.01}});
+  ASSERT_TRUE(motion.IsTranslationOnly());
+  const Affine placed = motion.WorldFromObject(7);
+  EXPECT_EQ(placed.offset, motion.translation.Evaluate(7));
+  EXPECT_EQ(placed.Apply({1, 2, 3}), (Vec3{1 + placed.offset.x, 2 + placed.offset.y, 3 + placed.offset.z}));
+}
+
+TEST(TransformTest, SlerpMeetsItsKeysAndTakesTheShortWay) {
+  const Quaternion a = Quaternion::FromAxisAngle({0, 1, 0}, 10);
+  const Quaternion b = Quaternion::FromAxisAngle({0, 1, 0}, 350);  // -10 degrees, long way round as given
+  AnimatedRotation rotation = AnimatedRotation::Keyframes({{0, a}, {10, b}});
+  EXPECT_EQ(rotation.Evaluate(0), a);
+  Motion motion;
+  motion.rotation = rotation;
+  // Halfway along the short arc is no turn at all.
+  ExpectNear(motion.WorldFromObject(5).Apply({1, 0, 0}), {1, 0, 0}, 1e-12);
+  Motion atB;
+  atB.rotation = AnimatedRotation::Constant(b);
+  ExpectNear(motion.WorldFromObject(10).Apply({1, 0, 0}), atB.WorldFromObject(0).Apply({1, 0, 0}));
+}
+
+TEST(TransformTest, HeldKeysKeepTheirBits) {
+  const Quaternion held = Quaternion::FromAxisAngle({1, 2, 3}, 33);
+  AnimatedRotation rotation = AnimatedRotation::Keyframes({{0, held}, {4, held}, {8, Quaternion{}}});
+  for (double frame : {0.0, 1.0, 2.5, 4.0}) EXPECT_EQ(rotation.Evaluate(frame), held);
+  EXPECT_TRUE(rotation.IsAnimated());
+}
+
+std::string SceneWithMotion(const std::string& motion, const std::string& where = "shape") {
+  const std::string shapeMotion = where == "shape" ? ", \"motion\": " + motion : "";
+  const std::string cameraMotion = where == "camera" ? ", \"motion\": " + motion : "";
+  const std::string lightMotion = where == "light" ? ", \"motion\": " + motion : "";
+  return R"({"camera": {"position": [0, 0, 10], "look_at": [0, 0, 0])" + cameraMotion + R"(},
+    "lights": [{"type": "point", "position": [3, 4, 5], "intensity": [50, 50, 50])" + lightMotion + R"(}],
+    "shapes": [{"type": "quad", "corner": [-1, -1, 0], "edge_u": [2, 0, 0], "edge_v": [0, 2, 0])" +
+         shapeMotion + R"(}],
+    "render": {"width": 8, "height": 8, "frames": {"start": 0, "count": 10}}})";
+}
+
+TEST(TransformSceneTest, ShapesTurnAndGrowAboutTheirPivot) {
+  Scene scene = ParseScene(SceneWithMotion(
+      R"({"rotation": {"axis": [0, 0, 1], "degrees_per_frame": 9}, "scale": {"keyframes": [
+           {"frame": 0, "value": [1, 1, 1]}, {"frame": 9, "value": [2, 2, 2]}]}, "pivot": [0, 0, 0]})"));
+  const Motion& motion = scene.shapes[0].motion;
+  EXPECT_TRUE(scene.shapes[0].Moves());
+  EXPECT_FALSE(motion.IsTranslationOnly());
+  // At frame 9: 81 degrees about z, twice the size.
+  Vec3 corner = motion.WorldFromObject(9).Apply({1, 0, 0});
+  ExpectNear(corner, {2 * std::cos(81 * M_PI / 180), 2 * std::sin(81 * M_PI / 180), 0});
+}
+
+TEST(TransformSceneTest, RotationsAsQuaternionsAndKeyframes) {
+  Scene scene = ParseScene(SceneWithMotion(
+      R"({"rotation": {"keyframes": [{"frame": 0, "value": [0, 0, 0, 1]},
+                                     {"frame": 9, "value": [0, 0.7071067811865476, 0, 0.7071067811865476]}]}})"));
+  ExpectNear(scene.shapes[0].motion.WorldFromObject(9).Apply({1, 0, 0}), {0, 0, -1});
+  Scene still = ParseScene(SceneWithMotion(R"({"rotation": [0, 0, 0, 1]})"));
+  EXPECT_FALSE(still.shapes[0].Moves());
+}
+
+TEST(TransformSceneTest, CameraRigsAndLightsMoveToo) {
+  Scene orbit = ParseScene(SceneWithMotion(R"({"rotation": {"axis": [0, 1, 0], "degrees_per_frame": 10}})", "camera"));
+  EXPECT_TRUE(orbit.CameraMoves());
+  ExpectNear(orbit.camera.At(9).position, {10 * std::sin(90 * M_PI / 180), 0, 10 * std::cos(90 * M_PI / 180)}, 1e-9);
+  EXPECT_EQ(orbit.camera.At(9).lookAt, (Vec3{0, 0, 0}));
+  Scene swing = ParseScene(SceneWithMotion(R"({"translation": {"polynomial": [[0, 1], [0], [0]]}})", "light"));
+  EXPECT_TRUE(swing.AnyLightChanges());
+  EXPECT_EQ(swing.lights[0].PositionAt(4), (Vec3{7, 4, 5}));
+  EXPECT_FALSE(swing.lights[0].SameAt(1, 2));
+}
+
+TEST(TransformSceneTest, WrittenOutAndReadBackBitForBit) {
+  const std::string text = SceneWithMotion(
+      R"({"translation": [0.1, 0.2, 0.3], "rotation": {"keyframes": [{"frame": 0, "value": [0.1, 0.2, 0.3, 0.9]},
+           {"frame": 7, "value": [0.3, -0.2, 0.1, 0.5]}]}, "scale": [1, 2, -0.5], "pivot": [0.25, 0, 1]})");
+  Scene scene = ParseScene(text);
+  std::string written = SerializeScene(scene);
+  Scene reread = ParseScene(written);
+  EXPECT_EQ(SerializeScene(reread), written);
+  for (int frame : {0, 3, 7}) {
+    EXPECT_EQ(reread.shapes[0].motion.WorldFromObject(frame), scene.shapes[0].motion.WorldFromObject(frame));
+  }
+  // Translation alone is written as it always was.
+  Scene plain = ParseScene(SceneWithMotion(R"({"polynomial": [[0, 1], [0], [0]]})"));
+  EXPECT_NE(SerializeScene(plain).find(R"("motion":{"polynomial")"), std::string::npos);
+}
+
+TEST(TransformSceneTest, BadMotionIsRefusedWithItsPointer) {
+  const std::pair<std::string, std::string> cases[] = {
+      {R"({"rotation": [0, 0, 0, 0]})", "/shapes/0/motion/rotation"},
+      {R"({"rotation": [0, 0, 1]})", "/shapes/0/motion/rotation"},
+      {R"({"rotation": {"axis": [0, 0, 0], "degrees_per_frame": 3}})", "/shapes/0/motion/rotation/axis"},
+      {R"({"rotation": {"axis": [0, 1, 0]}})", "/shapes/0/motion/rotation/degrees_per_frame"},
+      {R"({"scale": [1, 0, 1]})", "/shapes/0/motion/scale"},
+      {R"({"scale": {"polynomial": [[1, -0.25], [1], [1]]}})", "/shapes/0/motion/scale"},
+      {R"({"translation": [0, 0, 0], "spin": 3})", "/shapes/0/motion/spin"},
+      {R"({"rotation": {"keyframes": [{"frame": 2, "value": [0, 0, 0, 1]}, {"frame": 2, "value": [0, 1, 0, 0]}]}})",
+       "/shapes/0/motion/rotation/keyframes/1/frame"},
+      {R"("spin")", "/shapes/0/motion"},
+  };
+  for (const auto& [motion, pointer] : cases) {
+    try {
+      ParseScene(SceneWithMotion(motion));
+      ADD_FAILURE() << motion << " was accepted";
+    } catch (const SceneError& error) {
+      EXPECT_EQ(error.pointer(), pointer) << motion << ": " << error.what();
+    }
+  }
+}
+
+}  // namespace
+}  // namespace tcfarm

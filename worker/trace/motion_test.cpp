@@ -1,0 +1,99 @@
+// Shapes that turn, grow and move: a shape placed by its motion at frame f looks like the
+// same shape built in place at f (positions, normals, shading), within the rounding of
+// the float instance matrix that places it.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "trace/tracer.h"
+
+namespace tcfarm {
+namespace {
+
+constexpr int kWidth = 120;
+constexpr int kHeight = 90;
+
+std::vector<float> Render(const Scene& scene, int frame) {
+  EmbreeDevice device;
+  ThreadPool pool(2);
+  Tracer tracer(device, scene, pool);
+  std::vector<float> rgb(static_cast<size_t>(kWidth) * kHeight * 3);
+  tracer.TraceFrame(frame, rgb.data());
+  return rgb;
+}
+
+// Pixels differing by more than a tolerance: edges may flip between two hits a rounding
+// apart; the body of a shape, its shading and its shadow may not.
+double ShareDiffering(const std::vector<float>& a, const std::vector<float>& b) {
+  size_t differing = 0;
+  for (size_t i = 0; i < a.size(); i += 3) {
+    float gap = std::max({std::fabs(a[i] - b[i]), std::fabs(a[i + 1] - b[i + 1]), std::fabs(a[i + 2] - b[i + 2])});
+    differing += gap > 1e-3f;
+  }
+  return static_cast<double>(differing) / (a.size() / 3);
+}
+
+Scene MovingScene() {
+  return ParseScene(R"({
+    "camera": {"position": [0, 2.5, 7], "look_at": [0, 0.8, 0]},
+    "lights": [{"type": "point", "position": [3, 6, 4], "intensity": [60, 60, 60]},
+               {"type": "directional", "direction": [-1, -2, -1], "intensity": [0.3, 0.3, 0.3]}],
+    "materials": {"red": {"diffuse": [0.8, 0.1, 0.1], "specular": [0.4, 0.4, 0.4], "shininess": 20},
+                  "blue": {"diffuse": [0.1, 0.2, 0.8], "specular": [0.5, 0.5, 0.5]},
+                  "floor": {"diffuse": [0.6, 0.6, 0.6]}},
+    "shapes": [
+      {"type": "quad", "corner": [-10, 0, -10], "edge_u": [0, 0, 20], "edge_v": [20, 0, 0], "material": "floor"},
+      {"type": "mesh", "material": "red",
+       "vertices": [[-0.5, 0.5, -0.5], [0.5, 0.5, -0.5], [0.5, 1.5, -0.5], [-0.5, 1.5, -0.5],
+                    [-0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [0.5, 1.5, 0.5], [-0.5, 1.5, 0.5]],
+       "triangles": [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                     [3, 6, 2], [3, 7, 6], [0, 4, 7], [0, 7, 3], [1, 2, 6], [1, 6, 5]],
+       "motion": {"translation": {"polynomial": [[-1, 0.1], [0], [0]]},
+                  "rotation": {"axis": [0.3, 1, 0.2], "degrees_per_frame": 11},
+                  "scale": {"polynomial": [[1, 0.05], [1], [1, -0.03]]}, "pivot": [0, 1, 0]}},
+      {"type": "sphere", "center": [1.8, 0.7, 0], "radius": 0.5, "material": "blue",
+       "motion": {"rotation": {"axis": [1, 0, 0], "degrees_per_frame": 20},
+                  "scale": {"polynomial": [[1, 0.1], [1, 0.1], [1, 0.1]]}, "pivot": [1.8, 0.2, 0]}}],
+    "background": [0.1, 0.1, 0.2],
+    "render": {"width": 120, "height": 90, "frames": {"start": 0, "count": 12}}
+  })");
+}
+
+// The same world at `frame` with every moving shape built where its motion puts it.
+Scene PlacedAt(Scene scene, int frame) {
+  for (Shape& shape : scene.shapes) {
+    if (!shape.Moves()) continue;
+    const Affine worldFromObject = shape.motion.WorldFromObject(frame);
+    if (shape.type == Shape::Type::kSphere) {
+      shape.center = worldFromObject.Apply(shape.center);
+      shape.radius *= worldFromObject.MaxStretch();  // uniform scale here: still a sphere
+    } else {
+      for (Vec3& v : shape.mesh.vertices) v = worldFromObject.Apply(v);
+    }
+    shape.motion = Motion{};
+  }
+  return scene;
+}
+
+TEST(MotionTest, TurnedAndScaledShapesLookLikeCopiesBuiltInPlace) {
+  const Scene scene = MovingScene();
+  for (int frame : {0, 4, 11}) {
+    double share = ShareDiffering(Render(scene, frame), Render(PlacedAt(scene, frame), frame));
+    EXPECT_LT(share, 0.002) << "frame " << frame << ": " << share * 100 << " % of pixels differ";
+  }
+}
+
+TEST(MotionTest, TheImageFollowsTheMotion) {
+  // A shape that turns changes the picture from frame to frame; one that does not, does not.
+  const Scene scene = MovingScene();
+  EXPECT_GT(ShareDiffering(Render(scene, 0), Render(scene, 6)), 0.01);
+  Scene still = scene;
+  for (Shape& shape : still.shapes) shape.motion = Motion{};
+  EXPECT_EQ(ShareDiffering(Render(still, 0), Render(still, 6)), 0.0);
+}
+
+}  // namespace
+}  // namespace tcfarm
