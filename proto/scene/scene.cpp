@@ -1,6 +1,7 @@
 #include "scene/scene.h"
 
 #include <algorithm>
+#include <cmath>
 #include <utility>
 
 namespace tcfarm {
@@ -100,6 +101,56 @@ void TranslateScene(Scene& scene, const Vec3& offset) {
     shape.terrain.origin = Plus(shape.terrain.origin, offset);
     for (Vec3& v : shape.mesh.vertices) v = Plus(v, offset);
   }
+}
+
+namespace {
+
+// Whether the linear part is a rotation times one scale factor (then a sphere stays a
+// sphere): its columns orthogonal and of equal length.
+bool IsUniform(const Affine& placement) {
+  const auto& m = placement.linear;
+  auto column = [&](int c) { return Vec3{m[0][c], m[1][c], m[2][c]}; };
+  auto dot = [](const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
+  const double lengthSquared = dot(column(0), column(0));
+  const double tolerance = 1e-12 * lengthSquared;
+  return std::fabs(dot(column(1), column(1)) - lengthSquared) <= tolerance &&
+         std::fabs(dot(column(2), column(2)) - lengthSquared) <= tolerance &&
+         std::fabs(dot(column(0), column(1))) <= tolerance && std::fabs(dot(column(0), column(2))) <= tolerance &&
+         std::fabs(dot(column(1), column(2))) <= tolerance;
+}
+
+bool PlaceStillShape(Shape& shape, const Affine& placement) {
+  switch (shape.type) {
+    case Shape::Type::kSphere:
+      if (!IsUniform(placement)) return false;
+      shape.center = placement.Apply(shape.center);
+      shape.radius *= placement.MaxStretch();
+      return true;
+    case Shape::Type::kQuad:
+      shape.corner = placement.Apply(shape.corner);
+      shape.edgeU = placement.ApplyLinear(shape.edgeU);
+      shape.edgeV = placement.ApplyLinear(shape.edgeV);
+      return true;
+    case Shape::Type::kMesh:
+    case Shape::Type::kTerrain:
+      for (Vec3& v : shape.mesh.vertices) v = placement.Apply(v);
+      return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+void PlaceStillShapes(Scene& scene) {
+  for (Shape& shape : scene.shapes) {
+    if (shape.Moves() || shape.motion.IsNone()) continue;
+    if (PlaceStillShape(shape, shape.motion.WorldFromObject(scene.render.firstFrame))) shape.motion = Motion{};
+  }
+}
+
+void PrepareForTracing(Scene& scene) {
+  RebaseOnCamera(scene);
+  PlaceStillShapes(scene);
 }
 
 void RebaseOnCamera(Scene& scene) {

@@ -139,6 +139,16 @@ void TranslateScene(Scene& scene, const Vec3& offset);
 // are the same up to that rounding; the trace of every frame sees the same moved world.
 void RebaseOnCamera(Scene& scene);
 
+// Builds every shape that never moves where its constant transform puts it (vertices,
+// quad corner and edges, sphere centre and radius under a uniform scale), leaving it
+// with no motion, so a tracer holds it in its still geometry. A sphere scaled unevenly
+// keeps its transform. Images are the same up to rounding.
+void PlaceStillShapes(Scene& scene);
+
+// What a tracer is given, here as on every worker, so all trace the same bits:
+// RebaseOnCamera, then PlaceStillShapes.
+void PrepareForTracing(Scene& scene);
+
 // Bad scene input. pointer() is the RFC 6901 JSON pointer of the offending value
 // ("" for the whole document), what() reads "scene<pointer>: <problem>; expected <...>".
 class SceneError : public std::runtime_error {

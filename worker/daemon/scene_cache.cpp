@@ -17,7 +17,7 @@ Tracer* SceneCache::Find(const std::string& hash) {
 SceneCache::Built SceneCache::Build(const std::string& sceneJson) const {
   Built built;
   built.scene = std::make_unique<Scene>(ParseScene(sceneJson));
-  RebaseOnCamera(*built.scene);  // as the reference renderer does: the same bits
+  PrepareForTracing(*built.scene);  // as the reference renderer does: the same bits
   built.tracer = std::make_unique<Tracer>(device_, *built.scene, pool_);
   return built;
 }

@@ -148,7 +148,10 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
-    if (shape.Moves()) {
+    // A shape whose motion is not the identity is placed by an instance: at each frame
+    // when it moves, or held at one place when it never does (PrepareForTracing builds
+    // the latter in place where it can, sparing the per-frame placement).
+    if (!shape.motion.IsNone()) {
       SceneHandle own(NewStaticScene(device.get()));
       AttachShape(device.get(), own.get(), shape);
       rtcCommitScene(own.get());

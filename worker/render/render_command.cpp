@@ -108,7 +108,7 @@ int RunRender(const RenderOptions& requested) {
   RenderOptions options = requested;
   Scene scene = LoadSceneFile(options.scenePath);
   ResolveFrameRange(scene, &options);
-  RebaseOnCamera(scene);  // as the farm's workers do: the same bits
+  PrepareForTracing(scene);  // as the farm's workers do: the same bits
 
   EmbreeDevice device;
   ThreadPool pool(options.threads);

@@ -16,12 +16,13 @@ namespace {
 constexpr int kWidth = 120;
 constexpr int kHeight = 90;
 
-std::vector<float> Render(const Scene& scene, int frame) {
+std::vector<float> Render(const Scene& scene, int frame, uint64_t* frameBuilds = nullptr) {
   EmbreeDevice device;
   ThreadPool pool(2);
   Tracer tracer(device, scene, pool);
   std::vector<float> rgb(static_cast<size_t>(kWidth) * kHeight * 3);
   tracer.TraceFrame(frame, rgb.data());
+  if (frameBuilds) *frameBuilds = tracer.FrameBuilds();
   return rgb;
 }
 
@@ -93,6 +94,37 @@ TEST(MotionTest, TheImageFollowsTheMotion) {
   Scene still = scene;
   for (Shape& shape : still.shapes) shape.motion = Motion{};
   EXPECT_EQ(ShareDiffering(Render(still, 0), Render(still, 6)), 0.0);
+}
+
+TEST(MotionTest, ShapesHeldAtATransformAreBuiltInPlace) {
+  // Every shape of the scene at its frame-4 transform, held there.
+  Scene held = MovingScene();
+  for (Shape& shape : held.shapes) {
+    if (!shape.Moves()) continue;
+    const Affine at4 = shape.motion.WorldFromObject(4);
+    shape.motion.translation = AnimatedVec3::Constant(shape.motion.translation.Evaluate(4));
+    shape.motion.rotation = AnimatedRotation::Constant(shape.motion.rotation.Evaluate(4));
+    shape.motion.scale = AnimatedVec3::Constant(shape.motion.scale.Evaluate(4));
+    ASSERT_EQ(shape.motion.WorldFromObject(0), at4);
+    ASSERT_FALSE(shape.Moves());
+  }
+  uint64_t instancedBuilds = 0, placedBuilds = 0;
+  std::vector<float> instanced = Render(held, 0, &instancedBuilds);
+  Scene placed = held;
+  PlaceStillShapes(placed);
+  for (const Shape& shape : placed.shapes) EXPECT_TRUE(shape.motion.IsNone());
+  EXPECT_LT(ShareDiffering(instanced, Render(placed, 0, &placedBuilds)), 0.002);
+  EXPECT_EQ(placedBuilds, 0u);  // nothing placed per frame once built in place
+  EXPECT_EQ(instancedBuilds, 1u);
+  EXPECT_LT(ShareDiffering(instanced, Render(PlacedAt(MovingScene(), 4), 4)), 0.002);
+
+  // A ball squashed unevenly is no sphere: it keeps its transform, and still renders.
+  Scene squashed = held;
+  squashed.shapes[2].motion.scale = AnimatedVec3::Constant({1.5, 0.6, 1.5});
+  PlaceStillShapes(squashed);
+  EXPECT_FALSE(squashed.shapes[2].motion.IsNone());
+  EXPECT_TRUE(squashed.shapes[1].motion.IsNone());
+  EXPECT_GT(ShareDiffering(Render(squashed, 0), instanced), 0.001);
 }
 
 }  // namespace
