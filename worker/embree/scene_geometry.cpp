@@ -1,8 +1,7 @@
 #include "embree/scene_geometry.h"
 
-#include <cstring>
-
 #include "embree/closest_hit.h"
+#include "shapes/shape_kind.h"
 
 namespace tcfarm {
 namespace {
@@ -12,62 +11,9 @@ namespace {
 // frame is a top-level tree over one instance per moving shape: small.
 constexpr size_t kCachedFrames = 64;
 
-void FillVertices(RTCGeometry geometry, const std::vector<Vec3>& vertices) {
-  auto* out = static_cast<float*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertices.size()));
-  for (size_t i = 0; i < vertices.size(); ++i) {
-    out[3 * i + 0] = static_cast<float>(vertices[i].x);
-    out[3 * i + 1] = static_cast<float>(vertices[i].y);
-    out[3 * i + 2] = static_cast<float>(vertices[i].z);
-  }
-}
-
-RTCGeometry NewSphere(RTCDevice device, const Shape& shape) {
-  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-  auto* point = static_cast<float*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), 1));
-  point[0] = static_cast<float>(shape.center.x);
-  point[1] = static_cast<float>(shape.center.y);
-  point[2] = static_cast<float>(shape.center.z);
-  point[3] = static_cast<float>(shape.radius);
-  return geometry;
-}
-
-RTCGeometry NewQuad(RTCDevice device, const Shape& shape) {
-  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_QUAD);
-  const Vec3& c = shape.corner;
-  auto add = [](Vec3 a, Vec3 b) { return Vec3{a.x + b.x, a.y + b.y, a.z + b.z}; };
-  FillVertices(geometry, {c, add(c, shape.edgeU), add(add(c, shape.edgeU), shape.edgeV),
-                          add(c, shape.edgeV)});
-  auto* index = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(unsigned), 1));
-  for (unsigned i = 0; i < 4; ++i) index[i] = i;
-  return geometry;
-}
-
-RTCGeometry NewMesh(RTCDevice device, const TriangleMesh& mesh) {
-  RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-  FillVertices(geometry, mesh.vertices);
-  auto* index = static_cast<unsigned*>(
-      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                              3 * sizeof(unsigned), mesh.triangles.size()));
-  std::memcpy(index, mesh.triangles.data(), mesh.triangles.size() * 3 * sizeof(unsigned));
-  return geometry;
-}
-
-RTCGeometry NewShapeGeometry(RTCDevice device, const Shape& shape) {
-  switch (shape.type) {
-    case Shape::Type::kSphere: return NewSphere(device, shape);
-    case Shape::Type::kQuad: return NewQuad(device, shape);
-    case Shape::Type::kMesh:
-    case Shape::Type::kTerrain: return NewMesh(device, shape.mesh);
-  }
-  return nullptr;
-}
-
 // Attaches the shape to `scene` and returns its geometry id.
 unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape) {
-  RTCGeometry geometry = NewShapeGeometry(device, shape);
+  RTCGeometry geometry = KindOf(shape).NewGeometry(device, shape);
   rtcSetGeometryIntersectFilterFunction(geometry, SettleTies);
   rtcCommitGeometry(geometry);
   unsigned id = rtcAttachGeometry(scene, geometry);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdint>
 
+#include "shapes/shape_kind.h"
+
 namespace tcfarm {
 namespace {
 
@@ -11,47 +13,6 @@ namespace {
 // tracer's relative ray offset (1e-5) and float rounding of hit points, so a segment that
 // grazes a shape always meets its proxy.
 constexpr double kRelativeProxyPad = 1e-4;
-
-struct BoundingSphere {
-  Vec3 center;
-  double radius;
-};
-
-BoundingSphere BoundsOf(const std::vector<Vec3>& points) {
-  Vec3 lo = points.front(), hi = points.front();
-  for (const Vec3& p : points) {
-    for (int i = 0; i < 3; ++i) {
-      lo[i] = std::min(lo[i], p[i]);
-      hi[i] = std::max(hi[i], p[i]);
-    }
-  }
-  Vec3 c{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};
-  double r2 = 0;
-  for (const Vec3& p : points) {
-    r2 = std::max(r2, (p.x - c.x) * (p.x - c.x) + (p.y - c.y) * (p.y - c.y) +
-                          (p.z - c.z) * (p.z - c.z));
-  }
-  return {c, std::sqrt(r2)};
-}
-
-// The shape's bounds before its motion is applied.
-BoundingSphere ObjectBounds(const Shape& shape) {
-  switch (shape.type) {
-    case Shape::Type::kSphere:
-      return {shape.center, shape.radius};
-    case Shape::Type::kQuad: {
-      const Vec3& c = shape.corner;
-      Vec3 u = shape.edgeU, v = shape.edgeV;
-      return BoundsOf({c, {c.x + u.x, c.y + u.y, c.z + u.z},
-                       {c.x + u.x + v.x, c.y + u.y + v.y, c.z + u.z + v.z},
-                       {c.x + v.x, c.y + v.y, c.z + v.z}});
-    }
-    case Shape::Type::kMesh:
-    case Shape::Type::kTerrain:
-      return BoundsOf(shape.mesh.vertices);
-  }
-  return {};
-}
 
 // First frame in (frame, frame + window] at which `changed(f)` holds, else frame+window+1.
 template <typename Changed>
@@ -124,7 +85,7 @@ static BoundingSphere PlacedBounds(const Shape& shape, const BoundingSphere& obj
 }
 
 void HorizonOracle::AddMover(const Shape& shape, int lastFrame) {
-  const BoundingSphere object = ObjectBounds(shape);
+  const BoundingSphere object = KindOf(shape).Bounds(shape);
   Mover mover{EmptyBox(), {}, {}};
   for (int f = frame_; f <= lastFrame; ++f) {
     const BoundingSphere placed = PlacedBounds(shape, object, f);

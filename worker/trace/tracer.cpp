@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "embree/closest_hit.h"
+#include "shapes/shape_kind.h"
 #include "trace/float3.h"
 #include "trace/horizons.h"
 
@@ -135,31 +136,6 @@ void SamplePosition(uint32_t x, uint32_t y, int sample, int samplesPerPixel, flo
   double v = (h >> 16) / 65536.0 + sample / (kG * kG);
   *px = static_cast<float>(x + (u - std::floor(u)));
   *py = static_cast<float>(y + (v - std::floor(v)));
-}
-
-Float3 UnitNormal(Vec3 a, Vec3 b) {
-  Vec3 n = CrossD(a, b);
-  double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-  return length > 0 ? ToFloat3({n.x / length, n.y / length, n.z / length}) : Float3{};
-}
-
-std::vector<Float3> FaceNormals(const Shape& shape) {
-  std::vector<Float3> normals;
-  switch (shape.type) {
-    case Shape::Type::kSphere:
-      break;
-    case Shape::Type::kQuad:
-      normals.push_back(UnitNormal(shape.edgeU, shape.edgeV));
-      break;
-    case Shape::Type::kMesh:
-    case Shape::Type::kTerrain:
-      for (const auto& t : shape.mesh.triangles) {
-        const auto& v = shape.mesh.vertices;
-        normals.push_back(UnitNormal(Sub(v[t[1]], v[t[0]]), Sub(v[t[2]], v[t[0]])));
-      }
-      break;
-  }
-  return normals;
 }
 
 // A frame holds finite values only. Light beyond float range (a huge intensity at a tiny
@@ -579,7 +555,7 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool)
     : device_(device), scene_(scene), geometry_(device, scene), pool_(pool) {
   for (const Shape& shape : scene.shapes) {
-    faceNormals_.push_back(FaceNormals(shape));
+    faceNormals_.push_back(KindOf(shape).FaceNormals(shape));
     shapeMoves_.push_back(shape.Moves());
   }
 }

@@ -1,0 +1,45 @@
+// What a worker needs of one kind of shape, behind one interface: the Embree geometry that
+// traces it, its face normals for shading, and its bounds for the horizons of `exact`.
+// One file per kind (sphere.cpp, quad.cpp, triangle_mesh.cpp); a new kind of shape adds a
+// file here and one line to KindOf, and the tracer, the frame geometry and the horizon
+// oracle take it as it is.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <vector>
+
+#include "scene/scene.h"
+#include "trace/float3.h"
+
+namespace tcfarm {
+
+struct BoundingSphere {
+  Vec3 center;
+  double radius = 0;
+};
+
+// The bounding sphere of a point set: the centre of their box, the farthest point's distance.
+BoundingSphere BoundsOf(const std::vector<Vec3>& points);
+
+// The unit normal of the plane spanned by a and b, computed in double; zero when they
+// span none.
+Float3 UnitNormal(const Vec3& a, const Vec3& b);
+
+class ShapeKind {
+ public:
+  virtual ~ShapeKind() = default;
+  // An uncommitted Embree geometry of the shape in its rest pose (the caller places it).
+  virtual RTCGeometry NewGeometry(RTCDevice device, const Shape& shape) const = 0;
+  // Per primitive, in Embree's primitive order: the unit face normal, computed in double
+  // from the scene. Embree's robust intersector derives its Ng from ray-relative vertices,
+  // so its last bits change with the ray's origin, while a still surface must shade to the
+  // same bits from any viewpoint. Empty when the normal comes from the hit (a sphere's).
+  virtual std::vector<Float3> FaceNormals(const Shape& shape) const = 0;
+  // Bounds of the shape in its rest pose.
+  virtual BoundingSphere Bounds(const Shape& shape) const = 0;
+};
+
+const ShapeKind& KindOf(const Shape& shape);
+
+}  // namespace tcfarm
