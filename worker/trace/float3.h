@@ -32,6 +32,16 @@ inline float MaxAbsComponent(Float3 a) {
 inline Float3 ToFloat3(const Vec3& v) {
   return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)};
 }
+// Double-precision helpers for what is built from the scene once per frame (the camera
+// basis, light directions), where float would lose digits far from the origin.
+inline Vec3 SubtractD(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline Vec3 CrossD(const Vec3& a, const Vec3& b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline Vec3 NormalizeD(const Vec3& a) {
+  double length = std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
+  return {a.x / length, a.y / length, a.z / length};
+}
 // Mirror direction of `incident` (pointing at the surface) about unit normal n.
 inline Float3 Reflect(Float3 incident, Float3 n) { return incident - n * (2.0f * Dot(incident, n)); }
 

@@ -9,8 +9,12 @@
 
 #include "embree/closest_hit.h"
 #include "shapes/shape_kind.h"
+#include "trace/camera.h"
 #include "trace/float3.h"
+#include "trace/horizon_tracker.h"
 #include "trace/horizons.h"
+#include "trace/lights.h"
+#include "trace/materials.h"
 
 namespace tcfarm {
 namespace {
@@ -21,122 +25,10 @@ namespace {
 // 1e-5 is ~170 float ulps: well above Embree's intersection error, well below any
 // feature a scene can usefully resolve.
 constexpr float kRelativeRayOffset = 1e-5f;
-// Fraction of a material's diffuse colour seen with no light at all, so surfaces in
-// shadow keep their shape (Whitted's ambient term).
-constexpr float kAmbient = 0.05f;
 // Pixels handed to a thread at a time: large enough to fill 8-wide packets many times,
 // small enough that two threads stay balanced on a few thousand pixels.
 constexpr size_t kPixelsPerChunk = 128;
-constexpr int kPacketWidth = 8;
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
-
-struct ShadingLight {
-  bool isPoint;
-  Float3 position;     // point lights
-  Float3 towardLight;  // directional lights: unit vector from the surface to the light
-  Float3 intensity;
-};
-
-struct ShadingMaterial {
-  Float3 diffuse, specular;
-  float shininess, reflectivity, transparency, indexOfRefraction;
-};
-
-struct CameraRays {
-  Float3 origin, forward, right, up;  // right and up scaled to the image plane at distance 1
-  float width, height;
-
-  Float3 Direction(float px, float py) const {
-    float sx = 2.0f * px / width - 1.0f;
-    float sy = 1.0f - 2.0f * py / height;
-    return Normalize(forward + right * sx + up * sy);
-  }
-};
-
-Vec3 Sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-Vec3 CrossD(Vec3 a, Vec3 b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-Vec3 NormalizeD(Vec3 a) {
-  double length = std::sqrt(a.x * a.x + a.y * a.y + a.z * a.z);
-  return {a.x / length, a.y / length, a.z / length};
-}
-
-// The camera basis is built in double: at large coordinates the difference
-// position - lookAt loses digits in float.
-CameraRays MakeCamera(const Scene& scene, int frame) {
-  const CameraPose pose = scene.camera.At(frame);
-  const Vec3& position = pose.position;
-  Vec3 forward = NormalizeD(Sub(pose.lookAt, position));
-  Vec3 right = NormalizeD(CrossD(forward, pose.up));
-  Vec3 up = CrossD(right, forward);
-  const RenderSettings& r = scene.render;
-  double tanHalf = std::tan(scene.camera.verticalFovDegrees * M_PI / 360.0);
-  double aspect = static_cast<double>(r.width) / r.height;
-  CameraRays camera;
-  camera.origin = ToFloat3(position);
-  camera.forward = ToFloat3(forward);
-  camera.right = ToFloat3({right.x * tanHalf * aspect, right.y * tanHalf * aspect,
-                           right.z * tanHalf * aspect});
-  camera.up = ToFloat3({up.x * tanHalf, up.y * tanHalf, up.z * tanHalf});
-  camera.width = static_cast<float>(r.width);
-  camera.height = static_cast<float>(r.height);
-  return camera;
-}
-
-std::vector<ShadingLight> MakeLights(const Scene& scene, int frame) {
-  std::vector<ShadingLight> lights;
-  for (const Light& light : scene.lights) {
-    ShadingLight s{};
-    s.isPoint = light.type == Light::Type::kPoint;
-    s.intensity = ToFloat3(light.intensity.Evaluate(frame));
-    if (s.isPoint) {
-      s.position = ToFloat3(light.PositionAt(frame));
-    } else {
-      Vec3 d = NormalizeD(light.DirectionAt(frame));
-      s.towardLight = ToFloat3({-d.x, -d.y, -d.z});
-    }
-    lights.push_back(s);
-  }
-  return lights;
-}
-
-std::vector<ShadingMaterial> MakeMaterials(const Scene& scene) {
-  std::vector<ShadingMaterial> materials;
-  for (const Material& m : scene.materials) {
-    materials.push_back({ToFloat3(m.diffuse), ToFloat3(m.specular), static_cast<float>(m.shininess),
-                         static_cast<float>(m.reflectivity), static_cast<float>(m.transparency),
-                         static_cast<float>(m.indexOfRefraction)});
-  }
-  return materials;
-}
-
-// Sample positions inside pixel (x, y): the pixel centre for one sample, else an R2
-// low-discrepancy sequence rotated by a hash of the pixel. Seeded by pixel, not frame.
-uint32_t HashPixel(uint32_t x, uint32_t y) {
-  uint32_t h = x * 0x8da6b343u ^ y * 0xd8163841u;
-  h ^= h >> 16;
-  h *= 0x7feb352du;
-  h ^= h >> 15;
-  h *= 0x846ca68bu;
-  h ^= h >> 16;
-  return h;
-}
-
-void SamplePosition(uint32_t x, uint32_t y, int sample, int samplesPerPixel, float* px,
-                    float* py) {
-  if (samplesPerPixel == 1) {
-    *px = x + 0.5f;
-    *py = y + 0.5f;
-    return;
-  }
-  constexpr double kG = 1.32471795724474602596;  // the plastic number: R2's generator
-  uint32_t h = HashPixel(x, y);
-  double u = (h & 0xffff) / 65536.0 + sample / kG;
-  double v = (h >> 16) / 65536.0 + sample / (kG * kG);
-  *px = static_cast<float>(x + (u - std::floor(u)));
-  *py = static_cast<float>(y + (v - std::floor(v)));
-}
 
 // A frame holds finite values only. Light beyond float range (a huge intensity at a tiny
 // distance) saturates to the largest float rather than going black; NaN, which no scene
@@ -158,7 +50,7 @@ struct Tracer::FrameContext {
   int frame;
   std::shared_ptr<const FrameGeometry> geometry;
   SceneGeometry* frames;  // places later frames, for shadow rays re-tested there
-  CameraRays camera;
+  PerspectiveCamera camera;
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
   const std::vector<std::vector<Float3>>* faceNormals;
@@ -167,35 +59,6 @@ struct Tracer::FrameContext {
   int maxDepth;
   int samplesPerPixel;
   bool anySecondary;  // some material reflects or refracts
-};
-
-// The horizons of the samples of one packet, folded in as their rays are cast (only
-// when horizons are wanted): each ray segment and each surface seen can only lower them.
-struct Tracer::HorizonTracker {
-  const HorizonOracle* oracle = nullptr;
-  int horizon[kPacketWidth];
-  int lane = 0;  // the sample whose secondary rays are being traced
-
-  void Reset() {
-    for (int& h : horizon) h = oracle->CameraCap();
-  }
-  void Segment(int forLane, Float3 origin, Float3 direction, float length) {
-    if (horizon[forLane] == oracle->frame() + 1) return;  // cannot get any earlier
-    horizon[forLane] = std::min(horizon[forLane], oracle->FirstMeeting({origin, direction, length}));
-  }
-  void Surface(int forLane, bool moves) {
-    horizon[forLane] = std::min(horizon[forLane], moves ? oracle->frame() + 1 : oracle->LightCap());
-  }
-  // A shadow ray found blocked at the traced frame: the light adds nothing, and keeps
-  // adding nothing for as long as the ray stays blocked, whoever blocks it. Such a ray is
-  // re-tested frame by frame ahead with the very query its trace would make there,
-  // instead of the pixel being traced again at every frame a moving shadow covers it.
-  // Not needed when the horizon is the next frame already, nor when no moving shape's
-  // bounds come near the ray at the traced frame: what blocks it never moves, so it
-  // stays blocked.
-  bool BlockedShadowMayClear(int forLane, const RaySegment& segment) const {
-    return horizon[forLane] > oracle->frame() + 1 && oracle->MayBeBlockedByMover(segment);
-  }
 };
 
 // One thread's view of a frame: shades hits, casts secondary rays, counts rays.
@@ -295,41 +158,24 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
 
 bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,
                                     float* distance) const {
-  const ShadingLight& l = frame_.lights[light];
-  if (l.isPoint) {
-    Float3 toLight = l.position - hit.position;
-    *distance = Length(toLight);
-    if (!(*distance > 0)) return false;
-    *direction = toLight * (1.0f / *distance);
-  } else {
-    *direction = l.towardLight;
-    *distance = kInfinity;
-  }
-  return Dot(*direction, hit.normal) > 0;
+  return frame_.lights[light].Toward(hit.position, hit.normal, direction, distance);
 }
 
 Float3 Tracer::PixelTracer::LightContribution(const SurfaceHit& hit, size_t light,
                                               Float3 direction, float distance) const {
   const ShadingLight& l = frame_.lights[light];
-  const ShadingMaterial& m = (*frame_.materials)[hit.material];
-  float cosine = Dot(direction, hit.normal);
-  Float3 color = m.diffuse * cosine;
-  if (m.specular.x > 0 || m.specular.y > 0 || m.specular.z > 0) {
-    float highlight = Dot(Reflect(-direction, hit.normal), -hit.direction);
-    if (highlight > 0) color += m.specular * std::pow(highlight, m.shininess);
-  }
-  float falloff = l.isPoint ? 1.0f / (distance * distance) : 1.0f;
-  return color * l.intensity * falloff;
+  const Float3 color = (*frame_.materials)[hit.material].Reflected(direction, hit.normal, hit.direction);
+  return color * l.intensity * l.Falloff(distance);
 }
 
 Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
-  return (*frame_.materials)[hit.material].diffuse * kAmbient;
+  return (*frame_.materials)[hit.material].Ambient();
 }
 
 // Local shading weighted against mirror reflection and refraction, Whitted style.
 Float3 Tracer::PixelTracer::Combine(const SurfaceHit& hit, Float3 local, int depth) {
   const ShadingMaterial& m = (*frame_.materials)[hit.material];
-  if (depth >= frame_.maxDepth || (m.reflectivity == 0 && m.transparency == 0)) return local;
+  if (depth >= frame_.maxDepth || !m.MirrorsOrRefracts()) return local;
   Float3 color = local * (1.0f - m.reflectivity - m.transparency);
   Float3 mirror = Reflect(hit.direction, hit.normal);
   if (m.reflectivity > 0) {
@@ -338,14 +184,12 @@ Float3 Tracer::PixelTracer::Combine(const SurfaceHit& hit, Float3 local, int dep
   }
   if (m.transparency > 0) {
     float eta = hit.fromInside ? m.indexOfRefraction : 1.0f / m.indexOfRefraction;
-    float cosIn = -Dot(hit.direction, hit.normal);
-    float k = 1.0f - eta * eta * (1.0f - cosIn * cosIn);
-    if (k < 0) {  // total internal reflection
+    Float3 refracted;
+    if (!Refract(hit.direction, hit.normal, eta, &refracted)) {  // total internal reflection
       ++counts_.reflection;
       color += TraceRay(Spawn(hit, false), mirror, depth + 1) * m.transparency;
     } else {
       ++counts_.refraction;
-      Float3 refracted = Normalize(hit.direction * eta + hit.normal * (eta * cosIn - std::sqrt(k)));
       color += TraceRay(Spawn(hit, true), refracted, depth + 1) * m.transparency;
     }
   }

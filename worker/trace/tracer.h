@@ -60,7 +60,6 @@ class Tracer {
 
  private:
   struct FrameContext;
-  struct HorizonTracker;
   class PixelTracer;
 
   const EmbreeDevice& device_;

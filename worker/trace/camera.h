@@ -1,0 +1,33 @@
+// The perspective camera of a frame: the ray through any point of the image, and where
+// a pixel's samples fall inside it.
+#pragma once
+
+#include <cstdint>
+
+#include "scene/scene.h"
+#include "trace/float3.h"
+
+namespace tcfarm {
+
+struct PerspectiveCamera {
+  Float3 origin, forward, right, up;  // right and up scaled to the image plane at distance 1
+  float width, height;
+
+  // The unit direction through image point (px, py), in pixels from the top left.
+  Float3 Direction(float px, float py) const {
+    float sx = 2.0f * px / width - 1.0f;
+    float sy = 1.0f - 2.0f * py / height;
+    return Normalize(forward + right * sx + up * sy);
+  }
+};
+
+// The camera at `frame`, its basis built in double: far from the origin the difference
+// position - look_at loses digits in float.
+PerspectiveCamera MakeCamera(const Scene& scene, int frame);
+
+// Where sample `sample` of pixel (x, y) falls: the pixel centre for one sample, else an R2
+// low-discrepancy sequence rotated by a hash of the pixel. Seeded by pixel, not frame, so
+// a pixel that sees nothing change keeps its bits from frame to frame.
+void SamplePosition(uint32_t x, uint32_t y, int sample, int samplesPerPixel, float* px, float* py);
+
+}  // namespace tcfarm

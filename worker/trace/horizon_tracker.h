@@ -1,0 +1,43 @@
+// The horizons of the samples of one packet, folded in as their rays are cast (only when
+// `exact` asks for horizons): each ray segment and each surface seen can only lower them.
+// See horizons.h for what a horizon is and why each rule below keeps it safe.
+#pragma once
+
+#include <algorithm>
+
+#include "trace/float3.h"
+#include "trace/horizons.h"
+
+namespace tcfarm {
+
+// Camera samples traced together as one Embree packet.
+constexpr int kPacketWidth = 8;
+
+struct HorizonTracker {
+  const HorizonOracle* oracle = nullptr;
+  int horizon[kPacketWidth];
+  int lane = 0;  // the sample whose secondary rays are being traced
+
+  void Reset() {
+    for (int& h : horizon) h = oracle->CameraCap();
+  }
+  void Segment(int forLane, Float3 origin, Float3 direction, float length) {
+    if (horizon[forLane] == oracle->frame() + 1) return;  // cannot get any earlier
+    horizon[forLane] = std::min(horizon[forLane], oracle->FirstMeeting({origin, direction, length}));
+  }
+  void Surface(int forLane, bool moves) {
+    horizon[forLane] = std::min(horizon[forLane], moves ? oracle->frame() + 1 : oracle->LightCap());
+  }
+  // A shadow ray found blocked at the traced frame: the light adds nothing, and keeps
+  // adding nothing for as long as the ray stays blocked, whoever blocks it. Such a ray is
+  // re-tested frame by frame ahead with the very query its trace would make there,
+  // instead of the pixel being traced again at every frame a moving shadow covers it.
+  // Not needed when the horizon is the next frame already, nor when no moving shape's
+  // bounds come near the ray at the traced frame: what blocks it never moves, so it
+  // stays blocked.
+  bool BlockedShadowMayClear(int forLane, const RaySegment& segment) const {
+    return horizon[forLane] > oracle->frame() + 1 && oracle->MayBeBlockedByMover(segment);
+  }
+};
+
+}  // namespace tcfarm

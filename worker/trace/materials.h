@@ -1,0 +1,33 @@
+// The Whitted model's materials as shading sees them: Phong's diffuse and specular terms,
+// an ambient term, mirror reflection and refraction weights.
+#pragma once
+
+#include <vector>
+
+#include "scene/scene.h"
+#include "trace/float3.h"
+
+namespace tcfarm {
+
+// Fraction of a material's diffuse colour seen with no light at all, so surfaces in
+// shadow keep their shape (Whitted's ambient term).
+constexpr float kAmbient = 0.05f;
+
+struct ShadingMaterial {
+  Float3 diffuse, specular;
+  float shininess, reflectivity, transparency, indexOfRefraction;
+
+  Float3 Ambient() const { return diffuse * kAmbient; }
+  // Phong: light of unit intensity arriving from unit direction `towardLight` at a surface
+  // of unit `normal`, seen by a ray arriving along unit `arriving`.
+  Float3 Reflected(Float3 towardLight, Float3 normal, Float3 arriving) const;
+  bool MirrorsOrRefracts() const { return reflectivity != 0 || transparency != 0; }
+};
+
+std::vector<ShadingMaterial> MakeMaterials(const Scene& scene);
+
+// The refracted direction of unit `arriving` through a surface of unit `normal` (facing
+// the arriving ray) with relative index eta; false for total internal reflection.
+bool Refract(Float3 arriving, Float3 normal, float eta, Float3* refracted);
+
+}  // namespace tcfarm
