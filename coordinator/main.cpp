@@ -5,37 +5,30 @@
 //   tcfarm-coordinator analyze DIR              coherence of a sequence, equation 3 by bin width
 #include <cstdio>
 #include <exception>
-#include <string>
-#include <vector>
 
 #include "cli/analyze_command.h"
 #include "cli/compare_command.h"
 #include "cli/serve_command.h"
+#include "command_line/command_line.h"
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
-  const char* usage =
-      "usage: tcfarm-coordinator serve [--help for options]\n"
-      "       tcfarm-coordinator compare REFERENCE_DIR TEST_DIR [--json]\n"
-      "       tcfarm-coordinator analyze DIR [--json] [--change-mask FILE.png]\n";
-  if (args.empty()) {
-    std::fputs(usage, stderr);
-    return 2;
-  }
-  std::string command = args[0];
-  args.erase(args.begin());
-  try {
-    if (command == "serve") return tcfarm::RunServe(args);
-    if (command == "compare") return tcfarm::RunCompare(args);
-    if (command == "analyze") return tcfarm::RunAnalyze(args);
-    if (command == "--help" || command == "-h") {
-      std::fputs(usage, stdout);
-      return 0;
+  CLI::App program("Owns the jobs, plans which pixels to trace, dispatches tasks to the "
+                   "workers over ZeroMQ, writes the frames and serves the HTTP API.",
+                   "tcfarm-coordinator");
+  tcfarm::cli::SetUpProgram(program);
+  program.require_subcommand(1);
+  const tcfarm::cli::Subcommand commands[] = {tcfarm::AddServeCommand(program),
+                                              tcfarm::AddCompareCommand(program),
+                                              tcfarm::AddAnalyzeCommand(program)};
+  if (auto exitCode = tcfarm::cli::ParseCommandLine(program, argc, argv)) return *exitCode;
+  for (const tcfarm::cli::Subcommand& command : commands) {
+    if (!command.app->parsed()) continue;
+    try {
+      return command.run();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "tcfarm-coordinator %s: %s\n", command.app->get_name().c_str(), e.what());
+      return 1;
     }
-    std::fprintf(stderr, "tcfarm-coordinator: unknown command '%s'\n%s", command.c_str(), usage);
-    return 2;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "tcfarm-coordinator %s: %s\n", command.c_str(), e.what());
-    return 1;
   }
+  return tcfarm::cli::kUsageError;  // require_subcommand(1) leaves no other way here
 }

@@ -1,84 +1,72 @@
 // tcfarm-worker: a stateless tracing process.
-//   tcfarm-worker serve [--coordinator tcp://HOST:5555] [--threads N] [--capacity K] [--name NAME]
-//                       [--metrics HOST:PORT]   serve /metrics and /healthz over HTTP
-//   tcfarm-worker render SCENE --frames A:B --out DIR   brute-force reference render
-//                                                       (runs tcfarm-render, installed beside it)
+//   tcfarm-worker serve [--coordinator tcp://HOST:5555] [--threads N] ...   trace tasks
+//   tcfarm-worker render SCENE [--frames A:B] [--out DIR] ...   brute-force reference render
+//                                                 (runs tcfarm-render, installed beside it)
+// Each answers --help with its flags.
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
-#include <cstdlib>
 #include <cstdio>
+#include <cstring>
 #include <exception>
+#include <stdexcept>
 #include <string>
-#include <algorithm>
-#include <vector>
 
+#include "command_line/command_line.h"
 #include "daemon/worker_daemon.h"
 
 namespace {
-
-constexpr const char* kUsage =
-    "usage: tcfarm-worker serve [--coordinator tcp://HOST:PORT] [--threads N] [--capacity K] "
-    "[--name NAME]\n"
-    "                           [--metrics HOST:PORT] [--coordinator-timeout MS]\n"
-    "       tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N]\n";
 
 std::atomic<bool> stopRequested{false};
 
 void RequestStop(int) { stopRequested = true; }
 
-unsigned ParseCount(const std::string& text, const std::string& flag, unsigned minimum) {
-  size_t used = 0;
-  long value = -1;
-  try {
-    value = std::stol(text, &used);
-  } catch (const std::exception&) {
-  }
-  if (used != text.size() || value < static_cast<long>(minimum) || value > 65536) {
-    throw std::invalid_argument(flag + " " + text + ": expected an integer from " +
-                                std::to_string(minimum) + " to 65536");
-  }
-  return static_cast<unsigned>(value);
-}
-
 struct ServeArguments {
   tcfarm::WorkerOptions worker;
   std::string metricsAddress;  // empty: no HTTP endpoint
+  long coordinatorTimeoutMs = tcfarm::HeartbeatPolicy{}.timeout.count();
+  CLI::Option* coordinatorTimeoutOption = nullptr;  // set when given
 };
 
-ServeArguments ParseServeArguments(const std::vector<std::string>& args) {
-  ServeArguments parsed;
+void AddServeFlags(CLI::App& serve, ServeArguments& parsed) {
+  using tcfarm::cli::IntegerFrom;
   tcfarm::WorkerOptions& options = parsed.worker;
-  if (const char* env = std::getenv("TCFARM_COORDINATOR")) options.coordinator = env;
-  if (const char* env = std::getenv("TCFARM_WORKER_METRICS")) parsed.metricsAddress = env;
-  for (size_t i = 0; i < args.size(); ++i) {
-    auto value = [&]() -> const std::string& {
-      if (i + 1 >= args.size()) throw std::invalid_argument(args[i] + " needs a value");
-      return args[++i];
-    };
-    if (args[i] == "--coordinator") {
-      options.coordinator = value();
-    } else if (args[i] == "--threads") {
-      options.threads = ParseCount(value(), "--threads", 0);
-    } else if (args[i] == "--capacity") {
-      options.capacity = std::min(ParseCount(value(), "--capacity", 1), tcfarm::wire::kMaxCapacity);
-    } else if (args[i] == "--name") {
-      options.name = value();
-    } else if (args[i] == "--metrics") {
-      parsed.metricsAddress = value();
-    } else if (args[i] == "--coordinator-timeout") {
-      // Silence after which the coordinator is taken for gone and reconnected to.
-      options.heartbeat.SetTimeout(tcfarm::Milliseconds(ParseCount(value(), "--coordinator-timeout", 100)));
-    } else {
-      throw std::invalid_argument("unexpected argument " + args[i]);
-    }
-  }
-  return parsed;
+  serve.add_option("--coordinator", options.coordinator, "The coordinator's ZeroMQ endpoint")
+      ->type_name("tcp://HOST:PORT")
+      ->envname("TCFARM_COORDINATOR")
+      ->capture_default_str();
+  serve.add_option("--threads", options.threads, "Tracing threads (0: one per core)")
+      ->type_name("N")
+      ->check(IntegerFrom(0, 65536))
+      ->capture_default_str();
+  serve.add_option("--capacity", options.capacity,
+                   "Tasks in flight: one tracing, the rest queued here (at most " +
+                       std::to_string(tcfarm::wire::kMaxCapacity) + ")")
+      ->type_name("K")
+      ->check(IntegerFrom(1, 65536))
+      ->capture_default_str();
+  serve.add_option("--name", options.name,
+                   "Name in the coordinator's worker list (default: HOST:PID)")
+      ->type_name("NAME");
+  serve.add_option("--metrics", parsed.metricsAddress,
+                   "Serve /metrics and /healthz over HTTP at this address (default: not at all)")
+      ->type_name("HOST:PORT")
+      ->envname("TCFARM_WORKER_METRICS");
+  parsed.coordinatorTimeoutOption =
+      serve.add_option("--coordinator-timeout", parsed.coordinatorTimeoutMs,
+                       "Silence after which the coordinator is taken for gone and reconnected to")
+          ->type_name("MS")
+          ->check(IntegerFrom(100, 65536))
+          ->capture_default_str();
 }
 
-int RunServe(const std::vector<std::string>& args) {
-  const ServeArguments parsed = ParseServeArguments(args);
+int RunServe(ServeArguments parsed) {
+  parsed.worker.capacity = std::min(parsed.worker.capacity, tcfarm::wire::kMaxCapacity);
+  if (parsed.coordinatorTimeoutOption->count()) {
+    parsed.worker.heartbeat.SetTimeout(tcfarm::Milliseconds(parsed.coordinatorTimeoutMs));
+  }
   std::string metricsHost;
   int metricsPort = 0;
   if (!parsed.metricsAddress.empty()) {
@@ -118,23 +106,25 @@ int ExecRender(char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
-  if (args.empty() || args[0] == "--help" || args[0] == "-h") {
-    std::fputs(kUsage, args.empty() ? stderr : stdout);
-    return args.empty() ? 2 : 0;
-  }
-  const std::string command = args[0];
-  args.erase(args.begin());
+  // tcfarm-render parses its own command line, --help included.
+  if (argc >= 2 && std::strcmp(argv[1], "render") == 0) return ExecRender(argv + 1);
+  CLI::App program("A stateless tracing process: traces the tasks a coordinator sends it.",
+                   "tcfarm-worker");
+  tcfarm::cli::SetUpProgram(program);
+  program.require_subcommand(1);
+  CLI::App* serve = program.add_subcommand("serve", "Trace tasks for a coordinator until stopped");
+  ServeArguments parsed;
+  AddServeFlags(*serve, parsed);
+  program.add_subcommand("render",
+                         "Brute-force reference render of a scene's frames (runs tcfarm-render, "
+                         "installed beside this program; see tcfarm-worker render --help)");
+  if (auto exitCode = tcfarm::cli::ParseCommandLine(program, argc, argv)) return *exitCode;
   try {
-    if (command == "serve") return RunServe(args);
-    if (command == "render") return ExecRender(argv + 1);
-    std::fprintf(stderr, "tcfarm-worker: unknown command '%s'\n%s", command.c_str(), kUsage);
-    return 2;
-  } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "tcfarm-worker %s: %s\n", command.c_str(), e.what());
-    return 2;
+    return RunServe(parsed);
+  } catch (const std::invalid_argument& e) {  // a flag's value that cannot be used
+    return tcfarm::cli::ReportUsageError(program, e.what());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "tcfarm-worker %s: %s\n", command.c_str(), e.what());
+    std::fprintf(stderr, "tcfarm-worker serve: %s\n", e.what());
     return 1;
   }
 }

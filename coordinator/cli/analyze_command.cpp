@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <stdexcept>
 
 #include <nlohmann/json.hpp>
@@ -15,9 +16,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const char* const kUsage =
-    "usage: tcfarm-coordinator analyze DIR [--json] [--change-mask FILE.png]\n";
-
 // The widest bin the paper measured (Figure 9) and showed its audience (Figure 11). Equation 3
 // alone always favours the widest bin allowed, so the best n is reported under this cap.
 constexpr int kPaperMaxBinWidth = 10;
@@ -27,22 +25,6 @@ struct AnalyzeOptions {
   bool json = false;
   fs::path changeMaskPath;  // empty: no mask written
 };
-
-// Returns false on bad usage.
-bool ParseOptions(const std::vector<std::string>& args, AnalyzeOptions* options) {
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--json") {
-      options->json = true;
-    } else if (args[i] == "--change-mask" && i + 1 < args.size()) {
-      options->changeMaskPath = args[++i];
-    } else if (args[i].rfind("--", 0) == 0 || !options->folder.empty()) {
-      return false;
-    } else {
-      options->folder = args[i];
-    }
-  }
-  return !options->folder.empty();
-}
 
 std::vector<fs::path> FramesWithExtension(const fs::path& folder, const std::string& extension) {
   std::vector<fs::path> paths;
@@ -136,14 +118,7 @@ void PrintSummary(const SequenceAnalysis& analysis) {
   if (analysis.frames >= 2) PrintPredictions(analysis);
 }
 
-}  // namespace
-
-int RunAnalyze(const std::vector<std::string>& args) {
-  AnalyzeOptions options;
-  if (!ParseOptions(args, &options)) {
-    std::fputs(kUsage, stderr);
-    return 2;
-  }
+int RunAnalyze(const AnalyzeOptions& options) {
   try {
     SequenceAnalysis analysis = AnalyzeFrames(FramePaths(options.folder));
     if (!options.changeMaskPath.empty()) WriteChangeMask(options.changeMaskPath, analysis);
@@ -157,6 +132,21 @@ int RunAnalyze(const std::vector<std::string>& args) {
     std::fprintf(stderr, "tcfarm-coordinator analyze: %s\n", e.what());
     return 1;
   }
+}
+
+}  // namespace
+
+cli::Subcommand AddAnalyzeCommand(CLI::App& program) {
+  CLI::App* analyze = program.add_subcommand(
+      "analyze", "Coherence of a rendered sequence, and what equation 3 predicts by bin width");
+  auto options = std::make_shared<AnalyzeOptions>();
+  analyze->add_option("DIR", options->folder, "Folder of the frames: frame_*.exr, else frame_*.png")
+      ->required();
+  analyze->add_flag("--json", options->json, "Print the analysis as one JSON object");
+  analyze->add_option("--change-mask", options->changeMaskPath,
+                      "Also write the pixels that ever change as a PNG (white: never changes)")
+      ->type_name("FILE.png");
+  return {analyze, [options] { return RunAnalyze(*options); }};
 }
 
 }  // namespace tcfarm

@@ -3,16 +3,16 @@
 // submitting a job what exploiting temporal coherence can buy on footage like it.
 #pragma once
 
-#include <string>
-#include <vector>
+#include "command_line/command_line.h"
 
 namespace tcfarm {
 
-// Reads DIR/frame_*.exr in name order (DIR/frame_*.png when there is no EXR), prints the
-// summary (JSON with --json) and, with --change-mask, writes the pixels that ever change as
-// an 8-bit PNG (white: never changes, black: changes; the paper's Figure 7). Returns the exit
-// code: 0 when analysed, 1 when the folder holds no frames or a frame is unreadable or of
-// another size (the message names the file), 2 on bad usage.
-int RunAnalyze(const std::vector<std::string>& args);
+// Adds `analyze` to the coordinator's command line. It reads DIR/frame_*.exr in name order
+// (DIR/frame_*.png when there is no EXR), prints the summary (JSON with --json) and, with
+// --change-mask, writes the pixels that ever change as an 8-bit PNG (white: never changes,
+// black: changes; the paper's Figure 7). Its exit code is 0 when analysed, 1 when the folder
+// holds no frames or a frame is unreadable or of another size (the message names the file),
+// 2 on bad usage.
+cli::Subcommand AddAnalyzeCommand(CLI::App& program);
 
 }  // namespace tcfarm

@@ -3,7 +3,9 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <set>
+#include <string>
 
 #include <nlohmann/json.hpp>
 
@@ -22,36 +24,27 @@ std::set<std::string> ExrNames(const std::filesystem::path& folder) {
   return names;
 }
 
-}  // namespace
-
-int RunCompare(const std::vector<std::string>& args) {
-  std::vector<std::string> folders;
+struct CompareFlags {
+  std::string referenceFolder;
+  std::string testFolder;
   bool json = false;
-  for (const auto& arg : args) {
-    if (arg == "--json") {
-      json = true;
-    } else {
-      folders.push_back(arg);
-    }
-  }
-  if (folders.size() != 2) {
-    std::fprintf(stderr, "usage: tcfarm-coordinator compare REFERENCE_DIR TEST_DIR [--json]\n");
-    return 2;
-  }
+};
+
+int RunCompare(const CompareFlags& flags) {
   try {
-    std::set<std::string> names = ExrNames(folders[0]);
-    if (names.empty()) throw FrameIoError("no .exr frames in " + folders[0]);
+    std::set<std::string> names = ExrNames(flags.referenceFolder);
+    if (names.empty()) throw FrameIoError("no .exr frames in " + flags.referenceFolder);
     FrameError total;
     double ssimSum = 0;
     for (const std::string& name : names) {
-      Image reference = ReadImage(std::filesystem::path(folders[0]) / name);
-      Image test = ReadImage(std::filesystem::path(folders[1]) / name);
+      Image reference = ReadImage(std::filesystem::path(flags.referenceFolder) / name);
+      Image test = ReadImage(std::filesystem::path(flags.testFolder) / name);
       total += CompareImages(reference, test);
       ssimSum += Ssim(reference, test);
     }
     double psnr = total.Psnr();
     double ssim = ssimSum / names.size();  // mean over frames
-    if (json) {
+    if (flags.json) {
       nlohmann::json out = {{"frames", names.size()},
                             {"pixels", total.pixels},
                             {"differing_pixels", total.differingPixels},
@@ -74,6 +67,21 @@ int RunCompare(const std::vector<std::string>& args) {
     std::fprintf(stderr, "tcfarm-coordinator compare: %s\n", e.what());
     return 1;
   }
+}
+
+}  // namespace
+
+cli::Subcommand AddCompareCommand(CLI::App& program) {
+  CLI::App* compare = program.add_subcommand(
+      "compare", "Error of a rendered sequence against its reference, frame by frame (EXR)");
+  auto flags = std::make_shared<CompareFlags>();
+  compare->add_option("REFERENCE_DIR", flags->referenceFolder,
+                      "Folder of the reference frames (frame_*.exr)")
+      ->required();
+  compare->add_option("TEST_DIR", flags->testFolder, "Folder of the frames to check, same names")
+      ->required();
+  compare->add_flag("--json", flags->json, "Print the summary as one JSON object");
+  return {compare, [flags] { return RunCompare(*flags); }};
 }
 
 }  // namespace tcfarm

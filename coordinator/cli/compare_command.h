@@ -2,13 +2,13 @@
 // against its brute-force reference, frame by frame (EXR, bitwise).
 #pragma once
 
-#include <string>
-#include <vector>
+#include "command_line/command_line.h"
 
 namespace tcfarm {
 
-// Prints the error summary (JSON with --json) and returns the exit code: 0 when the
-// folders could be compared, 1 when a frame is missing or unreadable, 2 on bad usage.
-int RunCompare(const std::vector<std::string>& args);
+// Adds `compare` to the coordinator's command line. It prints the error summary (JSON with
+// --json); its exit code is 0 when the folders could be compared, 1 when a frame is missing
+// or unreadable, 2 on bad usage.
+cli::Subcommand AddCompareCommand(CLI::App& program);
 
 }  // namespace tcfarm

@@ -4,10 +4,12 @@
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <stdexcept>
 
 #include "farm/farm.h"
+#include "farm/job_run.h"
 #include "frame/frame_io.h"
 #include "farm/local_workers.h"
 #include "farm/machine_memory.h"
@@ -16,24 +18,6 @@
 
 namespace tcfarm {
 namespace {
-
-constexpr const char* kUsage =
-    "usage: tcfarm-coordinator serve [--http HOST:PORT] [--zmq ENDPOINT] [--store DIR] "
-    "[--db FILE]\n"
-    "           [--local-workers N] [--worker-threads T] [--worker-binary PATH] "
-    "[--max-running-jobs K]\n"
-    "           [--exr-compression zip[:1-9]|none|rle|zips|piz] [--writer-threads N] "
-    "[--dashboard DIR]\n"
-    "           [--pending-frame-memory MIB]   per job, frames finished ahead of their turn; "
-    "beyond it they wait on disk (default 256)\n"
-    "           [--job-memory MIB]   per job, the frames it holds at once; larger jobs are refused "
-    "(default: half the memory it may use)\n"
-    "           [--worker-timeout MS]   silence after which a worker's tasks are requeued (default 5000)\n"
-    "defaults: --http 127.0.0.1:8080 --zmq tcp://*:5555 --store store --db store/jobs.db "
-    "--local-workers 1\n"
-    "          --dashboard: services/dashboard of the source tree the binary was built in, "
-    "when there\n"
-    "(--local-workers 0 for a coordinator whose workers run elsewhere)\n";
 
 struct ServeOptions {
   std::string httpHost = "127.0.0.1";
@@ -90,34 +74,111 @@ uint64_t HalfTheUsableMemory() {
   return UsableMemoryBytes().value_or(uint64_t{16} << 30) / 2;  // unknown: assume 16 GiB
 }
 
-ServeOptions ParseServeOptions(const std::vector<std::string>& args) {
+// The flags as given, checked for range by the parser; Resolve turns them into options.
+struct ServeFlags {
+  std::string http = "127.0.0.1:8080";
+  std::string zmq = FarmOptions{}.endpoint;
+  std::string store = FarmOptions{}.storeRoot.string();
+  std::string database;  // empty: STORE/jobs.db
+  unsigned localWorkers = 1;
+  unsigned workerThreads = 0;
+  std::string workerBinary;
+  int maxRunningJobs = FarmOptions{}.maxRunningJobs;
+  std::string exrCompression = FrameWriterOptions{}.exrCompression;
+  unsigned writerThreads = FrameWriterOptions{}.threads;
+  std::string dashboard;
+  long workerTimeoutMs = HeartbeatPolicy{}.timeout.count();
+  uint64_t jobMemoryMib = 0;
+  size_t pendingFrameMib = JobRun::kDefaultPendingFrameBytes >> 20;
+  // Set when given: their defaults are worked out, not fixed.
+  CLI::Option* dashboardOption = nullptr;
+  CLI::Option* workerTimeoutOption = nullptr;
+  CLI::Option* jobMemoryOption = nullptr;
+};
+
+void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
+  using cli::IntegerFrom;
+  serve.add_option("--http", flags.http, "Address of the HTTP API and the dashboard")
+      ->type_name("HOST:PORT")
+      ->capture_default_str();
+  serve.add_option("--zmq", flags.zmq, "ZeroMQ endpoint the workers connect to")
+      ->type_name("ENDPOINT")
+      ->capture_default_str();
+  serve.add_option("--store", flags.store, "Frame store: each job's frames, and the job database")
+      ->type_name("DIR")
+      ->capture_default_str();
+  serve.add_option("--db", flags.database, "Job database (default: STORE/jobs.db)")
+      ->type_name("FILE");
+  serve.add_option("--local-workers", flags.localWorkers,
+                   "Workers this process starts on loopback (0: the workers run elsewhere)")
+      ->type_name("N")
+      ->check(IntegerFrom(0, 256))
+      ->capture_default_str();
+  serve.add_option("--worker-threads", flags.workerThreads,
+                   "Tracing threads of each local worker (0: one per core)")
+      ->type_name("T")
+      ->check(IntegerFrom(0, 4096))
+      ->capture_default_str();
+  serve.add_option("--worker-binary", flags.workerBinary,
+                   "The local workers' program (default: tcfarm-worker beside this one)")
+      ->type_name("PATH");
+  serve.add_option("--max-running-jobs", flags.maxRunningJobs,
+                   "Jobs rendered at once; more wait in the queue")
+      ->type_name("K")
+      ->check(IntegerFrom(1, 1024))
+      ->capture_default_str();
+  serve.add_option("--exr-compression", flags.exrCompression,
+                   "Lossless EXR compression of the stored frames: zip[:1-9], none, rle, zips or piz")
+      ->type_name("NAME")
+      ->capture_default_str();
+  serve.add_option("--writer-threads", flags.writerThreads, "Threads encoding frames")
+      ->type_name("N")
+      ->check(IntegerFrom(1, 64))
+      ->capture_default_str();
+  flags.dashboardOption =
+      serve.add_option("--dashboard", flags.dashboard,
+                       "Web page served at / (default: services/dashboard of the source tree "
+                       "this was built in, when there)")
+          ->type_name("DIR");
+  flags.workerTimeoutOption =
+      serve.add_option("--worker-timeout", flags.workerTimeoutMs,
+                       "Silence after which a worker's tasks are requeued")
+          ->type_name("MS")
+          ->check(IntegerFrom(100, 3600000))
+          ->capture_default_str();
+  flags.jobMemoryOption =
+      serve.add_option("--job-memory", flags.jobMemoryMib,
+                       "Per job, the frames it holds at once; larger jobs are refused "
+                       "(default: half the memory this process may use)")
+          ->type_name("MIB")
+          ->check(IntegerFrom(1, 1 << 30));
+  serve.add_option("--pending-frame-memory", flags.pendingFrameMib,
+                   "Per job, frames finished ahead of their turn; beyond it they wait on disk")
+      ->type_name("MIB")
+      ->check(IntegerFrom(0, 1 << 20))
+      ->capture_default_str();
+}
+
+// Throws std::invalid_argument naming the flag whose value cannot be used.
+ServeOptions Resolve(const ServeFlags& flags) {
   ServeOptions options;
-  options.dashboard = FindDashboard();
-  for (size_t i = 0; i < args.size(); ++i) {
-    auto value = [&]() -> const std::string& {
-      if (i + 1 >= args.size()) throw std::invalid_argument(args[i] + " needs a value");
-      return args[++i];
-    };
-    const std::string& flag = args[i];
-    if (flag == "--http") ParseHttpAddress(value(), &options);
-    else if (flag == "--zmq") options.farm.endpoint = value();
-    else if (flag == "--store") options.farm.storeRoot = value();
-    else if (flag == "--db") options.database = value();
-    else if (flag == "--local-workers") options.localWorkers = ParseInt(value(), flag, 0, 256);
-    else if (flag == "--worker-threads") options.workerThreads = ParseInt(value(), flag, 0, 4096);
-    else if (flag == "--worker-binary") options.workerBinary = value();
-    else if (flag == "--max-running-jobs") options.farm.maxRunningJobs = ParseInt(value(), flag, 1, 1024);
-    else if (flag == "--exr-compression") options.farm.output.exrCompression = value();
-    else if (flag == "--writer-threads") options.farm.output.threads = ParseInt(value(), flag, 1, 64);
-    else if (flag == "--dashboard") options.dashboard = value();
-    else if (flag == "--worker-timeout")
-      options.farm.heartbeat.SetTimeout(Milliseconds(ParseInt(value(), flag, 100, 3600000)));
-    else if (flag == "--job-memory")
-      options.farm.jobMemoryBytes = static_cast<uint64_t>(ParseInt(value(), flag, 1, 1 << 30)) << 20;
-    else if (flag == "--pending-frame-memory")
-      options.farm.pendingFrameBytes = static_cast<size_t>(ParseInt(value(), flag, 0, 1 << 20)) << 20;
-    else throw std::invalid_argument("unexpected argument " + flag);
+  ParseHttpAddress(flags.http, &options);
+  options.farm.endpoint = flags.zmq;
+  options.farm.storeRoot = flags.store;
+  options.database = flags.database;
+  options.localWorkers = flags.localWorkers;
+  options.workerThreads = flags.workerThreads;
+  options.workerBinary = flags.workerBinary;
+  options.farm.maxRunningJobs = flags.maxRunningJobs;
+  options.farm.output.exrCompression = flags.exrCompression;
+  options.farm.output.threads = flags.writerThreads;
+  options.dashboard =
+      flags.dashboardOption->count() ? std::filesystem::path(flags.dashboard) : FindDashboard();
+  if (flags.workerTimeoutOption->count()) {
+    options.farm.heartbeat.SetTimeout(Milliseconds(flags.workerTimeoutMs));
   }
+  if (flags.jobMemoryOption->count()) options.farm.jobMemoryBytes = flags.jobMemoryMib << 20;
+  options.farm.pendingFrameBytes = flags.pendingFrameMib << 20;
   if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
@@ -139,16 +200,7 @@ std::string LoopbackEndpoint(std::string bound) {
   return bound;
 }
 
-}  // namespace
-
-int RunServe(const std::vector<std::string>& args) {
-  ServeOptions options;
-  try {
-    options = ParseServeOptions(args);
-  } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "tcfarm-coordinator serve: %s\n%s", e.what(), kUsage);
-    return 2;
-  }
+int RunServe(const ServeOptions& options) {
   std::signal(SIGINT, RequestStop);
   std::signal(SIGTERM, RequestStop);
   std::signal(SIGPIPE, SIG_IGN);
@@ -197,6 +249,25 @@ int RunServe(const std::vector<std::string>& args) {
   server.Stop();
   localWorkers.Stop();
   return 0;
+}
+
+}  // namespace
+
+cli::Subcommand AddServeCommand(CLI::App& program) {
+  CLI::App* serve = program.add_subcommand(
+      "serve", "The coordinator daemon: jobs, planning, dispatch to the workers, the frame store, "
+               "the HTTP API (with --local-workers, its own workers too)");
+  auto flags = std::make_shared<ServeFlags>();
+  AddServeFlags(*serve, *flags);
+  return {serve, [&program, flags]() {
+            ServeOptions options;
+            try {
+              options = Resolve(*flags);
+            } catch (const std::invalid_argument& e) {
+              return cli::ReportUsageError(program, e.what());
+            }
+            return RunServe(options);
+          }};
 }
 
 }  // namespace tcfarm

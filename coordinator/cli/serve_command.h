@@ -2,11 +2,11 @@
 // the embedded local farm: it starts N workers on loopback itself.
 #pragma once
 
-#include <string>
-#include <vector>
+#include "command_line/command_line.h"
 
 namespace tcfarm {
 
-int RunServe(const std::vector<std::string>& args);
+// Adds `serve` and its flags to the coordinator's command line.
+cli::Subcommand AddServeCommand(CLI::App& program);
 
 }  // namespace tcfarm

@@ -194,30 +194,6 @@ TEST(Sha256, PaddingBoundaries) {
   }
 }
 
-TEST(Sha256, PiecewiseUpdatesMatchOneShot) {
-  std::string bytes(300, '\0');
-  for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>(i * 31);
-  const std::string expected = Sha256Hex(bytes);
-  for (size_t cut1 = 0; cut1 <= bytes.size(); cut1 += 13) {
-    for (size_t cut2 = cut1; cut2 <= bytes.size(); cut2 += 29) {
-      Sha256 hasher;
-      hasher.Update(std::string_view(bytes).substr(0, cut1));
-      hasher.Update(std::string_view(bytes).substr(cut1, cut2 - cut1));
-      hasher.Update(std::string_view(bytes).substr(cut2));
-      ASSERT_EQ(DigestHex(hasher.Finish()), expected) << "cuts at " << cut1 << " and " << cut2;
-    }
-  }
-}
-
-TEST(Sha256, ResetStartsOver) {
-  Sha256 hasher;
-  hasher.Update("something else");
-  hasher.Finish();
-  hasher.Reset();
-  hasher.Update("abc");
-  EXPECT_EQ(DigestHex(hasher.Finish()), Sha256Hex("abc"));
-}
-
 // ---------------------------------------------------------------------------------
 // Round trips
 

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 #include "embree/device.h"
@@ -15,10 +16,6 @@
 namespace tcfarm {
 namespace {
 
-constexpr const char* kUsage =
-    "usage: tcfarm-render SCENE.json [--frames A:B] [--out DIR] [--threads N] "
-    "[--no-exr] [--no-png] [--exr-compression zip[:1-9]|none|rle|zips|piz]";
-
 int ParseInt(const std::string& text, const std::string& what) {
   size_t used = 0;
   int value = 0;
@@ -28,7 +25,7 @@ int ParseInt(const std::string& text, const std::string& what) {
     used = 0;
   }
   if (used != text.size() || text.empty()) {
-    throw std::invalid_argument(what + ": '" + text + "' is not an integer\n" + kUsage);
+    throw std::invalid_argument(what + ": '" + text + "' is not an integer");
   }
   return value;
 }
@@ -65,42 +62,36 @@ void ResolveFrameRange(const Scene& scene, RenderOptions* options) {
 
 }  // namespace
 
-RenderOptions ParseRenderArguments(const std::vector<std::string>& args) {
-  RenderOptions options;
-  options.outDirectory = "out";
-  for (size_t i = 0; i < args.size(); ++i) {
-    const std::string& arg = args[i];
-    auto value = [&]() -> const std::string& {
-      if (i + 1 >= args.size()) throw std::invalid_argument(arg + " needs a value\n" + kUsage);
-      return args[++i];
-    };
-    if (arg == "--frames") {
-      ParseFrameRange(value(), &options);
-    } else if (arg == "--out") {
-      options.outDirectory = value();
-    } else if (arg == "--threads") {
-      int threads = ParseInt(value(), "--threads");
-      if (threads < 0) throw std::invalid_argument("--threads: expected 0 (all cores) or more");
-      options.threads = static_cast<unsigned>(threads);
-    } else if (arg == "--no-exr") {
-      options.output.writeExr = false;
-    } else if (arg == "--no-png") {
-      options.output.writePng = false;
-    } else if (arg == "--exr-compression") {
-      options.output.exrCompression = value();
-      if (!IsLosslessExrCompression(options.output.exrCompression)) {
-        throw std::invalid_argument("--exr-compression " + options.output.exrCompression +
-                                    ": expected a lossless one: none, rle, zips, zip or piz");
-      }
-    } else if (!arg.empty() && arg[0] == '-') {
-      throw std::invalid_argument("unknown option " + arg + "\n" + kUsage);
-    } else if (options.scenePath.empty()) {
-      options.scenePath = arg;
-    } else {
-      throw std::invalid_argument("unexpected argument " + arg + "\n" + kUsage);
-    }
+RenderCommandLine::RenderCommandLine(CLI::App& app) {
+  options_.outDirectory = "out";
+  app.add_option("SCENE", options_.scenePath, "Scene file (JSON)")->type_name("FILE")->required();
+  app.add_option("--frames", frames_,
+                 "Frames to render, both inclusive, or one frame (default: the scene's own)")
+      ->type_name("A:B");
+  app.add_option("--out", options_.outDirectory, "Folder the frames are written to")
+      ->type_name("DIR")
+      ->capture_default_str();
+  app.add_option("--threads", options_.threads, "Tracing threads (0: one per core)")
+      ->type_name("N")
+      ->check(cli::IntegerFrom(0, std::numeric_limits<int>::max()))
+      ->capture_default_str();
+  app.add_flag("--no-exr", noExr_, "Write no EXR frames");
+  app.add_flag("--no-png", noPng_, "Write no PNG frames");
+  app.add_option("--exr-compression", options_.output.exrCompression,
+                 "Lossless EXR compression: zip[:1-9], none, rle, zips or piz")
+      ->type_name("NAME")
+      ->capture_default_str();
+}
+
+RenderOptions RenderCommandLine::Options() const {
+  RenderOptions options = options_;
+  if (!frames_.empty()) ParseFrameRange(frames_, &options);
+  options.output.writeExr = !noExr_;
+  options.output.writePng = !noPng_;
+  if (!IsLosslessExrCompression(options.output.exrCompression)) {
+    throw std::invalid_argument("--exr-compression " + options.output.exrCompression +
+                                ": expected a lossless one: none, rle, zips, zip or piz");
   }
-  if (options.scenePath.empty()) throw std::invalid_argument(std::string("no scene\n") + kUsage);
   return options;
 }
 

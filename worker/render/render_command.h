@@ -4,10 +4,10 @@
 #pragma once
 
 #include <filesystem>
-
-#include "frame/frame_writer.h"
 #include <string>
-#include <vector>
+
+#include "command_line/command_line.h"
+#include "frame/frame_writer.h"
 
 namespace tcfarm {
 
@@ -20,10 +20,22 @@ struct RenderOptions {
   FrameWriterOptions output;
 };
 
-// Parses `render SCENE --frames A:B --out DIR [--threads N] [--no-exr] [--no-png]
-// [--exr-compression NAME]`
-// (argv after the command word). Throws std::invalid_argument with a usage message.
-RenderOptions ParseRenderArguments(const std::vector<std::string>& args);
+// The renderer's command line, SCENE and its flags, on app; Options() once app has parsed.
+class RenderCommandLine {
+ public:
+  explicit RenderCommandLine(CLI::App& app);
+  // app writes into this object's members.
+  RenderCommandLine(const RenderCommandLine&) = delete;
+  RenderCommandLine& operator=(const RenderCommandLine&) = delete;
+  // Throws std::invalid_argument, naming the flag, for what the parser does not check.
+  RenderOptions Options() const;
+
+ private:
+  RenderOptions options_;
+  std::string frames_;  // empty: the scene's own frames
+  bool noExr_ = false;
+  bool noPng_ = false;
+};
 
 // Returns the process exit code.
 int RunRender(const RenderOptions& options);

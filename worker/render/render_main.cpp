@@ -3,18 +3,23 @@
 // ~200 shared libraries stay out of the worker daemon, which starts in milliseconds.
 #include <cstdio>
 #include <exception>
-#include <string>
-#include <vector>
+#include <stdexcept>
 
+#include "command_line/command_line.h"
 #include "render/render_command.h"
 
 int main(int argc, char** argv) {
-  std::vector<std::string> args(argv + 1, argv + argc);
+  CLI::App app("Brute-force reference render: traces every pixel of every frame, writes the "
+               "frames and reports time per frame, rays by type and the sequence's coherence. "
+               "Also run as `tcfarm-worker render`.",
+               "tcfarm-render");
+  tcfarm::cli::SetUpProgram(app);
+  tcfarm::RenderCommandLine commandLine(app);
+  if (auto exitCode = tcfarm::cli::ParseCommandLine(app, argc, argv)) return *exitCode;
   try {
-    return tcfarm::RunRender(tcfarm::ParseRenderArguments(args));
-  } catch (const std::invalid_argument& e) {
-    std::fprintf(stderr, "tcfarm-render: %s\n", e.what());
-    return 2;
+    return tcfarm::RunRender(commandLine.Options());
+  } catch (const std::invalid_argument& e) {  // a flag's value, or frames the scene lacks
+    return tcfarm::cli::ReportUsageError(app, e.what());
   } catch (const std::exception& e) {  // SceneError included: the message names the value
     std::fprintf(stderr, "tcfarm-render: %s\n", e.what());
     return 1;

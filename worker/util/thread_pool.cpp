@@ -1,83 +1,54 @@
 #include "util/thread_pool.h"
 
-#include <atomic>
+#include <tbb/blocked_range.h>
+#include <tbb/info.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <thread>
 
 namespace tcfarm {
+namespace {
 
-struct ThreadPool::Loop {
-  size_t count;
-  size_t chunkSize;
-  const std::function<void(size_t, size_t)>* body;
-  std::atomic<size_t> next{0};
-};
-
-ThreadPool::ThreadPool(unsigned threadCount) {
-  if (threadCount == 0) threadCount = std::max(1u, std::thread::hardware_concurrency());
-  // The caller of ParallelFor works too, so the pool owns one thread fewer.
-  for (unsigned i = 1; i < threadCount; ++i) workers_.emplace_back([this] { WorkerMain(); });
+unsigned ResolveThreadCount(unsigned threadCount) {
+  return threadCount != 0 ? threadCount : std::max(1u, std::thread::hardware_concurrency());
 }
 
-ThreadPool::~ThreadPool() {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stopping_ = true;
-  }
-  wake_.notify_all();
-  for (auto& worker : workers_) worker.join();
-}
+}  // namespace
 
-void ThreadPool::RunChunks(Loop& loop) {
-  for (;;) {
-    size_t begin = loop.next.fetch_add(loop.chunkSize);
-    if (begin >= loop.count) return;
-    (*loop.body)(begin, std::min(loop.count, begin + loop.chunkSize));
-  }
-}
+ThreadPool::ThreadPool(unsigned threadCount)
+    : threadCount_(ResolveThreadCount(threadCount)),
+      parallelismLimit_(threadCount_ > static_cast<unsigned>(tbb::info::default_concurrency())
+                            ? std::make_unique<tbb::global_control>(
+                                  tbb::global_control::max_allowed_parallelism, threadCount_)
+                            : nullptr),
+      arena_(static_cast<int>(threadCount_)) {}
 
-void ThreadPool::WorkerMain() {
-  size_t seenGeneration = 0;
-  for (;;) {
-    Loop* loop;
-    {
-      std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [&] { return stopping_ || generation_ != seenGeneration; });
-      if (stopping_) return;
-      seenGeneration = generation_;
-      loop = loop_;
-      // A worker that wakes after the loop already finished finds nothing to join.
-      if (loop == nullptr) continue;
-      ++busyWorkers_;
-    }
-    RunChunks(*loop);
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      --busyWorkers_;
-    }
-    finished_.notify_all();
-  }
-}
+ThreadPool::~ThreadPool() = default;
 
 void ThreadPool::ParallelFor(size_t count, size_t chunkSize,
                              const std::function<void(size_t, size_t)>& body) {
   if (count == 0) return;
   chunkSize = std::max<size_t>(1, chunkSize);
+  const size_t chunkCount = (count + chunkSize - 1) / chunkSize;
   std::lock_guard<std::mutex> callerLock(loopMutex_);
-  Loop loop{count, chunkSize, &body};
-  if (workers_.empty() || count <= chunkSize) {
-    RunChunks(loop);
-    return;
-  }
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    loop_ = &loop;
-    ++generation_;
-  }
-  wake_.notify_all();
-  RunChunks(loop);
-  // Workers that woke for this loop must leave it before `loop` goes out of scope.
-  std::unique_lock<std::mutex> lock(mutex_);
-  finished_.wait(lock, [&] { return busyWorkers_ == 0; });
-  loop_ = nullptr;
+  arena_.execute([&] {
+    // One task per chunk index, never split further: the chunks are exactly those of
+    // chunkSize, whatever the thread count.
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, chunkCount, 1),
+        [&](const tbb::blocked_range<size_t>& chunks) {
+          for (size_t k = chunks.begin(); k != chunks.end(); ++k) {
+            // A chunk may run TBB loops of its own (Embree builds a frame's geometry on
+            // first use). Waiting in one, a thread could otherwise pick up another of our
+            // chunks midway through this one: that would overwrite this chunk's per-thread
+            // buffers, count CPU time twice, or block on a lock this chunk holds.
+            tbb::this_task_arena::isolate(
+                [&] { body(k * chunkSize, std::min(count, (k + 1) * chunkSize)); });
+          }
+        },
+        tbb::simple_partitioner());
+  });
 }
 
 }  // namespace tcfarm

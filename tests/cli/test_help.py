@@ -1,0 +1,89 @@
+"""Every program and command answers --help (and -h) with its flags, and refuses a bad flag
+or value with a non-zero exit and a message naming it."""
+import os
+import pathlib
+import subprocess
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+BUILD = pathlib.Path(os.environ.get("TCFARM_BUILD", ROOT / "build"))
+COORDINATOR = BUILD / "coordinator" / "tcfarm-coordinator"
+WORKER = BUILD / "worker" / "tcfarm-worker"
+
+# (program, command words, text the help must show: flags, commands, defaults)
+HELP_CASES = [
+    (COORDINATOR, [], ["serve", "compare", "analyze"]),
+    (COORDINATOR, ["serve"], ["--http", "127.0.0.1:8080", "--zmq", "tcp://*:5555", "--store",
+                              "--db", "--local-workers", "--worker-threads", "--worker-timeout",
+                              "--exr-compression", "--dashboard", "--job-memory",
+                              "--pending-frame-memory"]),
+    (COORDINATOR, ["compare"], ["REFERENCE_DIR", "TEST_DIR", "--json"]),
+    (COORDINATOR, ["analyze"], ["DIR", "--json", "--change-mask"]),
+    (WORKER, [], ["serve", "render"]),
+    (WORKER, ["serve"], ["--coordinator", "tcp://127.0.0.1:5555", "TCFARM_COORDINATOR",
+                         "--threads", "--capacity", "--name", "--metrics",
+                         "--coordinator-timeout"]),
+    (WORKER, ["render"], ["SCENE", "--frames", "--out", "--threads", "--no-exr", "--no-png",
+                          "--exr-compression"]),
+]
+
+
+def run(program, *args):
+    if not program.exists():
+        pytest.fail(f"{program} is missing: build first (bash scripts/build)")
+    return subprocess.run([str(program), *map(str, args)], capture_output=True, text=True,
+                          timeout=30)
+
+
+def flag_descriptions(help_text):
+    """(flag, description) of each option line of the help. Descriptions start in one column,
+    the one of --help's; CLI11 moves the description of a longer flag to the next line."""
+    lines = help_text.splitlines()
+    column = next(line.index("Print this help") for line in lines if "-h,--help" in line)
+    found = []
+    for index, line in enumerate(lines):
+        if not line.strip().startswith("-"):
+            continue
+        if len(line) > column and line[column - 1] == " ":
+            found.append((line[:column].strip(), line[column:].strip()))
+        else:
+            following = lines[index + 1] if index + 1 < len(lines) else ""
+            found.append((line.strip(), following.strip()))
+    return found
+
+
+@pytest.mark.parametrize("flag", ["--help", "-h"])
+@pytest.mark.parametrize("program,words,shown", HELP_CASES,
+                         ids=[" ".join([p.name, *w]) for p, w, _ in HELP_CASES])
+def test_help_lists_the_flags(program, words, shown, flag):
+    result = run(program, *words, flag)
+    assert result.returncode == 0, result.stderr
+    assert "Usage:" in result.stdout
+    for text in shown:
+        assert text in result.stdout, f"{text!r} missing from:\n{result.stdout}"
+    for name, description in flag_descriptions(result.stdout):
+        assert description and not description.startswith("-"), f"{name}: no description"
+
+
+@pytest.mark.parametrize("program,args,flag", [
+    (COORDINATOR, ["serve", "--no-such-flag"], "--no-such-flag"),
+    (COORDINATOR, ["serve", "--local-workers", "many"], "--local-workers"),
+    (COORDINATOR, ["analyze", "frames", "--no-such-flag"], "--no-such-flag"),
+    (WORKER, ["serve", "--no-such-flag"], "--no-such-flag"),
+    (WORKER, ["serve", "--threads", "-1"], "--threads"),
+    (WORKER, ["render", "scene.json", "--no-such-flag"], "--no-such-flag"),
+    (WORKER, ["render", "scene.json", "--threads"], "--threads"),
+])
+def test_bad_flag_or_value_is_named(program, args, flag):
+    result = run(program, *args)
+    assert result.returncode == 2, result.stderr
+    assert flag in result.stderr
+    assert "--help" in result.stderr
+
+
+def test_unknown_command_is_named():
+    for program in (COORDINATOR, WORKER):
+        result = run(program, "frobnicate")
+        assert result.returncode == 2
+        assert "frobnicate" in result.stderr
