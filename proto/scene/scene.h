@@ -92,6 +92,12 @@ struct Material {
 struct TriangleMesh {
   std::vector<Vec3> vertices;
   std::vector<std::array<uint32_t, 3>> triangles;
+  // Optional per-vertex attributes, each either empty or one per vertex (the parser checks);
+  // imported files bring them, and the tracer does not read them yet.
+  // Shading normals, not necessarily unit length; a zero normal means "use the geometric one".
+  std::vector<Vec3> normals;
+  // Texture coordinates (u, v), as OBJ's vt and glTF's TEXCOORD_0 give them.
+  std::vector<std::array<double, 2>> uvs;
 };
 
 struct Shape {

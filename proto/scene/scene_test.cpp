@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <filesystem>
@@ -377,6 +378,39 @@ TEST(SceneShapeTest, EmptyMesh) {
   EXPECT_TRUE(FailsAt(WithShape(mesh), "/shapes/0/triangles", "at least one triangle"));
 }
 
+TEST(SceneShapeTest, MeshNormalsAndUvs) {
+  json mesh = Triangle();
+  mesh["normals"] = {{0, 0, 1}, {0, 0.6, 0.8}, {0, 0, 0}};
+  mesh["uvs"] = {{0, 0}, {1, 0}, {0, 1}};
+  Scene parsed = ParseScene(WithShape(mesh).dump());
+  EXPECT_EQ(parsed.shapes[0].mesh.normals[1], (Vec3{0, 0.6, 0.8}));
+  EXPECT_EQ(parsed.shapes[0].mesh.uvs[2], (std::array<double, 2>{0, 1}));
+  json written = json::parse(SerializeScene(parsed));
+  EXPECT_EQ(written["shapes"][0]["normals"], mesh["normals"]);
+  EXPECT_EQ(written["shapes"][0]["uvs"], mesh["uvs"]);
+  // Without them nothing is written: older scenes serialise to the same bytes as before.
+  EXPECT_FALSE(json::parse(SerializeScene(ParseScene(WithShape(Triangle()).dump())))["shapes"][0].contains("normals"));
+
+  json bad = mesh;
+  bad["normals"] = {{0, 0, 1}, {0, 0, 1}};
+  EXPECT_TRUE(FailsAt(WithShape(bad), "/shapes/0/normals", "2 normals for 3 vertices"));
+  bad = mesh;
+  bad["normals"][1] = {0, 1};
+  EXPECT_TRUE(FailsAt(WithShape(bad), "/shapes/0/normals/1", "[x, y, z]"));
+  bad = mesh;
+  bad["uvs"][2] = {0, 1, 2};
+  EXPECT_TRUE(FailsAt(WithShape(bad), "/shapes/0/uvs/2", "[u, v]"));
+  bad = mesh;
+  bad["uvs"] = {{0, 0}};
+  EXPECT_TRUE(FailsAt(WithShape(bad), "/shapes/0/uvs", "1 texture coordinates for 3 vertices"));
+  bad = mesh;
+  bad["uvs"][0][1] = 1e31;
+  EXPECT_TRUE(FailsAt(WithShape(bad), "/shapes/0/uvs/0/1", "1e30"));
+  bad = json{{"type", "mesh"}, {"file", "tri.obj"}};
+  bad["normals"] = mesh["normals"];
+  EXPECT_TRUE(FailsAt(WithShape(bad), "/shapes/0/file", "either"));
+}
+
 TEST(SceneShapeTest, DegenerateMesh) {
   json mesh = Triangle();
   mesh["vertices"] = {{0, 0, 0}, {1, 1, 1}, {2, 2, 2}};
@@ -748,6 +782,51 @@ TEST(SceneObjTest, FanTriangulationAndIndexForms) {
   using T = std::array<uint32_t, 3>;
   std::vector<T> expected{T{0, 1, 2}, T{0, 2, 3}, T{4, 5, 6}, T{4, 6, 7}, T{4, 7, 8}};
   EXPECT_EQ(mesh.triangles, expected);
+}
+
+TEST(SceneObjTest, NormalsAndUvsOfAFileAreKept) {
+  TempFolder folder;
+  folder.Write("quad.obj",
+               "mtllib absent.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+               "vn 0 0 1\nusemtl absent\nf 1/1/1 2/2/1 3/3/1 4/4/1\n");
+  Scene scene = ParseScene(WithShape(FileMesh("quad.obj")).dump(), folder.path());
+  const TriangleMesh& mesh = scene.shapes[0].mesh;
+  ASSERT_EQ(mesh.normals.size(), 4u);
+  ASSERT_EQ(mesh.uvs.size(), 4u);
+  EXPECT_EQ(mesh.normals[2], (Vec3{0, 0, 1}));
+  EXPECT_EQ(mesh.uvs[2], (std::array<double, 2>{1, 1}));
+  EXPECT_EQ(scene.shapes[0].material, 0);  // the JSON shape's material, not the file's
+  Scene reread = ParseScene(SerializeScene(scene));
+  EXPECT_EQ(reread.shapes[0].mesh.normals, mesh.normals);
+  EXPECT_EQ(reread.shapes[0].mesh.uvs, mesh.uvs);
+}
+
+TEST(SceneObjTest, ConcaveFaceIsClippedNotFanned) {
+  TempFolder folder;
+  folder.Write("l.obj", "v 0 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nf 2 3 4 5 6 1\n");
+  Scene scene = ParseScene(WithShape(FileMesh("l.obj")).dump(), folder.path());
+  EXPECT_EQ(scene.shapes[0].mesh.triangles.size(), 4u);
+  for (const auto& t : scene.shapes[0].mesh.triangles) {
+    // No triangle of the L spans its notch: none has corners (2, 0) and (1, 2) together.
+    bool spansNotch = std::count(t.begin(), t.end(), 1u) == 1 && std::count(t.begin(), t.end(), 4u) == 1;
+    EXPECT_FALSE(spansNotch);
+  }
+}
+
+TEST(SceneObjTest, ObjTriangleBudget) {
+  TempFolder folder;
+  folder.Write("quad.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n");
+  json terrain{{"type", "terrain"}, {"origin", {0, 0, 0}}, {"size", {10, 10}}, {"cells", {2000, 2000}}};
+  json last{{"type", "terrain"}, {"origin", {0, 0, 0}}, {"size", {10, 10}}, {"cells", {1999, 1000}}};
+  json scene = MinimalScene();
+  // 8000000 + 8000000 + 3998000 leaves 2000 triangles: 1000 quads fit, the 1001st does not.
+  // (Only the failing case: a scene that passes would generate 20 million triangles.)
+  scene["shapes"] = {terrain, terrain, last, FileMesh("quad.obj")};
+  std::string many = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+  for (int i = 0; i < 1001; ++i) many += "f 1 2 3 4\n";
+  folder.Write("quad.obj", many);
+  EXPECT_TRUE(FailsAt(scene.dump(), "/shapes/3/file", "quad.obj line 1005: the scene exceeds 20000000 triangles",
+                      folder.path()));
 }
 
 TEST(SceneObjTest, WithoutBaseDirectoryFilesAreRejected) {
