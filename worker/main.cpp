@@ -22,7 +22,7 @@ constexpr const char* kUsage =
     "usage: tcfarm-worker serve [--coordinator tcp://HOST:PORT] [--threads N] [--capacity K] "
     "[--name NAME]\n"
     "                           [--metrics HOST:PORT] [--coordinator-timeout MS]\n"
-    "       tcfarm-worker render SCENE.json [--frames A:B] [--out DIR] [--threads N]\n";
+    "       tcfarm-worker render SCENE (.json or .obj) [--frames A:B] [--out DIR] [--threads N]\n";
 
 std::atomic<bool> stopRequested{false};
 

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -161,6 +162,10 @@ void TranslateScene(Scene& scene, const Vec3& offset);
 // are the same up to that rounding; the trace of every frame sees the same moved world.
 void RebaseOnCamera(Scene& scene);
 
+// Keeps a single job within a worker's memory (Embree BVH plus mesh: ~100 bytes/triangle);
+// every importer charges its triangles against it.
+constexpr size_t kMaxSceneTriangles = 20'000'000;
+
 // Bad scene input. pointer() is the RFC 6901 JSON pointer of the offending value
 // ("" for the whole document), what() reads "scene<pointer>: <problem>; expected <...>".
 class SceneError : public std::runtime_error {
@@ -177,7 +182,8 @@ class SceneError : public std::runtime_error {
 // rejected (scenes that arrive over the network must be self-contained).
 Scene ParseScene(const std::string& jsonText,
                  const std::optional<std::filesystem::path>& baseDirectory = std::nullopt);
-// Reads and parses a scene file; mesh files resolve relative to its folder.
+// Reads and parses a scene JSON file; mesh files resolve relative to its folder.
+// ImportScene (scene/import/scene_import.h) reads a scene file of any supported format.
 Scene LoadSceneFile(const std::filesystem::path& path);
 
 // Writes a scene back to self-contained JSON (meshes inline, terrain as parameters).

@@ -19,6 +19,7 @@
 
 #include "json/strict_json.h"
 #include "scene/import/obj_reader.h"
+#include "scene/import/scene_files.h"
 
 namespace tcfarm {
 namespace {
@@ -28,8 +29,7 @@ using nlohmann::json;
 // Beyond this, squared distances in the tracer approach overflow and ray offsets lose
 // all meaning; no sensible scene needs coordinates anywhere near it.
 constexpr double kMaxMagnitude = 1e30;
-// Keeps a single job within a worker's memory (Embree BVH plus mesh: ~100 bytes/triangle).
-constexpr size_t kMaxTriangles = 20'000'000;
+constexpr size_t kMaxTriangles = kMaxSceneTriangles;
 constexpr size_t kMaxPolynomialTerms = 8;
 constexpr int kMaxTerrainCells = 2000;
 // sin of the smallest angle between view direction and up that still gives a usable
@@ -725,15 +725,8 @@ class SceneReader {
       Fail(node.pointer, "mesh file " + Quote(name) + " cannot be resolved: the scene was submitted without a folder",
            "inline \"vertices\" and \"triangles\" (scenes submitted without a folder must inline their meshes)");
     }
-    std::filesystem::path path = ResolveInsideBase(node, name);
-    std::ifstream in(path, std::ios::binary);
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(path, error) || !in) {
-      Fail(node.pointer, "cannot read mesh file " + Quote(name), "a readable OBJ file inside the scene folder");
-    }
-    std::ostringstream text;
-    text << in.rdbuf();
-    if (in.bad()) Fail(node.pointer, "read error in mesh file " + Quote(name), "a readable OBJ file");
+    std::string text = ReadSceneFile(ResolveInsideBase(node, name), name, node.pointer, "mesh file",
+                                     "a readable OBJ file inside the scene folder");
     // Geometry only: the JSON shape names the material, so the file's mtllib/usemtl are
     // not read (a whole OBJ imported as a scene keeps them).
     ObjReadOptions options;
@@ -741,27 +734,13 @@ class SceneReader {
     options.displayName = name;
     options.triangleBudget = kMaxTriangles - triangleCount_;
     options.triangleLimit = kMaxTriangles;
-    TriangleMesh mesh = ReadObj(text.str(), options).mesh;
+    TriangleMesh mesh = ReadObj(text, options).mesh;
     triangleCount_ += mesh.triangles.size();
     return mesh;
   }
 
   std::filesystem::path ResolveInsideBase(const Node& node, const std::string& name) const {
-    const std::string expected = "a relative path that stays inside the scene folder";
-    std::filesystem::path relative(name);
-    if (name.empty() || relative.has_root_name() || relative.has_root_directory()) {
-      Fail(node.pointer, "mesh file " + Quote(name) + " is empty or absolute", expected);
-    }
-    std::error_code error;
-    std::filesystem::path base = std::filesystem::weakly_canonical(*baseDirectory_, error);
-    std::filesystem::path resolved;
-    if (!error) resolved = std::filesystem::weakly_canonical(*baseDirectory_ / relative, error);
-    if (error) Fail(node.pointer, "cannot resolve mesh file " + Quote(name) + ": " + error.message(), expected);
-    std::filesystem::path inside = resolved.lexically_relative(base);
-    if (inside.empty() || inside == "." || *inside.begin() == "..") {
-      Fail(node.pointer, "mesh file " + Quote(name) + " resolves outside the scene folder", expected);
-    }
-    return resolved;
+    return ResolveInsideFolder(*baseDirectory_, name, node.pointer, "mesh file");
   }
 
   void ReadTerrain(const Node& node, Shape& shape) {

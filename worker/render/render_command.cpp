@@ -8,6 +8,7 @@
 #include "frame/coherence.h"
 #include "frame/frame_io.h"
 #include "frame/frame_writer.h"
+#include "scene/import/scene_import.h"
 #include "scene/scene.h"
 #include "trace/tracer.h"
 #include "util/thread_pool.h"
@@ -16,7 +17,7 @@ namespace tcfarm {
 namespace {
 
 constexpr const char* kUsage =
-    "usage: tcfarm-render SCENE.json [--frames A:B] [--out DIR] [--threads N] "
+    "usage: tcfarm-render SCENE (.json or .obj) [--frames A:B] [--out DIR] [--threads N] "
     "[--no-exr] [--no-png] [--exr-compression zip[:1-9]|none|rle|zips|piz]";
 
 int ParseInt(const std::string& text, const std::string& what) {
@@ -106,7 +107,7 @@ RenderOptions ParseRenderArguments(const std::vector<std::string>& args) {
 
 int RunRender(const RenderOptions& requested) {
   RenderOptions options = requested;
-  Scene scene = LoadSceneFile(options.scenePath);
+  Scene scene = ImportScene(options.scenePath);
   ResolveFrameRange(scene, &options);
   RebaseOnCamera(scene);  // as the farm's workers do: the same bits
 

@@ -12,8 +12,9 @@
 #include <tuple>
 #include <utility>
 
-#include <nlohmann/json.hpp>
 #include <tiny_obj_loader.h>
+
+#include "scene/import/messages.h"
 
 namespace tcfarm {
 namespace {
@@ -29,14 +30,10 @@ constexpr size_t kMaxEarClippedCorners = 256;
 const char* const kAllLibraries = "all-material-libraries";
 
 [[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) {
-  throw SceneError(pointer, problem + "; expected " + expected);
+  FailInput(pointer, problem, expected);
 }
 
-std::string Quote(const std::string& text) {
-  constexpr size_t kMaxShown = 40;
-  std::string shown = text.size() > kMaxShown ? text.substr(0, kMaxShown) + "..." : text;
-  return nlohmann::json(shown).dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-}
+std::string Quote(const std::string& text) { return QuoteInput(text); }
 
 std::vector<std::string> Tokens(const std::string& line) {
   std::vector<std::string> tokens;
