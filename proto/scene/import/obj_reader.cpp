@@ -54,9 +54,13 @@ std::vector<std::string> Tokens(const std::string& line) {
 
 // Checks every statement the reader uses, keeps the exact values of v/vn/vt (tinyobjloader's
 // number parser is not correctly rounded: its 0.123 is not strtod's), and writes the text
-// tinyobjloader then reads: the same lines, with comments, unused statements and extra
-// numbers removed, so it sees only what was checked.
+// tinyobjloader then reads: the same lines with comments and unused statements removed, so
+// it sees only what was checked. tinyobjloader gives the structure (faces and their index
+// triples, objects, groups, materials); v/vn/vt reach it as placeholders that only count
+// elements for negative indices, as the values it would read are not used.
 class ObjLineCheck {
+  static constexpr const char* kPlaceholder[] = {"v 0 0 0", "vn 0 0 1", "vt 0 0"};
+
  public:
   explicit ObjLineCheck(const ObjReadOptions& options) : options_(options) {}
 
@@ -125,15 +129,6 @@ class ObjLineCheck {
     return value;
   }
 
-  // tinyobjloader re-reads these lines; the values kept are ours.
-  static std::string Numbers(const std::string& keyword, const std::vector<double>& values) {
-    std::ostringstream line;
-    line.precision(17);
-    line << keyword;
-    for (double value : values) line << ' ' << value;
-    return line.str();
-  }
-
   std::vector<double> ParseNumbers(const std::vector<std::string>& tokens) const {
     std::vector<double> numbers;
     for (size_t i = 1; i < tokens.size(); ++i) numbers.push_back(ParseNumber(tokens[i]));
@@ -148,7 +143,7 @@ class ObjLineCheck {
     if (positions.size() > static_cast<size_t>(std::numeric_limits<int>::max())) {
       FailAtLine("too many vertices", "at most 2^31 - 1 vertices");
     }
-    return Numbers("v", {numbers[0], numbers[1], numbers[2]});
+    return kPlaceholder[0];
   }
 
   std::string CheckNormal(const std::vector<std::string>& tokens) {
@@ -158,7 +153,7 @@ class ObjLineCheck {
     if (normals.size() > static_cast<size_t>(std::numeric_limits<int>::max())) {
       FailAtLine("too many normals", "at most 2^31 - 1 normals");
     }
-    return Numbers("vn", numbers);
+    return kPlaceholder[1];
   }
 
   std::string CheckUv(const std::vector<std::string>& tokens) {
@@ -171,7 +166,7 @@ class ObjLineCheck {
     if (uvs.size() > static_cast<size_t>(std::numeric_limits<int>::max())) {
       FailAtLine("too many texture coordinates", "at most 2^31 - 1 texture coordinates");
     }
-    return Numbers("vt", numbers);
+    return kPlaceholder[2];
   }
 
   // A 1-based index, or a negative one counting back from the latest element defined.

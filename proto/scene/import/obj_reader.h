@@ -2,9 +2,11 @@
 //
 // Both ways an OBJ file enters a scene use this reader: a JSON mesh's "file" reference
 // (geometry only; the JSON shape names its material) and an OBJ file imported as a whole
-// scene (geometry, parts and materials). tinyobjloader parses; a strict line check runs
-// first, because tinyobjloader accepts silently what a farm must refuse (a bad number
-// reads as 0, an out-of-range index is only a warning) and reports no line numbers.
+// scene (geometry, parts and materials). tinyobjloader reads the structure (faces and
+// their index triples, objects, groups, usemtl) and the MTL libraries. A strict line check
+// runs first, because tinyobjloader accepts silently what a farm must refuse (a bad number
+// reads as 0, an out-of-range index is only a warning) and reports no line numbers; it
+// also supplies the v/vn/vt values, read exactly (tinyobjloader's are not correctly rounded).
 #pragma once
 
 #include <array>
