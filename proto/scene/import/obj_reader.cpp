@@ -70,7 +70,8 @@ class ObjLineCheck {
     // One synthetic mtllib before line 1: tinyobjloader then knows every library's
     // materials at every usemtl, wherever the file's mtllib lines stand.
     if (options_.readMaterialLibrary) cleaned += std::string("mtllib ") + kAllLibraries + "\n";
-    size_t begin = 0;
+    // Some Windows exporters start the file with a UTF-8 byte order mark.
+    size_t begin = text.compare(0, 3, "\xEF\xBB\xBF") == 0 ? 3 : 0;
     while (begin < text.size()) {
       size_t end = text.find('\n', begin);
       if (end == std::string::npos) end = text.size();

@@ -247,6 +247,7 @@ TEST(ObjReaderTest, InlineCommentsAndUnusedStatementsAreIgnored) {
       "f 1 2 3 # one\n",
       Options());
   EXPECT_EQ(model.mesh.triangles.size(), 1u);
+  EXPECT_EQ(ReadObj("\xEF\xBB\xBFv 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nf 1 2 3\r\n", Options()).mesh.vertices.size(), 3u);
 }
 
 }  // namespace
