@@ -142,6 +142,12 @@ TEST(SceneValidCasesTest, ParserAcceptsEachScene) {
   EXPECT_GE(count, 12u);
 }
 
+TEST(SceneValidCasesTest, IntegralNumberIsAnInteger) {
+  // As in JSON Schema, 640.0 is an integer.
+  Scene scene = ParseScene(ReadText(kValidScenes / "integral_float_width.json"));
+  EXPECT_EQ(scene.render.width, 640);
+}
+
 // --- animated values --------------------------------------------------------------------
 
 TEST(AnimatedVec3Test, PolynomialEvaluatesPerAxis) {
