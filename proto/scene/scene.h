@@ -7,6 +7,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <map>
@@ -74,6 +75,12 @@ struct Material {
 struct TriangleMesh {
   std::vector<Vec3> vertices;
   std::vector<std::array<uint32_t, 3>> triangles;
+  // Optional per-vertex attributes, each either empty or one per vertex (the parser checks);
+  // imported files bring them, and the tracer does not read them yet.
+  // Shading normals, not necessarily unit length; a zero normal means "use the geometric one".
+  std::vector<Vec3> normals;
+  // Texture coordinates (u, v), as OBJ's vt and glTF's TEXCOORD_0 give them.
+  std::vector<std::array<double, 2>> uvs;
 };
 
 struct Shape {
@@ -149,6 +156,10 @@ void PlaceStillShapes(Scene& scene);
 // RebaseOnCamera, then PlaceStillShapes.
 void PrepareForTracing(Scene& scene);
 
+// Keeps a single job within a worker's memory (Embree BVH plus mesh: ~100 bytes/triangle);
+// every importer charges its triangles against it.
+constexpr size_t kMaxSceneTriangles = 20'000'000;
+
 // Bad scene input. pointer() is the RFC 6901 JSON pointer of the offending value
 // ("" for the whole document), what() reads "scene<pointer>: <problem>; expected <...>".
 class SceneError : public std::runtime_error {
@@ -165,7 +176,8 @@ class SceneError : public std::runtime_error {
 // rejected (scenes that arrive over the network must be self-contained).
 Scene ParseScene(const std::string& jsonText,
                  const std::optional<std::filesystem::path>& baseDirectory = std::nullopt);
-// Reads and parses a scene file; mesh files resolve relative to its folder.
+// Reads and parses a scene JSON file; mesh files resolve relative to its folder.
+// ImportScene (scene/import/scene_import.h) reads a scene file of any supported format.
 Scene LoadSceneFile(const std::filesystem::path& path);
 
 // Writes a scene back to self-contained JSON (meshes inline, terrain as parameters).

@@ -1,15 +1,14 @@
-// Scene JSON -> Scene, Scene -> JSON, and the OBJ reader behind mesh "file" references.
+// Scene JSON -> Scene, Scene -> JSON; mesh "file" references go to the OBJ reader
+// (scene/import/obj_reader.h).
 //
 // The parser is strict on purpose: a scene comes from a user over the network and is then
 // trusted by every worker, so each value is checked where it is read, and each error names
 // the JSON pointer of the value and what would have been accepted there.
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <limits>
 #include <map>
-#include <set>
 #include <sstream>
 #include <system_error>
 #include <utility>
@@ -19,6 +18,8 @@
 #include "scene/scene.h"
 
 #include "json/strict_json.h"
+#include "scene/import/obj_reader.h"
+#include "scene/import/scene_files.h"
 
 namespace tcfarm {
 namespace {
@@ -28,8 +29,7 @@ using nlohmann::json;
 // Beyond this, squared distances in the tracer approach overflow and ray offsets lose
 // all meaning; no sensible scene needs coordinates anywhere near it.
 constexpr double kMaxMagnitude = 1e30;
-// Keeps a single job within a worker's memory (Embree BVH plus mesh: ~100 bytes/triangle).
-constexpr size_t kMaxTriangles = 20'000'000;
+constexpr size_t kMaxTriangles = kMaxSceneTriangles;
 constexpr size_t kMaxPolynomialTerms = 8;
 constexpr int kMaxTerrainCells = 2000;
 // sin of the smallest angle between view direction and up that still gives a usable
@@ -466,107 +466,6 @@ void CheckNonNegative(const AnimatedVec3& value, const Node& node, const FrameRa
   }
 }
 
-// --- OBJ -----------------------------------------------------------------------------
-
-class ObjReader {
- public:
-  ObjReader(std::string pointer, std::string displayName, size_t triangleBudget)
-      : pointer_(std::move(pointer)), displayName_(std::move(displayName)), triangleBudget_(triangleBudget) {}
-
-  TriangleMesh Read(std::istream& in) {
-    std::string line;
-    while (std::getline(in, line)) {
-      ++lineNumber_;
-      ReadLine(line);
-    }
-    if (in.bad()) FailAtLine("read error", "a readable OBJ file");
-    return std::move(mesh_);
-  }
-
- private:
-  [[noreturn]] void FailAtLine(const std::string& problem, const std::string& expected) const {
-    Fail(pointer_, displayName_ + " line " + std::to_string(lineNumber_) + ": " + problem, expected);
-  }
-
-  static std::vector<std::string> Tokens(const std::string& line) {
-    std::istringstream stream(line.substr(0, line.find('#')));
-    std::vector<std::string> tokens;
-    for (std::string token; stream >> token;) tokens.push_back(token);
-    return tokens;
-  }
-
-  void ReadLine(const std::string& line) {
-    std::vector<std::string> tokens = Tokens(line);
-    if (tokens.empty()) return;
-    if (tokens[0] == "v") ReadVertex(tokens);
-    if (tokens[0] == "f") ReadFace(tokens);
-    // Normals, texture coordinates, groups and materials do not affect the geometry.
-  }
-
-  double ParseCoordinate(const std::string& token) const {
-    const char* begin = token.data();
-    const char* end = token.data() + token.size();
-    if (begin != end && *begin == '+') ++begin;
-    double value = 0;
-    auto [rest, error] = std::from_chars(begin, end, value);
-    if (error != std::errc() || rest != end || !std::isfinite(value) || std::fabs(value) > kMaxMagnitude) {
-      FailAtLine("bad coordinate " + Quote(token), "finite numbers of magnitude at most 1e30");
-    }
-    return value;
-  }
-
-  void ReadVertex(const std::vector<std::string>& tokens) {
-    if (tokens.size() < 4) FailAtLine("a vertex with fewer than 3 coordinates", "\"v x y z\"");
-    std::vector<double> numbers;
-    for (size_t i = 1; i < tokens.size(); ++i) numbers.push_back(ParseCoordinate(tokens[i]));
-    // Extra numbers (w, or vertex colours some exporters add) do not move the vertex.
-    mesh_.vertices.push_back(Vec3{numbers[0], numbers[1], numbers[2]});
-    if (mesh_.vertices.size() > std::numeric_limits<uint32_t>::max()) {
-      FailAtLine("too many vertices", "at most 2^32 - 1 vertices");
-    }
-  }
-
-  // "i", "i/t", "i//n" or "i/t/n"; negative i counts back from the latest vertex.
-  uint32_t ParseVertexReference(const std::string& token) const {
-    const std::string expected = "a vertex reference i, i/t, i//n or i/t/n with i a defined vertex";
-    if (std::count(token.begin(), token.end(), '/') > 2) FailAtLine("bad vertex reference " + Quote(token), expected);
-    std::string index = token.substr(0, token.find('/'));
-    long long value = 0;
-    auto [rest, error] = std::from_chars(index.data(), index.data() + index.size(), value);
-    if (error != std::errc() || rest != index.data() + index.size() || value == 0) {
-      FailAtLine("bad vertex reference " + Quote(token), expected);
-    }
-    long long count = static_cast<long long>(mesh_.vertices.size());
-    long long resolved = value > 0 ? value - 1 : count + value;
-    if (resolved < 0 || resolved >= count) {
-      FailAtLine("vertex reference " + index + " does not name one of the " + std::to_string(count) +
-                     " vertices defined so far",
-                 expected);
-    }
-    return static_cast<uint32_t>(resolved);
-  }
-
-  void ReadFace(const std::vector<std::string>& tokens) {
-    if (tokens.size() < 4) {
-      FailAtLine("a face with " + std::to_string(tokens.size() - 1) + " vertices", "a face of at least 3 vertices");
-    }
-    std::vector<uint32_t> corners;
-    for (size_t i = 1; i < tokens.size(); ++i) corners.push_back(ParseVertexReference(tokens[i]));
-    for (size_t i = 1; i + 1 < corners.size(); ++i) {
-      if (mesh_.triangles.size() >= triangleBudget_) {
-        FailAtLine("the scene exceeds 20000000 triangles", "at most 20000000 triangles in the whole scene");
-      }
-      mesh_.triangles.push_back({corners[0], corners[i], corners[i + 1]});
-    }
-  }
-
-  std::string pointer_;
-  std::string displayName_;
-  size_t triangleBudget_;
-  size_t lineNumber_ = 0;
-  TriangleMesh mesh_;
-};
-
 // --- the scene ------------------------------------------------------------------------
 
 const char* const kDefaultMaterial = "default";
@@ -818,10 +717,10 @@ class SceneReader {
   }
 
   void ReadMesh(const Node& node, Shape& shape) {
-    ExpectObject(node, ShapeFields({"vertices", "triangles", "file"}), "a mesh");
+    ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "file"}), "a mesh");
     shape.type = Shape::Type::kMesh;
     if (node.Has("file")) {
-      if (node.Has("vertices") || node.Has("triangles")) {
+      if (node.Has("vertices") || node.Has("triangles") || node.Has("normals") || node.Has("uvs")) {
         Fail(node.MemberPointer("file"), "both a file and inline geometry",
              "either \"file\" or inline \"vertices\" and \"triangles\"");
       }
@@ -834,7 +733,40 @@ class SceneReader {
     Node triangles = Required(node, "triangles", expected);
     shape.mesh.vertices = ReadVertices(vertices);
     shape.mesh.triangles = ReadTriangles(triangles, shape.mesh.vertices.size());
+    if (node.Has("normals")) shape.mesh.normals = ReadNormals(node.Member("normals"), shape.mesh.vertices.size());
+    if (node.Has("uvs")) shape.mesh.uvs = ReadUvs(node.Member("uvs"), shape.mesh.vertices.size());
     CheckMesh(shape.mesh, vertices, triangles);
+  }
+
+  static void ExpectOnePerVertex(const Node& node, size_t vertexCount, const std::string& what) {
+    if (node.value.size() != vertexCount) {
+      Fail(node.pointer, std::to_string(node.value.size()) + " " + what + "s for " + std::to_string(vertexCount) +
+                             " vertices",
+           "one " + what + " per vertex, in the order of \"vertices\"");
+    }
+  }
+
+  static std::vector<Vec3> ReadNormals(const Node& node, size_t vertexCount) {
+    if (!node.value.is_array()) FailType(node, "an array of normals [x, y, z], one per vertex");
+    ExpectOnePerVertex(node, vertexCount, "normal");
+    std::vector<Vec3> normals;
+    normals.reserve(node.value.size());
+    for (size_t i = 0; i < node.value.size(); ++i) normals.push_back(ReadVec3(node.Element(i)));
+    return normals;
+  }
+
+  static std::vector<std::array<double, 2>> ReadUvs(const Node& node, size_t vertexCount) {
+    if (!node.value.is_array()) FailType(node, "an array of texture coordinates [u, v], one per vertex");
+    ExpectOnePerVertex(node, vertexCount, "texture coordinate");
+    const std::string expected = "an array of 2 finite numbers [u, v]";
+    std::vector<std::array<double, 2>> uvs;
+    uvs.reserve(node.value.size());
+    for (size_t i = 0; i < node.value.size(); ++i) {
+      Node uv = node.Element(i);
+      ExpectArray(uv, 2, expected);
+      uvs.push_back({ReadNumber(uv.Element(0), expected), ReadNumber(uv.Element(1), expected)});
+    }
+    return uvs;
   }
 
   std::vector<Vec3> ReadVertices(const Node& node) {
@@ -898,33 +830,22 @@ class SceneReader {
       Fail(node.pointer, "mesh file " + Quote(name) + " cannot be resolved: the scene was submitted without a folder",
            "inline \"vertices\" and \"triangles\" (scenes submitted without a folder must inline their meshes)");
     }
-    std::filesystem::path path = ResolveInsideBase(node, name);
-    std::ifstream in(path, std::ios::binary);
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(path, error) || !in) {
-      Fail(node.pointer, "cannot read mesh file " + Quote(name), "a readable OBJ file inside the scene folder");
-    }
-    TriangleMesh mesh = ObjReader(node.pointer, name, kMaxTriangles - triangleCount_).Read(in);
+    std::string text = ReadSceneFile(ResolveInsideBase(node, name), name, node.pointer, "mesh file",
+                                     "a readable OBJ file inside the scene folder");
+    // Geometry only: the JSON shape names the material, so the file's mtllib/usemtl are
+    // not read (a whole OBJ imported as a scene keeps them).
+    ObjReadOptions options;
+    options.pointer = node.pointer;
+    options.displayName = name;
+    options.triangleBudget = kMaxTriangles - triangleCount_;
+    options.triangleLimit = kMaxTriangles;
+    TriangleMesh mesh = ReadObj(text, options).mesh;
     triangleCount_ += mesh.triangles.size();
     return mesh;
   }
 
   std::filesystem::path ResolveInsideBase(const Node& node, const std::string& name) const {
-    const std::string expected = "a relative path that stays inside the scene folder";
-    std::filesystem::path relative(name);
-    if (name.empty() || relative.has_root_name() || relative.has_root_directory()) {
-      Fail(node.pointer, "mesh file " + Quote(name) + " is empty or absolute", expected);
-    }
-    std::error_code error;
-    std::filesystem::path base = std::filesystem::weakly_canonical(*baseDirectory_, error);
-    std::filesystem::path resolved;
-    if (!error) resolved = std::filesystem::weakly_canonical(*baseDirectory_ / relative, error);
-    if (error) Fail(node.pointer, "cannot resolve mesh file " + Quote(name) + ": " + error.message(), expected);
-    std::filesystem::path inside = resolved.lexically_relative(base);
-    if (inside.empty() || inside == "." || *inside.begin() == "..") {
-      Fail(node.pointer, "mesh file " + Quote(name) + " resolves outside the scene folder", expected);
-    }
-    return resolved;
+    return ResolveInsideFolder(*baseDirectory_, name, node.pointer, "mesh file");
   }
 
   void ReadTerrain(const Node& node, Shape& shape) {
@@ -1049,6 +970,16 @@ json MeshJson(const TriangleMesh& mesh, json result) {
   for (const auto& t : mesh.triangles) triangles.push_back(json::array({t[0], t[1], t[2]}));
   result["vertices"] = std::move(vertices);
   result["triangles"] = std::move(triangles);
+  if (!mesh.normals.empty()) {
+    json normals = json::array();
+    for (const auto& n : mesh.normals) normals.push_back(Vec3Json(n));
+    result["normals"] = std::move(normals);
+  }
+  if (!mesh.uvs.empty()) {
+    json uvs = json::array();
+    for (const auto& uv : mesh.uvs) uvs.push_back(json::array({uv[0], uv[1]}));
+    result["uvs"] = std::move(uvs);
+  }
   return result;
 }
 

@@ -62,3 +62,21 @@ def test_bad_arguments_are_usage_errors(worker_binary, scenes_dir, tmp_path):
     missing = run(worker_binary, "render", tmp_path / "missing.json")
     assert missing.returncode == 1
     assert "missing.json" in missing.stderr
+
+
+def test_obj_file_renders_as_a_scene(worker_binary, scenes_dir, tmp_path):
+    # A whole OBJ (with its MTL) through the import seam: default camera, light and settings.
+    scene = scenes_dir / "obj" / "still_life.obj"
+    result = run(worker_binary, "render", scene, "--out", tmp_path / "out", "--no-exr")
+    assert result.returncode == 0, result.stderr
+    png = (tmp_path / "out" / "frame_0000.png").read_bytes()
+    assert struct.unpack(">II", png[16:24]) == (640, 480)
+    assert "rendered 1 frames of 640x480" in result.stdout
+
+
+def test_bad_obj_names_the_file_and_line(worker_binary, tmp_path):
+    path = tmp_path / "bad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
+    result = run(worker_binary, "render", path, "--out", tmp_path / "out")
+    assert result.returncode == 1
+    assert "bad.obj line 3: vertex reference 3" in result.stderr

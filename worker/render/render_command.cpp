@@ -9,6 +9,7 @@
 #include "frame/coherence.h"
 #include "frame/frame_io.h"
 #include "frame/frame_writer.h"
+#include "scene/import/scene_import.h"
 #include "scene/scene.h"
 #include "trace/tracer.h"
 #include "util/thread_pool.h"
@@ -64,7 +65,7 @@ void ResolveFrameRange(const Scene& scene, RenderOptions* options) {
 
 RenderCommandLine::RenderCommandLine(CLI::App& app) {
   options_.outDirectory = "out";
-  app.add_option("SCENE", options_.scenePath, "Scene file (JSON)")->type_name("FILE")->required();
+  app.add_option("SCENE", options_.scenePath, "Scene file: tcfarm JSON (.json) or Wavefront OBJ (.obj)")->type_name("FILE")->required();
   app.add_option("--frames", frames_,
                  "Frames to render, both inclusive, or one frame (default: the scene's own)")
       ->type_name("A:B");
@@ -97,7 +98,7 @@ RenderOptions RenderCommandLine::Options() const {
 
 int RunRender(const RenderOptions& requested) {
   RenderOptions options = requested;
-  Scene scene = LoadSceneFile(options.scenePath);
+  Scene scene = ImportScene(options.scenePath);
   ResolveFrameRange(scene, &options);
   PrepareForTracing(scene);  // as the farm's workers do: the same bits
 

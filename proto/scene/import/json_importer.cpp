@@ -1,0 +1,30 @@
+// tcfarm's own scene JSON (proto/scene.schema.json): the parser is the importer.
+#include <string>
+#include <vector>
+
+#include "scene/import/importers.h"
+
+namespace tcfarm {
+namespace {
+
+class JsonImporter : public SceneImporter {
+ public:
+  std::string Type() const override { return "tcfarm-json"; }
+  std::vector<std::string> Extensions() const override { return {".json"}; }
+
+  // An object at the top, after an optional UTF-8 byte order mark. A glTF file is JSON too:
+  // its importer, once there, is tried first and claims the objects that hold "asset".
+  bool Sniff(std::string_view head) const override {
+    if (head.substr(0, 3) == "\xEF\xBB\xBF") head.remove_prefix(3);
+    size_t first = head.find_first_not_of(" \t\r\n");
+    return first != std::string_view::npos && head[first] == '{';
+  }
+
+  Scene Import(const ImportInput& input) const override { return ParseScene(input.bytes, input.baseDirectory); }
+};
+
+}  // namespace
+
+std::unique_ptr<SceneImporter> MakeJsonImporter() { return std::make_unique<JsonImporter>(); }
+
+}  // namespace tcfarm

@@ -1,0 +1,60 @@
+// The import seam: the one place where a file format becomes the scene model (Scene).
+//
+// Each format is a SceneImporter; tcfarm JSON, OBJ and (next) glTF 2.0 are peers. A file is
+// given to the importer its extension names, or else to the first whose Sniff accepts its
+// first bytes. Whatever the format, the result is a Scene as ParseScene would give it:
+// validated, self-contained (meshes inline), and written back by SerializeScene as tcfarm
+// JSON, the form in which scenes travel to workers.
+//
+// Adding a format: a class implementing SceneImporter in its own file here, its factory
+// declared in importers.h and listed in SceneImporters() (scene_import.cpp), the file added
+// to tcfarm_scene in proto/CMakeLists.txt, and its mapping documented in proto/scene.md.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace tcfarm {
+
+struct ImportInput {
+  std::string bytes;        // the whole file
+  std::string displayName;  // how messages name it (the file name, or the type for bytes)
+  // Where relative references (mesh files, material libraries, buffers, textures) resolve;
+  // none for data that arrives over the network, which must then be self-contained.
+  std::optional<std::filesystem::path> baseDirectory;
+};
+
+class SceneImporter {
+ public:
+  virtual ~SceneImporter() = default;
+  // The name callers give ImportSceneBytes: "tcfarm-json", "obj", "gltf".
+  virtual std::string Type() const = 0;
+  // File name extensions, lower case with their dot (".json").
+  virtual std::vector<std::string> Extensions() const = 0;
+  // True when `head`, the first bytes of a file, look like this format. Only consulted
+  // when the extension names no importer, in SceneImporters() order.
+  virtual bool Sniff(std::string_view head) const = 0;
+  // Throws SceneError naming the JSON pointer (or "" and the file and line) of bad input.
+  virtual Scene Import(const ImportInput& input) const = 0;
+};
+
+// Every importer, in the order their Sniff is tried.
+const std::vector<const SceneImporter*>& SceneImporters();
+// nullptr when no importer has that type.
+const SceneImporter* FindImporterByType(const std::string& type);
+// By extension, else by content; nullptr when neither tells.
+const SceneImporter* FindImporterForFile(const std::filesystem::path& path, std::string_view head);
+
+// Reads a scene file of any supported format; references resolve in its folder.
+Scene ImportScene(const std::filesystem::path& path);
+// Imports bytes of the given type (an importer's Type(); "" to sniff the content).
+// Without a base directory, references to other files are rejected.
+Scene ImportSceneBytes(const std::string& bytes, const std::string& type,
+                       const std::optional<std::filesystem::path>& baseDirectory = std::nullopt);
+
+}  // namespace tcfarm
