@@ -52,24 +52,9 @@ std::unique_ptr<Planner> MakeJobPlanner(const ResolvedStrategy& resolved, const 
 
 }  // namespace
 
-ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers) {
-  const int frames = FrameCountOf(spec);
-  if (spec.strategy == "brute") return {Strategy::kBrute, 2, "every pixel of every frame"};
-  if (spec.strategy != "auto") {
-    auto strategy = StrategyFromString(spec.strategy);
-    if (!strategy) throw std::invalid_argument("unknown strategy '" + spec.strategy + "'");
-    return {*strategy, spec.binWidth, "as requested"};
-  }
-  if (!scene.CameraMoves() && !scene.AnyLightChanges()) {
-    // Each segment costs one full frame; one segment per worker keeps all of them busy.
-    int segments = std::clamp(workers, 1, frames);
-    int length = (frames + segments - 1) / segments;
-    return {Strategy::kExact, std::max(1, length),
-            "camera and lights are static: exact, one segment per worker"};
-  }
-  return {Strategy::kGuarded, std::clamp(frames, 2, kAutoWidestBin),
-          "the camera or a light moves: guarded search, its bin width chosen by a coarse survey",
-          /*surveyBinWidth=*/true};
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, const Scene& scene, int workers) {
+  return ResolveStrategy(spec.strategy, spec.binWidth, FrameCountOf(spec),
+                         scene.CameraMoves() || scene.AnyLightChanges(), workers);
 }
 
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,
@@ -97,7 +82,7 @@ JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
     : id_(record.id),
       spec_(record.spec),
       scene_(std::make_unique<Scene>(ParseScene(record.spec.sceneJson))),
-      resolved_(ResolveStrategy(record.spec, *scene_, workers)),
+      resolved_(ResolveJobStrategy(record.spec, *scene_, workers)),
       plannerOptions_(PlannerOptionsFor(record.spec, *scene_, resolved_, jobMemoryBytes)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),

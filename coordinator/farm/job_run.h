@@ -25,17 +25,9 @@
 
 namespace tcfarm {
 
-// The strategy and bin width (segment length for exact) a job runs with. `auto` picks
-// exact when nothing but shapes move (every pixel then has a horizon to find), else
-// guarded; the length gives each worker a segment (exact) or follows equation 3
-// (guarded). `brute` is the search with bins of 2.
-struct ResolvedStrategy {
-  Strategy strategy;
-  int binWidth;  // with surveyBinWidth: the widest considered
-  std::string reason;
-  bool surveyBinWidth = false;  // guarded's width is chosen by a coarse survey (auto)
-};
-ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers);
+// The strategy the job runs with: its request resolved (ResolveStrategy) against the scene
+// and `workers` live workers.
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, const Scene& scene, int workers);
 // With jobMemoryBytes > 0, as many live bins (segments) as fit in it (FramesHeldPerJob);
 // throws std::invalid_argument naming the shortfall when not even one does.
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,

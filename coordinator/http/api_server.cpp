@@ -319,19 +319,18 @@ void ApiServer::RouteMiss(const httplib::Request& request, const std::string&,
 }
 
 // The job's frames at their most, one bin at a time, against the coordinator's memory for
-// a job. auto is taken at its widest: guarded with the widest bin its survey may pick.
+// a job, with the strategy the farm will resolve. The worker count only sets the length of
+// auto's exact segments, which holds one working frame whatever its length; auto's guarded
+// is taken with the widest bin its survey may pick.
 void ApiServer::CheckJobFitsInMemory(const http::Submission& submission) const {
   if (options_.jobMemoryBytes == 0) return;
   const JobSpec& spec = submission.spec;
-  Strategy strategy = Strategy::kGuarded;
-  int binWidth = kAutoWidestBin;
-  if (spec.strategy != "auto") {
-    strategy = StrategyFromString(spec.strategy).value_or(Strategy::kSearch);
-    binWidth = spec.binWidth;
-  }
+  const int frames = spec.lastFrame - spec.firstFrame + 1;
+  const ResolvedStrategy resolved =
+      ResolveStrategy(spec.strategy, spec.binWidth, frames, submission.cameraOrLightsChange, /*workers=*/1);
   const std::string shortfall =
-      MemoryShortfall(options_.jobMemoryBytes, submission.frameSize.width, submission.frameSize.height, strategy,
-                      binWidth, spec.lastFrame - spec.firstFrame + 1);
+      MemoryShortfall(options_.jobMemoryBytes, submission.frameSize.width, submission.frameSize.height,
+                      resolved.strategy, resolved.binWidth, frames);
   if (!shortfall.empty()) {
     throw ApiError(413, error_code::kJobTooLarge,
                    shortfall + "; expected fewer pixels a frame, a narrower bin_width or a coordinator with "

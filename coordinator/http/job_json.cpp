@@ -45,7 +45,7 @@ json JobJson(const JobRecord& record, FrameSize frameSize, const json* liveStats
       {"id", record.id},
       {"name", record.spec.name},
       {"state", ToString(record.state)},
-      {"strategy", record.spec.strategy},
+      {"strategy", std::string(StrategyName(record.spec.strategy))},
       {"bin_width", record.spec.binWidth},
       {"tolerance", record.spec.tolerance},
       {"priority", record.spec.priority},

@@ -95,17 +95,17 @@ std::string ReadName(const json& request) {
   return name->get<std::string>();
 }
 
-std::string ReadStrategy(const json& request) {
+Strategy ReadStrategy(const json& request) {
   const auto strategy = request.find("strategy");
-  if (strategy == request.end()) return kAcceptedStrategies[0];
-  std::string expected = "one of";
-  for (const char* accepted : kAcceptedStrategies) {
-    expected += std::string(expected == "one of" ? " \"" : ", \"") + accepted + "\"";
-  }
+  if (strategy == request.end()) return kDefaultStrategy;
   if (strategy->is_string()) {
-    for (const char* accepted : kAcceptedStrategies) {
-      if (*strategy == accepted) return accepted;
+    if (std::optional<Strategy> known = StrategyFromString(strategy->get_ref<const std::string&>())) {
+      return *known;
     }
+  }
+  std::string expected = "one of";
+  for (const StrategyNameEntry& entry : kStrategyNames) {
+    expected += std::string(expected == "one of" ? " \"" : ", \"") + std::string(entry.name) + "\"";
   }
   Fail(error_code::kInvalidField, "/strategy", ShowValue(*strategy) + " is not a supported strategy", expected);
 }
@@ -245,6 +245,7 @@ Submission ParseSubmission(const std::string& body) {
   spec.sceneJson = SerializeScene(scene);
   spec.sceneHash = wire::Sha256Hex(spec.sceneJson);
   submission.frameSize = FrameSize{scene.render.width, scene.render.height};
+  submission.cameraOrLightsChange = scene.CameraMoves() || scene.AnyLightChanges();
   return submission;
 }
 

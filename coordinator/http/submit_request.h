@@ -8,10 +8,6 @@
 
 namespace tcfarm::http {
 
-// The strategies a submission may name today; the planners for "guarded", "exact" and
-// "auto" do not exist yet, so accepting them would queue jobs nobody can run.
-inline constexpr const char* kAcceptedStrategies[] = {"search", "brute", "guarded", "exact", "auto"};
-
 // Field ranges. bin_width 1 would make every frame its own bin: the search strategy then
 // has no neighbouring frame to copy from, which "brute" already says more plainly.
 inline constexpr int kMinBinWidth = 2;
@@ -23,6 +19,8 @@ inline constexpr size_t kMaxNameBytes = 256;  // a label for lists, not a docume
 struct Submission {
   JobSpec spec;       // sceneJson canonical (SerializeScene), sceneHash its SHA-256
   FrameSize frameSize;  // from the parsed scene, so the server need not parse it again
+  // Scene::CameraMoves() || Scene::AnyLightChanges(): what `auto` resolves by.
+  bool cameraOrLightsChange = false;
 };
 
 // Throws ApiError (status 400) naming the JSON pointer of the first bad value: invalid_json,

@@ -274,6 +274,17 @@ const std::string kSelectJobColumns =
     "priority, options, state, error, submitted_ms, started_ms, finished_ms, frames_done, "
     "traced_pixels, copied_pixels, stats FROM jobs ";
 
+// Submit writes only names from kStrategyNames, so another one means the file was changed
+// behind the coordinator's back: guessing what the job wanted would render the wrong thing.
+Strategy StrategyOfRow(uint64_t id, const std::string& name) {
+  const std::optional<Strategy> strategy = StrategyFromString(name);
+  if (!strategy) {
+    throw JobStoreError("job " + std::to_string(id) + " has strategy '" + name +
+                        "'; expected one this coordinator knows");
+  }
+  return *strategy;
+}
+
 JobRecord ReadRecord(const Statement& row) {
   JobRecord record;
   record.id = row.UInt64(0);
@@ -281,7 +292,7 @@ JobRecord ReadRecord(const Statement& row) {
   record.spec.sceneHash = row.Text(2);
   record.spec.firstFrame = row.Int(3);
   record.spec.lastFrame = row.Int(4);
-  record.spec.strategy = row.Text(5);
+  record.spec.strategy = StrategyOfRow(record.id, row.Text(5));
   record.spec.binWidth = row.Int(6);
   record.spec.tolerance = row.Double(7);
   record.spec.priority = row.Int(8);
@@ -409,7 +420,7 @@ uint64_t JobStore::Submit(const JobSpec& spec) {
                    "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued', ?10)");
   insert.Bind(1, spec.name).Bind(2, spec.sceneHash);
   insert.Bind(3, int64_t{spec.firstFrame}).Bind(4, int64_t{spec.lastFrame});
-  insert.Bind(5, spec.strategy).Bind(6, int64_t{spec.binWidth}).Bind(7, spec.tolerance);
+  insert.Bind(5, StrategyName(spec.strategy)).Bind(6, int64_t{spec.binWidth}).Bind(7, spec.tolerance);
   insert.Bind(8, int64_t{spec.priority}).Bind(9, spec.options.dump()).Bind(10, nowMs_());
   insert.Run();
   const int64_t id = db_->LastInsertRowId();

@@ -30,6 +30,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "planner/strategy.h"
+
 namespace tcfarm {
 
 enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCanceled };
@@ -45,7 +47,7 @@ struct JobSpec {
   std::string sceneHash;  // SHA-256 hex of sceneJson, computed by the caller
   int firstFrame = 0;     // inclusive
   int lastFrame = 0;      // inclusive
-  std::string strategy = "search";  // "brute" | "search" | later "guarded" | "exact" | "auto"
+  Strategy strategy = kDefaultStrategy;  // as requested: kAuto stays kAuto here
   int binWidth = 10;                // frames per bin
   double tolerance = 0;
   int priority = 0;        // higher runs first and gets a larger share of the workers

@@ -86,7 +86,7 @@ TEST_F(JobStoreTest, SubmitGetRoundTripsEveryField) {
   spec.sceneHash = std::string(64, 'f');
   spec.firstFrame = -3;
   spec.lastFrame = 7;
-  spec.strategy = "brute";
+  spec.strategy = Strategy::kBrute;
   spec.binWidth = 4;
   spec.tolerance = 0.125;
   spec.priority = -2;
@@ -102,7 +102,7 @@ TEST_F(JobStoreTest, SubmitGetRoundTripsEveryField) {
   EXPECT_EQ(record->spec.sceneHash, spec.sceneHash);
   EXPECT_EQ(record->spec.firstFrame, -3);
   EXPECT_EQ(record->spec.lastFrame, 7);
-  EXPECT_EQ(record->spec.strategy, "brute");
+  EXPECT_EQ(record->spec.strategy, Strategy::kBrute);
   EXPECT_EQ(record->spec.binWidth, 4);
   EXPECT_EQ(record->spec.tolerance, 0.125);
   EXPECT_EQ(record->spec.priority, -2);
