@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <memory>
 #include <thread>
 
 #include "wire/zmq_io.h"
@@ -263,6 +264,30 @@ TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {
   Pump();
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.registry().workers().begin()->second.FreeCredit(), 1u);
+}
+
+// A coordinator that stops closes its socket right after saying goodbye; the goodbye still
+// reaches the workers, which would otherwise wait out their whole coordinator timeout.
+TEST(DispatcherGoodbye, ReachesWorkersThoughTheSocketClosesAtOnce) {
+  FakeClock clock;
+  zmq::context_t context;
+  auto dispatcher = std::make_unique<Dispatcher>("tcp://127.0.0.1:*", clock);
+  FakeWorker worker(context, dispatcher->BoundEndpoint(), 1);
+  RecordingSink sink;
+  for (int i = 0; i < 100 && dispatcher->registry().workers().empty(); ++i) {
+    dispatcher->Poll(Milliseconds(10), sink);
+  }
+  ASSERT_EQ(dispatcher->registry().workers().size(), 1u);
+  dispatcher->SayGoodbye();
+  dispatcher.reset();
+  bool saidGoodbye = false;
+  for (int i = 0; i < 200 && !saidGoodbye; ++i) {
+    for (const wire::Message& message : worker.Drain()) {
+      saidGoodbye = saidGoodbye || std::holds_alternative<wire::Disconnect>(message);
+    }
+    if (!saidGoodbye) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_TRUE(saidGoodbye);
 }
 
 }  // namespace

@@ -31,8 +31,11 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
 
 Farm::~Farm() = default;
 
-void Farm::Run(const std::atomic<bool>& stop) {
-  while (!stop) Step(kIdlePoll);
+void Farm::Run(const std::atomic<bool>& stop, const std::function<void()>& afterStep) {
+  while (!stop) {
+    Step(kIdlePoll);
+    if (afterStep) afterStep();
+  }
   dispatcher_.SayGoodbye();
 }
 

@@ -162,6 +162,22 @@ def test_the_farm_keeps_answering_while_large_frames_are_encoded(tmp_path):
         assert "reconnecting" not in farm.worker_log(0).read_text()
 
 
+def test_a_stopping_coordinator_says_goodbye_and_its_workers_reconnect_at_once(tmp_path):
+    # Each side waits a minute for a silent peer: only the goodbye can tell the worker sooner.
+    with LocalFarm(tmp_path, workers=0, coordinator_args=("--worker-timeout", "60000")) as farm:
+        worker = farm.add_worker("--coordinator-timeout", "60000")
+        farm.wait_for_workers(1)
+        farm.coordinator.send_signal(signal.SIGTERM)
+        assert farm.coordinator.wait(timeout=10) == 0
+        deadline = time.monotonic() + 10
+        log = farm.worker_log(0)
+        while "said goodbye; reconnecting" not in log.read_text():
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.05)
+        assert "silent" not in log.read_text()
+        assert worker.poll() is None, "a worker outlives its coordinator, reconnecting"
+
+
 def test_a_bad_scene_fails_the_request_not_the_farm(farm, twelve_spheres):
     bad = dict(twelve_spheres, shapes=[dict(twelve_spheres["shapes"][1], radius=-2)])
     with pytest.raises(ApiError) as error:
