@@ -72,9 +72,9 @@ void Farm::StartJob(const JobRecord& record) {
         record, options_.storeRoot, options_.output,
         static_cast<int>(dispatcher_.registry().workers().size()), options_.pendingFrameBytes,
         options_.jobMemoryBytes);
-    const RenderSettings& r = run->scene().render;
-    dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(r.width),
-                       static_cast<uint32_t>(r.height), record.spec.sceneHash,
+    const FrameSize size = run->frameSize();
+    dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(size.width),
+                       static_cast<uint32_t>(size.height), record.spec.sceneHash,
                        record.spec.sceneJson);
     runs_[record.id] = std::move(run);
   } catch (const std::exception& e) {

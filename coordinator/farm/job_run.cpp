@@ -50,18 +50,26 @@ std::unique_ptr<Planner> MakeJobPlanner(const ResolvedStrategy& resolved, const 
   return planner;
 }
 
-}  // namespace
-
-ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, const Scene& scene, int workers) {
-  return ResolveStrategy(spec.strategy, spec.binWidth, FrameCountOf(spec),
-                         scene.CameraMoves() || scene.AnyLightChanges(), workers);
+// Only auto asks, and only jobs stored before the store kept the answer lack it.
+bool CameraOrLightsChange(const JobSpec& spec) {
+  if (spec.cameraOrLightsChange || spec.strategy != Strategy::kAuto) {
+    return spec.cameraOrLightsChange.value_or(true);
+  }
+  const Scene scene = ParseScene(spec.sceneJson);
+  return scene.CameraMoves() || scene.AnyLightChanges();
 }
 
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,
+}  // namespace
+
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers) {
+  return ResolveStrategy(spec.strategy, spec.binWidth, FrameCountOf(spec), CameraOrLightsChange(spec), workers);
+}
+
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
                                  uint64_t jobMemoryBytes) {
   PlannerOptions options;
-  options.width = scene.render.width;
-  options.height = scene.render.height;
+  options.width = spec.frameSize.width;
+  options.height = spec.frameSize.height;
   options.frameCount = FrameCountOf(spec);
   options.binWidth = resolved.binWidth;
   options.tolerance = static_cast<float>(spec.tolerance);
@@ -81,16 +89,15 @@ JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
                uint64_t jobMemoryBytes)
     : id_(record.id),
       spec_(record.spec),
-      scene_(std::make_unique<Scene>(ParseScene(record.spec.sceneJson))),
-      resolved_(ResolveJobStrategy(record.spec, *scene_, workers)),
-      plannerOptions_(PlannerOptionsFor(record.spec, *scene_, resolved_, jobMemoryBytes)),
+      resolved_(ResolveJobStrategy(record.spec, workers)),
+      plannerOptions_(PlannerOptionsFor(record.spec, resolved_, jobMemoryBytes)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
-      verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),
+      verification_(record.spec.frameSize.width, record.spec.frameSize.height, FrameCountOf(record.spec),
                     VerificationFor(record.spec, record.id, resolved_.strategy)),
       writer_(CreatedDirectory(storeRoot / std::to_string(record.id)), output),
       started_(std::chrono::steady_clock::now()),
       waitingForCoherence_(storeRoot / std::to_string(record.id) / ".pending", pendingFrameBytes) {
-  spec_.sceneJson.clear();  // parsed; no need to hold the text twice
+  spec_.sceneJson.clear();  // the dispatcher holds it for the workers
 }
 
 std::vector<DispatchTask> JobRun::TakeTasks() {
@@ -156,7 +163,7 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
 }
 
 void JobRun::FinishFrame(JobStore& store, FinishedFrame frame) {
-  const uint64_t pixels = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
+  const uint64_t pixels = static_cast<uint64_t>(spec_.frameSize.width) * spec_.frameSize.height;
   const int absolute = spec_.firstFrame + frame.frame;
   store.RecordFrame(id_, absolute, frame.tracedCount, pixels - frame.tracedCount);
   // Traced in full and plainly (no horizons): what brute force pays for a frame.
@@ -169,12 +176,12 @@ void JobRun::FinishFrame(JobStore& store, FinishedFrame frame) {
   verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
   WriteMask("mask", absolute, std::move(frame.traced));
   TrackCoherence(frame.frame, frame.rgb);
-  writer_.Write(absolute, Image{scene_->render.width, scene_->render.height, std::move(frame.rgb)});
+  writer_.Write(absolute, Image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)});
   ++framesDone_;
 }
 
 void JobRun::TrackCoherence(int frame, const std::vector<float>& rgb) {
-  Image image{scene_->render.width, scene_->render.height, rgb};
+  Image image{spec_.frameSize.width, spec_.frameSize.height, rgb};
   if (frame != nextCoherenceFrame_) {
     waitingForCoherence_.Put(frame, std::move(image));
     return;
@@ -204,8 +211,8 @@ void JobRun::AddToCoherence(Image frame) {
 }
 
 void JobRun::WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask) {
-  writer_.WriteMask(MaskFileStem(kind, absoluteFrame) + ".png", scene_->render.width,
-                    scene_->render.height, std::move(mask));
+  writer_.WriteMask(MaskFileStem(kind, absoluteFrame) + ".png", spec_.frameSize.width,
+                    spec_.frameSize.height, std::move(mask));
 }
 
 void JobRun::FinishWriting() { writer_.Finish(); }
@@ -237,7 +244,7 @@ nlohmann::json JobRun::CostFigures() const {
   // has them, else from its own frames traced plainly in full.
   TaskTime brute;
   if (referencePixels_ > 0) {
-    const double scale = double(scene_->render.width) * scene_->render.height * frames / double(referencePixels_);
+    const double scale = double(spec_.frameSize.width) * spec_.frameSize.height * frames / double(referencePixels_);
     brute = {referenceTime_.wall * scale, referenceTime_.cpu * scale};
     cost["brute_estimate_from"] = "reference frames";
   } else if (fullFrames_ > 0) {
@@ -261,7 +268,7 @@ nlohmann::json JobRun::CostFigures() const {
 }
 
 nlohmann::json JobRun::Stats(bool final) const {
-  const uint64_t pixelsPerFrame = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
+  const uint64_t pixelsPerFrame = static_cast<uint64_t>(spec_.frameSize.width) * spec_.frameSize.height;
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   nlohmann::json stats;

@@ -25,12 +25,14 @@
 
 namespace tcfarm {
 
-// The strategy the job runs with: its request resolved (ResolveStrategy) against the scene
-// and `workers` live workers.
-ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, const Scene& scene, int workers);
+// The strategy the job runs with: its request resolved (ResolveStrategy) against its
+// scene's motion and `workers` live workers. An auto job stored before the store kept
+// its motion (JobSpec::cameraOrLightsChange) has its scene parsed for it, which throws
+// SceneError if the scene no longer parses.
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers);
 // With jobMemoryBytes > 0, as many live bins (segments) as fit in it (FramesHeldPerJob);
 // throws std::invalid_argument naming the shortfall when not even one does.
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
                                  uint64_t jobMemoryBytes = 0);
 
 // A task's tracing time: elapsed on the worker, and CPU time of its tracing threads. CPU
@@ -49,8 +51,8 @@ struct TaskTime {
 
 class JobRun {
  public:
-  // Throws SceneError when the stored scene no longer parses, std::invalid_argument for
-  // options out of range. `workers`: live workers now (auto sizes its segments by it).
+  // Throws std::invalid_argument for options out of range (and SceneError, see
+  // ResolveJobStrategy). `workers`: live workers now (auto sizes its segments by it).
   // pendingFrameBytes: memory for frames that finish ahead of their turn, beyond which
   // they wait on disk (PendingFrames).
   // jobMemoryBytes: the coordinator's memory for this job's frames (0: no limit); the
@@ -61,7 +63,7 @@ class JobRun {
   static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
 
   uint64_t id() const { return id_; }
-  const Scene& scene() const { return *scene_; }
+  FrameSize frameSize() const { return spec_.frameSize; }
 
   std::vector<DispatchTask> TakeTasks();
   // Feeds a result to the planner or the verification. False when it had it already.
@@ -105,7 +107,6 @@ class JobRun {
 
   uint64_t id_;
   JobSpec spec_;
-  std::unique_ptr<Scene> scene_;
   ResolvedStrategy resolved_;
   AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
   // How long one CollectFinishedFrames call may spend on frames.

@@ -281,6 +281,10 @@ TEST_F(ApiServerTest, SubmitTakesEveryOptionalField) {
   EXPECT_EQ(spec.binWidth, 5);
   EXPECT_EQ(spec.tolerance, 0.25);
   EXPECT_EQ(spec.priority, -100);
+  // Read from the scene parsed at submit, so that the farm need not parse it again.
+  EXPECT_EQ(spec.frameSize.width, 8);
+  EXPECT_EQ(spec.frameSize.height, 6);
+  EXPECT_EQ(spec.cameraOrLightsChange, std::optional<bool>(false));
 
   // One end alone keeps the scene's other end; a single frame is a range too.
   body = Submission();

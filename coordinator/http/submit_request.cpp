@@ -216,7 +216,7 @@ json ReadSpotCheckShare(const json& request) {
 
 }  // namespace
 
-Submission ParseSubmission(const std::string& body) {
+JobSpec ParseSubmission(const std::string& body) {
   const json request = ParseBody(body);
   if (!request.is_object()) {
     Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object",
@@ -224,8 +224,7 @@ Submission ParseSubmission(const std::string& body) {
   }
   CheckKnownFields(request);
 
-  Submission submission;
-  JobSpec& spec = submission.spec;
+  JobSpec spec;
   // Cheap fields first, so a typo in one of them is reported before a long scene parse.
   spec.name = ReadName(request);
   spec.strategy = ReadStrategy(request);
@@ -244,9 +243,9 @@ Submission ParseSubmission(const std::string& body) {
   // key order or spacing, so workers cache them once.
   spec.sceneJson = SerializeScene(scene);
   spec.sceneHash = wire::Sha256Hex(spec.sceneJson);
-  submission.frameSize = FrameSize{scene.render.width, scene.render.height};
-  submission.cameraOrLightsChange = scene.CameraMoves() || scene.AnyLightChanges();
-  return submission;
+  spec.frameSize = FrameSize{scene.render.width, scene.render.height};
+  spec.cameraOrLightsChange = scene.CameraMoves() || scene.AnyLightChanges();
+  return spec;
 }
 
 }  // namespace tcfarm::http
