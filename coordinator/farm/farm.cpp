@@ -22,6 +22,7 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
     : store_(store),
       options_(std::move(options)),
       clock_(clock),
+      frameStore_(options_.storeRoot),
       dispatcher_(options_.endpoint, clock, options_.heartbeat) {
   for (uint64_t id : store_.RequeueInterrupted()) {
     std::fprintf(stderr, "coordinator: job %llu was interrupted; requeued\n",
@@ -69,7 +70,7 @@ void Farm::ClaimJobs() {
 void Farm::StartJob(const JobRecord& record) {
   try {
     auto run = std::make_unique<JobRun>(
-        record, options_.storeRoot, options_.output,
+        record, frameStore_, options_.output,
         static_cast<int>(dispatcher_.registry().workers().size()), options_.pendingFrameBytes,
         options_.jobMemoryBytes);
     const FrameSize size = run->frameSize();

@@ -77,6 +77,7 @@ class Farm : public FarmControl, private DispatchSink {
   JobStore& store_;
   FarmOptions options_;
   const Clock& clock_;
+  FrameStore frameStore_;  // where options_.storeRoot holds each job's files
   FarmMetrics metrics_;
   Dispatcher dispatcher_;
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;

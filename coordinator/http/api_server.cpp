@@ -196,7 +196,11 @@ ApiError LibraryError(const httplib::Request& request, int status, size_t maxBod
 
 ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometheus::Registry> metrics,
                      ApiOptions options)
-    : store_(store), farm_(farm), metrics_(std::move(metrics)), options_(std::move(options)) {
+    : store_(store),
+      farm_(farm),
+      metrics_(std::move(metrics)),
+      options_(std::move(options)),
+      frameStore_(options_.storeRoot) {
   for (const Route& route : Routes()) routePatterns_.emplace_back(route.pattern);
 }
 
@@ -397,8 +401,7 @@ void ApiServer::GetFrame(const httplib::Request& request, const std::string&, ht
   const uint64_t id = ParseJobId(request.matches[1]);
   const FrameFile file = ParseFrameFile(request.matches[2]);
   CheckFrameInJob(id, file.frame);
-  const std::filesystem::path path =
-      options_.storeRoot / std::to_string(id) / (FrameFileStem(file.frame) + "." + file.extension);
+  const std::filesystem::path path = frameStore_.FramePath(id, file.frame, file.extension);
   if (!ServeFile(response, path, file.contentType)) {
     throw ApiError(404, error_code::kFrameNotReady,
                    "frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +
@@ -421,8 +424,8 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
   }
   const int frame = std::stoi(number);
   CheckFrameInJob(id, frame);
-  const std::filesystem::path path =
-      options_.storeRoot / std::to_string(id) / (MaskFileStem(kind, frame) + ".png");
+  // The route's pattern admits only the two names.
+  const std::filesystem::path path = frameStore_.MaskPath(id, MaskKindFromName(kind).value(), frame);
   if (!ServeFile(response, path, "image/png")) {
     throw ApiError(404, error_code::kFrameNotReady,
                    std::string(kind == "mask" ? "the traced-pixel" : "the change") + " mask of frame " +

@@ -23,6 +23,7 @@
 #include "http/submit_request.h"
 #include "net/http_listener.h"
 #include "jobs/job_store.h"
+#include "store/frame_store.h"
 
 namespace httplib {
 class Server;
@@ -111,6 +112,7 @@ class ApiServer {
   FarmControl& farm_;
   std::shared_ptr<prometheus::Registry> metrics_;
   ApiOptions options_;
+  FrameStore frameStore_;  // where options_.storeRoot holds each job's files
   std::vector<std::regex> routePatterns_;  // Routes() compiled once, for 405 vs 404
 
   std::mutex frameRangesMutex_;
