@@ -236,15 +236,15 @@ int RunServe(const ServeOptions& options) {
                  options.httpHost.c_str(), port, options.dashboard.c_str());
   }
 
-  // Step the farm; look after the local workers a few times a second.
+  // Run the farm; look after the local workers a few times a second. On SIGINT or SIGTERM
+  // it tells its workers goodbye before it returns.
   auto lastCheck = clock.Now();
-  while (!stopRequested) {
-    farm.Step(Milliseconds(50));
+  farm.Run(stopRequested, [&] {
     if (clock.Now() - lastCheck > Milliseconds(250)) {
       localWorkers.RestartExited();
       lastCheck = clock.Now();
     }
-  }
+  });
   std::fprintf(stderr, "tcfarm-coordinator: stopping\n");
   server.Stop();
   localWorkers.Stop();

@@ -1,6 +1,7 @@
 #include "dispatch/dispatcher.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 
@@ -12,6 +13,9 @@ namespace {
 // Messages handled per Poll before the farm loop gets to run: keeps result handling
 // from starving task dispatch under a flood.
 constexpr int kMaxMessagesPerPoll = 4096;
+// How long closing the socket may wait for goodbyes to leave: long enough for loopback
+// and a LAN, short enough that a worker that stopped reading cannot hold up a shutdown.
+constexpr Milliseconds kGoodbyeLinger{1000};
 // A job of priority p gets (1 + p) shares of the workers; negative priorities get one.
 double WeightOf(int priority) { return 1.0 + std::max(0, priority); }
 
@@ -83,7 +87,13 @@ size_t Dispatcher::PendingTasks() const { return pendingCount_; }
 
 void Dispatcher::Receive(Milliseconds timeout, DispatchSink& sink) {
   zmq::pollitem_t item{static_cast<void*>(socket_), 0, ZMQ_POLLIN, 0};
-  zmq::poll(&item, 1, timeout);
+  try {
+    zmq::poll(&item, 1, timeout);
+  } catch (const zmq::error_t& e) {
+    // A signal (SIGTERM, SIGINT: stop) cut the wait short; the caller's loop looks at its
+    // stop flag. Anything else is a real failure.
+    if (e.num() != EINTR) throw;
+  }
   ReceiveAll(sink);
 }
 
@@ -263,6 +273,8 @@ bool Dispatcher::Send(const std::string& identity, const wire::Message& message)
 
 void Dispatcher::SayGoodbye() {
   for (const auto& [identity, worker] : registry_.workers()) Send(identity, wire::Disconnect{});
+  // The socket closes right after; without linger the goodbyes would die in its queue.
+  socket_.set(zmq::sockopt::linger, static_cast<int>(kGoodbyeLinger.count()));
 }
 
 }  // namespace tcfarm

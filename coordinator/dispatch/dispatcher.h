@@ -80,7 +80,8 @@ class Dispatcher {
     Receive(timeout, sink);
     Flush();
   }
-  // Tells every worker the coordinator is leaving.
+  // Tells every worker the coordinator is leaving; destroying the dispatcher afterwards
+  // waits (briefly, bounded) for the goodbyes to leave.
   void SayGoodbye();
 
   size_t PendingTasks() const;

@@ -1,12 +1,14 @@
-// The dispatcher against fake workers: real DEALER sockets in this process that speak
-// the wire protocol, and a fake clock for liveness.
+// The dispatcher against fake workers (dispatch/fake_worker.h) and a fake clock for
+// liveness.
 #include "dispatch/dispatcher.h"
 
 #include <gtest/gtest.h>
 
 #include <map>
+#include <memory>
 #include <thread>
 
+#include "dispatch/fake_worker.h"
 #include "wire/zmq_io.h"
 
 namespace tcfarm {
@@ -32,47 +34,6 @@ class RecordingSink : public DispatchSink {
   };
   std::vector<Delivered> results;
   std::vector<Failed> failures;
-};
-
-class FakeWorker {
- public:
-  FakeWorker(zmq::context_t& context, const std::string& endpoint, uint32_t capacity)
-      : socket_(context, zmq::socket_type::dealer) {
-    socket_.set(zmq::sockopt::linger, 0);
-    socket_.connect(endpoint);
-    Send(wire::Ready{capacity, 1, "fake"});
-  }
-  void Send(const wire::Message& message) { ASSERT_TRUE(wire::SendMessage(socket_, message)); }
-  void SendRaw(const std::vector<std::string>& parts) {
-    for (size_t i = 0; i < parts.size(); ++i) {
-      socket_.send(zmq::buffer(parts[i]),
-                   i + 1 < parts.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
-    }
-  }
-  // Everything the dispatcher sent us so far, decoded.
-  std::vector<wire::Message> Drain() {
-    std::vector<wire::Message> messages;
-    while (auto parts = wire::ReceiveParts(socket_)) messages.push_back(wire::Decode(*parts));
-    return messages;
-  }
-  std::vector<wire::Task> Tasks() {
-    std::vector<wire::Task> tasks;
-    for (auto& m : Drain()) {
-      if (auto* t = std::get_if<wire::Task>(&m)) tasks.push_back(std::move(*t));
-    }
-    return tasks;
-  }
-  void Answer(const wire::Task& task) {
-    wire::Result result;
-    result.taskId = task.taskId;
-    result.jobId = task.jobId;
-    result.frame = task.frame;
-    result.rgb.assign(task.pixels.size() * 3, 0.5f);
-    Send(result);
-  }
-
- private:
-  zmq::socket_t socket_;
 };
 
 class DispatcherTest : public ::testing::Test {
@@ -263,6 +224,30 @@ TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {
   Pump();
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.registry().workers().begin()->second.FreeCredit(), 1u);
+}
+
+// A coordinator that stops closes its socket right after saying goodbye; the goodbye still
+// reaches the workers, which would otherwise wait out their whole coordinator timeout.
+TEST(DispatcherGoodbye, ReachesWorkersThoughTheSocketClosesAtOnce) {
+  FakeClock clock;
+  zmq::context_t context;
+  auto dispatcher = std::make_unique<Dispatcher>("tcp://127.0.0.1:*", clock);
+  FakeWorker worker(context, dispatcher->BoundEndpoint(), 1);
+  RecordingSink sink;
+  for (int i = 0; i < 100 && dispatcher->registry().workers().empty(); ++i) {
+    dispatcher->Poll(Milliseconds(10), sink);
+  }
+  ASSERT_EQ(dispatcher->registry().workers().size(), 1u);
+  dispatcher->SayGoodbye();
+  dispatcher.reset();
+  bool saidGoodbye = false;
+  for (int i = 0; i < 200 && !saidGoodbye; ++i) {
+    for (const wire::Message& message : worker.Drain()) {
+      saidGoodbye = saidGoodbye || std::holds_alternative<wire::Disconnect>(message);
+    }
+    if (!saidGoodbye) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_TRUE(saidGoodbye);
 }
 
 }  // namespace

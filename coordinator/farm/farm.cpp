@@ -22,6 +22,7 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
     : store_(store),
       options_(std::move(options)),
       clock_(clock),
+      frameStore_(options_.storeRoot),
       dispatcher_(options_.endpoint, clock, options_.heartbeat) {
   for (uint64_t id : store_.RequeueInterrupted()) {
     std::fprintf(stderr, "coordinator: job %llu was interrupted; requeued\n",
@@ -31,8 +32,11 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
 
 Farm::~Farm() = default;
 
-void Farm::Run(const std::atomic<bool>& stop) {
-  while (!stop) Step(kIdlePoll);
+void Farm::Run(const std::atomic<bool>& stop, const std::function<void()>& afterStep) {
+  while (!stop) {
+    Step(kIdlePoll);
+    if (afterStep) afterStep();
+  }
   dispatcher_.SayGoodbye();
 }
 
@@ -66,12 +70,12 @@ void Farm::ClaimJobs() {
 void Farm::StartJob(const JobRecord& record) {
   try {
     auto run = std::make_unique<JobRun>(
-        record, options_.storeRoot, options_.output,
+        record, frameStore_, options_.output,
         static_cast<int>(dispatcher_.registry().workers().size()), options_.pendingFrameBytes,
         options_.jobMemoryBytes);
-    const RenderSettings& r = run->scene().render;
-    dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(r.width),
-                       static_cast<uint32_t>(r.height), record.spec.sceneHash,
+    const FrameSize size = run->frameSize();
+    dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(size.width),
+                       static_cast<uint32_t>(size.height), record.spec.sceneHash,
                        record.spec.sceneJson);
     runs_[record.id] = std::move(run);
   } catch (const std::exception& e) {

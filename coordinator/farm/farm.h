@@ -8,6 +8,7 @@
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -45,9 +46,11 @@ class Farm : public FarmControl, private DispatchSink {
   std::string BoundEndpoint() const { return dispatcher_.BoundEndpoint(); }
   FarmMetrics& metrics() { return metrics_; }
 
-  // Runs the loop until *stop; then tells the workers goodbye. Jobs still running stay
-  // "running" in the store and are requeued by the next coordinator (RequeueInterrupted).
-  void Run(const std::atomic<bool>& stop);
+  // Runs the loop until *stop, calling afterStep (if any) after each step; then tells the
+  // workers goodbye, so they reconnect at once instead of after their coordinator
+  // timeout. Jobs still running stay "running" in the store and are requeued by the next
+  // coordinator (RequeueInterrupted).
+  void Run(const std::atomic<bool>& stop, const std::function<void()>& afterStep = {});
   // One iteration; tests drive the loop with this.
   void Step(Milliseconds pollTimeout);
 
@@ -74,6 +77,7 @@ class Farm : public FarmControl, private DispatchSink {
   JobStore& store_;
   FarmOptions options_;
   const Clock& clock_;
+  FrameStore frameStore_;  // where options_.storeRoot holds each job's files
   FarmMetrics metrics_;
   Dispatcher dispatcher_;
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;

@@ -1,12 +1,8 @@
 #include "farm/job_run.h"
 
-#include <algorithm>
-#include <cmath>
-#include <cstring>
 #include <stdexcept>
 
-#include "frame/frame_io.h"
-#include "frame/sequence_analysis.h"
+#include "scene/scene.h"
 
 namespace tcfarm {
 namespace {
@@ -50,33 +46,26 @@ std::unique_ptr<Planner> MakeJobPlanner(const ResolvedStrategy& resolved, const 
   return planner;
 }
 
-}  // namespace
-
-ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers) {
-  const int frames = FrameCountOf(spec);
-  if (spec.strategy == "brute") return {Strategy::kBrute, 2, "every pixel of every frame"};
-  if (spec.strategy != "auto") {
-    auto strategy = StrategyFromString(spec.strategy);
-    if (!strategy) throw std::invalid_argument("unknown strategy '" + spec.strategy + "'");
-    return {*strategy, spec.binWidth, "as requested"};
+// Only auto asks, and only jobs stored before the store kept the answer lack it.
+bool CameraOrLightsChange(const JobSpec& spec) {
+  if (spec.cameraOrLightsChange || spec.strategy != Strategy::kAuto) {
+    return spec.cameraOrLightsChange.value_or(true);
   }
-  if (!scene.CameraMoves() && !scene.AnyLightChanges()) {
-    // Each segment costs one full frame; one segment per worker keeps all of them busy.
-    int segments = std::clamp(workers, 1, frames);
-    int length = (frames + segments - 1) / segments;
-    return {Strategy::kExact, std::max(1, length),
-            "camera and lights are static: exact, one segment per worker"};
-  }
-  return {Strategy::kGuarded, std::clamp(frames, 2, kAutoWidestBin),
-          "the camera or a light moves: guarded search, its bin width chosen by a coarse survey",
-          /*surveyBinWidth=*/true};
+  const Scene scene = ParseScene(spec.sceneJson);
+  return scene.CameraMoves() || scene.AnyLightChanges();
 }
 
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,
+}  // namespace
+
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers) {
+  return ResolveStrategy(spec.strategy, spec.binWidth, FrameCountOf(spec), CameraOrLightsChange(spec), workers);
+}
+
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
                                  uint64_t jobMemoryBytes) {
   PlannerOptions options;
-  options.width = scene.render.width;
-  options.height = scene.render.height;
+  options.width = spec.frameSize.width;
+  options.height = spec.frameSize.height;
   options.frameCount = FrameCountOf(spec);
   options.binWidth = resolved.binWidth;
   options.tolerance = static_cast<float>(spec.tolerance);
@@ -91,21 +80,20 @@ PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const 
   return options;
 }
 
-JobRun::JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
-               const FrameWriterOptions& output, int workers, size_t pendingFrameBytes,
-               uint64_t jobMemoryBytes)
+JobRun::JobRun(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output, int workers,
+               size_t pendingFrameBytes, uint64_t jobMemoryBytes)
     : id_(record.id),
       spec_(record.spec),
-      scene_(std::make_unique<Scene>(ParseScene(record.spec.sceneJson))),
-      resolved_(ResolveStrategy(record.spec, *scene_, workers)),
-      plannerOptions_(PlannerOptionsFor(record.spec, *scene_, resolved_, jobMemoryBytes)),
+      resolved_(ResolveJobStrategy(record.spec, workers)),
+      plannerOptions_(PlannerOptionsFor(record.spec, resolved_, jobMemoryBytes)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
-      verification_(scene_->render.width, scene_->render.height, FrameCountOf(record.spec),
-                    VerificationFor(record.spec, record.id, resolved_.strategy)),
-      writer_(CreatedDirectory(storeRoot / std::to_string(record.id)), output),
-      started_(std::chrono::steady_clock::now()),
-      waitingForCoherence_(storeRoot / std::to_string(record.id) / ".pending", pendingFrameBytes) {
-  spec_.sceneJson.clear();  // parsed; no need to hold the text twice
+      verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
+                    VerificationFor(spec_, record.id, resolved_.strategy)),
+      writer_(CreatedDirectory(store.JobFolder(record.id)), output),
+      coherence_(spec_.frameSize.width, spec_.frameSize.height, store.SpillFolder(record.id), pendingFrameBytes),
+      cost_(PixelsPerFrame(), FrameCountOf(spec_)),
+      started_(std::chrono::steady_clock::now()) {
+  spec_.sceneJson.clear();  // the dispatcher holds it for the workers
 }
 
 std::vector<DispatchTask> JobRun::TakeTasks() {
@@ -124,35 +112,26 @@ std::vector<DispatchTask> JobRun::TakeTasks() {
 }
 
 bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
-  const TaskTime time{result.traceSeconds, result.traceCpuSeconds.value_or(0)};
-  if (taskId & kVerificationTask) {
-    const bool reference = verification_.IsReference(taskId & ~kVerificationTask);
-    if (!verification_.OnResult(taskId & ~kVerificationTask, result.rgb.data(), result.rgb.size())) {
-      return false;
-    }
-    verifyTime_ += time;
-    if (reference) {
-      referenceTime_ += time;
-      referencePixels_ += result.rgb.size() / 3;
-    }
-  } else {
-    // Workers speak absolute frames; the planner counts from the job's first frame.
-    std::vector<int32_t> horizons(result.horizons);
-    for (int32_t& h : horizons) h -= spec_.firstFrame;
-    if (!planner_->OnResult(taskId, result.rgb.data(), result.rgb.size(),
-                            horizons.empty() ? nullptr : horizons.data(), horizons.size())) {
-      return false;
-    }
-    frameTraceTime_[result.frame - spec_.firstFrame] += time;
-    if (!result.horizons.empty()) framesWithHorizons_.insert(result.frame - spec_.firstFrame);
+  return (taskId & kVerificationTask) ? OnVerificationResult(taskId & ~kVerificationTask, result)
+                                      : OnPlannerResult(taskId, result);
+}
+
+bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result) {
+  const bool reference = verification_.IsReference(taskId);
+  if (!verification_.OnResult(taskId, result.rgb.data(), result.rgb.size())) return false;
+  cost_.OnVerificationResult(result, reference);
+  return true;
+}
+
+bool JobRun::OnPlannerResult(uint64_t taskId, const wire::Result& result) {
+  // Workers speak absolute frames; the planner counts from the job's first frame.
+  std::vector<int32_t> horizons(result.horizons);
+  for (int32_t& h : horizons) h -= spec_.firstFrame;
+  if (!planner_->OnResult(taskId, result.rgb.data(), result.rgb.size(),
+                          horizons.empty() ? nullptr : horizons.data(), horizons.size())) {
+    return false;
   }
-  traceTime_ += time;
-  cpuReported_ = cpuReported_ && result.traceCpuSeconds.has_value();
-  rays_[0] += result.primaryRays;
-  rays_[1] += result.shadowRays;
-  rays_[2] += result.reflectionRays;
-  rays_[3] += result.refractionRays;
-  ++results_;
+  cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
   return true;
 }
 
@@ -171,56 +150,21 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
 }
 
 void JobRun::FinishFrame(JobStore& store, FinishedFrame frame) {
-  const uint64_t pixels = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
   const int absolute = spec_.firstFrame + frame.frame;
-  store.RecordFrame(id_, absolute, frame.tracedCount, pixels - frame.tracedCount);
-  // Traced in full and plainly (no horizons): what brute force pays for a frame.
-  if (frame.tracedCount == pixels && framesWithHorizons_.count(frame.frame) == 0) {
-    fullFrameTime_ += frameTraceTime_[frame.frame];
-    ++fullFrames_;
-  }
-  frameTraceTime_.erase(frame.frame);
-  framesWithHorizons_.erase(frame.frame);
+  store.RecordFrame(id_, absolute, frame.tracedCount, PixelsPerFrame() - frame.tracedCount);
+  cost_.OnFrameFinished(frame.frame, frame.tracedCount);
   verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
-  WriteMask("mask", absolute, std::move(frame.traced));
-  TrackCoherence(frame.frame, frame.rgb);
-  writer_.Write(absolute, Image{scene_->render.width, scene_->render.height, std::move(frame.rgb)});
+  WriteMask(MaskKind::kTraced, absolute, std::move(frame.traced));
+  for (JobCoherence::ChangeMask& mask : coherence_.Add(frame.frame, frame.rgb)) {
+    WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
+  }
+  writer_.Write(absolute, Image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)});
   ++framesDone_;
 }
 
-void JobRun::TrackCoherence(int frame, const std::vector<float>& rgb) {
-  Image image{scene_->render.width, scene_->render.height, rgb};
-  if (frame != nextCoherenceFrame_) {
-    waitingForCoherence_.Put(frame, std::move(image));
-    return;
-  }
-  AddToCoherence(std::move(image));
-  while (std::optional<Image> next = waitingForCoherence_.Take(nextCoherenceFrame_)) {
-    AddToCoherence(std::move(*next));
-  }
-}
-
-// The next frame in order: into the coherence analysis, and its change mask against the
-// frame before.
-void JobRun::AddToCoherence(Image frame) {
-  coherence_.Add(frame);
-  // The paper's Figure 5: white where the pixel is bitwise the previous frame's, black
-  // where it changed; the first frame has nothing to change from, so is all white.
-  const std::vector<float>& current = frame.rgb;
-  std::vector<uint8_t> unchanged(frame.PixelCount(), 1);
-  if (previousRgb_.size() == current.size()) {
-    for (size_t pixel = 0; pixel < unchanged.size(); ++pixel) {
-      unchanged[pixel] = std::memcmp(&current[pixel * 3], &previousRgb_[pixel * 3], 3 * sizeof(float)) == 0;
-    }
-  }
-  WriteMask("change", spec_.firstFrame + nextCoherenceFrame_, std::move(unchanged));
-  previousRgb_ = std::move(frame.rgb);
-  ++nextCoherenceFrame_;
-}
-
-void JobRun::WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask) {
-  writer_.WriteMask(MaskFileStem(kind, absoluteFrame) + ".png", scene_->render.width,
-                    scene_->render.height, std::move(mask));
+void JobRun::WriteMask(MaskKind kind, int absoluteFrame, std::vector<uint8_t> mask) {
+  writer_.WriteMask(FrameStore::MaskFileName(kind, absoluteFrame), spec_.frameSize.width, spec_.frameSize.height,
+                    std::move(mask));
 }
 
 void JobRun::FinishWriting() { writer_.Finish(); }
@@ -229,54 +173,7 @@ int JobRun::BinWidth() const {
   return autoPlanner_ ? autoPlanner_->ChosenBinWidth() : resolved_.binWidth;
 }
 
-// Predicted (equation 3, or its exact analogue) beside measured relative cost. Measured
-// is the job's tracing time over brute force's, estimated from its reference frames when
-// it has any (brute force itself), else from the frames it traced plainly in full (bin
-// ends), which cost what brute force pays per frame.
-nlohmann::json JobRun::CostFigures() const {
-  nlohmann::json cost;
-  const int frames = FrameCountOf(spec_);
-  if (coherence_.frameToFrame().count > 0) {
-    double d = 1 - coherence_.frameToFrame().Mean();
-    double predicted = 1;
-    if (resolved_.strategy == Strategy::kExact) {
-      double segments = std::ceil(double(frames) / BinWidth());
-      predicted = (segments + (frames - segments) * d) / frames;
-    } else if (resolved_.strategy != Strategy::kBrute && BinWidth() >= 2) {
-      predicted = Equation3RelativeCost(frames, BinWidth(), d);
-    }
-    cost["d"] = d;
-    cost["predicted_relative_cost"] = predicted;
-  }
-  // Brute force's tracing time, from reference frames (brute force itself) where the job
-  // has them, else from its own frames traced plainly in full.
-  TaskTime brute;
-  if (referencePixels_ > 0) {
-    const double scale = double(scene_->render.width) * scene_->render.height * frames / double(referencePixels_);
-    brute = {referenceTime_.wall * scale, referenceTime_.cpu * scale};
-    cost["brute_estimate_from"] = "reference frames";
-  } else if (fullFrames_ > 0) {
-    brute = {fullFrameTime_.wall / fullFrames_ * frames, fullFrameTime_.cpu / fullFrames_ * frames};
-    cost["brute_estimate_from"] = "frames traced in full";
-  }
-  const TaskTime job = traceTime_ - verifyTime_;
-  if (brute.wall > 0) {
-    cost["brute_trace_seconds_estimate"] = brute.wall;
-    cost["measured_relative_cost_wall"] = job.wall / brute.wall;
-    cost["measured_relative_cost"] = job.wall / brute.wall;
-    cost["measured_relative_cost_basis"] = "trace seconds";
-  }
-  // CPU time where every worker reported it: it does not count waiting for shared cores.
-  if (cpuReported_ && brute.cpu > 0) {
-    cost["brute_trace_cpu_seconds_estimate"] = brute.cpu;
-    cost["measured_relative_cost"] = job.cpu / brute.cpu;
-    cost["measured_relative_cost_basis"] = "trace cpu seconds";
-  }
-  return cost;
-}
-
 nlohmann::json JobRun::Stats(bool final) const {
-  const uint64_t pixelsPerFrame = static_cast<uint64_t>(scene_->render.width) * scene_->render.height;
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   nlohmann::json stats;
@@ -295,31 +192,23 @@ nlohmann::json JobRun::Stats(bool final) const {
   // job would not hold their frames.
   stats["live_bins"] = plannerOptions_.maxLiveBins;
   // Frames that finished ahead of their turn and waited on disk, not in memory.
-  stats["frames_waited_on_disk"] = waitingForCoherence_.TotalSpilled();
+  stats["frames_waited_on_disk"] = coherence_.FramesWaitedOnDisk();
   stats["pixels_traced"] = planner_->TracedPixels();
   stats["pixels_copied"] = planner_->CopiedPixels();
   stats["traced_pixel_ratio"] = static_cast<double>(planner_->TracedPixels()) /
-                                static_cast<double>(pixelsPerFrame * FrameCountOf(spec_));
+                                static_cast<double>(PixelsPerFrame() * FrameCountOf(spec_));
   stats["wall_seconds"] = wall;
-  stats["trace_seconds"] = traceTime_.wall - verifyTime_.wall;
-  stats["verify_trace_seconds"] = verifyTime_.wall;
-  if (cpuReported_ && results_ > 0) {
-    stats["trace_cpu_seconds"] = traceTime_.cpu - verifyTime_.cpu;
-    stats["verify_trace_cpu_seconds"] = verifyTime_.cpu;
-  }
-  stats["tasks"] = results_;
-  stats["rays"] = {{"primary", rays_[0]}, {"shadow", rays_[1]}, {"reflection", rays_[2]},
-                   {"refraction", rays_[3]}};
-  stats["cost"] = CostFigures();
+  const SequenceAnalyzer& coherence = coherence_.analysis();
+  cost_.AddTo(stats, resolved_.strategy, BinWidth(), coherence.frameToFrame());
   stats["error"] = verification_.Report();
-  const RunningStats& f2f = coherence_.frameToFrame();
-  const RunningStats& longTerm = coherence_.longTerm();
+  const RunningStats& f2f = coherence.frameToFrame();
+  const RunningStats& longTerm = coherence.longTerm();
   if (f2f.count > 0) {
     stats["coherence"] = {
         {"frame_to_frame", {{"mean", f2f.Mean()}, {"min", f2f.min}, {"max", f2f.max}}},
         {"long_term", {{"mean", longTerm.Mean()}, {"min", longTerm.min}, {"max", longTerm.max}}}};
   }
-  if (final && coherence_.FrameCount() > 0) stats["analysis"] = coherence_.Finish().ToJson();
+  if (final && coherence.FrameCount() > 0) stats["analysis"] = coherence.Finish().ToJson();
   return stats;
 }
 

@@ -1,75 +1,55 @@
-// One job being rendered: its planner, its verification, its frame writer, and the
-// figures it reports. Owned by the farm loop; not thread-safe.
+// One job being rendered: it passes tasks from its planner and its verification to the
+// farm, results back to them, and finished frames on to the frame writer and the
+// coherence analysis; it reports the figures of all of these. Each part lives in its own
+// class (Planner, Verification, FrameWriter, JobCoherence, JobCost), to be read and
+// tested alone. Owned by the farm loop; not thread-safe.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <deque>
 #include <filesystem>
-#include <map>
 #include <memory>
-#include <set>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "dispatch/dispatcher.h"
-#include "farm/pending_frames.h"
+#include "farm/job_coherence.h"
+#include "farm/job_cost.h"
 #include "farm/verification.h"
-#include "frame/sequence_analysis.h"
 #include "frame/frame_writer.h"
 #include "jobs/job_store.h"
 #include "planner/auto_guarded_planner.h"
 #include "planner/planner.h"
-#include "scene/scene.h"
+#include "store/frame_store.h"
 
 namespace tcfarm {
 
-// The strategy and bin width (segment length for exact) a job runs with. `auto` picks
-// exact when nothing but shapes move (every pixel then has a horizon to find), else
-// guarded; the length gives each worker a segment (exact) or follows equation 3
-// (guarded). `brute` is the search with bins of 2.
-struct ResolvedStrategy {
-  Strategy strategy;
-  int binWidth;  // with surveyBinWidth: the widest considered
-  std::string reason;
-  bool surveyBinWidth = false;  // guarded's width is chosen by a coarse survey (auto)
-};
-ResolvedStrategy ResolveStrategy(const JobSpec& spec, const Scene& scene, int workers);
+// The strategy the job runs with: its request resolved (ResolveStrategy) against its
+// scene's motion and `workers` live workers. An auto job stored before the store kept
+// its motion (JobSpec::cameraOrLightsChange) has its scene parsed for it, which throws
+// SceneError if the scene no longer parses.
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers);
 // With jobMemoryBytes > 0, as many live bins (segments) as fit in it (FramesHeldPerJob);
 // throws std::invalid_argument naming the shortfall when not even one does.
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const Scene& scene, const ResolvedStrategy& resolved,
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
                                  uint64_t jobMemoryBytes = 0);
-
-// A task's tracing time: elapsed on the worker, and CPU time of its tracing threads. CPU
-// time is what the job costs on a shared machine, where elapsed time also counts waiting
-// for the cores.
-struct TaskTime {
-  double wall = 0;
-  double cpu = 0;
-  TaskTime& operator+=(const TaskTime& other) {
-    wall += other.wall;
-    cpu += other.cpu;
-    return *this;
-  }
-  TaskTime operator-(const TaskTime& other) const { return {wall - other.wall, cpu - other.cpu}; }
-};
 
 class JobRun {
  public:
-  // Throws SceneError when the stored scene no longer parses, std::invalid_argument for
-  // options out of range. `workers`: live workers now (auto sizes its segments by it).
+  // Throws std::invalid_argument for options out of range (and SceneError, see
+  // ResolveJobStrategy). `workers`: live workers now (auto sizes its segments by it).
   // pendingFrameBytes: memory for frames that finish ahead of their turn, beyond which
   // they wait on disk (PendingFrames).
   // jobMemoryBytes: the coordinator's memory for this job's frames (0: no limit); the
   // planner works on as many bins at once as fit in it.
-  JobRun(const JobRecord& record, const std::filesystem::path& storeRoot,
-         const FrameWriterOptions& output = {}, int workers = 1,
+  JobRun(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output = {}, int workers = 1,
          size_t pendingFrameBytes = kDefaultPendingFrameBytes, uint64_t jobMemoryBytes = 0);
   static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
 
   uint64_t id() const { return id_; }
-  const Scene& scene() const { return *scene_; }
+  FrameSize frameSize() const { return spec_.frameSize; }
 
   std::vector<DispatchTask> TakeTasks();
   // Feeds a result to the planner or the verification. False when it had it already.
@@ -100,49 +80,33 @@ class JobRun {
  private:
   // Task ids of verification requests carry this bit; planner ids never reach it.
   static constexpr uint64_t kVerificationTask = uint64_t{1} << 62;
+  // How long one CollectFinishedFrames call may spend on frames.
+  static constexpr std::chrono::milliseconds kFinishingTurn{20};
 
-  // Feeds frames in order to the coherence analysis and writes each one's change mask.
+  bool OnPlannerResult(uint64_t taskId, const wire::Result& result);
+  bool OnVerificationResult(uint64_t taskId, const wire::Result& result);
+  // Records the frame, checks it, writes it and its masks, and feeds it to the coherence.
   void FinishFrame(JobStore& store, FinishedFrame frame);
-  void TrackCoherence(int frame, const std::vector<float>& rgb);
-  void AddToCoherence(Image frame);
-  // Queues STORE/<job>/<kind>_NNNN.png for the absolute frame on the frame writer.
-  void WriteMask(const char* kind, int absoluteFrame, std::vector<uint8_t> mask);
-  nlohmann::json CostFigures() const;
+  // Queues the mask for the absolute frame on the frame writer.
+  void WriteMask(MaskKind kind, int absoluteFrame, std::vector<uint8_t> mask);
   // The bin width (segment length) the job runs with; 0 while auto's survey runs.
   int BinWidth() const;
+  uint64_t PixelsPerFrame() const { return spec_.frameSize.Pixels(); }
 
   uint64_t id_;
   JobSpec spec_;
-  std::unique_ptr<Scene> scene_;
   ResolvedStrategy resolved_;
-  AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
-  // How long one CollectFinishedFrames call may spend on frames.
-  static constexpr std::chrono::milliseconds kFinishingTurn{20};
   PlannerOptions plannerOptions_;
+  AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
   std::unique_ptr<Planner> planner_;
   PixelTally reported_;
   Verification verification_;
   FrameWriter writer_;
   std::deque<FinishedFrame> unwritten_;  // taken from the planner, not yet written
+  JobCoherence coherence_;
+  JobCost cost_;
   std::chrono::steady_clock::time_point started_;
-  TaskTime traceTime_;              // summed over tasks: the tracing time the job cost the farm
-  TaskTime verifyTime_;             // of it, spent on verification
-  bool cpuReported_ = true;         // every task's worker reported its CPU time
-  std::map<int, TaskTime> frameTraceTime_;   // per unfinished frame, planner tasks only
-  TaskTime fullFrameTime_;          // frames traced plainly in full: brute force's cost per frame
-  int fullFrames_ = 0;
-  std::set<int> framesWithHorizons_;  // unfinished frames some task traced with horizons
-  TaskTime referenceTime_;          // reference frames: brute force itself
-  uint64_t referencePixels_ = 0;
-  uint64_t rays_[4] = {};          // primary, shadow, reflection, refraction
-  uint64_t results_ = 0;
   int framesDone_ = 0;
-  // Coherence needs frames in order; those that finish ahead of their turn wait here.
-  SequenceAnalyzer coherence_;
-  int nextCoherenceFrame_ = 0;
-  PendingFrames waitingForCoherence_;
-  // The last frame the coherence analysis took, for the next one's change mask.
-  std::vector<float> previousRgb_;
 };
 
 }  // namespace tcfarm

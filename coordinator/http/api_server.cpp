@@ -196,7 +196,11 @@ ApiError LibraryError(const httplib::Request& request, int status, size_t maxBod
 
 ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometheus::Registry> metrics,
                      ApiOptions options)
-    : store_(store), farm_(farm), metrics_(std::move(metrics)), options_(std::move(options)) {
+    : store_(store),
+      farm_(farm),
+      metrics_(std::move(metrics)),
+      options_(std::move(options)),
+      frameStore_(options_.storeRoot) {
   for (const Route& route : Routes()) routePatterns_.emplace_back(route.pattern);
 }
 
@@ -319,19 +323,16 @@ void ApiServer::RouteMiss(const httplib::Request& request, const std::string&,
 }
 
 // The job's frames at their most, one bin at a time, against the coordinator's memory for
-// a job. auto is taken at its widest: guarded with the widest bin its survey may pick.
-void ApiServer::CheckJobFitsInMemory(const http::Submission& submission) const {
+// a job, with the strategy the farm will resolve. The worker count only sets the length of
+// auto's exact segments, which holds one working frame whatever its length; auto's guarded
+// is taken with the widest bin its survey may pick.
+void ApiServer::CheckJobFitsInMemory(const JobSpec& spec) const {
   if (options_.jobMemoryBytes == 0) return;
-  const JobSpec& spec = submission.spec;
-  Strategy strategy = Strategy::kGuarded;
-  int binWidth = kAutoWidestBin;
-  if (spec.strategy != "auto") {
-    strategy = StrategyFromString(spec.strategy).value_or(Strategy::kSearch);
-    binWidth = spec.binWidth;
-  }
-  const std::string shortfall =
-      MemoryShortfall(options_.jobMemoryBytes, submission.frameSize.width, submission.frameSize.height, strategy,
-                      binWidth, spec.lastFrame - spec.firstFrame + 1);
+  const int frames = spec.lastFrame - spec.firstFrame + 1;
+  const ResolvedStrategy resolved = ResolveStrategy(spec.strategy, spec.binWidth, frames,
+                                                    spec.cameraOrLightsChange.value_or(true), /*workers=*/1);
+  const std::string shortfall = MemoryShortfall(options_.jobMemoryBytes, spec.frameSize.width,
+                                                spec.frameSize.height, resolved.strategy, resolved.binWidth, frames);
   if (!shortfall.empty()) {
     throw ApiError(413, error_code::kJobTooLarge,
                    shortfall + "; expected fewer pixels a frame, a narrower bin_width or a coordinator with "
@@ -341,13 +342,12 @@ void ApiServer::CheckJobFitsInMemory(const http::Submission& submission) const {
 }
 
 void ApiServer::SubmitJob(const httplib::Request&, const std::string& body, httplib::Response& response) {
-  const http::Submission submission = http::ParseSubmission(body);
-  CheckJobFitsInMemory(submission);
-  const uint64_t id = store_.Submit(submission.spec);
+  const JobSpec spec = http::ParseSubmission(body);
+  CheckJobFitsInMemory(spec);
+  const uint64_t id = store_.Submit(spec);
   {
-    std::lock_guard<std::mutex> lock(geometryMutex_);
-    geometry_[id] =
-        JobGeometry{submission.frameSize, submission.spec.firstFrame, submission.spec.lastFrame};
+    std::lock_guard<std::mutex> lock(frameRangesMutex_);
+    frameRanges_[id] = FrameRange{spec.firstFrame, spec.lastFrame};
   }
   response.set_header("Location", http::JobPath(id));
   WriteJson(response, JobDetail(LoadJob(id)), 201);
@@ -363,8 +363,7 @@ void ApiServer::ListJobs(const httplib::Request& request, const std::string&, ht
   json jobs = json::array();
   for (const JobRecord& record : records) {
     const auto live = snapshot.runningStats.find(record.id);
-    jobs.push_back(http::JobJson(record, GeometryOf(record.id, &record).frameSize,
-                                 live == snapshot.runningStats.end() ? nullptr : &live->second));
+    jobs.push_back(http::JobJson(record, live == snapshot.runningStats.end() ? nullptr : &live->second));
   }
   WriteJson(response, json{{"jobs", std::move(jobs)}});
 }
@@ -389,12 +388,12 @@ void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
 }
 
 void ApiServer::CheckFrameInJob(uint64_t id, int frame) {
-  const JobGeometry geometry = GeometryOf(id, nullptr);
-  if (frame < geometry.firstFrame || frame > geometry.lastFrame) {
+  const FrameRange range = FrameRangeOf(id);
+  if (frame < range.firstFrame || frame > range.lastFrame) {
     throw ApiError(400, error_code::kInvalidParameter,
                    "frame " + std::to_string(frame) + " is outside job " + std::to_string(id) +
-                       "'s frames [" + std::to_string(geometry.firstFrame) + ", " +
-                       std::to_string(geometry.lastFrame) + "]");
+                       "'s frames [" + std::to_string(range.firstFrame) + ", " +
+                       std::to_string(range.lastFrame) + "]");
   }
 }
 
@@ -402,8 +401,7 @@ void ApiServer::GetFrame(const httplib::Request& request, const std::string&, ht
   const uint64_t id = ParseJobId(request.matches[1]);
   const FrameFile file = ParseFrameFile(request.matches[2]);
   CheckFrameInJob(id, file.frame);
-  const std::filesystem::path path =
-      options_.storeRoot / std::to_string(id) / (FrameFileStem(file.frame) + "." + file.extension);
+  const std::filesystem::path path = frameStore_.FramePath(id, file.frame, file.extension);
   if (!ServeFile(response, path, file.contentType)) {
     throw ApiError(404, error_code::kFrameNotReady,
                    "frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +
@@ -426,8 +424,8 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
   }
   const int frame = std::stoi(number);
   CheckFrameInJob(id, frame);
-  const std::filesystem::path path =
-      options_.storeRoot / std::to_string(id) / (MaskFileStem(kind, frame) + ".png");
+  // The route's pattern admits only the two names.
+  const std::filesystem::path path = frameStore_.MaskPath(id, MaskKindFromName(kind).value(), frame);
   if (!ServeFile(response, path, "image/png")) {
     throw ApiError(404, error_code::kFrameNotReady,
                    std::string(kind == "mask" ? "the traced-pixel" : "the change") + " mask of frame " +
@@ -456,30 +454,23 @@ JobRecord ApiServer::LoadJob(uint64_t id) const {
 }
 
 json ApiServer::JobDetail(const JobRecord& record) {
-  const http::FrameSize frameSize = GeometryOf(record.id, &record).frameSize;
-  if (record.state != JobState::kRunning) return http::JobDetailJson(record, frameSize, nullptr);
+  if (record.state != JobState::kRunning) return http::JobDetailJson(record, nullptr);
   const FarmSnapshot snapshot = farm_.Snapshot();
   const auto live = snapshot.runningStats.find(record.id);
-  return http::JobDetailJson(record, frameSize,
-                             live == snapshot.runningStats.end() ? nullptr : &live->second);
+  return http::JobDetailJson(record, live == snapshot.runningStats.end() ? nullptr : &live->second);
 }
 
-ApiServer::JobGeometry ApiServer::GeometryOf(uint64_t id, const JobRecord* loaded) {
+ApiServer::FrameRange ApiServer::FrameRangeOf(uint64_t id) {
   {
-    std::lock_guard<std::mutex> lock(geometryMutex_);
-    const auto cached = geometry_.find(id);
-    if (cached != geometry_.end()) return cached->second;
+    std::lock_guard<std::mutex> lock(frameRangesMutex_);
+    const auto cached = frameRanges_.find(id);
+    if (cached != frameRanges_.end()) return cached->second;
   }
-  std::optional<JobRecord> fetched;
-  if (loaded == nullptr || loaded->spec.sceneJson.empty()) {
-    fetched = LoadJob(id);
-    loaded = &*fetched;
-  }
-  const JobGeometry geometry{http::RenderSizeOfScene(loaded->spec.sceneJson), loaded->spec.firstFrame,
-                             loaded->spec.lastFrame};
-  std::lock_guard<std::mutex> lock(geometryMutex_);
-  geometry_.emplace(id, geometry);
-  return geometry;
+  const JobRecord record = LoadJob(id);
+  const FrameRange range{record.spec.firstFrame, record.spec.lastFrame};
+  std::lock_guard<std::mutex> lock(frameRangesMutex_);
+  frameRanges_.emplace(id, range);
+  return range;
 }
 
 }  // namespace tcfarm

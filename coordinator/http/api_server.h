@@ -23,6 +23,7 @@
 #include "http/submit_request.h"
 #include "net/http_listener.h"
 #include "jobs/job_store.h"
+#include "store/frame_store.h"
 
 namespace httplib {
 class Server;
@@ -74,9 +75,8 @@ class ApiServer {
     const char* pattern;  // a regex on the decoded path; groups are the path parameters
     Handler handle;
   };
-  // What never changes about a job once submitted.
-  struct JobGeometry {
-    http::FrameSize frameSize;
+  // A job's frames, which never change once it is submitted.
+  struct FrameRange {
     int firstFrame = 0;
     int lastFrame = 0;
   };
@@ -90,7 +90,7 @@ class ApiServer {
   void RouteMiss(const httplib::Request& request, const std::string& body, httplib::Response& response);
 
   void SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void CheckJobFitsInMemory(const http::Submission& submission) const;
+  void CheckJobFitsInMemory(const JobSpec& spec) const;
   void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
@@ -104,18 +104,19 @@ class ApiServer {
   // Throws 400 invalid_parameter when frame is outside job id's frames.
   void CheckFrameInJob(uint64_t id, int frame);
   nlohmann::json JobDetail(const JobRecord& record);
-  // Cached per job: the frame size needs the scene JSON, which List results lack and
-  // which may be megabytes of mesh. Loads the job when neither cache nor record has it.
-  JobGeometry GeometryOf(uint64_t id, const JobRecord* loaded);
+  // Cached per job, so that serving a frame does not load the job's scene and per-frame
+  // counts each time.
+  FrameRange FrameRangeOf(uint64_t id);
 
   JobStore& store_;
   FarmControl& farm_;
   std::shared_ptr<prometheus::Registry> metrics_;
   ApiOptions options_;
+  FrameStore frameStore_;  // where options_.storeRoot holds each job's files
   std::vector<std::regex> routePatterns_;  // Routes() compiled once, for 405 vs 404
 
-  std::mutex geometryMutex_;
-  std::unordered_map<uint64_t, JobGeometry> geometry_;
+  std::mutex frameRangesMutex_;
+  std::unordered_map<uint64_t, FrameRange> frameRanges_;
 
   HttpListener listener_;
 };

@@ -277,10 +277,14 @@ TEST_F(ApiServerTest, SubmitTakesEveryOptionalField) {
   const JobSpec spec = store_->Get(id)->spec;
   EXPECT_EQ(spec.firstFrame, 2);
   EXPECT_EQ(spec.lastFrame, 7);
-  EXPECT_EQ(spec.strategy, "brute");
+  EXPECT_EQ(spec.strategy, Strategy::kBrute);
   EXPECT_EQ(spec.binWidth, 5);
   EXPECT_EQ(spec.tolerance, 0.25);
   EXPECT_EQ(spec.priority, -100);
+  // Read from the scene parsed at submit, so that the farm need not parse it again.
+  EXPECT_EQ(spec.frameSize.width, 8);
+  EXPECT_EQ(spec.frameSize.height, 6);
+  EXPECT_EQ(spec.cameraOrLightsChange, std::optional<bool>(false));
 
   // One end alone keeps the scene's other end; a single frame is a range too.
   body = Submission();
@@ -345,6 +349,12 @@ TEST_F(ApiServerTest, JobsWhoseFramesExceedTheMemoryForAJobAreRefused) {
   body["strategy"] = "exact";
   body["bin_width"] = 60;
   SubmitOk(body);
+  // auto is checked as the farm will run it: exact for this still camera, guarded with
+  // bins of up to 16 frames once the camera moves.
+  body["strategy"] = "auto";
+  SubmitOk(body);
+  body["scene"]["camera"]["position"] = {{"polynomial", {{0, 0.1}, {0, 0}, {5, 0}}}};
+  ExpectError(Post("/api/v1/jobs", body), 413, "job_too_large");
 }
 
 TEST_F(ApiServerTest, DuplicateKeysAreRefusedWithTheirPointer) {
@@ -403,11 +413,11 @@ TEST_F(ApiServerTest, FramesMustLieInsideTheScenesRange) {
 
 TEST_F(ApiServerTest, StrategyMustBeOneThatRunsToday) {
   json body = Submission();
-  for (const char* strategy : {"search", "brute", "guarded", "exact", "auto"}) {
-    body["strategy"] = strategy;
+  for (const StrategyNameEntry& entry : kStrategyNames) {
+    body["strategy"] = entry.name;
     auto result = Post("/api/v1/jobs", body);
     ASSERT_TRUE(result);
-    EXPECT_EQ(result->status, 201) << strategy << ": " << result->body;
+    EXPECT_EQ(result->status, 201) << entry.name << ": " << result->body;
   }
   body["strategy"] = "magic";
   ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/strategy",
@@ -934,6 +944,33 @@ TEST(OpenApiSpecTest, DescribesEveryRoute) {
                            "/api/v1/workers:", "/healthz:", "/metrics:"}) {
     EXPECT_NE(text.str().find(std::string("\n  ") + path), std::string::npos) << path;
   }
+}
+
+// Wherever the spec names the strategies (the submission, the job returned), it lists the
+// coordinator's own list, in its order: kStrategyNames is what the server accepts.
+TEST(OpenApiSpecTest, ListsTheStrategiesTheServerAccepts) {
+  std::ifstream in(kOpenApiSpec);
+  ASSERT_TRUE(in) << kOpenApiSpec;
+  std::string names;
+  for (const StrategyNameEntry& entry : kStrategyNames) {
+    names += (names.empty() ? "" : ", ") + std::string(entry.name);
+  }
+  const std::string expected = "enum: [" + names + "]";
+  size_t enums = 0;
+  size_t strategyIndent = std::string::npos;  // inside a `strategy:` property while set
+  for (std::string line; std::getline(in, line);) {
+    const size_t indent = line.find_first_not_of(' ');
+    if (indent == std::string::npos) continue;
+    const std::string trimmed = line.substr(indent);
+    if (strategyIndent != std::string::npos && indent <= strategyIndent) strategyIndent = std::string::npos;
+    if (trimmed == "strategy:") {
+      strategyIndent = indent;
+    } else if (strategyIndent != std::string::npos && trimmed.rfind("enum:", 0) == 0) {
+      EXPECT_EQ(trimmed, expected);
+      ++enums;
+    }
+  }
+  EXPECT_EQ(enums, 2u) << "the submission's and the job's strategy";
 }
 
 }  // namespace

@@ -7,21 +7,6 @@ namespace tcfarm::http {
 
 using nlohmann::json;
 
-FrameSize RenderSizeOfScene(const std::string& sceneJson) {
-  // The callback drops every top-level member but "render" as the parser reaches it, so
-  // meshes are tokenized but never stored.
-  json::parser_callback_t keepRenderOnly = [](int depth, json::parse_event_t event, json& parsed) {
-    return !(event == json::parse_event_t::key && depth == 1 && parsed != "render");
-  };
-  try {
-    const json scene = json::parse(sceneJson, keepRenderOnly);
-    const json& render = scene.at("render");
-    return FrameSize{render.at("width").get<int>(), render.at("height").get<int>()};
-  } catch (const json::exception&) {
-    return FrameSize{};
-  }
-}
-
 json IsoUtcOrNull(int64_t unixMs) {
   if (unixMs <= 0) return nullptr;
   const std::time_t seconds = static_cast<std::time_t>(unixMs / 1000);
@@ -36,7 +21,8 @@ json IsoUtcOrNull(int64_t unixMs) {
 
 std::string JobPath(uint64_t id) { return "/api/v1/jobs/" + std::to_string(id); }
 
-json JobJson(const JobRecord& record, FrameSize frameSize, const json* liveStats) {
+json JobJson(const JobRecord& record, const json* liveStats) {
+  const FrameSize frameSize = record.spec.frameSize;
   const int count = record.FrameCount();
   json stats = record.stats.is_object() ? record.stats : json::object();
   if (liveStats != nullptr && liveStats->is_object()) stats.merge_patch(*liveStats);
@@ -45,7 +31,7 @@ json JobJson(const JobRecord& record, FrameSize frameSize, const json* liveStats
       {"id", record.id},
       {"name", record.spec.name},
       {"state", ToString(record.state)},
-      {"strategy", record.spec.strategy},
+      {"strategy", std::string(StrategyName(record.spec.strategy))},
       {"bin_width", record.spec.binWidth},
       {"tolerance", record.spec.tolerance},
       {"priority", record.spec.priority},
@@ -71,8 +57,8 @@ json JobJson(const JobRecord& record, FrameSize frameSize, const json* liveStats
   return job;
 }
 
-json JobDetailJson(const JobRecord& record, FrameSize frameSize, const json* liveStats) {
-  json job = JobJson(record, frameSize, liveStats);
+json JobDetailJson(const JobRecord& record, const json* liveStats) {
+  json job = JobJson(record, liveStats);
   job["traced_per_frame"] = record.tracedPerFrame;
   return job;
 }

@@ -11,17 +11,6 @@
 
 namespace tcfarm::http {
 
-struct FrameSize {
-  int width = 0;
-  int height = 0;
-  uint64_t Pixels() const { return static_cast<uint64_t>(width) * static_cast<uint64_t>(height); }
-};
-
-// The scene's render.width/height, read without parsing the rest of the scene (a stored
-// scene may inline millions of triangles that this would otherwise build and validate).
-// 0x0 when the scene JSON has no render size, which a stored, validated scene always has.
-FrameSize RenderSizeOfScene(const std::string& sceneJson);
-
 // "2024-05-01T12:34:56.789Z"; null for 0 (the store's "not yet").
 nlohmann::json IsoUtcOrNull(int64_t unixMs);
 
@@ -29,12 +18,10 @@ nlohmann::json IsoUtcOrNull(int64_t unixMs);
 // merge-patched over record.stats, since the store's copy is only refreshed now and then.
 // traced_pixel_ratio always counts finished frames only (JobRecord::TracedPixelRatio):
 // live while running, and over all frames once frames.done == frames.count.
-nlohmann::json JobJson(const JobRecord& record, FrameSize frameSize,
-                       const nlohmann::json* liveStats);
+nlohmann::json JobJson(const JobRecord& record, const nlohmann::json* liveStats);
 // JobJson plus "traced_per_frame" (-1 for frames not finished), for a record from
 // JobStore::Get; lists leave it out, as JobStore::List does, to stay cheap.
-nlohmann::json JobDetailJson(const JobRecord& record, FrameSize frameSize,
-                             const nlohmann::json* liveStats);
+nlohmann::json JobDetailJson(const JobRecord& record, const nlohmann::json* liveStats);
 
 // GET /api/v1/workers body.
 nlohmann::json WorkersJson(const FarmSnapshot& snapshot);

@@ -95,17 +95,17 @@ std::string ReadName(const json& request) {
   return name->get<std::string>();
 }
 
-std::string ReadStrategy(const json& request) {
+Strategy ReadStrategy(const json& request) {
   const auto strategy = request.find("strategy");
-  if (strategy == request.end()) return kAcceptedStrategies[0];
-  std::string expected = "one of";
-  for (const char* accepted : kAcceptedStrategies) {
-    expected += std::string(expected == "one of" ? " \"" : ", \"") + accepted + "\"";
-  }
+  if (strategy == request.end()) return kDefaultStrategy;
   if (strategy->is_string()) {
-    for (const char* accepted : kAcceptedStrategies) {
-      if (*strategy == accepted) return accepted;
+    if (std::optional<Strategy> known = StrategyFromString(strategy->get_ref<const std::string&>())) {
+      return *known;
     }
+  }
+  std::string expected = "one of";
+  for (const StrategyNameEntry& entry : kStrategyNames) {
+    expected += std::string(expected == "one of" ? " \"" : ", \"") + std::string(entry.name) + "\"";
   }
   Fail(error_code::kInvalidField, "/strategy", ShowValue(*strategy) + " is not a supported strategy", expected);
 }
@@ -216,7 +216,7 @@ json ReadSpotCheckShare(const json& request) {
 
 }  // namespace
 
-Submission ParseSubmission(const std::string& body) {
+JobSpec ParseSubmission(const std::string& body) {
   const json request = ParseBody(body);
   if (!request.is_object()) {
     Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object",
@@ -224,8 +224,7 @@ Submission ParseSubmission(const std::string& body) {
   }
   CheckKnownFields(request);
 
-  Submission submission;
-  JobSpec& spec = submission.spec;
+  JobSpec spec;
   // Cheap fields first, so a typo in one of them is reported before a long scene parse.
   spec.name = ReadName(request);
   spec.strategy = ReadStrategy(request);
@@ -244,8 +243,9 @@ Submission ParseSubmission(const std::string& body) {
   // key order or spacing, so workers cache them once.
   spec.sceneJson = SerializeScene(scene);
   spec.sceneHash = wire::Sha256Hex(spec.sceneJson);
-  submission.frameSize = FrameSize{scene.render.width, scene.render.height};
-  return submission;
+  spec.frameSize = FrameSize{scene.render.width, scene.render.height};
+  spec.cameraOrLightsChange = scene.CameraMoves() || scene.AnyLightChanges();
+  return spec;
 }
 
 }  // namespace tcfarm::http

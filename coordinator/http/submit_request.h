@@ -8,10 +8,6 @@
 
 namespace tcfarm::http {
 
-// The strategies a submission may name today; the planners for "guarded", "exact" and
-// "auto" do not exist yet, so accepting them would queue jobs nobody can run.
-inline constexpr const char* kAcceptedStrategies[] = {"search", "brute", "guarded", "exact", "auto"};
-
 // Field ranges. bin_width 1 would make every frame its own bin: the search strategy then
 // has no neighbouring frame to copy from, which "brute" already says more plainly.
 inline constexpr int kMinBinWidth = 2;
@@ -20,15 +16,13 @@ inline constexpr int kMinPriority = -100;
 inline constexpr int kMaxPriority = 100;
 inline constexpr size_t kMaxNameBytes = 256;  // a label for lists, not a document
 
-struct Submission {
-  JobSpec spec;       // sceneJson canonical (SerializeScene), sceneHash its SHA-256
-  FrameSize frameSize;  // from the parsed scene, so the server need not parse it again
-};
-
 // Throws ApiError (status 400) naming the JSON pointer of the first bad value: invalid_json,
 // unknown_field, missing_field, invalid_field or invalid_scene. Duplicate keys anywhere in
 // the body are refused as invalid_json, as the scene parser refuses them in scene files:
 // silently keeping one of two values is never what the sender meant.
-Submission ParseSubmission(const std::string& body);
+// The spec's sceneJson is canonical (SerializeScene), sceneHash its SHA-256; frameSize and
+// cameraOrLightsChange come from the scene parsed here, the only parse on the job's way
+// to the planners.
+JobSpec ParseSubmission(const std::string& body);
 
 }  // namespace tcfarm::http

@@ -128,9 +128,12 @@ class Statement {
     while (Step()) {
     }
   }
+  // Ready to run again with new bindings.
+  void Reset() { sqlite3_reset(handle_); }
 
   // Columns are numbered from 0, as in SQLite.
   int64_t Int64(int column) const { return sqlite3_column_int64(handle_, column); }
+  bool IsNull(int column) const { return sqlite3_column_type(handle_, column) == SQLITE_NULL; }
   int Int(int column) const { return static_cast<int>(Int64(column)); }
   uint64_t UInt64(int column) const { return static_cast<uint64_t>(Int64(column)); }
   double Double(int column) const { return sqlite3_column_double(handle_, column); }
@@ -226,7 +229,49 @@ constexpr std::array<const char*, JobStore::kSchemaVersion> kMigrations = {{
         PRIMARY KEY (job_id, frame)
       ) WITHOUT ROWID;
     )sql",
+    // The scene's frame size and motion, read at submit. Older rows get their size from
+    // BackfillFrameSizes; their motion stays NULL (unknown).
+    R"sql(
+      ALTER TABLE jobs ADD COLUMN width  INTEGER NOT NULL DEFAULT 0;
+      ALTER TABLE jobs ADD COLUMN height INTEGER NOT NULL DEFAULT 0;
+      ALTER TABLE jobs ADD COLUMN camera_or_lights_change INTEGER;
+    )sql",
 }};
+
+// The scene's render.width/height, read without parsing the rest of the scene (a stored
+// scene may inline millions of triangles). 0x0 when the JSON has no render size, which a
+// stored, validated scene always has.
+FrameSize RenderSizeOfScene(const std::string& sceneJson) {
+  // The callback drops every top-level member but "render" as the parser reaches it, so
+  // meshes are tokenized but never stored.
+  nlohmann::json::parser_callback_t keepRenderOnly = [](int depth, nlohmann::json::parse_event_t event,
+                                                        nlohmann::json& parsed) {
+    return !(event == nlohmann::json::parse_event_t::key && depth == 1 && parsed != "render");
+  };
+  try {
+    const nlohmann::json scene = nlohmann::json::parse(sceneJson, keepRenderOnly);
+    const nlohmann::json& render = scene.at("render");
+    return FrameSize{render.at("width").get<int>(), render.at("height").get<int>()};
+  } catch (const nlohmann::json::exception&) {
+    return FrameSize{};
+  }
+}
+
+// Schema 2 stores each job's frame size; rows written before it get theirs from their
+// scene, once, here.
+void BackfillFrameSizes(Database& db) {
+  std::vector<std::pair<int64_t, FrameSize>> sizes;
+  {
+    Statement scenes(db, "SELECT job_id, scene_json FROM job_scenes");
+    while (scenes.Step()) sizes.emplace_back(scenes.Int64(0), RenderSizeOfScene(scenes.Text(1)));
+  }
+  Statement update(db, "UPDATE jobs SET width = ?2, height = ?3 WHERE id = ?1");
+  for (const auto& [id, size] : sizes) {
+    update.Reset();
+    update.Bind(1, id).Bind(2, int64_t{size.width}).Bind(3, int64_t{size.height});
+    update.Run();
+  }
+}
 
 int ReadSchemaVersion(Database& db) {
   Statement statement(db, "PRAGMA user_version");
@@ -251,6 +296,7 @@ void MigrateForward(Database& db) {
                         "); run a newer coordinator or use another file");
   }
   for (int next = version; next < JobStore::kSchemaVersion; ++next) db.Exec(kMigrations[next]);
+  if (version >= 1 && version < 2) BackfillFrameSizes(db);
   if (version != JobStore::kSchemaVersion) WriteSchemaVersion(db, JobStore::kSchemaVersion);
   transaction.Commit();
 }
@@ -272,7 +318,18 @@ void ConfigureConnection(Database& db) {
 const std::string kSelectJobColumns =
     "SELECT id, name, scene_hash, first_frame, last_frame, strategy, bin_width, tolerance, "
     "priority, options, state, error, submitted_ms, started_ms, finished_ms, frames_done, "
-    "traced_pixels, copied_pixels, stats FROM jobs ";
+    "traced_pixels, copied_pixels, stats, width, height, camera_or_lights_change FROM jobs ";
+
+// Submit writes only names from kStrategyNames, so another one means the file was changed
+// behind the coordinator's back: guessing what the job wanted would render the wrong thing.
+Strategy StrategyOfRow(uint64_t id, const std::string& name) {
+  const std::optional<Strategy> strategy = StrategyFromString(name);
+  if (!strategy) {
+    throw JobStoreError("job " + std::to_string(id) + " has strategy '" + name +
+                        "'; expected one this coordinator knows");
+  }
+  return *strategy;
+}
 
 JobRecord ReadRecord(const Statement& row) {
   JobRecord record;
@@ -281,7 +338,7 @@ JobRecord ReadRecord(const Statement& row) {
   record.spec.sceneHash = row.Text(2);
   record.spec.firstFrame = row.Int(3);
   record.spec.lastFrame = row.Int(4);
-  record.spec.strategy = row.Text(5);
+  record.spec.strategy = StrategyOfRow(record.id, row.Text(5));
   record.spec.binWidth = row.Int(6);
   record.spec.tolerance = row.Double(7);
   record.spec.priority = row.Int(8);
@@ -296,6 +353,8 @@ JobRecord ReadRecord(const Statement& row) {
   record.tracedPixels = row.UInt64(16);
   record.copiedPixels = row.UInt64(17);
   record.stats = nlohmann::json::parse(row.Text(18));
+  record.spec.frameSize = FrameSize{row.Int(19), row.Int(20)};
+  if (!row.IsNull(21)) record.spec.cameraOrLightsChange = row.Int(21) != 0;
   return record;
 }
 
@@ -352,6 +411,11 @@ void ValidateSpec(const JobSpec& spec) {
     throw std::invalid_argument("job spec: tolerance must be finite and >= 0, got " +
                                 std::to_string(spec.tolerance));
   }
+  if (spec.frameSize.width < 1 || spec.frameSize.height < 1) {
+    throw std::invalid_argument("job spec: frameSize must be at least 1x1, got " +
+                                std::to_string(spec.frameSize.width) + "x" +
+                                std::to_string(spec.frameSize.height));
+  }
 }
 
 // One guarded UPDATE moves a job between states: the WHERE clause names the states the
@@ -405,12 +469,15 @@ uint64_t JobStore::Submit(const JobSpec& spec) {
   Transaction transaction(*db_);
   Statement insert(*db_,
                    "INSERT INTO jobs (name, scene_hash, first_frame, last_frame, strategy, "
-                   "bin_width, tolerance, priority, options, state, submitted_ms) "
-                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued', ?10)");
+                   "bin_width, tolerance, priority, options, state, submitted_ms, width, height, "
+                   "camera_or_lights_change) "
+                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued', ?10, ?11, ?12, ?13)");
   insert.Bind(1, spec.name).Bind(2, spec.sceneHash);
   insert.Bind(3, int64_t{spec.firstFrame}).Bind(4, int64_t{spec.lastFrame});
-  insert.Bind(5, spec.strategy).Bind(6, int64_t{spec.binWidth}).Bind(7, spec.tolerance);
+  insert.Bind(5, StrategyName(spec.strategy)).Bind(6, int64_t{spec.binWidth}).Bind(7, spec.tolerance);
   insert.Bind(8, int64_t{spec.priority}).Bind(9, spec.options.dump()).Bind(10, nowMs_());
+  insert.Bind(11, int64_t{spec.frameSize.width}).Bind(12, int64_t{spec.frameSize.height});
+  if (spec.cameraOrLightsChange) insert.Bind(13, int64_t{*spec.cameraOrLightsChange ? 1 : 0});
   insert.Run();
   const int64_t id = db_->LastInsertRowId();
   Statement scene(*db_, "INSERT INTO job_scenes (job_id, scene_json) VALUES (?1, ?2)");

@@ -30,6 +30,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "planner/strategy.h"
+
 namespace tcfarm {
 
 enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCanceled };
@@ -39,17 +41,30 @@ enum class JobState { kQueued, kRunning, kCompleted, kFailed, kCanceled };
 std::string ToString(JobState state);
 std::optional<JobState> JobStateFromString(std::string_view name);
 
+// A frame's size in pixels.
+struct FrameSize {
+  int width = 0;
+  int height = 0;
+  uint64_t Pixels() const { return static_cast<uint64_t>(width) * static_cast<uint64_t>(height); }
+};
+
 struct JobSpec {
   std::string name;       // the user's label, may be empty
   std::string sceneJson;  // self-contained scene JSON, already validated by the caller
   std::string sceneHash;  // SHA-256 hex of sceneJson, computed by the caller
   int firstFrame = 0;     // inclusive
   int lastFrame = 0;      // inclusive
-  std::string strategy = "search";  // "brute" | "search" | later "guarded" | "exact" | "auto"
+  Strategy strategy = kDefaultStrategy;  // as requested: kAuto stays kAuto here
   int binWidth = 10;                // frames per bin
   double tolerance = 0;
   int priority = 0;        // higher runs first and gets a larger share of the workers
   nlohmann::json options;  // anything else (verify settings, ...), stored as JSON text
+  // Taken from the scene when it is parsed at submit, so that nothing parses it again: its
+  // render size (>= 1 x 1), and whether its camera or a light changes (auto's rule).
+  // Jobs stored before schema 2 get their size when the file is migrated; whether their
+  // camera or lights change is not known (nullopt).
+  FrameSize frameSize;
+  std::optional<bool> cameraOrLightsChange;
 };
 
 struct JobRecord {
@@ -95,7 +110,7 @@ class JobStore {
 
   // The newest schema this code knows. A file with a newer one is refused, since an older
   // coordinator cannot know what the newer columns mean.
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
 
   // Creates the file or opens it, migrating an older schema forward. Throws JobStoreError
   // naming the path when the file is not a database, is unreadable, or is too new.
@@ -105,8 +120,8 @@ class JobStore {
   JobStore& operator=(const JobStore&) = delete;
 
   // Adds a queued job and returns its id (ids only grow, never reused). Throws
-  // std::invalid_argument when the frame range is empty, binWidth < 1 or tolerance is
-  // negative or not finite.
+  // std::invalid_argument when the frame range is empty, binWidth < 1, tolerance is
+  // negative or not finite, or the frame size is not at least 1 x 1.
   uint64_t Submit(const JobSpec& spec);
 
   std::optional<JobRecord> Get(uint64_t id) const;  // with sceneJson and tracedPerFrame

@@ -43,6 +43,7 @@ class JobStoreTest : public ::testing::Test {
     spec.firstFrame = 1;
     spec.lastFrame = 10;
     spec.priority = priority;
+    spec.frameSize = {8, 6};
     return spec;
   }
 
@@ -86,11 +87,13 @@ TEST_F(JobStoreTest, SubmitGetRoundTripsEveryField) {
   spec.sceneHash = std::string(64, 'f');
   spec.firstFrame = -3;
   spec.lastFrame = 7;
-  spec.strategy = "brute";
+  spec.strategy = Strategy::kBrute;
   spec.binWidth = 4;
   spec.tolerance = 0.125;
   spec.priority = -2;
   spec.options = {{"verify", {{"frames", "sampled"}, {"every", 5}}}};
+  spec.frameSize = {640, 360};
+  spec.cameraOrLightsChange = true;
   nowMs_ = 42;
   const uint64_t id = store->Submit(spec);
 
@@ -102,11 +105,14 @@ TEST_F(JobStoreTest, SubmitGetRoundTripsEveryField) {
   EXPECT_EQ(record->spec.sceneHash, spec.sceneHash);
   EXPECT_EQ(record->spec.firstFrame, -3);
   EXPECT_EQ(record->spec.lastFrame, 7);
-  EXPECT_EQ(record->spec.strategy, "brute");
+  EXPECT_EQ(record->spec.strategy, Strategy::kBrute);
   EXPECT_EQ(record->spec.binWidth, 4);
   EXPECT_EQ(record->spec.tolerance, 0.125);
   EXPECT_EQ(record->spec.priority, -2);
   EXPECT_EQ(record->spec.options, spec.options);
+  EXPECT_EQ(record->spec.frameSize.width, 640);
+  EXPECT_EQ(record->spec.frameSize.height, 360);
+  EXPECT_EQ(record->spec.cameraOrLightsChange, std::optional<bool>(true));
   EXPECT_EQ(record->state, JobState::kQueued);
   EXPECT_EQ(record->error, "");
   EXPECT_EQ(record->submittedMs, 42);
@@ -472,6 +478,31 @@ TEST_F(JobStoreTest, NewerSchemaIsRefused) {
   Open()->Submit(Spec());
   RawExec(file_, "PRAGMA user_version = 99");
   ExpectOpenFailsMentioning(file_, "schema version 99 is newer");
+}
+
+// A file written by schema 1 (no frame size, no motion) opens: its jobs get their frame
+// size from their scenes, once, and their motion reads as unknown.
+TEST_F(JobStoreTest, SchemaOneFilesGetTheirFrameSizesFromTheirScenes) {
+  JobSpec spec = Spec();
+  spec.sceneJson = R"({"camera": {}, "render": {"width": 320, "height": 200}})";
+  spec.cameraOrLightsChange = false;
+  const uint64_t id = Open()->Submit(spec);
+  RawExec(file_,
+          "ALTER TABLE jobs DROP COLUMN width; ALTER TABLE jobs DROP COLUMN height; "
+          "ALTER TABLE jobs DROP COLUMN camera_or_lights_change; PRAGMA user_version = 1");
+  auto store = Open();
+  const std::optional<JobRecord> record = store->Get(id);
+  ASSERT_TRUE(record.has_value());
+  EXPECT_EQ(record->spec.frameSize.width, 320);
+  EXPECT_EQ(record->spec.frameSize.height, 200);
+  EXPECT_FALSE(record->spec.cameraOrLightsChange.has_value());
+  EXPECT_EQ(store->List().at(0).spec.frameSize.width, 320);  // lists need no scene for it
+}
+
+TEST_F(JobStoreTest, JobsWithoutAFrameSizeAreRefused) {
+  JobSpec spec = Spec();
+  spec.frameSize = {0, 6};
+  EXPECT_THROW(Open()->Submit(spec), std::invalid_argument);
 }
 
 TEST_F(JobStoreTest, NewFileGetsTheCurrentSchemaVersion) {

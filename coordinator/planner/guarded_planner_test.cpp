@@ -669,14 +669,34 @@ TEST(AutoGuardedPlanner, RejectsUnknownIdsAndIgnoresRedeliveredSurveys) {
 }
 
 TEST(Planner, StrategiesByName) {
-  for (const char* name : {"brute", "search", "guarded", "exact"}) {
+  for (const char* name : {"brute", "search", "guarded", "exact", "auto"}) {
     const auto strategy = StrategyFromString(name);
     ASSERT_TRUE(strategy.has_value()) << name;
     EXPECT_EQ(StrategyName(*strategy), name);
   }
-  EXPECT_FALSE(StrategyFromString("auto").has_value());
+  EXPECT_EQ(kDefaultStrategy, Strategy::kSearch);
   EXPECT_FALSE(StrategyFromString("").has_value());
   EXPECT_FALSE(StrategyFromString("Search").has_value());
+  EXPECT_THROW(MakePlanner(Strategy::kAuto, Options(12, 9, 9, 5, 4)), std::invalid_argument);
+}
+
+// auto's one rule: exact with a segment per worker when only shapes move, else guarded
+// surveyed up to its widest bin; the others run as asked, brute with bins of 2.
+TEST(Planner, ResolveStrategy) {
+  const ResolvedStrategy still = ResolveStrategy(Strategy::kAuto, 10, 60, false, 4);
+  EXPECT_EQ(still.strategy, Strategy::kExact);
+  EXPECT_EQ(still.binWidth, 15);
+  EXPECT_FALSE(still.surveyBinWidth);
+  EXPECT_EQ(ResolveStrategy(Strategy::kAuto, 10, 3, false, 8).binWidth, 1);  // more workers than frames
+  const ResolvedStrategy moving = ResolveStrategy(Strategy::kAuto, 10, 60, true, 4);
+  EXPECT_EQ(moving.strategy, Strategy::kGuarded);
+  EXPECT_EQ(moving.binWidth, kAutoWidestBin);
+  EXPECT_TRUE(moving.surveyBinWidth);
+  EXPECT_EQ(ResolveStrategy(Strategy::kAuto, 10, 1, true, 4).binWidth, 2);
+  EXPECT_EQ(ResolveStrategy(Strategy::kBrute, 10, 60, true, 4).binWidth, 2);
+  const ResolvedStrategy asked = ResolveStrategy(Strategy::kSearch, 7, 60, true, 4);
+  EXPECT_EQ(asked.strategy, Strategy::kSearch);
+  EXPECT_EQ(asked.binWidth, 7);
 }
 
 TEST(Planner, MakePlannerBuildsEachStrategy) {

@@ -11,27 +11,6 @@
 
 namespace tcfarm {
 
-std::optional<Strategy> StrategyFromString(std::string_view name) {
-  for (Strategy strategy : {Strategy::kBrute, Strategy::kSearch, Strategy::kGuarded, Strategy::kExact}) {
-    if (name == StrategyName(strategy)) return strategy;
-  }
-  return std::nullopt;
-}
-
-std::string_view StrategyName(Strategy strategy) {
-  switch (strategy) {
-    case Strategy::kBrute:
-      return "brute";
-    case Strategy::kSearch:
-      return "search";
-    case Strategy::kGuarded:
-      return "guarded";
-    case Strategy::kExact:
-      return "exact";
-  }
-  return "unknown";
-}
-
 int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCount) {
   const long width = strategy == Strategy::kBrute ? 2 : binWidth;
   const long planner = strategy == Strategy::kExact ? liveBins : liveBins * (width + 1);
@@ -83,8 +62,11 @@ std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& op
       return std::make_unique<GuardedPlanner>(options);
     case Strategy::kExact:
       return std::make_unique<ExactPlanner>(options);
+    case Strategy::kAuto:
+      break;
   }
-  throw std::invalid_argument("unknown planner strategy " + std::to_string(static_cast<int>(strategy)));
+  throw std::invalid_argument("no planner for strategy '" + std::string(StrategyName(strategy)) +
+                              "'; expected a resolved strategy (ResolveStrategy)");
 }
 
 namespace planner_internal {

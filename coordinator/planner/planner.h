@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "pixel_set/pixel_set.h"
+#include "planner/strategy.h"
 
 namespace tcfarm {
 
@@ -94,20 +95,8 @@ std::vector<T> TakeAll(std::vector<T>& queue) {
   return taken;
 }
 
-enum class Strategy { kBrute, kSearch, kGuarded, kExact };
-
-// Auto's widest guarded bin: equation 3 keeps falling with n for any d < 1, so the width
-// is chosen by a coarse survey of the sequence (planner/bin_width_survey.h) up to this.
-// Past it the paper's measured cost has long flattened (Figure 9) while a copied pixel's
-// span, and with it the error the guard misses, keeps growing.
-constexpr int kAutoWidestBin = 16;
-
-// "brute", "search", "guarded", "exact"; nullopt for anything else.
-std::optional<Strategy> StrategyFromString(std::string_view name);
-std::string_view StrategyName(Strategy strategy);
-
-// The coordinator's memory for one job, in frames of width x height float RGB (12 bytes a
-// pixel), at most: the planner's working frames with `liveBins` bins (segments) at once
+// The coordinator's memory for one job (of a resolved strategy), in frames of width x
+// height float RGB (12 bytes a pixel), at most: the planner's working frames with `liveBins` bins (segments) at once
 // (a search or guarded bin holds its own frames, an exact segment one working frame),
 // plus kFarmFramesPerJob the farm keeps (frames waiting for the writer and queued in it,
 // the coherence analysis), and never more than the job's own frames plus those the farm
@@ -128,7 +117,8 @@ std::string MemoryShortfall(uint64_t budgetBytes, int width, int height, Strateg
                             int frameCount);
 
 // brute is search with binWidth 2 (options.binWidth is ignored for it). Throws
-// std::invalid_argument naming the bad option and its expected range.
+// std::invalid_argument naming the bad option and its expected range, or for kAuto
+// (resolve it first: ResolveStrategy).
 std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& options);
 
 // Shared by the planners' implementations; not for callers.

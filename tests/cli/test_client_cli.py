@@ -90,3 +90,14 @@ def test_bad_input_is_one_clear_line_and_a_nonzero_exit(farm, scene_file, tmp_pa
 def test_cancel_of_a_finished_job_is_refused(farm, finished_job):
     result = tcfarm(farm, "cancel", finished_job["id"])
     assert result.returncode == 1 and "job_finished (409)" in result.stderr
+
+
+def test_strategy_choices_are_the_apis():
+    # The coordinator's own list is checked against the same spec (api_server_test).
+    yaml = pytest.importorskip("yaml")
+    from tcfarm.cli import STRATEGIES  # farm_harness put the client on the path
+    spec = yaml.safe_load((ROOT / "proto" / "openapi.yaml").read_text())
+    schemas = spec["components"]["schemas"]
+    enums = [schema["properties"]["strategy"]["enum"] for schema in schemas.values()
+             if "strategy" in schema.get("properties", {})]
+    assert len(enums) == 2 and all(sorted(enum) == sorted(STRATEGIES) for enum in enums), enums

@@ -10,6 +10,20 @@ from farm_harness import LocalFarm, compare, render_reference, small_scene
 from tcfarm.client import ApiError
 
 
+def counter(metrics, name):
+    """The value of an unlabelled metric; fails when the coordinator does not export it."""
+    match = re.search(rf"^{re.escape(name)} (\S+)$", metrics, re.M)
+    assert match, f"{name} is not exported"
+    return float(match.group(1))
+
+
+def holds_tasks(farm, worker_name):
+    """True when the farm's last snapshot shows the worker holding tasks with more queued."""
+    workers = farm.client.workers()
+    held = [w["in_flight"] for w in workers["workers"] if w["name"] == worker_name]
+    return workers["queued_tasks"] > 0 and held and held[0] > 0
+
+
 @pytest.fixture(scope="module")
 def twelve_spheres(scenes_dir):
     return small_scene(scenes_dir / "paper_b_twelve_spheres.json")
@@ -57,7 +71,8 @@ def test_a_worker_killed_mid_job_loses_no_pixel(tmp_path, twelve_spheres, refere
         farm.wait_for_workers(2)
         job = farm.client.submit(twelve_spheres, strategy="brute")
         deadline = time.monotonic() + 120
-        while farm.client.job(job["id"])["frames"]["done"] < 3:
+        # Killed while it holds tasks and more wait in the queue, so it dies owing pixels.
+        while not (farm.client.job(job["id"])["frames"]["done"] >= 3 and holds_tasks(farm, "test-0")):
             assert time.monotonic() < deadline, "no progress"
             time.sleep(0.02)
         farm.workers[0].send_signal(signal.SIGKILL)
@@ -65,7 +80,7 @@ def test_a_worker_killed_mid_job_loses_no_pixel(tmp_path, twelve_spheres, refere
         assert job["state"] == "completed", job
         error = compare(reference, farm.store / str(job["id"]))
         assert error["differing_pixels"] == 0
-        assert "tcfarm_tasks_requeued_total" in farm.metrics()
+        assert counter(farm.metrics(), "tcfarm_tasks_requeued_total") > 0
 
 
 def test_frames_that_finish_ahead_wait_on_disk_when_memory_is_short(tmp_path, twelve_spheres,
@@ -123,8 +138,7 @@ def test_a_worker_building_a_large_scene_is_not_taken_for_dead(tmp_path):
         farm.wait_for_workers(1)
         job = farm.run_job(LARGE_TERRAIN, strategy="brute", timeout=600)
         assert job["state"] == "completed", job
-        requeued = re.search(r"^tcfarm_tasks_requeued_total (\S+)$", farm.metrics(), re.M)
-        assert requeued is None or float(requeued.group(1)) == 0
+        assert counter(farm.metrics(), "tcfarm_tasks_requeued_total") == 0
         assert "reconnecting" not in farm.worker_log(0).read_text()
 
 
@@ -146,6 +160,22 @@ def test_the_farm_keeps_answering_while_large_frames_are_encoded(tmp_path):
         job = farm.run_job(scene, strategy="exact", bin_width=12, timeout=120)
         assert job["frames"]["done"] == 12 and job["traced_pixel_ratio"] < 0.1
         assert "reconnecting" not in farm.worker_log(0).read_text()
+
+
+def test_a_stopping_coordinator_says_goodbye_and_its_workers_reconnect_at_once(tmp_path):
+    # Each side waits a minute for a silent peer: only the goodbye can tell the worker sooner.
+    with LocalFarm(tmp_path, workers=0, coordinator_args=("--worker-timeout", "60000")) as farm:
+        worker = farm.add_worker("--coordinator-timeout", "60000")
+        farm.wait_for_workers(1)
+        farm.coordinator.send_signal(signal.SIGTERM)
+        assert farm.coordinator.wait(timeout=10) == 0
+        deadline = time.monotonic() + 10
+        log = farm.worker_log(0)
+        while "said goodbye; reconnecting" not in log.read_text():
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.05)
+        assert "silent" not in log.read_text()
+        assert worker.poll() is None, "a worker outlives its coordinator, reconnecting"
 
 
 def test_a_bad_scene_fails_the_request_not_the_farm(farm, twelve_spheres):

@@ -83,9 +83,10 @@ void WorkerDaemon::Reconnect(const std::atomic<bool>& stop) {
   for (auto& [hash, build] : building_) build.tasks.clear();  // the scene itself is still worth having
   socket_.reset();
   Milliseconds delay = backoff_.Next();
-  std::fprintf(stderr, "worker %s: coordinator %s silent; reconnecting in %lld ms\n",
+  std::fprintf(stderr, "worker %s: coordinator %s %s; reconnecting in %lld ms\n",
                options_.name.c_str(), options_.coordinator.c_str(),
-               static_cast<long long>(delay.count()));
+               coordinatorLeft_ ? "said goodbye" : "silent", static_cast<long long>(delay.count()));
+  coordinatorLeft_ = false;
   for (auto waited = Milliseconds(0); waited < delay && !stop; waited += Milliseconds(50)) {
     std::this_thread::sleep_for(Milliseconds(50));
   }
@@ -103,10 +104,10 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
     zmq::poll(&item, 1, std::chrono::milliseconds(ready_.empty() ? kIdlePollMs : 0));
     ReceiveAll();
     CollectBuiltScenes();
-    if (!ready_.empty()) TraceNext();
+    if (!ready_.empty() && !coordinatorLeft_) TraceNext();
     SteadyTime now = clock_.Now();
     lastLoopTurn_ = now.time_since_epoch().count();
-    if (coordinator_.IsDead(now)) {
+    if (coordinatorLeft_ || coordinator_.IsDead(now)) {
       Reconnect(stop);
       continue;
     }
@@ -143,8 +144,8 @@ void WorkerDaemon::Handle(wire::Message message) {
     // The coordinator cannot serve a scene we asked for (its job is gone): drop its tasks.
     waitingForScene_.erase(error->sceneHash);
   } else if (std::holds_alternative<wire::Disconnect>(message)) {
-    // The coordinator is going away: treat it as dead now rather than in 5 s.
-    coordinator_ = PeerLiveness(options_.heartbeat, clock_.Now() - options_.heartbeat.timeout);
+    // The coordinator is going away: reconnect now rather than after its silence.
+    coordinatorLeft_ = true;
   }
   // HEARTBEAT only proves liveness; other commands are not for workers.
 }

@@ -1,7 +1,8 @@
 // `tcfarm-worker serve`: a stateless tracing process. It connects a DEALER socket to the
 // coordinator, announces its capacity, traces whatever (frame, pixel set) tasks arrive
 // and sends the pixels back. It holds no job state: if it dies, the coordinator
-// requeues its tasks; if the coordinator goes silent, it reconnects with back-off.
+// requeues its tasks; if the coordinator goes silent or says goodbye (DISCONNECT), it
+// reconnects with back-off.
 //
 // One thread owns the socket and does everything; tracing fans out over the thread pool.
 // Tasks are small (tens of milliseconds), so heartbeats still go out on time.
@@ -82,6 +83,7 @@ class WorkerDaemon {
   WorkerMetrics metrics_;
   std::atomic<SteadyTime::rep> lastLoopTurn_;
   std::atomic<bool> coordinatorAnswers_{false};
+  bool coordinatorLeft_ = false;  // it said DISCONNECT: reconnect without waiting for its silence
 };
 
 }  // namespace tcfarm

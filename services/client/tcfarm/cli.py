@@ -20,6 +20,9 @@ import time
 
 from tcfarm.client import ApiError, Client
 
+# The coordinator's strategies (proto/openapi.yaml; tests/cli/test_client_cli.py keeps them equal).
+STRATEGIES = ("auto", "exact", "guarded", "search", "brute")
+
 
 def _frames(text):
     start, _, end = text.partition(":")
@@ -167,7 +170,7 @@ def main(argv=None):
     submit.add_argument("scene")
     submit.add_argument("--name")
     submit.add_argument("--frames", type=_frames)
-    submit.add_argument("--strategy", choices=["auto", "exact", "guarded", "search", "brute"])
+    submit.add_argument("--strategy", choices=STRATEGIES)
     submit.add_argument("--bin-width", type=int)
     submit.add_argument("--tolerance", type=float)
     submit.add_argument("--priority", type=int)

@@ -1,0 +1,59 @@
+// For tests: a worker in the test's own process, a real DEALER socket that speaks the
+// wire protocol and answers tasks with a fixed colour instead of tracing.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include <zmq.hpp>
+
+#include "wire/wire.h"
+#include "wire/zmq_io.h"
+
+namespace tcfarm {
+
+class FakeWorker {
+ public:
+  FakeWorker(zmq::context_t& context, const std::string& endpoint, uint32_t capacity)
+      : socket_(context, zmq::socket_type::dealer) {
+    socket_.set(zmq::sockopt::linger, 0);
+    socket_.connect(endpoint);
+    Send(wire::Ready{capacity, 1, "fake"});
+  }
+  void Send(const wire::Message& message) { ASSERT_TRUE(wire::SendMessage(socket_, message)); }
+  void SendRaw(const std::vector<std::string>& parts) {
+    for (size_t i = 0; i < parts.size(); ++i) {
+      socket_.send(zmq::buffer(parts[i]),
+                   i + 1 < parts.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+    }
+  }
+  // Everything the dispatcher sent us so far, decoded.
+  std::vector<wire::Message> Drain() {
+    std::vector<wire::Message> messages;
+    while (auto parts = wire::ReceiveParts(socket_)) messages.push_back(wire::Decode(*parts));
+    return messages;
+  }
+  std::vector<wire::Task> Tasks() {
+    std::vector<wire::Task> tasks;
+    for (auto& m : Drain()) {
+      if (auto* t = std::get_if<wire::Task>(&m)) tasks.push_back(std::move(*t));
+    }
+    return tasks;
+  }
+  // Every pixel `value`, traced in no time.
+  void Answer(const wire::Task& task, float value = 0.5f) {
+    wire::Result result;
+    result.taskId = task.taskId;
+    result.jobId = task.jobId;
+    result.frame = task.frame;
+    result.rgb.assign(task.pixels.size() * 3, value);
+    Send(result);
+  }
+
+ private:
+  zmq::socket_t socket_;
+};
+
+}  // namespace tcfarm

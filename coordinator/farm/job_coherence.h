@@ -1,0 +1,50 @@
+// A job's coherence (DESIGN.md 1): its frames taken in order into the sequence analysis,
+// and each one's change mask against the frame before (the paper's Figure 5).
+//
+// Planners release frames out of order (the paper's search finishes bins side by side);
+// those that come ahead of their turn wait in PendingFrames, in memory up to a budget and
+// on disk beyond it.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "farm/pending_frames.h"
+#include "frame/sequence_analysis.h"
+
+namespace tcfarm {
+
+class JobCoherence {
+ public:
+  // Frames are width x height float RGB; spillFolder is where frames ahead of their turn
+  // wait once pendingFrameBytes of them are held in memory.
+  JobCoherence(int width, int height, std::filesystem::path spillFolder, size_t pendingFrameBytes);
+
+  // `frame` relative to the job; white (1) where the pixel is bitwise the previous frame's.
+  struct ChangeMask {
+    int frame;
+    std::vector<uint8_t> unchanged;
+  };
+  // Takes a finished frame. Returns the change masks of the frames now analysed in order,
+  // oldest first: none while `frame` is ahead of its turn, several when it was the one
+  // the waiting frames needed. Throws FrameIoError when a waiting frame cannot be spilled
+  // or read back.
+  std::vector<ChangeMask> Add(int frame, const std::vector<float>& rgb);
+
+  const SequenceAnalyzer& analysis() const { return analyzer_; }
+  // Frames that ever waited on disk rather than in memory.
+  uint64_t FramesWaitedOnDisk() const { return waiting_.TotalSpilled(); }
+
+ private:
+  ChangeMask TakeInOrder(Image frame);
+
+  int width_, height_;
+  SequenceAnalyzer analyzer_;
+  int nextFrame_ = 0;
+  PendingFrames waiting_;
+  std::vector<float> previousRgb_;  // the last frame analysed, for the next one's mask
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,104 @@
+#include "farm/job_cost.h"
+
+#include <cmath>
+
+namespace tcfarm {
+namespace {
+
+TaskTime TimeOf(const wire::Result& result) { return {result.traceSeconds, result.traceCpuSeconds.value_or(0)}; }
+
+}  // namespace
+
+void JobCost::OnPlannerResult(int frame, const wire::Result& result) {
+  const TaskTime time = TimeOf(result);
+  frameTraceTime_[frame] += time;
+  if (!result.horizons.empty()) framesWithHorizons_.insert(frame);
+  OnAnyResult(result, time);
+}
+
+void JobCost::OnVerificationResult(const wire::Result& result, bool reference) {
+  const TaskTime time = TimeOf(result);
+  verifyTime_ += time;
+  if (reference) {
+    referenceTime_ += time;
+    referencePixels_ += result.rgb.size() / 3;
+  }
+  OnAnyResult(result, time);
+}
+
+void JobCost::OnAnyResult(const wire::Result& result, const TaskTime& time) {
+  traceTime_ += time;
+  cpuReported_ = cpuReported_ && result.traceCpuSeconds.has_value();
+  rays_[0] += result.primaryRays;
+  rays_[1] += result.shadowRays;
+  rays_[2] += result.reflectionRays;
+  rays_[3] += result.refractionRays;
+  ++results_;
+}
+
+void JobCost::OnFrameFinished(int frame, uint64_t tracedCount) {
+  if (tracedCount == pixelsPerFrame_ && framesWithHorizons_.count(frame) == 0) {
+    fullFrameTime_ += frameTraceTime_[frame];
+    ++fullFrames_;
+  }
+  frameTraceTime_.erase(frame);
+  framesWithHorizons_.erase(frame);
+}
+
+void JobCost::AddTo(nlohmann::json& stats, Strategy strategy, int binWidth, const RunningStats& frameToFrame) const {
+  stats["trace_seconds"] = traceTime_.wall - verifyTime_.wall;
+  stats["verify_trace_seconds"] = verifyTime_.wall;
+  if (cpuReported_ && results_ > 0) {
+    stats["trace_cpu_seconds"] = traceTime_.cpu - verifyTime_.cpu;
+    stats["verify_trace_cpu_seconds"] = verifyTime_.cpu;
+  }
+  stats["tasks"] = results_;
+  stats["rays"] = {{"primary", rays_[0]}, {"shadow", rays_[1]}, {"reflection", rays_[2]},
+                   {"refraction", rays_[3]}};
+  stats["cost"] = Figures(strategy, binWidth, frameToFrame);
+}
+
+// Predicted (equation 3, or its exact analogue) beside measured relative cost. Measured
+// is the job's tracing time over brute force's, estimated from its reference frames when
+// it has any (brute force itself), else from the frames it traced plainly in full (bin
+// ends), which cost what brute force pays per frame.
+nlohmann::json JobCost::Figures(Strategy strategy, int binWidth, const RunningStats& frameToFrame) const {
+  nlohmann::json cost;
+  if (frameToFrame.count > 0) {
+    const double d = 1 - frameToFrame.Mean();
+    double predicted = 1;
+    if (strategy == Strategy::kExact) {
+      const double segments = std::ceil(double(frames_) / binWidth);
+      predicted = (segments + (frames_ - segments) * d) / frames_;
+    } else if (strategy != Strategy::kBrute && binWidth >= 2) {
+      predicted = Equation3RelativeCost(frames_, binWidth, d);
+    }
+    cost["d"] = d;
+    cost["predicted_relative_cost"] = predicted;
+  }
+  TaskTime brute;
+  if (referencePixels_ > 0) {
+    const double scale = double(pixelsPerFrame_) * frames_ / double(referencePixels_);
+    brute = {referenceTime_.wall * scale, referenceTime_.cpu * scale};
+    cost["brute_estimate_from"] = "reference frames";
+  } else if (fullFrames_ > 0) {
+    brute = {fullFrameTime_.wall / fullFrames_ * frames_, fullFrameTime_.cpu / fullFrames_ * frames_};
+    cost["brute_estimate_from"] = "frames traced in full";
+  }
+  const TaskTime job = traceTime_ - verifyTime_;
+  if (brute.wall > 0) {
+    cost["brute_trace_seconds_estimate"] = brute.wall;
+    cost["measured_relative_cost_wall"] = job.wall / brute.wall;
+    cost["measured_relative_cost"] = job.wall / brute.wall;
+    cost["measured_relative_cost_basis"] = "trace seconds";
+  }
+  // CPU time where every worker reported it: it does not count waiting for shared cores.
+  if (cpuReported_ && brute.cpu > 0) {
+    cost["brute_trace_cpu_seconds_estimate"] = brute.cpu;
+    cost["measured_relative_cost"] = job.cpu / brute.cpu;
+    cost["measured_relative_cost_basis"] = "trace cpu seconds";
+  }
+  return cost;
+}
+
+}  // namespace tcfarm

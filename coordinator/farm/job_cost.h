@@ -1,0 +1,68 @@
+// What a job's tracing cost the farm, and what it would have cost brute force: the
+// figures behind `stats.cost` (measured beside predicted relative cost, DESIGN.md 1.4),
+// the trace seconds, task and ray counts.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <set>
+
+#include <nlohmann/json.hpp>
+
+#include "frame/sequence_analysis.h"
+#include "planner/strategy.h"
+#include "wire/wire.h"
+
+namespace tcfarm {
+
+// A task's tracing time: elapsed on the worker, and CPU time of its tracing threads. CPU
+// time is what the job costs on a shared machine, where elapsed time also counts waiting
+// for the cores.
+struct TaskTime {
+  double wall = 0;
+  double cpu = 0;
+  TaskTime& operator+=(const TaskTime& other) {
+    wall += other.wall;
+    cpu += other.cpu;
+    return *this;
+  }
+  TaskTime operator-(const TaskTime& other) const { return {wall - other.wall, cpu - other.cpu}; }
+};
+
+class JobCost {
+ public:
+  JobCost(uint64_t pixelsPerFrame, int frameCount) : pixelsPerFrame_(pixelsPerFrame), frames_(frameCount) {}
+
+  // A planner task's result; `frame` relative to the job.
+  void OnPlannerResult(int frame, const wire::Result& result);
+  // A verification task's result; reference tasks trace frames brute force.
+  void OnVerificationResult(const wire::Result& result, bool reference);
+  // The planner finished `frame` with tracedCount of its pixels traced: one traced plainly
+  // in full (no horizons) shows what brute force pays for a frame.
+  void OnFrameFinished(int frame, uint64_t tracedCount);
+
+  // Adds trace_seconds, verify_trace_seconds, their CPU seconds (when every worker
+  // reported them), tasks, rays, and cost: predicted for `strategy` at `binWidth` from the
+  // measured frame-to-frame coherence, beside measured.
+  void AddTo(nlohmann::json& stats, Strategy strategy, int binWidth, const RunningStats& frameToFrame) const;
+
+ private:
+  void OnAnyResult(const wire::Result& result, const TaskTime& time);
+  nlohmann::json Figures(Strategy strategy, int binWidth, const RunningStats& frameToFrame) const;
+
+  uint64_t pixelsPerFrame_;
+  int frames_;
+  TaskTime traceTime_;   // summed over tasks: the tracing time the job cost the farm
+  TaskTime verifyTime_;  // of it, spent on verification
+  bool cpuReported_ = true;  // every task's worker reported its CPU time
+  std::map<int, TaskTime> frameTraceTime_;  // per unfinished frame, planner tasks only
+  std::set<int> framesWithHorizons_;        // unfinished frames some task traced with horizons
+  TaskTime fullFrameTime_;  // frames traced plainly in full: brute force's cost per frame
+  int fullFrames_ = 0;
+  TaskTime referenceTime_;  // reference frames: brute force itself
+  uint64_t referencePixels_ = 0;
+  uint64_t rays_[4] = {};  // primary, shadow, reflection, refraction
+  uint64_t results_ = 0;
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,55 @@
+// The strategies a job may ask for (DESIGN.md 1.1 to 1.3), their names, and the one rule
+// that turns `auto` into one of the others. Parsed once, at submit; from then on the
+// coordinator passes the type, never the name.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace tcfarm {
+
+// kAuto is a request only: ResolveStrategy turns it into one of the others before any
+// planner sees it.
+enum class Strategy { kSearch, kBrute, kGuarded, kExact, kAuto };
+
+struct StrategyNameEntry {
+  Strategy strategy;
+  std::string_view name;
+};
+// The one list of names: the HTTP API validates against it, the job store writes it, and
+// api_server_test checks that proto/openapi.yaml lists the same (the CLI's test checks its
+// choices against openapi.yaml). In the API's order; the first is a submission's default.
+inline constexpr StrategyNameEntry kStrategyNames[] = {{Strategy::kSearch, "search"},
+                                                       {Strategy::kBrute, "brute"},
+                                                       {Strategy::kGuarded, "guarded"},
+                                                       {Strategy::kExact, "exact"},
+                                                       {Strategy::kAuto, "auto"}};
+inline constexpr Strategy kDefaultStrategy = kStrategyNames[0].strategy;
+
+// nullopt for a name not in kStrategyNames (names are case-sensitive).
+std::optional<Strategy> StrategyFromString(std::string_view name);
+std::string_view StrategyName(Strategy strategy);
+
+// Auto's widest guarded bin: equation 3 keeps falling with n for any d < 1, so the width
+// is chosen by a coarse survey of the sequence (planner/bin_width_survey.h) up to this.
+// Past it the paper's measured cost has long flattened (Figure 9) while a copied pixel's
+// span, and with it the error the guard misses, keeps growing.
+constexpr int kAutoWidestBin = 16;
+
+// The strategy and bin width (segment length for exact) a job runs with; never kAuto.
+struct ResolvedStrategy {
+  Strategy strategy;
+  int binWidth;  // with surveyBinWidth: the widest considered
+  std::string reason;
+  bool surveyBinWidth = false;  // guarded's width is chosen by a coarse survey (auto)
+};
+
+// `auto` picks exact when nothing but shapes move (every pixel then has a horizon to
+// find), else guarded; the length gives each of `workers` a segment (exact), or is
+// surveyed up to kAutoWidestBin (guarded). `brute` is the search with bins of 2. Any
+// other strategy runs as requested with `binWidth`.
+ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount,
+                                 bool cameraOrLightsChange, int workers);
+
+}  // namespace tcfarm
