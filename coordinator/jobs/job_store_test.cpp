@@ -484,7 +484,7 @@ TEST_F(JobStoreTest, NewerSchemaIsRefused) {
 // size from their scenes, once, and their motion reads as unknown.
 TEST_F(JobStoreTest, SchemaOneFilesGetTheirFrameSizesFromTheirScenes) {
   JobSpec spec = Spec();
-  spec.sceneJson = R"({"camera": {}, "render": {"width": 320, "height": 200}})";
+  spec.sceneJson = R"({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]}, "render": {"width": 320, "height": 200}})";
   spec.cameraOrLightsChange = false;
   const uint64_t id = Open()->Submit(spec);
   RawExec(file_,

@@ -262,13 +262,16 @@ AnimatedVec3 ReadPolynomial(const Node& node) {
   return AnimatedVec3::Polynomial(std::move(coefficients));
 }
 
-AnimatedVec3 ReadKeyframes(const Node& node) {
-  const std::string expected = "a non-empty array of {\"frame\": number, \"value\": [x, y, z]}";
-  if (!node.value.is_array() || node.value.empty()) FailType(node, expected);
-  std::vector<AnimatedVec3::Keyframe> keys;
+// Keyframes {"frame": f, "value": V}, frames strictly increasing; `readValue` reads a V
+// and `valueText` shows one in messages ("[x, y, z]").
+template <typename Keyframe, typename ReadValue>
+std::vector<Keyframe> ReadKeys(const Node& node, const std::string& valueText, ReadValue readValue) {
+  const std::string keyText = "{\"frame\": number, \"value\": " + valueText + "}";
+  if (!node.value.is_array() || node.value.empty()) FailType(node, "a non-empty array of " + keyText);
+  std::vector<Keyframe> keys;
   for (size_t i = 0; i < node.value.size(); ++i) {
     Node key = node.Element(i);
-    ExpectObject(key, {"frame", "value"}, "a keyframe {\"frame\": number, \"value\": [x, y, z]}");
+    ExpectObject(key, {"frame", "value"}, "a keyframe " + keyText);
     Node frameNode = Required(key, "frame", "a finite frame number");
     double frame = ReadNumber(frameNode, "a finite frame number");
     if (!keys.empty() && frame <= keys.back().frame) {
@@ -276,9 +279,14 @@ AnimatedVec3 ReadKeyframes(const Node& node) {
                                   FormatNumber(keys.back().frame),
            "keyframes with strictly increasing frames");
     }
-    keys.push_back({frame, ReadVec3(Required(key, "value", kVec3Expected))});
+    keys.push_back({frame, readValue(key)});
   }
-  return AnimatedVec3::Keyframes(std::move(keys));
+  return keys;
+}
+
+AnimatedVec3 ReadKeyframes(const Node& node) {
+  return AnimatedVec3::Keyframes(ReadKeys<AnimatedVec3::Keyframe>(
+      node, "[x, y, z]", [](const Node& key) { return ReadVec3(Required(key, "value", kVec3Expected)); }));
 }
 
 // Piecewise-linear keyframes reach their extremes over the integer frames of the range at
@@ -378,22 +386,8 @@ Quaternion ReadQuaternion(const Node& node) {
 }
 
 AnimatedRotation ReadRotationKeyframes(const Node& node) {
-  const std::string expected = "a non-empty array of {\"frame\": number, \"value\": [x, y, z, w]}";
-  if (!node.value.is_array() || node.value.empty()) FailType(node, expected);
-  std::vector<AnimatedRotation::Keyframe> keys;
-  for (size_t i = 0; i < node.value.size(); ++i) {
-    Node key = node.Element(i);
-    ExpectObject(key, {"frame", "value"}, "a keyframe {\"frame\": number, \"value\": [x, y, z, w]}");
-    Node frameNode = Required(key, "frame", "a finite frame number");
-    double frame = ReadNumber(frameNode, "a finite frame number");
-    if (!keys.empty() && frame <= keys.back().frame) {
-      Fail(frameNode.pointer, "frame " + FormatNumber(frame) + " does not come after frame " +
-                                  FormatNumber(keys.back().frame),
-           "keyframes with strictly increasing frames");
-    }
-    keys.push_back({frame, ReadQuaternion(Required(key, "value", kQuaternionExpected))});
-  }
-  return AnimatedRotation::Keyframes(std::move(keys));
+  return AnimatedRotation::Keyframes(ReadKeys<AnimatedRotation::Keyframe>(
+      node, "[x, y, z, w]", [](const Node& key) { return ReadQuaternion(Required(key, "value", kQuaternionExpected)); }));
 }
 
 AnimatedRotation ReadSpin(const Node& node) {

@@ -178,6 +178,19 @@ def test_a_stopping_coordinator_says_goodbye_and_its_workers_reconnect_at_once(t
         assert worker.poll() is None, "a worker outlives its coordinator, reconnecting"
 
 
+def test_a_stopping_worker_says_goodbye_and_leaves_the_farm_at_once(tmp_path):
+    # The coordinator waits a minute for a silent worker: only the goodbye can tell it sooner.
+    with LocalFarm(tmp_path, workers=0, coordinator_args=("--worker-timeout", "60000")) as farm:
+        worker = farm.add_worker()
+        farm.wait_for_workers(1)
+        worker.send_signal(signal.SIGTERM)
+        assert worker.wait(timeout=10) == 0, farm.worker_log(0).read_text()
+        deadline = time.monotonic() + 10
+        while farm.client.workers()["workers"]:
+            assert time.monotonic() < deadline, farm.client.workers()
+            time.sleep(0.05)
+
+
 def test_a_bad_scene_fails_the_request_not_the_farm(farm, twelve_spheres):
     bad = dict(twelve_spheres, shapes=[dict(twelve_spheres["shapes"][1], radius=-2)])
     with pytest.raises(ApiError) as error:
