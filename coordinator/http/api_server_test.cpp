@@ -25,7 +25,7 @@
 
 #include "frame/frame_io.h"
 #include "scene/scene.h"
-#include "wire/sha256.h"
+#include "wire/content_hash.h"
 
 namespace tcfarm {
 namespace {

@@ -9,7 +9,7 @@
 #include "http/api_error.h"
 #include "json/strict_json.h"
 #include "scene/scene.h"
-#include "wire/sha256.h"
+#include "wire/content_hash.h"
 
 namespace tcfarm::http {
 namespace {

@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "wire/sha256.h"
+#include "wire/content_hash.h"
 
 namespace tcfarm::wire {
 

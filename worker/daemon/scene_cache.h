@@ -10,7 +10,7 @@
 #include "embree/device.h"
 #include "scene/scene.h"
 #include "trace/tracer.h"
-#include "util/thread_pool.h"
+#include "util/tracing_threads.h"
 
 namespace tcfarm {
 
@@ -19,7 +19,7 @@ class SceneCache {
   // Scenes kept built: several jobs share a farm, each with its own scene.
   static constexpr size_t kDefaultCapacity = 4;
 
-  SceneCache(const EmbreeDevice& device, ThreadPool& pool, size_t capacity = kDefaultCapacity)
+  SceneCache(const EmbreeDevice& device, TracingThreads& pool, size_t capacity = kDefaultCapacity)
       : device_(device), pool_(pool), capacity_(capacity) {}
 
   // A scene parsed and built, not yet in the cache.
@@ -48,7 +48,7 @@ class SceneCache {
     Built built;
   };
   const EmbreeDevice& device_;
-  ThreadPool& pool_;
+  TracingThreads& pool_;
   size_t capacity_;
   std::list<Entry> entries_;  // most recently used first
   uint64_t hits_ = 0, misses_ = 0;

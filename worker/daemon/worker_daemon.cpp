@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <thread>
 
-#include "wire/sha256.h"
+#include "wire/content_hash.h"
 #include "wire/zmq_io.h"
 
 namespace tcfarm {

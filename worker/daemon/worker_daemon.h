@@ -64,7 +64,7 @@ class WorkerDaemon {
   WorkerOptions options_;
   const Clock& clock_;
   EmbreeDevice device_;
-  ThreadPool pool_;
+  TracingThreads pool_;
   SceneCache scenes_;
   zmq::context_t context_;
   std::unique_ptr<zmq::socket_t> socket_;

@@ -12,7 +12,7 @@
 #include "scene/import/scene_import.h"
 #include "scene/scene.h"
 #include "trace/tracer.h"
-#include "util/thread_pool.h"
+#include "util/tracing_threads.h"
 
 namespace tcfarm {
 namespace {
@@ -103,7 +103,7 @@ int RunRender(const RenderOptions& requested) {
   PrepareForTracing(scene);  // as the farm's workers do: the same bits
 
   EmbreeDevice device;
-  ThreadPool pool(options.threads);
+  TracingThreads pool(options.threads);
   Tracer tracer(device, scene, pool);
   std::filesystem::create_directories(options.outDirectory);
   FrameWriter writer(options.outDirectory, options.output);

@@ -43,7 +43,7 @@ bool SamePixel(const std::vector<float>& frame, const std::vector<float>& rgb, s
 // Traces frame `a` with horizons over the rest of the sequence and checks each promise.
 HorizonCheck Check(const Scene& scene, int a) {
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   Sequence all = RenderAll(tracer, scene);
   int first = scene.render.firstFrame, last = scene.render.LastFrame();
@@ -180,7 +180,7 @@ struct ExactRun {
 
 ExactRun RunExactSequence(const Scene& scene) {
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   Sequence brute = RenderAll(tracer, scene);
   const int first = scene.render.firstFrame, last = scene.render.LastFrame();
@@ -263,12 +263,12 @@ TEST(HorizonsTest, HorizonsDoNotDependOnTheOtherPixelsOfTheTask) {
   std::vector<float> rgb(count * 3);
   std::vector<int32_t> reference(count);
   {
-    ThreadPool pool(1);
+    TracingThreads pool(1);
     Tracer tracer(device, scene, pool);
     tracer.TracePixels(frame, all.data(), count, rgb.data(), window, reference.data());
   }
   std::mt19937 random(7);
-  ThreadPool pool(3);
+  TracingThreads pool(3);
   Tracer tracer(device, scene, pool);
   for (int trial = 0; trial < 4; ++trial) {
     std::vector<uint32_t> subset = all;

@@ -18,7 +18,7 @@ constexpr int kHeight = 90;
 
 std::vector<float> Render(const Scene& scene, int frame, uint64_t* frameBuilds = nullptr) {
   EmbreeDevice device;
-  ThreadPool pool(2);
+  TracingThreads pool(2);
   Tracer tracer(device, scene, pool);
   std::vector<float> rgb(static_cast<size_t>(kWidth) * kHeight * 3);
   tracer.TraceFrame(frame, rgb.data());

@@ -104,12 +104,12 @@ TEST(ReuseInvariantsTest, EveryPixelSetGivesTheFullFramesBits) {
   std::mt19937 random(7);
   for (const Variant& variant : Variants()) {
     Scene scene = ParseScene(variant.json);
-    ThreadPool fullPool(2);
+    TracingThreads fullPool(2);
     Tracer reference(device, scene, fullPool);
     for (int frame : {0, 5, 11}) {
       std::vector<float> full = TraceFull(reference, frame);
       for (unsigned threads : {1u, 3u}) {
-        ThreadPool pool(threads);
+        TracingThreads pool(threads);
         Tracer tracer(device, scene, pool);
         for (int trial = 0; trial < 3; ++trial) {
           std::vector<uint32_t> pixels(full.size() / 3);
@@ -136,7 +136,7 @@ TEST(ReuseInvariantsTest, CopiesUpToTheHorizonEqualFullTraces) {
   EmbreeDevice device;
   for (const Variant& variant : Variants()) {
     Scene scene = ParseScene(variant.json);
-    ThreadPool pool(2);
+    TracingThreads pool(2);
     Tracer tracer(device, scene, pool);
     std::vector<std::vector<float>> frames;
     for (int frame = 0; frame < kFrames; ++frame) frames.push_back(TraceFull(tracer, frame));

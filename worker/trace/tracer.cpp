@@ -396,8 +396,8 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
   horizons_->Surface(lane, (*frame_.shapeMoves)[hit.shape] != 0);
 }
 
-Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool)
-    : device_(device), scene_(scene), geometry_(device, scene), pool_(pool) {
+Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads)
+    : device_(device), scene_(scene), geometry_(device, scene), threads_(threads) {
   for (const Shape& shape : scene.shapes) {
     faceNormals_.push_back(KindOf(shape).FaceNormals(shape));
     shapeMoves_.push_back(shape.Moves());
@@ -429,7 +429,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        scene_.render.samplesPerPixel,
                        scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts()};
   const int spp = context.samplesPerPixel;
-  pool_.ParallelFor(pixelCount, kPixelsPerChunk, [&](size_t begin, size_t end) {
+  threads_.ParallelFor(pixelCount, kPixelsPerChunk, [&](size_t begin, size_t end) {
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
     // Every (pixel, sample) of the chunk, in order, then packets of 8 over them. The

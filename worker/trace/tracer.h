@@ -14,7 +14,7 @@
 #include "embree/scene_geometry.h"
 #include "trace/float3.h"
 #include "scene/scene.h"
-#include "util/thread_pool.h"
+#include "util/tracing_threads.h"
 
 namespace tcfarm {
 
@@ -38,7 +38,7 @@ struct RayCounts {
 class Tracer {
  public:
   // The scene must outlive the tracer.
-  Tracer(const EmbreeDevice& device, const Scene& scene, ThreadPool& pool);
+  Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads);
 
   // Traces pixels (linear indices y * width + x, each < width * height) of `frame` and
   // writes 3 floats of linear RGB per pixel to `rgb`, in the order given. With window > 0
@@ -71,7 +71,7 @@ class Tracer {
   // Empty for spheres, whose normal comes from the hit point.
   std::vector<std::vector<Float3>> faceNormals_;
   std::vector<uint8_t> shapeMoves_;
-  ThreadPool& pool_;
+  TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
   std::atomic<uint64_t> cpuNanoseconds_{0};
 };

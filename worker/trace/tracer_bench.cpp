@@ -12,7 +12,7 @@
 #include "embree/device.h"
 #include "scene/scene.h"
 #include "trace/tracer.h"
-#include "util/thread_pool.h"
+#include "util/tracing_threads.h"
 
 #ifndef TCFARM_SCENES_DIR
 #error "TCFARM_SCENES_DIR must name tests/scenes"
@@ -24,7 +24,7 @@ namespace {
 void TraceSceneFrames(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   std::vector<float> rgb(static_cast<size_t>(scene.render.width) * scene.render.height * 3);
   int frame = 0;
@@ -45,7 +45,7 @@ void TraceSceneFrames(benchmark::State& state, const std::string& file) {
 void TraceSceneFramesWithHorizons(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   size_t pixels = static_cast<size_t>(scene.render.width) * scene.render.height;
   std::vector<uint32_t> indices(pixels);
@@ -98,7 +98,7 @@ double TracedRatio(const std::vector<std::vector<uint32_t>>& sets, const Scene& 
 void TraceExactSequence(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   std::vector<std::vector<uint32_t>> sets;
   for (auto _ : state) sets = ExactPixelSets(tracer, scene);
@@ -112,7 +112,7 @@ void TraceExactSequence(benchmark::State& state, const std::string& file) {
 void TraceExactSetsWithoutHorizons(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   const std::vector<std::vector<uint32_t>> sets = ExactPixelSets(tracer, scene);
   std::vector<float> rgb;
@@ -134,7 +134,7 @@ void TraceExactSetsWithoutHorizons(benchmark::State& state, const std::string& f
 void ExactNeedlessTraces(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   const size_t pixels = static_cast<size_t>(scene.render.width) * scene.render.height;
   size_t traced = 0, changed = 0, needless = 0, missed = 0;
@@ -172,7 +172,7 @@ enum class Subset { kFull, kCheckerboard, kEveryOtherRow, kTiles16, kExactAt30 }
 void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/paper_b_twelve_spheres.json");
   EmbreeDevice device;
-  ThreadPool pool;
+  TracingThreads pool;
   Tracer tracer(device, scene, pool);
   const int frame = 30;
   std::vector<uint32_t> pixels;

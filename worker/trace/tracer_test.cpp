@@ -20,7 +20,7 @@ using test::ScaleScene;
 std::vector<float> RenderFrame(const Scene& scene, int frame, unsigned threads = 0,
                                RayCounts* counts = nullptr, uint64_t* frameBuilds = nullptr) {
   EmbreeDevice device;
-  ThreadPool pool(threads);
+  TracingThreads pool(threads);
   Tracer tracer(device, scene, pool);
   std::vector<float> rgb(static_cast<size_t>(scene.render.width) * scene.render.height * 3);
   tracer.TraceFrame(frame, rgb.data());
@@ -90,7 +90,7 @@ TEST(TracerTest, PixelSubsetsMatchTheFullFrameBitForBit) {
     EmbreeDevice device;
     std::mt19937 random(42);
     for (unsigned threads : {1u, 2u, 3u}) {
-      ThreadPool pool(threads);
+      TracingThreads pool(threads);
       Tracer tracer(device, scene, pool);
       for (int trial = 0; trial < 4; ++trial) {
         // A random subset in random order, so lanes, chunks and threads all differ.
@@ -129,7 +129,7 @@ TEST(TracerTest, FarFromTheOriginPacketsMissNothing) {
     EXPECT_EQ(holes, 0u) << "scene moved by " << offset.z;
 
     EmbreeDevice device;
-    ThreadPool pool(1);
+    TracingThreads pool(1);
     Tracer tracer(device, scene, pool);
     std::vector<uint32_t> pixels(full.size() / 3);
     for (uint32_t shift = 1; shift < 8; ++shift) {  // every other way to cut rows into packets

@@ -1,4 +1,4 @@
-#include "util/thread_pool.h"
+#include "util/tracing_threads.h"
 
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>
@@ -16,14 +16,14 @@
 namespace tcfarm {
 namespace {
 
-TEST(ThreadPool, ZeroThreadsMeansOnePerHardwareThread) {
-  ThreadPool pool(0);
+TEST(TracingThreads, ZeroThreadsMeansOnePerHardwareThread) {
+  TracingThreads pool(0);
   EXPECT_EQ(pool.ThreadCount(), std::max(1u, std::thread::hardware_concurrency()));
-  EXPECT_EQ(ThreadPool(3).ThreadCount(), 3u);
+  EXPECT_EQ(TracingThreads(3).ThreadCount(), 3u);
 }
 
-TEST(ThreadPool, ChunksAreExactlyChunkSizeAndCoverEveryIndexOnce) {
-  ThreadPool pool(3);
+TEST(TracingThreads, ChunksAreExactlyChunkSizeAndCoverEveryIndexOnce) {
+  TracingThreads pool(3);
   for (size_t count : {size_t{0}, size_t{1}, size_t{127}, size_t{128}, size_t{1000}}) {
     std::mutex mutex;
     std::set<std::pair<size_t, size_t>> chunks;
@@ -45,9 +45,9 @@ TEST(ThreadPool, ChunksAreExactlyChunkSizeAndCoverEveryIndexOnce) {
 // Each chunk waits until as many chunks as the pool has threads are running at once, so
 // the loop finishes early only when the pool really runs that many threads; more than the
 // machine's cores included (TBB starts one per core unless told otherwise).
-TEST(ThreadPool, RunsTheRequestedNumberOfThreadsAtOnce) {
+TEST(TracingThreads, RunsTheRequestedNumberOfThreadsAtOnce) {
   for (unsigned threads : {1u, 2u, std::thread::hardware_concurrency() + 2}) {
-    ThreadPool pool(threads);
+    TracingThreads pool(threads);
     std::atomic<unsigned> running{0};
     std::atomic<unsigned> peak{0};
     std::mutex mutex;
@@ -71,8 +71,8 @@ TEST(ThreadPool, RunsTheRequestedNumberOfThreadsAtOnce) {
   }
 }
 
-TEST(ThreadPool, NeverMoreThreadsThanAskedFor) {
-  ThreadPool pool(2);
+TEST(TracingThreads, NeverMoreThreadsThanAskedFor) {
+  TracingThreads pool(2);
   std::mutex mutex;
   std::set<std::thread::id> ids;
   pool.ParallelFor(64, 1, [&](size_t, size_t) {
@@ -86,8 +86,8 @@ TEST(ThreadPool, NeverMoreThreadsThanAskedFor) {
 // Embree builds geometry with TBB loops from inside a chunk. A thread waiting for such a
 // loop must not start another chunk meanwhile: the tracer keeps per-thread buffers and
 // times each chunk with the thread's CPU clock.
-TEST(ThreadPool, AThreadFinishesItsChunkBeforeStartingAnother) {
-  ThreadPool pool(4);
+TEST(TracingThreads, AThreadFinishesItsChunkBeforeStartingAnother) {
+  TracingThreads pool(4);
   thread_local bool inChunk = false;
   std::atomic<int> overlaps{0};
   std::atomic<long> nestedSum{0};
@@ -106,8 +106,8 @@ TEST(ThreadPool, AThreadFinishesItsChunkBeforeStartingAnother) {
   EXPECT_EQ(nestedSum.load(), 200L * (15 * 16 / 2));
 }
 
-TEST(ThreadPool, AChunksExceptionReachesTheCaller) {
-  ThreadPool pool(2);
+TEST(TracingThreads, AChunksExceptionReachesTheCaller) {
+  TracingThreads pool(2);
   EXPECT_THROW(pool.ParallelFor(100, 10,
                                 [](size_t begin, size_t) {
                                   if (begin == 50) throw std::runtime_error("chunk 5");

@@ -1,4 +1,4 @@
-#include "util/thread_pool.h"
+#include "util/tracing_threads.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/info.h>
@@ -16,7 +16,7 @@ unsigned ResolveThreadCount(unsigned threadCount) {
 
 }  // namespace
 
-ThreadPool::ThreadPool(unsigned threadCount)
+TracingThreads::TracingThreads(unsigned threadCount)
     : threadCount_(ResolveThreadCount(threadCount)),
       parallelismLimit_(threadCount_ > static_cast<unsigned>(tbb::info::default_concurrency())
                             ? std::make_unique<tbb::global_control>(
@@ -24,9 +24,9 @@ ThreadPool::ThreadPool(unsigned threadCount)
                             : nullptr),
       arena_(static_cast<int>(threadCount_)) {}
 
-ThreadPool::~ThreadPool() = default;
+TracingThreads::~TracingThreads() = default;
 
-void ThreadPool::ParallelFor(size_t count, size_t chunkSize,
+void TracingThreads::ParallelFor(size_t count, size_t chunkSize,
                              const std::function<void(size_t, size_t)>& body) {
   if (count == 0) return;
   chunkSize = std::max<size_t>(1, chunkSize);

@@ -1,4 +1,4 @@
-#include "wire/sha256.h"
+#include "wire/content_hash.h"
 
 #include <sodium.h>
 

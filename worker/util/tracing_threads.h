@@ -14,13 +14,13 @@
 
 namespace tcfarm {
 
-class ThreadPool {
+class TracingThreads {
  public:
   // threadCount 0 means one per hardware thread.
-  explicit ThreadPool(unsigned threadCount = 0);
-  ~ThreadPool();
-  ThreadPool(const ThreadPool&) = delete;
-  ThreadPool& operator=(const ThreadPool&) = delete;
+  explicit TracingThreads(unsigned threadCount = 0);
+  ~TracingThreads();
+  TracingThreads(const TracingThreads&) = delete;
+  TracingThreads& operator=(const TracingThreads&) = delete;
 
   unsigned ThreadCount() const { return threadCount_; }
 
