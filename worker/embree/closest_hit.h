@@ -5,9 +5,10 @@
 // happens to meet first, and its traversal order depends on the ray's packet mates, the
 // packet's active lanes and the frame's tree of placed instances: the same pixel could
 // see the floor in a full frame and the quad in a sparse one. Every closest-hit query
-// therefore passes a ClosestHitContext, and every geometry carries SettleTies as its
-// intersection filter: of hits at the same distance the one with the lowest (shape,
-// primitive) wins, whatever order they are met in.
+// therefore passes a ClosestHitContext, and where surfaces may coincide over an area
+// (embree/tie_candidates.h) every geometry carries SettleTies as its intersection filter:
+// of hits at the same distance the one with the lowest (shape, primitive) wins, whatever
+// order they are met in.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -27,15 +28,17 @@ struct ClosestHitContext {
   }
 };
 
-// The distance of a query's closest hit. A ray's tfar ends a little beyond it (see
-// SettleTies), so the hit's distance must be read from here.
-inline float HitDistance(const RTCRay& ray) {
+// The distance of a query's closest hit. Where the tie rule is on, a ray's tfar ends a
+// little beyond it (see SettleTies) and the hit's distance travels in `id`.
+inline float HitDistance(const RTCRay& ray, bool settlesTies) {
+  if (!settlesTies) return ray.tfar;
   float distance;
   static_assert(sizeof distance == sizeof ray.id);
   __builtin_memcpy(&distance, &ray.id, sizeof distance);
   return distance;
 }
-inline float HitDistance(const RTCRay8& rays, int lane) {
+inline float HitDistance(const RTCRay8& rays, int lane, bool settlesTies) {
+  if (!settlesTies) return rays.tfar[lane];
   float distance;
   __builtin_memcpy(&distance, &rays.id[lane], sizeof distance);
   return distance;

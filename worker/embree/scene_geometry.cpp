@@ -1,6 +1,7 @@
 #include "embree/scene_geometry.h"
 
 #include "embree/closest_hit.h"
+#include "embree/tie_candidates.h"
 #include "shapes/shape_kind.h"
 
 namespace tcfarm {
@@ -11,10 +12,11 @@ namespace {
 // frame is a top-level tree over one instance per moving shape: small.
 constexpr size_t kCachedFrames = 64;
 
-// Attaches the shape to `scene` and returns its geometry id.
-unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape) {
+// Attaches the shape to `scene` and returns its geometry id. Only a scene whose surfaces may
+// tie over an area pays for the tie rule (tie_candidates.h).
+unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape, bool settleTies) {
   RTCGeometry geometry = KindOf(shape).NewGeometry(device, shape);
-  rtcSetGeometryIntersectFilterFunction(geometry, SettleTies);
+  if (settleTies) rtcSetGeometryIntersectFilterFunction(geometry, SettleTies);
   rtcCommitGeometry(geometry);
   unsigned id = rtcAttachGeometry(scene, geometry);
   rtcReleaseGeometry(geometry);
@@ -91,7 +93,8 @@ int FrameGeometry::ShapeOf(unsigned instanceId, unsigned geometryId) const {
 }
 
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
-    : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())) {
+    : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())),
+      settlesTies_(SceneMayTie(scene)) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
     // A shape whose motion is not the identity is placed by an instance: at each frame
@@ -99,11 +102,11 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     // the latter in place where it can, sparing the per-frame placement).
     if (!shape.motion.IsNone()) {
       SceneHandle own(NewStaticScene(device.get()));
-      AttachShape(device.get(), own.get(), shape);
+      AttachShape(device.get(), own.get(), shape, settlesTies_);
       rtcCommitScene(own.get());
       movers_.push_back({static_cast<int>(i), std::move(own)});
     } else {
-      unsigned id = AttachShape(device.get(), staticScene_.get(), shape);
+      unsigned id = AttachShape(device.get(), staticScene_.get(), shape, settlesTies_);
       if (staticShapeOfGeometry_.size() <= id) staticShapeOfGeometry_.resize(id + 1, -1);
       staticShapeOfGeometry_[id] = static_cast<int>(i);
       hasStaticShapes_ = true;
@@ -116,6 +119,7 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     rtcRetainScene(staticScene_.get());
     staticFrame_->top_ = SceneHandle(staticScene_.get());
     staticFrame_->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
+    staticFrame_->settlesTies_ = settlesTies_;
   }
 }
 
@@ -127,6 +131,7 @@ std::shared_ptr<FrameGeometry> SceneGeometry::BuildFrame(int frame) const {
   rtcSetSceneFlags(top, RTC_SCENE_FLAG_ROBUST);
   placed->top_ = SceneHandle(top);
   placed->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
+  placed->settlesTies_ = settlesTies_;
   auto recordInstance = [&](unsigned id, int shape) {
     if (placed->shapeOfInstance_.size() <= id) placed->shapeOfInstance_.resize(id + 1, -1);
     placed->shapeOfInstance_[id] = shape;

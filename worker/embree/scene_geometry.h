@@ -23,6 +23,8 @@ class FrameGeometry {
   RTCScene scene() const { return top_.get(); }
   // The scene's shape index for a hit's (instID[0], geomID).
   int ShapeOf(unsigned instanceId, unsigned geometryId) const;
+  // Whether the scene's shapes carry the tie rule (embree/tie_candidates.h).
+  bool SettlesTies() const { return settlesTies_; }
   // Embree reports an instanced shape's normals in its object space: a shape that turns
   // or scales needs them carried to the world (not normalised). Still and merely
   // translated shapes return the normal as it is.
@@ -39,6 +41,7 @@ class FrameGeometry {
   std::vector<NormalTransform> normalFromObject_;  // by shape
   SceneHandle top_;
   const std::vector<int>* staticShapeOfGeometry_ = nullptr;
+  bool settlesTies_ = false;
   std::vector<int> shapeOfInstance_;  // -1: the instance of the static scene
 };
 
@@ -63,6 +66,7 @@ class SceneGeometry {
   SceneHandle staticScene_;
   bool hasStaticShapes_ = false;
   std::vector<int> staticShapeOfGeometry_;
+  bool settlesTies_ = false;
   std::vector<Mover> movers_;
   std::shared_ptr<FrameGeometry> staticFrame_;  // used for every frame when nothing moves
 

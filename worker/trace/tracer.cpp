@@ -211,7 +211,7 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     return frame_.background;
   }
 
-  const float hitDistance = HitDistance(rayHit.ray);
+  const float hitDistance = HitDistance(rayHit.ray, frame_.geometry->SettlesTies());
   SurfaceHit hit = MakeHit(origin, direction,
                            {hitDistance,
                             {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
@@ -294,7 +294,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       color[lane] = frame_.background;
       continue;
     }
-    const float hitDistance = HitDistance(packet.ray, lane);
+    const float hitDistance = HitDistance(packet.ray, lane, frame_.geometry->SettlesTies());
     hits[lane] = MakeHit(origin, direction,
                          {hitDistance,
                           {packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]},

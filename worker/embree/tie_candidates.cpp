@@ -1,0 +1,165 @@
+#include "embree/tie_candidates.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
+
+namespace tcfarm {
+namespace {
+
+// Planes and radii are compared on a grid this fine, relative to the scene's size: far
+// coarser than float rounding (~6e-8), so surfaces that float cannot tell apart always
+// fall together, fine enough that surfaces meant to be apart stay apart.
+constexpr double kRelativeGrid = 1e-5;
+// Past this many triangles a mesh carries the tie rule without its planes being hashed:
+// the hash would cost more memory than the rule costs time.
+constexpr size_t kMaxHashedTriangles = 2'000'000;
+
+bool IsPlanar(const Shape& shape) { return shape.type != Shape::Type::kSphere; }
+
+struct Plane {
+  Vec3 normal;  // unit
+  double offset;
+};
+
+bool PlaneOf(const Vec3& a, const Vec3& b, const Vec3& c, Plane* plane) {
+  const Vec3 u{b.x - a.x, b.y - a.y, b.z - a.z}, v{c.x - a.x, c.y - a.y, c.z - a.z};
+  Vec3 n{u.y * v.z - u.z * v.y, u.z * v.x - u.x * v.z, u.x * v.y - u.y * v.x};
+  const double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+  if (!(length > 0)) return false;  // no area, no tie over one
+  n = {n.x / length, n.y / length, n.z / length};
+  *plane = {n, n.x * a.x + n.y * a.y + n.z * a.z};
+  return true;
+}
+
+// The planes of a still planar shape's primitives, where its constant transform puts them.
+template <typename Visit>
+void ForEachPlane(const Shape& shape, int firstFrame, Visit visit) {
+  const Affine placement = shape.motion.WorldFromObject(firstFrame);
+  Plane plane;
+  if (shape.type == Shape::Type::kQuad) {
+    const Vec3& c = shape.corner;
+    const Vec3 u{c.x + shape.edgeU.x, c.y + shape.edgeU.y, c.z + shape.edgeU.z};
+    const Vec3 v{c.x + shape.edgeV.x, c.y + shape.edgeV.y, c.z + shape.edgeV.z};
+    if (PlaneOf(placement.Apply(c), placement.Apply(u), placement.Apply(v), &plane)) visit(plane);
+    return;
+  }
+  const auto& vertices = shape.mesh.vertices;
+  for (const auto& t : shape.mesh.triangles) {
+    if (PlaneOf(placement.Apply(vertices[t[0]]), placement.Apply(vertices[t[1]]),
+                placement.Apply(vertices[t[2]]), &plane)) {
+      visit(plane);
+    }
+  }
+}
+
+using PlaneKey = std::array<int64_t, 4>;
+
+struct PlaneKeyHash {
+  size_t operator()(const PlaneKey& key) const {
+    uint64_t h = 1469598103934665603ull;
+    for (int64_t part : key) h = (h ^ static_cast<uint64_t>(part)) * 1099511628211ull;
+    return static_cast<size_t>(h);
+  }
+};
+
+PlaneKey KeyOf(const Plane& plane, double size) {
+  auto cell = [](double value, double grid) { return static_cast<int64_t>(std::llround(value / grid)); };
+  return {cell(plane.normal.x, kRelativeGrid), cell(plane.normal.y, kRelativeGrid),
+          cell(plane.normal.z, kRelativeGrid), cell(plane.offset, kRelativeGrid * size)};
+}
+
+// The largest coordinate magnitude of the still planar shapes: the scale planes' offsets
+// are compared at.
+double StillPlanarSize(const Scene& scene) {
+  double size = 1;
+  for (const Shape& shape : scene.shapes) {
+    if (!IsPlanar(shape) || shape.Moves()) continue;
+    ForEachPlane(shape, scene.render.firstFrame,
+                 [&](const Plane& plane) { size = std::max(size, std::fabs(plane.offset)); });
+  }
+  return size;
+}
+
+void MarkCoplanarStillShapes(const Scene& scene, std::vector<bool>& mayTie) {
+  const double size = StillPlanarSize(scene);
+  // Per plane (and its flip: a face seen from behind coincides as well), the first shape
+  // met with it, and whether a second primitive shares it.
+  struct Seen {
+    int shape;
+    bool shared;
+  };
+  std::unordered_map<PlaneKey, Seen, PlaneKeyHash> planes;
+  std::vector<PlaneKey> keys;  // per primitive in visiting order, for the second pass
+  std::vector<int> owners;
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& shape = scene.shapes[i];
+    if (!IsPlanar(shape) || shape.Moves() || mayTie[i]) continue;
+    if (shape.mesh.triangles.size() > kMaxHashedTriangles) {
+      mayTie[i] = true;
+      continue;
+    }
+    ForEachPlane(shape, scene.render.firstFrame, [&](const Plane& plane) {
+      const Plane flipped{{-plane.normal.x, -plane.normal.y, -plane.normal.z}, -plane.offset};
+      for (const PlaneKey& key : {KeyOf(plane, size), KeyOf(flipped, size)}) {
+        auto [entry, inserted] = planes.try_emplace(key, Seen{static_cast<int>(i), false});
+        if (!inserted) entry->second.shared = true;
+      }
+      keys.push_back(KeyOf(plane, size));
+      owners.push_back(static_cast<int>(i));
+    });
+  }
+  for (size_t p = 0; p < keys.size(); ++p) {
+    if (planes.at(keys[p]).shared) mayTie[owners[p]] = true;
+  }
+}
+
+void MarkCoincidentSpheres(const Scene& scene, std::vector<bool>& mayTie) {
+  std::vector<size_t> spheres;
+  bool anyScales = false;
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    if (scene.shapes[i].type != Shape::Type::kSphere) continue;
+    spheres.push_back(i);
+    anyScales = anyScales || !scene.shapes[i].motion.IsTranslationOnly();
+  }
+  if (spheres.size() < 2) return;
+  auto near = [](double a, double b) {
+    return std::fabs(a - b) <= kRelativeGrid * std::max({1.0, std::fabs(a), std::fabs(b)});
+  };
+  for (size_t a = 0; a < spheres.size(); ++a) {
+    for (size_t b = a + 1; b < spheres.size(); ++b) {
+      const Shape& s = scene.shapes[spheres[a]];
+      const Shape& t = scene.shapes[spheres[b]];
+      const bool moves = s.Moves() || t.Moves();
+      const Vec3 sc = s.motion.WorldFromObject(scene.render.firstFrame).Apply(s.center);
+      const Vec3 tc = t.motion.WorldFromObject(scene.render.firstFrame).Apply(t.center);
+      const bool sameCentre = near(sc.x, tc.x) && near(sc.y, tc.y) && near(sc.z, tc.z);
+      if (anyScales || (near(s.radius, t.radius) && (moves || sameCentre))) {
+        mayTie[spheres[a]] = mayTie[spheres[b]] = true;
+      }
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<bool> ShapesThatMayTie(const Scene& scene) {
+  std::vector<bool> mayTie(scene.shapes.size(), false);
+  const bool planarMoves = std::any_of(scene.shapes.begin(), scene.shapes.end(),
+                                       [](const Shape& shape) { return IsPlanar(shape) && shape.Moves(); });
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    if (planarMoves && IsPlanar(scene.shapes[i])) mayTie[i] = true;
+  }
+  MarkCoplanarStillShapes(scene, mayTie);
+  MarkCoincidentSpheres(scene, mayTie);
+  return mayTie;
+}
+
+bool SceneMayTie(const Scene& scene) {
+  const std::vector<bool> mayTie = ShapesThatMayTie(scene);
+  return std::find(mayTie.begin(), mayTie.end(), true) != mayTie.end();
+}
+
+}  // namespace tcfarm
