@@ -19,9 +19,10 @@ AnimatedVec3 AnimatedVec3::Polynomial(std::array<std::vector<double>, 3> coeffic
   return result;
 }
 
-AnimatedVec3 AnimatedVec3::Keyframes(std::vector<Keyframe> keys) {
+AnimatedVec3 AnimatedVec3::Keyframes(std::vector<Keyframe> keys, Interpolation interpolation) {
   AnimatedVec3 result;
   result.kind_ = Kind::kKeyframes;
+  result.interpolation_ = interpolation;
   result.keys_ = std::move(keys);
   return result;
 }
@@ -40,7 +41,8 @@ double EvaluateHorner(const std::vector<double>& coefficients, double frame) {
 // equal to the key, so a still pixel stays bit-identical while another axis moves.
 double Lerp(double a, double b, double t) { return a + (b - a) * t; }
 
-Vec3 InterpolateKeys(const std::vector<AnimatedVec3::Keyframe>& keys, double frame) {
+Vec3 InterpolateKeys(const std::vector<AnimatedVec3::Keyframe>& keys, Interpolation interpolation,
+                     double frame) {
   if (keys.empty()) return Vec3{};
   if (frame <= keys.front().frame) return keys.front().value;
   if (frame >= keys.back().frame) return keys.back().value;
@@ -50,11 +52,33 @@ Vec3 InterpolateKeys(const std::vector<AnimatedVec3::Keyframe>& keys, double fra
   const auto& previous = *(after - 1);
   // frame < next.frame here, so t < 1 and each key is reached only through t == 0.
   double t = (frame - previous.frame) / (next.frame - previous.frame);
+  switch (interpolation) {
+    case Interpolation::kStep:
+      return previous.value;
+    case Interpolation::kCubicSpline: {
+      if (t == 0) return previous.value;
+      const double span = next.frame - previous.frame;
+      Vec3 result;
+      for (int axis = 0; axis < 3; ++axis) {
+        result[axis] = Hermite(previous.value[axis], previous.outTangent[axis], next.value[axis],
+                               next.inTangent[axis], span, t);
+      }
+      return result;
+    }
+    case Interpolation::kLinear:
+      break;
+  }
   return Vec3{Lerp(previous.value.x, next.value.x, t), Lerp(previous.value.y, next.value.y, t),
               Lerp(previous.value.z, next.value.z, t)};
 }
 
 }  // namespace
+
+double Hermite(double from, double outTangent, double to, double inTangent, double span, double t) {
+  const double t2 = t * t, t3 = t2 * t;
+  return (2 * t3 - 3 * t2 + 1) * from + (t3 - 2 * t2 + t) * span * outTangent + (-2 * t3 + 3 * t2) * to +
+         (t3 - t2) * span * inTangent;
+}
 
 Vec3 AnimatedVec3::Evaluate(double frame) const {
   switch (kind_) {
@@ -64,7 +88,7 @@ Vec3 AnimatedVec3::Evaluate(double frame) const {
       return Vec3{EvaluateHorner(coefficients_[0], frame), EvaluateHorner(coefficients_[1], frame),
                   EvaluateHorner(coefficients_[2], frame)};
     case Kind::kKeyframes:
-      return InterpolateKeys(keys_, frame);
+      return InterpolateKeys(keys_, interpolation_, frame);
   }
   return constant_;
 }
@@ -83,6 +107,10 @@ bool AnimatedVec3::IsAnimated() const {
     case Kind::kKeyframes:
       for (const auto& key : keys_) {
         if (key.value != keys_.front().value) return true;
+        // A curve through equal keys still moves between them when it leaves with a slope.
+        if (interpolation_ == Interpolation::kCubicSpline && (key.inTangent != Vec3{} || key.outTangent != Vec3{})) {
+          return true;
+        }
       }
       return false;
   }

@@ -14,14 +14,23 @@ struct Vec3 {
   bool operator!=(const Vec3& o) const { return !(*this == o); }
 };
 
+// How keyframes are joined (glTF's three): straight lines; each key held until the next;
+// cubic Hermite curves through the keys with per-key tangents (in value per frame).
+enum class Interpolation { kLinear, kStep, kCubicSpline };
+
+// The cubic Hermite curve at t in [0, 1] from `from` to `to` over an interval of `span`
+// frames, leaving with outTangent and arriving with inTangent (both per frame).
+double Hermite(double from, double outTangent, double to, double inTangent, double span, double t);
+
 // A vec3-valued function of frame time, as in the paper's section 5: either a constant,
-// a polynomial per axis in the frame number, or keyframes interpolated linearly (and
-// held constant before the first and after the last key).
+// a polynomial per axis in the frame number, or keyframes (held constant before the first
+// and after the last key), joined linearly unless told otherwise.
 class AnimatedVec3 {
  public:
   struct Keyframe {
     double frame;
     Vec3 value;
+    Vec3 inTangent = {}, outTangent = {};  // cubic spline only
   };
 
   AnimatedVec3() = default;
@@ -29,7 +38,7 @@ class AnimatedVec3 {
   // coefficients[axis][k] multiplies frame^k.
   static AnimatedVec3 Polynomial(std::array<std::vector<double>, 3> coefficients);
   // Keys must be sorted by frame with no two on the same frame (the parser checks).
-  static AnimatedVec3 Keyframes(std::vector<Keyframe> keys);
+  static AnimatedVec3 Keyframes(std::vector<Keyframe> keys, Interpolation interpolation = Interpolation::kLinear);
 
   Vec3 Evaluate(double frame) const;
   // True when Evaluate can return different values for different frames.
@@ -42,9 +51,11 @@ class AnimatedVec3 {
   const std::array<std::vector<double>, 3>& coefficients() const { return coefficients_; }
   const std::vector<Keyframe>& keys() const { return keys_; }
   const Vec3& constant() const { return constant_; }
+  Interpolation interpolation() const { return interpolation_; }
 
  private:
   Kind kind_ = Kind::kConstant;
+  Interpolation interpolation_ = Interpolation::kLinear;
   Vec3 constant_;
   std::array<std::vector<double>, 3> coefficients_;
   std::vector<Keyframe> keys_;

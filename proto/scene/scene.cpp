@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <utility>
 
 namespace tcfarm {
@@ -80,8 +81,14 @@ namespace {
 
 // A motion moved with the world: what it turns and scales turns about the moved pivot.
 // A translation-only motion needs nothing, being relative to its object's place.
+// With parents, T(o) P L T(-o) = [T(o) P T(-o)] [T(o) L T(-o)]: every level moves.
 void OffsetPivot(Motion& motion, const Vec3& offset) {
-  if (!motion.IsTranslationOnly()) motion.pivot = Plus(motion.pivot, offset);
+  if (!motion.LocalIsTranslationOnly()) motion.pivot = Plus(motion.pivot, offset);
+  if (motion.parent) {
+    auto parent = std::make_shared<Motion>(*motion.parent);
+    OffsetPivot(*parent, offset);
+    motion.parent = std::move(parent);
+  }
 }
 
 }  // namespace

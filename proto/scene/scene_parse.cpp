@@ -262,16 +262,39 @@ AnimatedVec3 ReadPolynomial(const Node& node) {
   return AnimatedVec3::Polynomial(std::move(coefficients));
 }
 
-// Keyframes {"frame": f, "value": V}, frames strictly increasing; `readValue` reads a V
-// and `valueText` shows one in messages ("[x, y, z]").
-template <typename Keyframe, typename ReadValue>
-std::vector<Keyframe> ReadKeys(const Node& node, const std::string& valueText, ReadValue readValue) {
-  const std::string keyText = "{\"frame\": number, \"value\": " + valueText + "}";
+const char* const kInterpolationExpected = "\"linear\", \"step\" or \"cubicspline\"";
+
+// A keyframed value's "interpolation" (linear when absent).
+Interpolation ReadInterpolation(const Node& keyed) {
+  if (!keyed.Has("interpolation")) return Interpolation::kLinear;
+  Node node = keyed.Member("interpolation");
+  const std::string name = ReadString(node, kInterpolationExpected);
+  if (name == "linear") return Interpolation::kLinear;
+  if (name == "step") return Interpolation::kStep;
+  if (name == "cubicspline") return Interpolation::kCubicSpline;
+  Fail(node.pointer, "unknown interpolation " + Quote(name), kInterpolationExpected);
+}
+
+// Keyframes {"frame": f, "value": V} (with "in_tangent" and "out_tangent", per frame, for a
+// cubic spline), frames strictly increasing; `readValue(node)` reads a V, `readTangent` a
+// tangent, `valueText` shows a V.
+template <typename Keyframe, typename ReadValue, typename ReadTangent>
+std::vector<Keyframe> ReadKeys(const Node& keyed, const std::string& valueText, ReadValue readValue,
+                               ReadTangent readTangent) {
+  const Interpolation interpolation = ReadInterpolation(keyed);
+  const Node node = keyed.Member("keyframes");
+  const bool cubic = interpolation == Interpolation::kCubicSpline;
+  const std::string keyText = "{\"frame\": number, \"value\": " + valueText +
+                              (cubic ? ", \"in_tangent\": " + valueText + ", \"out_tangent\": " + valueText : "") + "}";
   if (!node.value.is_array() || node.value.empty()) FailType(node, "a non-empty array of " + keyText);
   std::vector<Keyframe> keys;
   for (size_t i = 0; i < node.value.size(); ++i) {
     Node key = node.Element(i);
-    ExpectObject(key, {"frame", "value"}, "a keyframe " + keyText);
+    if (cubic) {
+      ExpectObject(key, {"frame", "value", "in_tangent", "out_tangent"}, "a keyframe " + keyText);
+    } else {
+      ExpectObject(key, {"frame", "value"}, "a keyframe " + keyText);
+    }
     Node frameNode = Required(key, "frame", "a finite frame number");
     double frame = ReadNumber(frameNode, "a finite frame number");
     if (!keys.empty() && frame <= keys.back().frame) {
@@ -279,14 +302,18 @@ std::vector<Keyframe> ReadKeys(const Node& node, const std::string& valueText, R
                                   FormatNumber(keys.back().frame),
            "keyframes with strictly increasing frames");
     }
-    keys.push_back({frame, readValue(key)});
+    Keyframe keyframe{frame, readValue(Required(key, "value", valueText))};
+    if (key.Has("in_tangent")) keyframe.inTangent = readTangent(key.Member("in_tangent"));
+    if (key.Has("out_tangent")) keyframe.outTangent = readTangent(key.Member("out_tangent"));
+    keys.push_back(keyframe);
   }
   return keys;
 }
 
-AnimatedVec3 ReadKeyframes(const Node& node) {
-  return AnimatedVec3::Keyframes(ReadKeys<AnimatedVec3::Keyframe>(
-      node, "[x, y, z]", [](const Node& key) { return ReadVec3(Required(key, "value", kVec3Expected)); }));
+AnimatedVec3 ReadKeyframes(const Node& keyed) {
+  auto read = [](const Node& value) { return ReadVec3(value); };
+  return AnimatedVec3::Keyframes(ReadKeys<AnimatedVec3::Keyframe>(keyed, "[x, y, z]", read, read),
+                                 ReadInterpolation(keyed));
 }
 
 // Piecewise-linear keyframes reach their extremes over the integer frames of the range at
@@ -294,7 +321,9 @@ AnimatedVec3 ReadKeyframes(const Node& node) {
 // A polynomial gives no such shortcut: every frame.
 std::vector<double> ExtremeFrames(const AnimatedVec3& value, const FrameRange& range) {
   std::vector<double> frames{static_cast<double>(range.first), static_cast<double>(range.last)};
-  if (value.kind() == AnimatedVec3::Kind::kPolynomial) {
+  // A polynomial, or a cubic spline, which may overshoot its keys: every frame.
+  if (value.kind() == AnimatedVec3::Kind::kPolynomial ||
+      (value.kind() == AnimatedVec3::Kind::kKeyframes && value.interpolation() == Interpolation::kCubicSpline)) {
     for (int frame = range.first + 1; frame < range.last; ++frame) frames.push_back(frame);
   } else if (value.kind() == AnimatedVec3::Kind::kKeyframes) {
     for (const auto& key : value.keys()) {
@@ -347,13 +376,15 @@ AnimatedVec3 ReadAnimated(const Node& node, const FrameRange& range) {
   if (node.value.is_array()) {
     result = AnimatedVec3::Constant(ReadVec3(node, kAnimatedExpected));
   } else if (node.value.is_object()) {
-    ExpectObject(node, {"polynomial", "keyframes"}, kAnimatedExpected);
-    if (node.value.empty()) FailType(node, kAnimatedExpected);
-    if (node.value.size() > 1) {
-      Fail(node.pointer, "both \"polynomial\" and \"keyframes\"", "exactly one of them");
+    ExpectObject(node, {"polynomial", "keyframes", "interpolation"}, kAnimatedExpected);
+    if (node.Has("polynomial") == node.Has("keyframes")) {
+      if (node.Has("polynomial")) Fail(node.pointer, "both \"polynomial\" and \"keyframes\"", "exactly one of them");
+      FailType(node, kAnimatedExpected);
     }
-    result = node.Has("polynomial") ? ReadPolynomial(node.Member("polynomial"))
-                                    : ReadKeyframes(node.Member("keyframes"));
+    if (node.Has("polynomial") && node.Has("interpolation")) {
+      Fail(node.MemberPointer("interpolation"), "an interpolation for a polynomial", "interpolation only with keyframes");
+    }
+    result = node.Has("polynomial") ? ReadPolynomial(node.Member("polynomial")) : ReadKeyframes(node);
   } else {
     FailType(node, kAnimatedExpected);
   }
@@ -385,9 +416,16 @@ Quaternion ReadQuaternion(const Node& node) {
   return q;
 }
 
-AnimatedRotation ReadRotationKeyframes(const Node& node) {
-  return AnimatedRotation::Keyframes(ReadKeys<AnimatedRotation::Keyframe>(
-      node, "[x, y, z, w]", [](const Node& key) { return ReadQuaternion(Required(key, "value", kQuaternionExpected)); }));
+// Tangents are any quaternion-shaped values, zero included; keys must have a direction.
+Quaternion ReadQuaternionTangent(const Node& node) {
+  ExpectArray(node, 4, "a tangent [x, y, z, w] per frame");
+  return {ReadNumber(node.Element(3), "a finite number"), ReadNumber(node.Element(0), "a finite number"),
+          ReadNumber(node.Element(1), "a finite number"), ReadNumber(node.Element(2), "a finite number")};
+}
+
+AnimatedRotation ReadRotationKeyframes(const Node& keyed) {
+  auto keys = ReadKeys<AnimatedRotation::Keyframe>(keyed, "[x, y, z, w]", ReadQuaternion, ReadQuaternionTangent);
+  return AnimatedRotation::Keyframes(std::move(keys), ReadInterpolation(keyed));
 }
 
 AnimatedRotation ReadSpin(const Node& node) {
@@ -405,8 +443,8 @@ AnimatedRotation ReadRotation(const Node& node) {
   if (node.value.is_array()) return AnimatedRotation::Constant(ReadQuaternion(node));
   if (!node.value.is_object()) FailType(node, kRotationExpected);
   if (node.Has("keyframes")) {
-    ExpectObject(node, {"keyframes"}, kRotationExpected);
-    return ReadRotationKeyframes(node.Member("keyframes"));
+    ExpectObject(node, {"keyframes", "interpolation"}, kRotationExpected);
+    return ReadRotationKeyframes(node);
   }
   return ReadSpin(node);
 }
@@ -426,20 +464,24 @@ void CheckScale(const AnimatedVec3& scale, const Node& node, const FrameRange& r
 
 bool IsTransformObject(const Node& node) {
   if (!node.value.is_object()) return false;
-  for (const char* key : {"translation", "rotation", "scale", "pivot"}) {
+  for (const char* key : {"translation", "rotation", "scale", "pivot", "parent"}) {
     if (node.Has(key)) return true;
   }
   return false;
 }
 
-Motion ReadMotion(const Node& node, const FrameRange& range) {
+// Parents nest one object deep per level; a hierarchy deeper than this is refused (the
+// JSON parser's own nesting limit is 128 levels).
+constexpr int kMaxMotionDepth = 32;
+
+Motion ReadMotion(const Node& node, const FrameRange& range, int depth = 0) {
   Motion motion;
   if (!IsTransformObject(node)) {
     if (!node.value.is_array() && !node.value.is_object()) FailType(node, kMotionExpected);
     motion.translation = ReadAnimated(node, range);
     return motion;
   }
-  ExpectObject(node, {"translation", "rotation", "scale", "pivot"}, kMotionExpected);
+  ExpectObject(node, {"translation", "rotation", "scale", "pivot", "parent"}, kMotionExpected);
   if (node.Has("translation")) motion.translation = ReadAnimated(node.Member("translation"), range);
   if (node.Has("rotation")) motion.rotation = ReadRotation(node.Member("rotation"));
   if (node.Has("scale")) {
@@ -447,6 +489,15 @@ Motion ReadMotion(const Node& node, const FrameRange& range) {
     CheckScale(motion.scale, node.Member("scale"), range);
   }
   if (node.Has("pivot")) motion.pivot = ReadVec3(node.Member("pivot"));
+  if (node.Has("parent")) {
+    Node parent = node.Member("parent");
+    if (depth + 1 >= kMaxMotionDepth) {
+      Fail(parent.pointer, "a hierarchy deeper than " + std::to_string(kMaxMotionDepth) + " levels",
+           "at most " + std::to_string(kMaxMotionDepth) + " nested parents");
+    }
+    if (!IsTransformObject(parent)) FailType(parent, "a parent transform {\"translation\", \"rotation\", \"scale\", \"pivot\", \"parent\"}");
+    motion.parent = std::make_shared<const Motion>(ReadMotion(parent, range, depth + 1));
+  }
   return motion;
 }
 
@@ -882,6 +933,13 @@ class SceneReader {
 
 json Vec3Json(const Vec3& v) { return json::array({v.x, v.y, v.z}); }
 
+// Linear, the default, is left out: scenes written before splines keep their bytes.
+json WithInterpolation(json keyed, Interpolation interpolation) {
+  if (interpolation == Interpolation::kStep) keyed["interpolation"] = "step";
+  if (interpolation == Interpolation::kCubicSpline) keyed["interpolation"] = "cubicspline";
+  return keyed;
+}
+
 json AnimatedJson(const AnimatedVec3& value) {
   switch (value.kind()) {
     case AnimatedVec3::Kind::kConstant:
@@ -892,9 +950,14 @@ json AnimatedJson(const AnimatedVec3& value) {
       return json{{"polynomial", axes}};
     }
     case AnimatedVec3::Kind::kKeyframes: {
+      const bool cubic = value.interpolation() == Interpolation::kCubicSpline;
       json keys = json::array();
-      for (const auto& key : value.keys()) keys.push_back(json{{"frame", key.frame}, {"value", Vec3Json(key.value)}});
-      return json{{"keyframes", keys}};
+      for (const auto& key : value.keys()) {
+        json entry{{"frame", key.frame}, {"value", Vec3Json(key.value)}};
+        if (cubic) entry["in_tangent"] = Vec3Json(key.inTangent), entry["out_tangent"] = Vec3Json(key.outTangent);
+        keys.push_back(std::move(entry));
+      }
+      return WithInterpolation(json{{"keyframes", keys}}, value.interpolation());
     }
   }
   return Vec3Json(value.constant());
@@ -907,9 +970,14 @@ json RotationJson(const AnimatedRotation& rotation) {
     case AnimatedRotation::Kind::kConstant:
       return QuaternionJson(rotation.constant());
     case AnimatedRotation::Kind::kKeyframes: {
+      const bool cubic = rotation.interpolation() == Interpolation::kCubicSpline;
       json keys = json::array();
-      for (const auto& key : rotation.keys()) keys.push_back({{"frame", key.frame}, {"value", QuaternionJson(key.value)}});
-      return json{{"keyframes", keys}};
+      for (const auto& key : rotation.keys()) {
+        json entry{{"frame", key.frame}, {"value", QuaternionJson(key.value)}};
+        if (cubic) entry["in_tangent"] = QuaternionJson(key.inTangent), entry["out_tangent"] = QuaternionJson(key.outTangent);
+        keys.push_back(std::move(entry));
+      }
+      return WithInterpolation(json{{"keyframes", keys}}, rotation.interpolation());
     }
     case AnimatedRotation::Kind::kSpin:
       return json{{"axis", Vec3Json(rotation.axis())},
@@ -921,12 +989,17 @@ json RotationJson(const AnimatedRotation& rotation) {
 
 // A translation alone is written as the paper's motion always was, so the text (and the
 // hash) of a scene without rotation or scale does not change.
-json MotionJson(const Motion& motion) {
-  if (motion.IsTranslationOnly()) return AnimatedJson(motion.translation);
-  return json{{"translation", AnimatedJson(motion.translation)},
+json TransformJson(const Motion& motion) {
+  json result{{"translation", AnimatedJson(motion.translation)},
               {"rotation", RotationJson(motion.rotation)},
               {"scale", AnimatedJson(motion.scale)},
               {"pivot", Vec3Json(motion.pivot)}};
+  if (motion.parent && !motion.parent->IsNone()) result["parent"] = TransformJson(*motion.parent);
+  return result;
+}
+
+json MotionJson(const Motion& motion) {
+  return motion.IsTranslationOnly() ? AnimatedJson(motion.translation) : TransformJson(motion);
 }
 
 json CameraJson(const Camera& camera) {

@@ -34,6 +34,22 @@ Quaternion Quaternion::FromAxisAngle(Vec3 axis, double degrees) {
   return {std::cos(half), axis.x * s, axis.y * s, axis.z * s};
 }
 
+namespace {
+
+// glTF's cubic spline for rotations: the components' Hermite curves, normalised.
+Quaternion CubicKeys(const AnimatedRotation::Keyframe& previous, const AnimatedRotation::Keyframe& next, double t) {
+  const double span = next.frame - previous.frame;
+  auto component = [&](double Quaternion::*part) {
+    return Hermite(previous.value.*part, previous.outTangent.*part, next.value.*part, next.inTangent.*part, span, t);
+  };
+  Quaternion q{component(&Quaternion::w), component(&Quaternion::x), component(&Quaternion::y),
+               component(&Quaternion::z)};
+  const double squared = q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z;
+  return squared > 0 ? q : previous.value;  // a curve through zero has no direction there
+}
+
+}  // namespace
+
 Quaternion Slerp(const Quaternion& a0, const Quaternion& b0, double t) {
   if (t == 0) return a0;  // a key is reached exactly, so a still key holds its bits
   const Quaternion a = Normalized(a0);
@@ -93,9 +109,10 @@ AnimatedRotation AnimatedRotation::Constant(Quaternion value) {
   return result;
 }
 
-AnimatedRotation AnimatedRotation::Keyframes(std::vector<Keyframe> keys) {
+AnimatedRotation AnimatedRotation::Keyframes(std::vector<Keyframe> keys, Interpolation interpolation) {
   AnimatedRotation result;
   result.kind_ = Kind::kKeyframes;
+  result.interpolation_ = interpolation;
   result.keys_ = std::move(keys);
   return result;
 }
@@ -122,8 +139,11 @@ Quaternion AnimatedRotation::Evaluate(double frame) const {
       auto after = std::upper_bound(keys_.begin(), keys_.end(), frame,
                                     [](double f, const Keyframe& key) { return f < key.frame; });
       const Keyframe& previous = *(after - 1);
+      const double t = (frame - previous.frame) / (after->frame - previous.frame);
+      if (interpolation_ == Interpolation::kStep || t == 0) return previous.value;
+      if (interpolation_ == Interpolation::kCubicSpline) return CubicKeys(previous, *after, t);
       if (previous.value == after->value) return previous.value;  // held: bit-identical
-      return Slerp(previous.value, after->value, (frame - previous.frame) / (after->frame - previous.frame));
+      return Slerp(previous.value, after->value, t);
     }
   }
   return constant_;
@@ -136,21 +156,44 @@ bool AnimatedRotation::IsAnimated() const {
     case Kind::kSpin:
       return degreesPerFrame_ != 0;
     case Kind::kKeyframes:
-      return std::any_of(keys_.begin(), keys_.end(),
-                         [&](const Keyframe& key) { return key.value != keys_.front().value; });
+      return std::any_of(keys_.begin(), keys_.end(), [&](const Keyframe& key) {
+        const Quaternion zero{0, 0, 0, 0};
+        return key.value != keys_.front().value ||
+               (interpolation_ == Interpolation::kCubicSpline && (key.inTangent != zero || key.outTangent != zero));
+      });
   }
   return false;
 }
 
-bool Motion::IsTranslationOnly() const {
+bool Motion::LocalIsTranslationOnly() const {
   return !rotation.IsAnimated() && rotation.Evaluate(0).IsIdentity() && !scale.IsAnimated() &&
          scale.Evaluate(0) == Vec3{1, 1, 1};
 }
 
+bool Motion::IsTranslationOnly() const { return LocalIsTranslationOnly() && (!parent || parent->IsNone()); }
+
+Affine Compose(const Affine& outer, const Affine& inner) {
+  Affine result;
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 3; ++column) {
+      result.linear[row][column] = outer.linear[row][0] * inner.linear[0][column] +
+                                   outer.linear[row][1] * inner.linear[1][column] +
+                                   outer.linear[row][2] * inner.linear[2][column];
+    }
+  }
+  result.offset = outer.Apply(inner.offset);
+  return result;
+}
+
 Affine Motion::WorldFromObject(double frame) const {
+  Affine local = LocalFromObject(frame);
+  return parent && !parent->IsNone() ? Compose(parent->WorldFromObject(frame), local) : local;
+}
+
+Affine Motion::LocalFromObject(double frame) const {
   const Vec3 move = translation.Evaluate(frame);
   Affine result;
-  if (IsTranslationOnly()) {
+  if (LocalIsTranslationOnly()) {
     result.offset = move;  // as the paper's motion always was: no pivot arithmetic
     return result;
   }

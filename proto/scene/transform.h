@@ -4,6 +4,7 @@
 // case with no rotation and unit scale, and are evaluated exactly as before.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "scene/animated_vec3.h"
@@ -37,19 +38,25 @@ struct Affine {
   bool operator==(const Affine& o) const;
 };
 
-// A rotation over frame time: constant, keyframed (slerp between keys, held before the
-// first and after the last) or a steady spin about an axis.
+// outer * inner: first inner, then outer.
+Affine Compose(const Affine& outer, const Affine& inner);
+
+// A rotation over frame time: constant, keyframed (held before the first and after the
+// last key; slerp between keys, or held, or a cubic spline through the quaternions'
+// components normalised, as glTF interpolates) or a steady spin about an axis.
 class AnimatedRotation {
  public:
   struct Keyframe {
     double frame;
     Quaternion value;
+    Quaternion inTangent = {0, 0, 0, 0}, outTangent = {0, 0, 0, 0};  // cubic spline only
   };
 
   AnimatedRotation() = default;
   static AnimatedRotation Constant(Quaternion value);
   // Keys sorted by frame, no two on one frame, non-zero quaternions (the parser checks).
-  static AnimatedRotation Keyframes(std::vector<Keyframe> keys);
+  static AnimatedRotation Keyframes(std::vector<Keyframe> keys,
+                                    Interpolation interpolation = Interpolation::kLinear);
   // degreesAtZero + degreesPerFrame * frame about `axis`.
   static AnimatedRotation Spin(Vec3 axis, double degreesPerFrame, double degreesAtZero = 0);
 
@@ -63,32 +70,44 @@ class AnimatedRotation {
   const Vec3& axis() const { return axis_; }
   double degreesPerFrame() const { return degreesPerFrame_; }
   double degreesAtZero() const { return degreesAtZero_; }
+  Interpolation interpolation() const { return interpolation_; }
 
  private:
   Kind kind_ = Kind::kConstant;
+  Interpolation interpolation_ = Interpolation::kLinear;
   Quaternion constant_;
   std::vector<Keyframe> keys_;
   Vec3 axis_{0, 1, 0};
   double degreesPerFrame_ = 0, degreesAtZero_ = 0;
 };
 
-// worldFromObject(f) = Translate(translation(f) + pivot) * Rotate(rotation(f))
-//                      * Scale(scale(f)) * Translate(-pivot).
+// worldFromObject(f) = parentWorld(f) * Translate(translation(f) + pivot)
+//                      * Rotate(rotation(f)) * Scale(scale(f)) * Translate(-pivot).
 // The pivot is a point of the object's rest pose (a sphere's centre spins it in place).
+// A parent carries the object as a node of a hierarchy is carried by its ancestors.
 struct Motion {
   AnimatedVec3 translation;
   AnimatedRotation rotation;
   AnimatedVec3 scale = AnimatedVec3::Constant({1, 1, 1});
   Vec3 pivot;
+  std::shared_ptr<const Motion> parent;  // none: the world
 
-  bool IsAnimated() const { return translation.IsAnimated() || rotation.IsAnimated() || scale.IsAnimated(); }
+  bool IsAnimated() const {
+    return translation.IsAnimated() || rotation.IsAnimated() || scale.IsAnimated() ||
+           (parent && parent->IsAnimated());
+  }
   // The identity at every frame: what a shape, camera rig or light has by default.
   bool IsNone() const {
     return IsTranslationOnly() && !translation.IsAnimated() && translation.Evaluate(0) == Vec3{};
   }
-  // No rotation and unit scale at any frame: the motion is translation.Evaluate alone.
+  // No rotation, unit scale and no parent that moves or turns, at any frame: the motion is
+  // translation.Evaluate alone.
   bool IsTranslationOnly() const;
+  // The same for this node alone, its parent aside.
+  bool LocalIsTranslationOnly() const;
   Affine WorldFromObject(double frame) const;
+  // This node's own transform, its parent aside.
+  Affine LocalFromObject(double frame) const;
   // Whether the transform at frames a and b is the same, bit for bit.
   bool SameAt(double a, double b) const { return WorldFromObject(a) == WorldFromObject(b); }
 };

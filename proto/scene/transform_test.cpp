@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <string>
 
 #include "scene/scene.h"
@@ -77,6 +78,63 @@ TEST(TransformTest, HeldKeysKeepTheirBits) {
   EXPECT_TRUE(rotation.IsAnimated());
 }
 
+TEST(TransformTest, StepHoldsEachKeyUntilTheNext) {
+  AnimatedVec3 steps = AnimatedVec3::Keyframes({{0, {0, 0, 0}}, {4, {1, 2, 3}}}, Interpolation::kStep);
+  EXPECT_EQ(steps.Evaluate(3.99), (Vec3{0, 0, 0}));
+  EXPECT_EQ(steps.Evaluate(4), (Vec3{1, 2, 3}));
+  AnimatedRotation turns = AnimatedRotation::Keyframes(
+      {{0, Quaternion{}}, {4, Quaternion::FromAxisAngle({0, 1, 0}, 90)}}, Interpolation::kStep);
+  EXPECT_EQ(turns.Evaluate(2), Quaternion{});
+}
+
+TEST(TransformTest, CubicSplinesFollowHermiteWithTangentsPerFrame) {
+  // From 0 to 1 over 4 frames, leaving with slope 1 per frame, arriving flat.
+  AnimatedVec3 curve = AnimatedVec3::Keyframes(
+      {{0, {0, 0, 0}, {}, {1, 0, 0}}, {4, {1, 0, 0}, {0, 0, 0}, {}}}, Interpolation::kCubicSpline);
+  const double t = 0.25;  // frame 1
+  const double expected = (t * t * t - 2 * t * t + t) * 4 * 1 + (-2 * t * t * t + 3 * t * t) * 1;
+  EXPECT_NEAR(curve.Evaluate(1).x, expected, 1e-15);
+  EXPECT_EQ(curve.Evaluate(4).x, 1);
+  EXPECT_EQ(curve.Evaluate(0).x, 0);
+  // Equal keys with a slope still move between them.
+  EXPECT_TRUE(AnimatedVec3::Keyframes({{0, {}, {}, {0, 1, 0}}, {4, {}, {}, {}}}, Interpolation::kCubicSpline).IsAnimated());
+  EXPECT_FALSE(AnimatedVec3::Keyframes({{0, {}}, {4, {}}}, Interpolation::kCubicSpline).IsAnimated());
+}
+
+TEST(TransformTest, ACubicSplineRotationStaysARotation) {
+  AnimatedRotation rotation = AnimatedRotation::Keyframes(
+      {{0, Quaternion{}, {0, 0, 0, 0}, {0, 0, 0.1, 0}}, {8, Quaternion::FromAxisAngle({0, 1, 0}, 120), {0, 0, 0, 0}, {0, 0, 0, 0}}},
+      Interpolation::kCubicSpline);
+  Motion motion;
+  motion.rotation = rotation;
+  for (double frame : {1.0, 3.5, 7.0}) {
+    const Vec3 p = motion.WorldFromObject(frame).Apply({1, 0, 0});
+    EXPECT_NEAR(p.x * p.x + p.y * p.y + p.z * p.z, 1, 1e-12) << frame;
+  }
+}
+
+TEST(TransformTest, AChildIsCarriedByItsParents) {
+  // A parent spinning about y at the origin carries a child 2 along x, itself turning and
+  // moving up.
+  auto parent = std::make_shared<Motion>();
+  parent->rotation = AnimatedRotation::Spin({0, 1, 0}, 90);
+  auto grand = std::make_shared<Motion>();
+  grand->translation = AnimatedVec3::Constant({0, 0, 10});
+  parent->parent = grand;
+  Motion child;
+  child.translation = AnimatedVec3::Polynomial({std::vector<double>{2}, {0, 1}, {0}});
+  child.rotation = AnimatedRotation::Spin({1, 0, 0}, 45);
+  child.parent = parent;
+  EXPECT_TRUE(child.IsAnimated());
+  EXPECT_FALSE(child.IsTranslationOnly());
+  // Frame 1: the child's origin at (2, 1, 0) locally, turned 90 degrees about y: (0, 1, -2), then moved by 10 in z.
+  ExpectNear(child.WorldFromObject(1).Apply({0, 0, 0}), {0, 1, 8});
+  Motion still;
+  still.parent = grand;
+  EXPECT_FALSE(still.IsTranslationOnly());  // carried by a parent that is not the world
+  ExpectNear(still.WorldFromObject(3).Apply({1, 1, 1}), {1, 1, 11});
+}
+
 std::string SceneWithMotion(const std::string& motion, const std::string& where = "shape") {
   const std::string shapeMotion = where == "shape" ? ", \"motion\": " + motion : "";
   const std::string cameraMotion = where == "camera" ? ", \"motion\": " + motion : "";
@@ -136,6 +194,26 @@ TEST(TransformSceneTest, WrittenOutAndReadBackBitForBit) {
   EXPECT_NE(SerializeScene(plain).find(R"("motion":{"polynomial")"), std::string::npos);
 }
 
+TEST(TransformSceneTest, InterpolationsTangentsAndParentsAreWrittenOutAndReadBack) {
+  const std::string text = SceneWithMotion(R"({"translation": {"interpolation": "cubicspline", "keyframes": [
+        {"frame": 0, "value": [0, 0, 0], "in_tangent": [0, 0, 0], "out_tangent": [0.5, 0, 0]},
+        {"frame": 9, "value": [1, 1, 0], "in_tangent": [0, -0.2, 0], "out_tangent": [0, 0, 0]}]},
+      "rotation": {"interpolation": "step", "keyframes": [{"frame": 0, "value": [0, 0, 0, 1]}, {"frame": 5, "value": [0, 1, 0, 0]}]},
+      "parent": {"rotation": {"axis": [0, 1, 0], "degrees_per_frame": 10}, "parent": {"translation": [0, 0, -3]}}})");
+  Scene scene = ParseScene(text);
+  const Motion& motion = scene.shapes[0].motion;
+  ASSERT_TRUE(motion.parent);
+  ASSERT_TRUE(motion.parent->parent);
+  EXPECT_EQ(motion.translation.interpolation(), Interpolation::kCubicSpline);
+  EXPECT_EQ(motion.rotation.interpolation(), Interpolation::kStep);
+  const std::string written = SerializeScene(scene);
+  Scene reread = ParseScene(written);
+  EXPECT_EQ(SerializeScene(reread), written);
+  for (int frame : {0, 2, 5, 9}) {
+    EXPECT_EQ(reread.shapes[0].motion.WorldFromObject(frame), motion.WorldFromObject(frame)) << frame;
+  }
+}
+
 TEST(TransformSceneTest, BadMotionIsRefusedWithItsPointer) {
   const std::pair<std::string, std::string> cases[] = {
       {R"({"rotation": [0, 0, 0, 0]})", "/shapes/0/motion/rotation"},
@@ -148,6 +226,13 @@ TEST(TransformSceneTest, BadMotionIsRefusedWithItsPointer) {
       {R"({"rotation": {"keyframes": [{"frame": 2, "value": [0, 0, 0, 1]}, {"frame": 2, "value": [0, 1, 0, 0]}]}})",
        "/shapes/0/motion/rotation/keyframes/1/frame"},
       {R"("spin")", "/shapes/0/motion"},
+      {R"({"translation": {"interpolation": "smooth", "keyframes": [{"frame": 0, "value": [0, 0, 0]}]}})",
+       "/shapes/0/motion/translation/interpolation"},
+      {R"({"translation": {"keyframes": [{"frame": 0, "value": [0, 0, 0], "in_tangent": [0, 0, 0]}]}})",
+       "/shapes/0/motion/translation/keyframes/0/in_tangent"},
+      {R"({"translation": {"polynomial": [[0], [0], [0]], "interpolation": "step"}})",
+       "/shapes/0/motion/translation/interpolation"},
+      {R"({"rotation": [0, 0, 0, 1], "parent": [1, 2, 3]})", "/shapes/0/motion/parent"},
   };
   for (const auto& [motion, pointer] : cases) {
     try {

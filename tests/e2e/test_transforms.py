@@ -54,7 +54,18 @@ TURNING_BY_KEYS = scene([
 ORBITING_CAMERA_SWINGING_LIGHT = scene(
     [dict(CUBE)], camera_motion={"rotation": {"axis": [0, 1, 0], "degrees_per_frame": 3}},
     light_motion={"rotation": {"axis": [0, 1, 0], "degrees_per_frame": -5}}, frames=8)
-SCENES = {"spinning_and_growing": SPINNING_AND_GROWING, "turning_by_keys": TURNING_BY_KEYS,
+# A node hierarchy as glTF has them: a child cube stepped and splined on a spinning parent.
+HIERARCHY = scene([
+    dict(CUBE, motion={
+        "translation": {"interpolation": "cubicspline", "keyframes": [
+            {"frame": 0, "value": [1.5, 0, 0], "in_tangent": [0, 0, 0], "out_tangent": [0, 0.1, 0]},
+            {"frame": 15, "value": [1.5, 0.5, 0], "in_tangent": [0, 0, 0], "out_tangent": [0, 0, 0]}]},
+        "rotation": {"interpolation": "step", "keyframes": [
+            {"frame": 0, "value": [0, 0, 0, 1]}, {"frame": 8, "value": [0, 0.3826834, 0, 0.9238795]}]},
+        "pivot": [0, 1, 0],
+        "parent": {"rotation": {"axis": [0, 1, 0], "degrees_per_frame": 6}}}),
+])
+SCENES = {"hierarchy": HIERARCHY, "spinning_and_growing": SPINNING_AND_GROWING, "turning_by_keys": TURNING_BY_KEYS,
           "orbiting_camera_swinging_light": ORBITING_CAMERA_SWINGING_LIGHT}
 
 
