@@ -36,6 +36,9 @@ class ShapeKind {
   // so its last bits change with the ray's origin, while a still surface must shade to the
   // same bits from any viewpoint. Empty when the normal comes from the hit (a sphere's).
   virtual std::vector<Float3> FaceNormals(const Shape& shape) const = 0;
+  // Per vertex, in the geometry's vertex order: unit shading normals computed in double
+  // (zero where the scene gives none or a zero one). Empty when the shape shades flat.
+  virtual std::vector<Float3> VertexNormals(const Shape&) const { return {}; }
   // Bounds of the shape in its rest pose.
   virtual BoundingSphere Bounds(const Shape& shape) const = 0;
 };

@@ -1,6 +1,7 @@
 // A triangle mesh (inline, from OBJ, or a generated terrain): one Embree triangle geometry.
 #include "shapes/shape_kind.h"
 
+#include <cmath>
 #include <cstring>
 
 namespace tcfarm {
@@ -29,6 +30,15 @@ class TriangleMeshShape final : public ShapeKind {
     const auto& v = shape.mesh.vertices;
     for (const auto& t : shape.mesh.triangles) {
       normals.push_back(UnitNormal(Sub(v[t[1]], v[t[0]]), Sub(v[t[2]], v[t[0]])));
+    }
+    return normals;
+  }
+  std::vector<Float3> VertexNormals(const Shape& shape) const override {
+    std::vector<Float3> normals;
+    normals.reserve(shape.mesh.normals.size());
+    for (const Vec3& n : shape.mesh.normals) {
+      const double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+      normals.push_back(length > 0 ? ToFloat3({n.x / length, n.y / length, n.z / length}) : Float3{});
     }
     return normals;
   }

@@ -127,5 +127,29 @@ TEST(MotionTest, ShapesHeldAtATransformAreBuiltInPlace) {
   EXPECT_GT(ShareDiffering(Render(squashed, 0), instanced), 0.001);
 }
 
+// A smooth mesh shades with its interpolated vertex normals: two triangles facing the
+// camera whose vertices all lean the same way light like a plane leaning that way.
+TEST(MotionTest, SmoothMeshesShadeWithTheirVertexNormals) {
+  const double lean = std::sqrt(0.5);
+  auto scene = [&](bool smooth) {
+    std::string normals = smooth ? R"(, "normals": [[0, )" + std::to_string(lean) + ", " + std::to_string(lean) +
+                                       R"(], [0, 0.7071067811865476, 0.7071067811865476], [0, 0.7071067811865476, 0.7071067811865476],
+                                       [0, 0.7071067811865476, 0.7071067811865476]])"
+                                 : "";
+    return ParseScene(R"({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+      "lights": [{"type": "directional", "direction": [0, -1, 0], "intensity": [1, 1, 1]}],
+      "materials": {"white": {"diffuse": [1, 1, 1]}},
+      "shapes": [{"type": "mesh", "material": "white", "vertices": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]],
+                  "triangles": [[0, 1, 2], [0, 2, 3]])" + normals + R"(}],
+      "render": {"width": 9, "height": 9}})");
+  };
+  const size_t centre = 3 * (4 * 9 + 4);
+  std::vector<float> flat = Render(scene(false), 0), smooth = Render(scene(true), 0);
+  // Flat: the light grazes the plane (cosine 0), only the ambient term is left.
+  EXPECT_NEAR(flat[centre], 0.05f, 1e-6f);
+  // Smooth: the normals lean 45 degrees toward the light.
+  EXPECT_NEAR(smooth[centre], 0.05f + std::sqrt(0.5f), 1e-5f);
+}
+
 }  // namespace
 }  // namespace tcfarm

@@ -53,7 +53,7 @@ struct Tracer::FrameContext {
   PerspectiveCamera camera;
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
-  const std::vector<std::vector<Float3>>* faceNormals;
+  const std::vector<ShapeNormals>* normals;
   const std::vector<uint8_t>* shapeMoves;  // per shape, precomputed: asked at every hit
   Float3 background;
   int maxDepth;
@@ -82,7 +82,8 @@ class Tracer::PixelTracer {
  private:
   struct SurfaceHit {
     Float3 position;
-    Float3 normal;     // unit, on the side the ray arrived from
+    Float3 normal;     // unit shading normal, on the side the ray arrived from
+    Float3 faceNormal;  // unit, of the surface itself, on that side: offsets go along it
     Float3 direction;  // unit direction of the arriving ray
     bool fromInside;   // arrived against the geometric normal (leaving a solid)
     float offset;      // distance that clears the hit point's rounding error
@@ -95,7 +96,13 @@ class Tracer::PixelTracer {
     float t;
     Float3 geometricNormal;
     unsigned instanceId, geometryId, primitiveId;
+    float u, v;  // barycentric coordinates of the hit in its triangle
   };
+  // The normal a smooth mesh shades this hit with, in object space; zero when flat.
+  Float3 SmoothNormal(int shape, const RawHit& raw) const;
+  // A normal carried to the world and made unit (kept as it is when already unit and the
+  // shape does not turn); zero stays zero.
+  Float3 ToWorld(int shape, Float3 normal, bool unit = false) const;
   SurfaceHit MakeHit(Float3 origin, Float3 direction, const RawHit& raw) const;
   // Light arriving at the hit from light i if nothing blocks it; false when the light is
   // behind the surface (then no shadow ray is needed at all).
@@ -108,7 +115,7 @@ class Tracer::PixelTracer {
   // Folds a packet's shadow rays toward one light into their samples' horizons.
   void ShadowHorizons(const RTCRay8& query, const int* valid, const int* blocked);
   Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
-    return hit.position + hit.normal * (transmitted ? -hit.offset : hit.offset);
+    return hit.position + hit.faceNormal * (transmitted ? -hit.offset : hit.offset);
   }
   // The traceable scene of a frame after this one, placed once per chunk of pixels.
   RTCScene SceneAhead(int frame);
@@ -137,23 +144,42 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
   int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
   hit.shape = shape;
   hit.material = scene_.shapes[shape].material;
-  const std::vector<Float3>& faces = (*frame_.faceNormals)[shape];
+  const std::vector<Float3>& faces = (*frame_.normals)[shape].faces;
   // The face's normal (unit, computed in double from the scene), or Embree's for shapes
   // without faces; in object space for a shape that turns or scales.
-  Float3 normal = faces.empty() ? raw.geometricNormal : faces[raw.primitiveId];
+  Float3 face = faces.empty() ? ToWorld(shape, raw.geometricNormal) : ToWorld(shape, faces[raw.primitiveId], true);
+  // A degenerate normal would put NaN into the frame; face the ray instead.
+  if (face.x == 0 && face.y == 0 && face.z == 0) face = -direction;
+  hit.fromInside = Dot(face, direction) > 0;
+  hit.faceNormal = hit.fromInside ? -face : face;
+  // A smooth mesh shades with its interpolated normal, turned to the face's side.
+  Float3 shading = ToWorld(shape, SmoothNormal(shape, raw));
+  if (shading.x == 0 && shading.y == 0 && shading.z == 0) shading = hit.faceNormal;
+  hit.normal = Dot(shading, hit.faceNormal) < 0 ? -shading : shading;
+  return hit;
+}
+
+Float3 Tracer::PixelTracer::SmoothNormal(int shape, const RawHit& raw) const {
+  const std::vector<Float3>& vertices = (*frame_.normals)[shape].vertices;
+  if (vertices.empty()) return {};
+  const auto& corner = scene_.shapes[shape].mesh.triangles[raw.primitiveId];
+  const Float3 &a = vertices[corner[0]], &b = vertices[corner[1]], &c = vertices[corner[2]];
+  // A corner without a normal leaves the face flat.
+  for (const Float3* n : {&a, &b, &c}) {
+    if (n->x == 0 && n->y == 0 && n->z == 0) return {};
+  }
+  return a * (1.0f - raw.u - raw.v) + b * raw.u + c * raw.v;
+}
+
+Float3 Tracer::PixelTracer::ToWorld(int shape, Float3 normal, bool unit) const {
   if (frame_.geometry->HasNormalTransform(shape)) {
     Vec3 world = frame_.geometry->NormalToWorld(shape, {normal.x, normal.y, normal.z});
     double length = std::sqrt(world.x * world.x + world.y * world.y + world.z * world.z);
-    normal = length > 0 ? ToFloat3({world.x / length, world.y / length, world.z / length}) : Float3{};
-  } else if (faces.empty()) {
-    float length = Length(normal);
-    normal = (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
+    return length > 0 ? ToFloat3({world.x / length, world.y / length, world.z / length}) : Float3{};
   }
-  // A degenerate normal would put NaN into the frame; face the ray instead.
-  if (normal.x == 0 && normal.y == 0 && normal.z == 0) normal = -direction;
-  hit.fromInside = Dot(normal, direction) > 0;
-  hit.normal = hit.fromInside ? -normal : normal;
-  return hit;
+  if (unit) return normal;  // computed unit in double: kept to the bit
+  float length = Length(normal);
+  return (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
 }
 
 bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,
@@ -217,7 +243,9 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
                             {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
                             rayHit.hit.instID[0],
                             rayHit.hit.geomID,
-                            rayHit.hit.primID});
+                            rayHit.hit.primID,
+                            rayHit.hit.u,
+                            rayHit.hit.v});
   // The surface first: a moving one settles the horizon and spares the segment's test.
   if (horizons_) {
     NoteSurface(horizons_->lane, hit);
@@ -300,7 +328,9 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
                           {packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]},
                           packet.hit.instID[0][lane],
                           packet.hit.geomID[lane],
-                          packet.hit.primID[lane]});
+                          packet.hit.primID[lane],
+                          packet.hit.u[lane],
+                          packet.hit.v[lane]});
     if (horizons_) {
       NoteSurface(lane, hits[lane]);
       horizons_->Segment(lane, origin, direction, hitDistance);
@@ -399,7 +429,7 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads)
     : device_(device), scene_(scene), geometry_(device, scene), threads_(threads) {
   for (const Shape& shape : scene.shapes) {
-    faceNormals_.push_back(KindOf(shape).FaceNormals(shape));
+    normals_.push_back({KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)});
     shapeMoves_.push_back(shape.Moves());
   }
 }
@@ -422,7 +452,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        MakeCamera(scene_, frame),
                        MakeLights(scene_, frame),
                        &materials,
-                       &faceNormals_,
+                       &normals_,
                        &shapeMoves_,
                        ToFloat3(scene_.background),
                        scene_.render.maxDepth,

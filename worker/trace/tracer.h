@@ -65,11 +65,16 @@ class Tracer {
   const EmbreeDevice& device_;
   const Scene& scene_;
   SceneGeometry geometry_;
-  // Per shape, per primitive: unit face normals computed in double from the scene. Embree's
+  // Per shape: unit face normals per primitive computed in double from the scene (Embree's
   // robust intersector derives Ng from ray-relative vertices, so its last bits change
-  // with the ray origin; a still surface must shade to the same bits from any viewpoint.
-  // Empty for spheres, whose normal comes from the hit point.
-  std::vector<std::vector<Float3>> faceNormals_;
+  // with the ray origin; a still surface must shade to the same bits from any viewpoint;
+  // empty for spheres, whose normal comes from the hit point), and the vertex normals a
+  // smooth mesh is shaded with (empty for flat shapes).
+  struct ShapeNormals {
+    std::vector<Float3> faces;
+    std::vector<Float3> vertices;
+  };
+  std::vector<ShapeNormals> normals_;
   std::vector<uint8_t> shapeMoves_;
   TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
