@@ -98,7 +98,7 @@ void TranslateScene(Scene& scene, const Vec3& offset) {
   scene.camera.lookAt = Offset(scene.camera.lookAt, offset);
   OffsetPivot(scene.camera.rig, offset);
   for (Light& light : scene.lights) {
-    if (light.type == Light::Type::kPoint) light.position = Offset(light.position, offset);
+    if (light.HasPosition()) light.position = Offset(light.position, offset);
     OffsetPivot(light.motion, offset);
   }
   for (Shape& shape : scene.shapes) {

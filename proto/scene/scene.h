@@ -43,12 +43,18 @@ struct Camera {
 };
 
 struct Light {
-  enum class Type { kPoint, kDirectional };
+  enum class Type { kPoint, kDirectional, kSpot };
   Type type = Type::kPoint;
-  AnimatedVec3 position;   // point lights
-  AnimatedVec3 direction;  // directional lights: the direction light travels
+  AnimatedVec3 position;   // point and spot lights
+  AnimatedVec3 direction;  // directional and spot lights: the direction light travels
+  // Spot lights: full intensity within innerConeDegrees of the axis, none beyond
+  // outerConeDegrees, a smooth fall in between (glTF's KHR_lights_punctual cone).
+  double innerConeDegrees = 0, outerConeDegrees = 45;
   AnimatedVec3 intensity;  // linear RGB radiant intensity (point) or irradiance (directional)
   Motion motion;           // carries position and direction (none by default)
+
+  bool HasPosition() const { return type != Type::kDirectional; }
+  bool HasDirection() const { return type != Type::kPoint; }
 
   Vec3 PositionAt(double frame) const;
   Vec3 DirectionAt(double frame) const;

@@ -657,9 +657,9 @@ class SceneReader {
   }
 
   Light ReadLight(const Node& node) {
-    const std::string expected = "a light {\"type\": \"point\" or \"directional\", ...}";
+    const std::string expected = "a light {\"type\": \"point\", \"directional\" or \"spot\", ...}";
     if (!node.value.is_object()) FailType(node, expected);
-    const std::string typeExpected = "\"point\" or \"directional\"";
+    const std::string typeExpected = "\"point\", \"directional\" or \"spot\"";
     std::string type = ReadString(Required(node, "type", typeExpected), typeExpected);
     Light light;
     if (type == "point") {
@@ -672,6 +672,15 @@ class SceneReader {
       Node direction = Required(node, "direction", kAnimatedExpected);
       light.direction = ReadAnimated(direction, range_);
       CheckDirection(light.direction, direction);
+    } else if (type == "spot") {
+      ExpectObject(node, {"type", "position", "direction", "intensity", "inner_cone_degrees", "outer_cone_degrees", "motion"},
+                   "a spot light");
+      light.type = Light::Type::kSpot;
+      light.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
+      Node direction = Required(node, "direction", kAnimatedExpected);
+      light.direction = ReadAnimated(direction, range_);
+      CheckDirection(light.direction, direction);
+      ReadCone(node, light);
     } else {
       Fail(node.MemberPointer("type"), "unknown light type " + Quote(type), typeExpected);
     }
@@ -680,6 +689,27 @@ class SceneReader {
     light.intensity = ReadAnimated(intensity, range_);
     CheckNonNegative(light.intensity, intensity, range_);
     return light;
+  }
+
+  // glTF's bounds: 0 <= inner < outer <= 90 degrees.
+  void ReadCone(const Node& node, Light& light) const {
+    const std::string outerExpected = "an outer cone angle in (0, 90] degrees from the axis";
+    if (node.Has("outer_cone_degrees")) {
+      Node outer = node.Member("outer_cone_degrees");
+      light.outerConeDegrees = ReadNumber(outer, outerExpected);
+      if (!(light.outerConeDegrees > 0 && light.outerConeDegrees <= 90)) {
+        Fail(outer.pointer, Show(outer.value) + " is out of range", outerExpected);
+      }
+    }
+    if (node.Has("inner_cone_degrees")) {
+      Node inner = node.Member("inner_cone_degrees");
+      const std::string innerExpected = "an inner cone angle in [0, outer_cone_degrees) degrees";
+      light.innerConeDegrees = ReadNumber(inner, innerExpected);
+      if (!(light.innerConeDegrees >= 0 && light.innerConeDegrees < light.outerConeDegrees)) {
+        Fail(inner.pointer, Show(inner.value) + " is not below the outer cone's " + FormatNumber(light.outerConeDegrees),
+             innerExpected);
+      }
+    }
   }
 
   void CheckDirection(const AnimatedVec3& direction, const Node& node) const {
@@ -1013,12 +1043,13 @@ json CameraJson(const Camera& camera) {
 
 json LightJson(const Light& light) {
   json result{{"intensity", AnimatedJson(light.intensity)}};
-  if (light.type == Light::Type::kPoint) {
-    result["type"] = "point";
-    result["position"] = AnimatedJson(light.position);
-  } else {
-    result["type"] = "directional";
-    result["direction"] = AnimatedJson(light.direction);
+  static const char* const kTypeNames[] = {"point", "directional", "spot"};
+  result["type"] = kTypeNames[static_cast<int>(light.type)];
+  if (light.HasPosition()) result["position"] = AnimatedJson(light.position);
+  if (light.HasDirection()) result["direction"] = AnimatedJson(light.direction);
+  if (light.type == Light::Type::kSpot) {
+    result["inner_cone_degrees"] = light.innerConeDegrees;
+    result["outer_cone_degrees"] = light.outerConeDegrees;
   }
   if (!light.motion.IsNone()) result["motion"] = MotionJson(light.motion);
   return result;

@@ -9,15 +9,21 @@
 namespace tcfarm {
 
 struct ShadingLight {
-  bool isPoint;
-  Float3 position;     // point lights
+  bool isPoint;        // point and spot lights
+  bool isSpot;
+  Float3 position;     // point and spot lights
   Float3 towardLight;  // directional lights: unit vector from the surface to the light
+  Float3 axis;         // spot lights: unit direction the light travels
+  float coneScale, coneOffset;  // spot lights: cosine to cone factor, as glTF defines it
   Float3 intensity;
 
   // The unit direction and distance from `point` to the light (infinity for a directional
-  // one). False when the light is behind the surface of unit `normal`, or at the point
-  // itself: then it adds nothing and no shadow ray is needed.
+  // one). False when the light is behind the surface of unit `normal`, at the point itself,
+  // or a spot whose cone leaves the point out: then it adds nothing and no shadow ray is
+  // needed.
   bool Toward(Float3 point, Float3 normal, Float3* direction, float* distance) const;
+  // A spot light's share of its intensity arriving from `towardLight` (1 for the others).
+  float Cone(Float3 towardLight) const;
   // Inverse-square falloff of a point light; none for a directional one.
   float Falloff(float distance) const { return isPoint ? 1.0f / (distance * distance) : 1.0f; }
 };

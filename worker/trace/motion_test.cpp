@@ -151,5 +151,32 @@ TEST(MotionTest, SmoothMeshesShadeWithTheirVertexNormals) {
   EXPECT_NEAR(smooth[centre], 0.05f + std::sqrt(0.5f), 1e-5f);
 }
 
+// A spot light straight down onto a floor, seen from above: full light under it, a softer
+// ring between the cones, nothing beyond the outer cone, and no shadow ray cast there.
+TEST(MotionTest, SpotLightsLightTheirConeOnly) {
+  auto scene = [](const std::string& light) {
+    return ParseScene(R"({"camera": {"position": [0, 10, 0.001], "look_at": [0, 0, 0], "fov_degrees": 60},
+      "lights": [)" + light + R"(], "materials": {"white": {"diffuse": [1, 1, 1]}},
+      "shapes": [{"type": "quad", "corner": [-20, 0, -20], "edge_u": [0, 0, 40], "edge_v": [40, 0, 0], "material": "white"}],
+      "render": {"width": 41, "height": 41}})");
+  };
+  const std::string spot = R"({"type": "spot", "position": [0, 4, 0], "direction": [0, -1, 0], "intensity": [16, 16, 16],
+                               "inner_cone_degrees": 20, "outer_cone_degrees": 30})";
+  EmbreeDevice device;
+  TracingThreads threads(2);
+  Scene spotScene = scene(spot);
+  Tracer tracer(device, spotScene, threads);
+  std::vector<float> rgb(41 * 41 * 3);
+  tracer.TraceFrame(0, rgb.data());
+  const size_t centre = 3 * (20 * 41 + 20), corner = 3 * (1 * 41 + 1);
+  EXPECT_NEAR(rgb[centre], 0.05f + 16.0f / 16.0f, 1e-3f);  // intensity / 4^2, cosine 1
+  EXPECT_NEAR(rgb[corner], 0.05f, 1e-6f);                    // outside the cone: ambient alone
+  const uint64_t spotShadowRays = tracer.Counts().shadow;
+  Scene pointScene = scene(R"({"type": "point", "position": [0, 4, 0], "intensity": [16, 16, 16]})");
+  Tracer pointTracer(device, pointScene, threads);
+  pointTracer.TraceFrame(0, rgb.data());
+  EXPECT_LT(spotShadowRays * 4, pointTracer.Counts().shadow) << "shadow rays outside the cone";
+}
+
 }  // namespace
 }  // namespace tcfarm

@@ -21,11 +21,14 @@ constexpr int kWidth = 96;
 constexpr int kHeight = 72;
 constexpr int kFrames = 12;
 
-std::string CoplanarScene(const std::string& shapes, const std::string& extraMaterials = "") {
+const char* kTwoLights = R"([{"type": "point", "position": [4, 6, 3], "intensity": [30, 30, 30]},
+    {"type": "directional", "direction": [-1, -2, -1], "intensity": [0.3, 0.3, 0.3]}])";
+
+std::string CoplanarScene(const std::string& shapes, const std::string& extraMaterials = "",
+                          const std::string& lights = kTwoLights) {
   return R"({
     "camera": {"position": [0, 2, 8], "look_at": [0, 1, 0]},
-    "lights": [{"type": "point", "position": [4, 6, 3], "intensity": [30, 30, 30]},
-               {"type": "directional", "direction": [-1, -2, -1], "intensity": [0.3, 0.3, 0.3]}],
+    "lights": )" + lights + R"(,
     "materials": {"red": {"diffuse": [0.8, 0.1, 0.1], "specular": [0.3, 0.3, 0.3], "shininess": 32},
                   "blue": {"diffuse": [0.1, 0.2, 0.8]},
                   "floor": {"diffuse": [0.6, 0.6, 0.6]},
@@ -90,6 +93,12 @@ std::vector<Variant> Variants() {
             "vertices": [[1.5, 0.01, -1], [2.5, 0.01, -1], [2.5, 0.01, 0], [1.5, 0.01, 0], [2, 0.5, -0.5]],
             "normals": [[-0.5, 0.7, 0.5], [0.5, 0.7, 0.5], [0.5, 0.7, -0.5], [-0.5, 0.7, -0.5], [0, 1, 0]],
             "triangles": [[0, 4, 1], [1, 4, 2], [2, 4, 3], [3, 4, 0]]})")},
+      {"a spot light's cone edge sweeping the floor",
+       CoplanarScene(floor + R"(, {"type": "sphere", "center": [0, 0.5, 0], "radius": 0.5, "material": "red"})", "",
+                     R"([{"type": "spot", "position": [0, 4, 1], "direction": {"keyframes": [{"frame": 0, "value": [-1, -2, 0]},
+                         {"frame": 11, "value": [1, -2, -0.5]}]}, "intensity": [40, 40, 40],
+                         "inner_cone_degrees": 10, "outer_cone_degrees": 18},
+                        {"type": "directional", "direction": [-1, -2, -1], "intensity": [0.3, 0.3, 0.3]}])")},
       {"a child stepped and splined on a spinning parent",
        CoplanarScene(floor + R"(, {"type": "mesh", "material": "red",
            "vertices": [[-0.3, 0.2, -0.3], [0.3, 0.2, -0.3], [0.3, 0.8, -0.3], [-0.3, 0.8, -0.3],

@@ -37,7 +37,7 @@ inline Scene ScaleScene(Scene scene, double s) {
   scene.camera.lookAt = ScaleAnimated(scene.camera.lookAt, s);
   for (Light& light : scene.lights) {
     light.position = ScaleAnimated(light.position, s);
-    if (light.type == Light::Type::kPoint) light.intensity = ScaleAnimated(light.intensity, s * s);
+    if (light.HasPosition()) light.intensity = ScaleAnimated(light.intensity, s * s);
   }
   for (Shape& shape : scene.shapes) {
     shape.motion.translation = ScaleAnimated(shape.motion.translation, s);

@@ -191,7 +191,7 @@ Float3 Tracer::PixelTracer::LightContribution(const SurfaceHit& hit, size_t ligh
                                               Float3 direction, float distance) const {
   const ShadingLight& l = frame_.lights[light];
   const Float3 color = (*frame_.materials)[hit.material].Reflected(direction, hit.normal, hit.direction);
-  return color * l.intensity * l.Falloff(distance);
+  return color * l.intensity * (l.Falloff(distance) * l.Cone(direction));
 }
 
 Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
