@@ -65,6 +65,18 @@ struct Light {
   bool SameAt(double a, double b) const;
 };
 
+// An image that colours a surface through the mesh's texture coordinates (u to the right,
+// v down, as glTF has them), sampled without derivatives: a pixel's colour never depends
+// on its neighbours.
+struct Texture {
+  enum class Wrap { kRepeat, kClampToEdge, kMirroredRepeat };
+  enum class Filter { kLinear, kNearest };
+  std::string image;  // as the scene names it, relative to its folder
+  std::filesystem::path file;  // resolved inside the scene's folder (not written out)
+  Wrap wrapS = Wrap::kRepeat, wrapT = Wrap::kRepeat;
+  Filter filter = Filter::kLinear;
+};
+
 struct Material {
   std::string name;
   Vec3 diffuse{0.8, 0.8, 0.8};
@@ -73,6 +85,9 @@ struct Material {
   double reflectivity = 0;    // 0..1, mirror reflection weight
   double transparency = 0;    // 0..1, refraction weight
   double indexOfRefraction = 1.5;
+  // Multiplies `diffuse` where the mesh has texture coordinates (glTF's baseColorTexture);
+  // its colours are sRGB-encoded, as glTF's are.
+  std::optional<Texture> diffuseTexture;
 
   bool Reflects() const { return reflectivity > 0; }
   bool Refracts() const { return transparency > 0; }

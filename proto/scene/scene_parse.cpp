@@ -582,8 +582,10 @@ class SceneReader {
   }
 
   Material ReadMaterial(const Node& node) {
-    ExpectObject(node, {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior"}, "a material");
+    ExpectObject(node, {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior", "diffuse_texture"},
+                 "a material");
     Material material;
+    if (node.Has("diffuse_texture")) material.diffuseTexture = ReadTexture(node.Member("diffuse_texture"));
     if (node.Has("diffuse")) material.diffuse = ReadColour(node.Member("diffuse"));
     if (node.Has("specular")) material.specular = ReadColour(node.Member("specular"));
     if (node.Has("shininess")) {
@@ -605,6 +607,42 @@ class SceneReader {
            "reflectivity + transparency <= 1 (they share the light that is not absorbed)");
     }
     return material;
+  }
+
+  Texture ReadTexture(const Node& node) {
+    const std::string expected = "a texture {\"image\": file, \"wrap_s\", \"wrap_t\", \"filter\"}";
+    ExpectObject(node, {"image", "wrap_s", "wrap_t", "filter"}, expected);
+    Texture texture;
+    Node image = Required(node, "image", "a PNG or JPEG file inside the scene folder");
+    texture.image = ReadString(image, "a PNG or JPEG file inside the scene folder");
+    if (!baseDirectory_) {
+      Fail(image.pointer, "texture image " + Quote(texture.image) + " cannot be resolved: the scene was submitted without a folder",
+           "a scene read from a folder (tcfarm-worker render); textures do not travel to the farm's workers yet");
+    }
+    texture.file = ResolveInsideFolder(*baseDirectory_, texture.image, image.pointer, "texture image");
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(texture.file, error)) {
+      Fail(image.pointer, "cannot read texture image " + Quote(texture.image), "a readable image file inside the scene folder");
+    }
+    const std::string wrapExpected = "\"repeat\", \"clamp_to_edge\" or \"mirrored_repeat\"";
+    for (const char* key : {"wrap_s", "wrap_t"}) {
+      if (!node.Has(key)) continue;
+      Node wrap = node.Member(key);
+      const std::string name = ReadString(wrap, wrapExpected);
+      Texture::Wrap mode = name == "repeat"          ? Texture::Wrap::kRepeat
+                           : name == "clamp_to_edge" ? Texture::Wrap::kClampToEdge
+                           : name == "mirrored_repeat" ? Texture::Wrap::kMirroredRepeat
+                                                     : (Fail(wrap.pointer, "unknown wrap mode " + Quote(name), wrapExpected),
+                                                        Texture::Wrap::kRepeat);
+      (std::string(key) == "wrap_s" ? texture.wrapS : texture.wrapT) = mode;
+    }
+    if (node.Has("filter")) {
+      Node filter = node.Member("filter");
+      const std::string name = ReadString(filter, "\"linear\" or \"nearest\"");
+      if (name != "linear" && name != "nearest") Fail(filter.pointer, "unknown filter " + Quote(name), "\"linear\" or \"nearest\"");
+      texture.filter = name == "nearest" ? Texture::Filter::kNearest : Texture::Filter::kLinear;
+    }
+    return texture;
   }
 
   // camera ---------------------------------------------------------------------------
@@ -1055,10 +1093,20 @@ json LightJson(const Light& light) {
   return result;
 }
 
+json TextureJson(const Texture& texture) {
+  static const char* const kWraps[] = {"repeat", "clamp_to_edge", "mirrored_repeat"};
+  return json{{"image", texture.image},
+              {"wrap_s", kWraps[static_cast<int>(texture.wrapS)]},
+              {"wrap_t", kWraps[static_cast<int>(texture.wrapT)]},
+              {"filter", texture.filter == Texture::Filter::kNearest ? "nearest" : "linear"}};
+}
+
 json MaterialJson(const Material& material) {
-  return json{{"diffuse", Vec3Json(material.diffuse)},   {"specular", Vec3Json(material.specular)},
+  json result{{"diffuse", Vec3Json(material.diffuse)},   {"specular", Vec3Json(material.specular)},
               {"shininess", material.shininess},         {"reflectivity", material.reflectivity},
               {"transparency", material.transparency}, {"ior", material.indexOfRefraction}};
+  if (material.diffuseTexture) result["diffuse_texture"] = TextureJson(*material.diffuseTexture);
+  return result;
 }
 
 json MeshJson(const TriangleMesh& mesh, json result) {

@@ -4,9 +4,9 @@
 
 namespace tcfarm {
 
-Float3 ShadingMaterial::Reflected(Float3 towardLight, Float3 normal, Float3 arriving) const {
+Float3 ShadingMaterial::Reflected(Float3 towardLight, Float3 normal, Float3 arriving, Float3 surfaceDiffuse) const {
   float cosine = Dot(towardLight, normal);
-  Float3 color = diffuse * cosine;
+  Float3 color = surfaceDiffuse * cosine;
   if (specular.x > 0 || specular.y > 0 || specular.z > 0) {
     float highlight = Dot(Reflect(-towardLight, normal), -arriving);
     if (highlight > 0) color += specular * std::pow(highlight, shininess);

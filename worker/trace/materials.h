@@ -17,10 +17,11 @@ struct ShadingMaterial {
   Float3 diffuse, specular;
   float shininess, reflectivity, transparency, indexOfRefraction;
 
-  Float3 Ambient() const { return diffuse * kAmbient; }
+  // With `surfaceDiffuse` the diffuse colour at the hit (the material's, or textured).
+  static Float3 Ambient(Float3 surfaceDiffuse) { return surfaceDiffuse * kAmbient; }
   // Phong: light of unit intensity arriving from unit direction `towardLight` at a surface
   // of unit `normal`, seen by a ray arriving along unit `arriving`.
-  Float3 Reflected(Float3 towardLight, Float3 normal, Float3 arriving) const;
+  Float3 Reflected(Float3 towardLight, Float3 normal, Float3 arriving, Float3 surfaceDiffuse) const;
   bool MirrorsOrRefracts() const { return reflectivity != 0 || transparency != 0; }
 };
 

@@ -54,6 +54,8 @@ struct Tracer::FrameContext {
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
   const std::vector<ShapeNormals>* normals;
+  const std::vector<std::unique_ptr<TextureImage>>* textures;      // by material
+  const std::vector<std::vector<std::array<float, 2>>>* uvs;       // by shape
   const std::vector<uint8_t>* shapeMoves;  // per shape, precomputed: asked at every hit
   Float3 background;
   int maxDepth;
@@ -84,6 +86,7 @@ class Tracer::PixelTracer {
     Float3 position;
     Float3 normal;     // unit shading normal, on the side the ray arrived from
     Float3 faceNormal;  // unit, of the surface itself, on that side: offsets go along it
+    Float3 diffuse;     // the material's diffuse colour here (its texture's, where it has one)
     Float3 direction;  // unit direction of the arriving ray
     bool fromInside;   // arrived against the geometric normal (leaving a solid)
     float offset;      // distance that clears the hit point's rounding error
@@ -100,6 +103,9 @@ class Tracer::PixelTracer {
   };
   // The normal a smooth mesh shades this hit with, in object space; zero when flat.
   Float3 SmoothNormal(int shape, const RawHit& raw) const;
+  // The diffuse colour at the hit: the material's, times its texture at the hit's
+  // interpolated texture coordinates where the shape has them.
+  Float3 SurfaceDiffuse(int shape, int material, const RawHit& raw) const;
   // A normal carried to the world and made unit (kept as it is when already unit and the
   // shape does not turn); zero stays zero.
   Float3 ToWorld(int shape, Float3 normal, bool unit = false) const;
@@ -156,7 +162,19 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
   Float3 shading = ToWorld(shape, SmoothNormal(shape, raw));
   if (shading.x == 0 && shading.y == 0 && shading.z == 0) shading = hit.faceNormal;
   hit.normal = Dot(shading, hit.faceNormal) < 0 ? -shading : shading;
+  hit.diffuse = SurfaceDiffuse(shape, hit.material, raw);
   return hit;
+}
+
+Float3 Tracer::PixelTracer::SurfaceDiffuse(int shape, int material, const RawHit& raw) const {
+  const Float3 diffuse = (*frame_.materials)[material].diffuse;
+  const TextureImage* texture = (*frame_.textures)[material].get();
+  const auto& uvs = (*frame_.uvs)[shape];
+  if (!texture || uvs.empty()) return diffuse;
+  const auto& corner = scene_.shapes[shape].mesh.triangles[raw.primitiveId];
+  const auto &a = uvs[corner[0]], &b = uvs[corner[1]], &c = uvs[corner[2]];
+  const float w = 1.0f - raw.u - raw.v;
+  return diffuse * texture->Sample(a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v);
 }
 
 Float3 Tracer::PixelTracer::SmoothNormal(int shape, const RawHit& raw) const {
@@ -190,12 +208,12 @@ bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3*
 Float3 Tracer::PixelTracer::LightContribution(const SurfaceHit& hit, size_t light,
                                               Float3 direction, float distance) const {
   const ShadingLight& l = frame_.lights[light];
-  const Float3 color = (*frame_.materials)[hit.material].Reflected(direction, hit.normal, hit.direction);
+  const Float3 color = (*frame_.materials)[hit.material].Reflected(direction, hit.normal, hit.direction, hit.diffuse);
   return color * l.intensity * (l.Falloff(distance) * l.Cone(direction));
 }
 
 Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
-  return (*frame_.materials)[hit.material].Ambient();
+  return ShadingMaterial::Ambient(hit.diffuse);
 }
 
 // Local shading weighted against mirror reflection and refraction, Whitted style.
@@ -430,7 +448,14 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
     : device_(device), scene_(scene), geometry_(device, scene), threads_(threads) {
   for (const Shape& shape : scene.shapes) {
     normals_.push_back({KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)});
+    std::vector<std::array<float, 2>> uvs;
+    for (const auto& uv : shape.mesh.uvs) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+    uvs_.push_back(std::move(uvs));
     shapeMoves_.push_back(shape.Moves());
+  }
+  // Only the images a material uses are loaded, once.
+  for (const Material& material : scene.materials) {
+    textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
   }
 }
 
@@ -453,6 +478,8 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        MakeLights(scene_, frame),
                        &materials,
                        &normals_,
+                       &textures_,
+                       &uvs_,
                        &shapeMoves_,
                        ToFloat3(scene_.background),
                        scene_.render.maxDepth,

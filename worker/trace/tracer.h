@@ -6,13 +6,16 @@
 // pixel that sees nothing change stays bit-identical from frame to frame.
 #pragma once
 
+#include <array>
 #include <atomic>
+#include <memory>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
 
 #include "embree/scene_geometry.h"
 #include "trace/float3.h"
+#include "trace/textures.h"
 #include "scene/scene.h"
 #include "util/tracing_threads.h"
 
@@ -75,6 +78,9 @@ class Tracer {
     std::vector<Float3> vertices;
   };
   std::vector<ShapeNormals> normals_;
+  // Per material: its decoded texture, if it has one. Per shape: texture coordinates.
+  std::vector<std::unique_ptr<TextureImage>> textures_;
+  std::vector<std::vector<std::array<float, 2>>> uvs_;
   std::vector<uint8_t> shapeMoves_;
   TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};

@@ -1,0 +1,133 @@
+// Textured surfaces: the texels of an image show at the pixels its texture coordinates
+// put them, linear after sRGB decoding, in every wrap and filter mode.
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "trace/tracer.h"
+
+namespace tcfarm {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr int kSize = 9;
+
+class TextureTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    folder_ = fs::temp_directory_path() / ("tcfarm_texture_test_" + std::to_string(::getpid()));
+    fs::create_directories(folder_);
+    // 2x2 texels, top row red and green, bottom row blue and white (8-bit sRGB codes).
+    const unsigned char texels[] = {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255};
+    auto out = OIIO::ImageOutput::create("checker.png");
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(2, 2, 3, OIIO::TypeDesc::UINT8);
+    ASSERT_TRUE(out->open((folder_ / "checker.png").string(), spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, texels));
+    out->close();
+  }
+  void TearDown() override { fs::remove_all(folder_); }
+
+  // A square facing the camera that fills the image, its texture coordinates spanning
+  // [0, span] from the top left.
+  Scene TexturedSquare(const std::string& texture, double span = 1) {
+    const std::string s = std::to_string(span);
+    return ParseScene(R"({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+      "lights": [{"type": "directional", "direction": [0, 0, -1], "intensity": [1, 1, 1]}],
+      "materials": {"printed": {"diffuse": [1, 1, 1], "diffuse_texture": )" + texture + R"(}},
+      "shapes": [{"type": "mesh", "material": "printed",
+                  "vertices": [[-4, 4, 0], [4, 4, 0], [4, -4, 0], [-4, -4, 0]],
+                  "uvs": [[0, 0], [)" + s + R"(, 0], [)" + s + ", " + s + R"(], [0, )" + s + R"(]],
+                  "triangles": [[0, 3, 2], [0, 2, 1]]}],
+      "render": {"width": 9, "height": 9}})",
+                      folder_);
+  }
+
+  static std::vector<float> Render(const Scene& scene) {
+    EmbreeDevice device;
+    TracingThreads threads(2);
+    Tracer tracer(device, scene, threads);
+    std::vector<float> rgb(kSize * kSize * 3);
+    tracer.TraceFrame(0, rgb.data());
+    return rgb;
+  }
+
+  static Float3 At(const std::vector<float>& rgb, int x, int y) {
+    const float* p = &rgb[3 * (y * kSize + x)];
+    return {p[0], p[1], p[2]};
+  }
+
+  fs::path folder_;
+};
+
+// Lit head-on with unit irradiance: (cosine 1 + ambient 0.05) times the texel.
+void ExpectTexel(Float3 pixel, Float3 texel, const std::string& where) {
+  EXPECT_NEAR(pixel.x, 1.05f * texel.x, 1e-5f) << where;
+  EXPECT_NEAR(pixel.y, 1.05f * texel.y, 1e-5f) << where;
+  EXPECT_NEAR(pixel.z, 1.05f * texel.z, 1e-5f) << where;
+}
+
+TEST_F(TextureTest, TexelsShowWhereTheirCoordinatesPutThem) {
+  auto rgb = Render(TexturedSquare(R"({"image": "checker.png", "filter": "nearest"})"));
+  ExpectTexel(At(rgb, 2, 2), {1, 0, 0}, "top left");
+  ExpectTexel(At(rgb, 6, 2), {0, 1, 0}, "top right");
+  ExpectTexel(At(rgb, 2, 6), {0, 0, 1}, "bottom left");
+  ExpectTexel(At(rgb, 6, 6), {1, 1, 1}, "bottom right");
+}
+
+TEST_F(TextureTest, CodesAreDecodedFromSrgb) {
+  // Bilinear at the image's centre: the mean of the four linear texels.
+  auto rgb = Render(TexturedSquare(R"({"image": "checker.png", "filter": "linear"})"));
+  ExpectTexel(At(rgb, 4, 4), {0.5f, 0.5f, 0.5f}, "centre");
+}
+
+TEST_F(TextureTest, WrapModesRepeatClampAndMirror) {
+  // Coordinates over [0, 2] across the square; the view shows its middle, so the pixel
+  // at the lower right samples about (1.46, 1.46), texel (2, 2) before wrapping, and the
+  // pixel at (5, 5) about (1.12, 1.12), texel (2, 2) as well.
+  auto repeat = Render(TexturedSquare(R"({"image": "checker.png", "filter": "nearest"})", 2));
+  auto clamp = Render(TexturedSquare(R"({"image": "checker.png", "filter": "nearest", "wrap_s": "clamp_to_edge",
+                                         "wrap_t": "clamp_to_edge"})", 2));
+  auto mirror = Render(TexturedSquare(R"({"image": "checker.png", "filter": "nearest", "wrap_s": "mirrored_repeat",
+                                          "wrap_t": "mirrored_repeat"})", 2));
+  ExpectTexel(At(repeat, 8, 8), {1, 0, 0}, "repeat");  // the next tile's first texel
+  ExpectTexel(At(clamp, 8, 8), {1, 1, 1}, "clamp");    // held at the edge texel
+  ExpectTexel(At(mirror, 8, 8), {1, 1, 1}, "mirror");  // folded back onto the last texel
+  ExpectTexel(At(repeat, 5, 5), {1, 0, 0}, "repeat, second tile's first texel");
+  ExpectTexel(At(clamp, 5, 5), {1, 1, 1}, "clamp past the edge");
+}
+
+TEST_F(TextureTest, BadTexturesAreRefusedWithTheirPointer) {
+  auto failsAt = [&](const std::string& texture, const std::optional<fs::path>& folder, const std::string& pointer) {
+    try {
+      ParseScene(R"({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+        "materials": {"printed": {"diffuse_texture": )" + texture + R"(}}, "render": {"width": 4, "height": 4}})", folder);
+    } catch (const SceneError& error) {
+      EXPECT_EQ(error.pointer(), pointer) << error.what();
+      return;
+    }
+    ADD_FAILURE() << texture << " was accepted";
+  };
+  failsAt(R"({"image": "missing.png"})", folder_, "/materials/printed/diffuse_texture/image");
+  failsAt(R"({"image": "../checker.png"})", folder_, "/materials/printed/diffuse_texture/image");
+  failsAt(R"({"image": "checker.png"})", std::nullopt, "/materials/printed/diffuse_texture/image");
+  failsAt(R"({"image": "checker.png", "wrap_s": "tile"})", folder_, "/materials/printed/diffuse_texture/wrap_s");
+  failsAt(R"({"image": "checker.png", "filter": "cubic"})", folder_, "/materials/printed/diffuse_texture/filter");
+}
+
+TEST_F(TextureTest, AFileThatIsNoImageIsAClearError) {
+  std::ofstream(folder_ / "notes.png") << "not an image";
+  EXPECT_THROW(Render(TexturedSquare(R"({"image": "notes.png"})")), TextureError);
+}
+
+}  // namespace
+}  // namespace tcfarm

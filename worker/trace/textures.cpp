@@ -1,0 +1,79 @@
+#include "trace/textures.h"
+
+#include <OpenImageIO/imagebuf.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace tcfarm {
+namespace {
+
+// The sRGB transfer function, inverted, in double: every code decodes to the same float.
+float LinearFromSrgb(float code) {
+  const double c = code;
+  return static_cast<float>(c <= 0.04045 ? c / 12.92 : std::pow((c + 0.055) / 1.055, 2.4));
+}
+
+// A texel index wrapped into [0, size) as the texture's wrap mode says.
+int WrapIndex(int index, int size, Texture::Wrap wrap) {
+  switch (wrap) {
+    case Texture::Wrap::kRepeat:
+      return ((index % size) + size) % size;
+    case Texture::Wrap::kClampToEdge:
+      return std::clamp(index, 0, size - 1);
+    case Texture::Wrap::kMirroredRepeat: {
+      const int period = 2 * size;
+      const int folded = ((index % period) + period) % period;
+      return folded < size ? folded : period - 1 - folded;
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+TextureImage::TextureImage(const Texture& texture)
+    : wrapS_(texture.wrapS), wrapT_(texture.wrapT), filter_(texture.filter) {
+  OIIO::ImageBuf image(texture.file.string());
+  if (!image.read(0, 0, true, OIIO::TypeDesc::FLOAT)) {
+    throw TextureError("cannot read texture image " + texture.image + ": " + image.geterror());
+  }
+  const OIIO::ROI roi = image.roi();
+  width_ = roi.width();
+  height_ = roi.height();
+  const int channels = image.nchannels();
+  if (width_ <= 0 || height_ <= 0 || channels <= 0) throw TextureError("texture image " + texture.image + " is empty");
+  std::vector<float> pixels(static_cast<size_t>(width_) * height_ * channels);
+  image.get_pixels(roi, OIIO::TypeDesc::FLOAT, pixels.data());
+  texels_.reserve(static_cast<size_t>(width_) * height_);
+  for (size_t i = 0; i < static_cast<size_t>(width_) * height_; ++i) {
+    const float* p = &pixels[i * channels];
+    // Grey images repeat their one channel; alpha is not used.
+    const float r = p[0], g = channels >= 3 ? p[1] : p[0], b = channels >= 3 ? p[2] : p[0];
+    texels_.push_back({LinearFromSrgb(r), LinearFromSrgb(g), LinearFromSrgb(b)});
+  }
+}
+
+Float3 TextureImage::Sample(float u, float v) const {
+  // Coordinates far out (or not numbers) would overflow the texel index: they sample the
+  // image's origin instead, which no sensible mesh asks for.
+  float x = u * width_, y = v * height_;
+  if (!(std::fabs(x) < 1e8f)) x = 0;
+  if (!(std::fabs(y) < 1e8f)) y = 0;
+  if (filter_ == Texture::Filter::kNearest) {
+    return Texel(WrapIndex(static_cast<int>(std::floor(x)), width_, wrapS_),
+                 WrapIndex(static_cast<int>(std::floor(y)), height_, wrapT_));
+  }
+  // Bilinear between the four texel centres around the point.
+  const float fx = x - 0.5f, fy = y - 0.5f;
+  const float x0 = std::floor(fx), y0 = std::floor(fy);
+  const float wx = fx - x0, wy = fy - y0;
+  const int ix = static_cast<int>(x0), iy = static_cast<int>(y0);
+  const int left = WrapIndex(ix, width_, wrapS_), right = WrapIndex(ix + 1, width_, wrapS_);
+  const int top = WrapIndex(iy, height_, wrapT_), bottom = WrapIndex(iy + 1, height_, wrapT_);
+  const Float3 upper = Texel(left, top) * (1 - wx) + Texel(right, top) * wx;
+  const Float3 lower = Texel(left, bottom) * (1 - wx) + Texel(right, bottom) * wx;
+  return upper * (1 - wy) + lower * wy;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,39 @@
+// Texture images as shading samples them: decoded once with OpenImageIO, their sRGB codes
+// turned linear, sampled at a hit's texture coordinates with the texture's wrap and filter.
+// Sampling uses the coordinates alone (no derivatives, no mip levels), so a pixel's colour
+// never depends on which other pixels are traced with it.
+#pragma once
+
+#include <stdexcept>
+#include <vector>
+
+#include "scene/scene.h"
+#include "trace/float3.h"
+
+namespace tcfarm {
+
+class TextureError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class TextureImage {
+ public:
+  // Throws TextureError naming the file when it cannot be read as an image.
+  explicit TextureImage(const Texture& texture);
+
+  // Linear RGB at (u, v): u to the right, v down, [0, 1] across the image.
+  Float3 Sample(float u, float v) const;
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  Float3 Texel(int x, int y) const { return texels_[static_cast<size_t>(y) * width_ + x]; }
+
+  int width_ = 0, height_ = 0;
+  std::vector<Float3> texels_;
+  Texture::Wrap wrapS_, wrapT_;
+  Texture::Filter filter_;
+};
+
+}  // namespace tcfarm
