@@ -34,6 +34,10 @@ struct Camera {
   AnimatedVec3 lookAt;
   Vec3 up{0, 1, 0};
   double verticalFovDegrees = 45;
+  // Orthographic cameras look along parallel rays over an image plane `orthographicHeight`
+  // world units high (glTF's ymag * 2); the field of view is then unused.
+  bool orthographic = false;
+  double orthographicHeight = 2;
   // The rig carrying position, look-at point and up vector (none by default): a camera
   // can orbit, pan and roll as a transform of its own.
   Motion rig;
@@ -85,6 +89,9 @@ struct Material {
   double reflectivity = 0;    // 0..1, mirror reflection weight
   double transparency = 0;    // 0..1, refraction weight
   double indexOfRefraction = 1.5;
+  // Linear RGB the surface shows of itself (glTF's emissiveFactor), whatever lights it: it
+  // lights nothing else.
+  Vec3 emission{0, 0, 0};
   // Multiplies `diffuse` where the mesh has texture coordinates (glTF's baseColorTexture);
   // its colours are sRGB-encoded, as glTF's are.
   std::optional<Texture> diffuseTexture;

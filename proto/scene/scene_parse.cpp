@@ -582,11 +582,13 @@ class SceneReader {
   }
 
   Material ReadMaterial(const Node& node) {
-    ExpectObject(node, {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior", "diffuse_texture"},
+    ExpectObject(node, {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior", "diffuse_texture",
+                        "emission"},
                  "a material");
     Material material;
     if (node.Has("diffuse_texture")) material.diffuseTexture = ReadTexture(node.Member("diffuse_texture"));
     if (node.Has("diffuse")) material.diffuse = ReadColour(node.Member("diffuse"));
+    if (node.Has("emission")) material.emission = ReadColour(node.Member("emission"));
     if (node.Has("specular")) material.specular = ReadColour(node.Member("specular"));
     if (node.Has("shininess")) {
       material.shininess = ReadNonNegative(node.Member("shininess"), "a non-negative Phong exponent");
@@ -648,7 +650,7 @@ class SceneReader {
   // camera ---------------------------------------------------------------------------
 
   Camera ReadCamera(const Node& node) {
-    ExpectObject(node, {"position", "look_at", "up", "fov_degrees", "motion"}, "a camera");
+    ExpectObject(node, {"position", "look_at", "up", "fov_degrees", "motion", "projection", "ortho_height"}, "a camera");
     Camera camera;
     if (node.Has("motion")) camera.rig = ReadMotion(node.Member("motion"), range_);
     camera.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
@@ -662,8 +664,28 @@ class SceneReader {
         Fail(fov.pointer, Show(fov.value) + " is out of range", "a vertical field of view in (0, 180) degrees");
       }
     }
+    ReadProjection(node, camera);
     CheckCameraBasis(camera, node);
     return camera;
+  }
+
+  void ReadProjection(const Node& node, Camera& camera) const {
+    const std::string expected = "\"perspective\" or \"orthographic\"";
+    if (node.Has("projection")) {
+      Node projection = node.Member("projection");
+      const std::string name = ReadString(projection, expected);
+      if (name != "perspective" && name != "orthographic") {
+        Fail(projection.pointer, "unknown projection " + Quote(name), expected);
+      }
+      camera.orthographic = name == "orthographic";
+    }
+    if (node.Has("ortho_height")) {
+      Node height = node.Member("ortho_height");
+      if (!camera.orthographic) {
+        Fail(height.pointer, "an orthographic height for a perspective camera", "ortho_height only with \"projection\": \"orthographic\"");
+      }
+      camera.orthographicHeight = ReadInRange(height, 1e-9, 1e9, "a positive height of the image plane in [1e-9, 1e9]");
+    }
   }
 
   void CheckCameraBasis(const Camera& camera, const Node& node) const {
@@ -1075,6 +1097,7 @@ json CameraJson(const Camera& camera) {
               {"look_at", AnimatedJson(camera.lookAt)},
               {"up", Vec3Json(camera.up)},
               {"fov_degrees", camera.verticalFovDegrees}};
+  if (camera.orthographic) result["projection"] = "orthographic", result["ortho_height"] = camera.orthographicHeight;
   if (!camera.rig.IsNone()) result["motion"] = MotionJson(camera.rig);
   return result;
 }
@@ -1106,6 +1129,7 @@ json MaterialJson(const Material& material) {
               {"shininess", material.shininess},         {"reflectivity", material.reflectivity},
               {"transparency", material.transparency}, {"ior", material.indexOfRefraction}};
   if (material.diffuseTexture) result["diffuse_texture"] = TextureJson(*material.diffuseTexture);
+  if (material.emission != Vec3{}) result["emission"] = Vec3Json(material.emission);
   return result;
 }
 

@@ -24,7 +24,9 @@ PerspectiveCamera MakeCamera(const Scene& scene, int frame) {
   Vec3 right = NormalizeD(CrossD(forward, pose.up));
   Vec3 up = CrossD(right, forward);
   const RenderSettings& r = scene.render;
-  double tanHalf = std::tan(scene.camera.verticalFovDegrees * M_PI / 360.0);
+  // Half the image plane's height: at distance 1 (perspective), or in world units.
+  double tanHalf = scene.camera.orthographic ? scene.camera.orthographicHeight / 2
+                                             : std::tan(scene.camera.verticalFovDegrees * M_PI / 360.0);
   double aspect = static_cast<double>(r.width) / r.height;
   PerspectiveCamera camera;
   camera.origin = ToFloat3(position);
@@ -33,6 +35,7 @@ PerspectiveCamera MakeCamera(const Scene& scene, int frame) {
   camera.up = ToFloat3({up.x * tanHalf, up.y * tanHalf, up.z * tanHalf});
   camera.width = static_cast<float>(r.width);
   camera.height = static_cast<float>(r.height);
+  camera.orthographic = scene.camera.orthographic;
   return camera;
 }
 

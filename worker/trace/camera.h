@@ -1,5 +1,5 @@
-// The perspective camera of a frame: the ray through any point of the image, and where
-// a pixel's samples fall inside it.
+// The camera of a frame, perspective or orthographic: the ray through any point of the
+// image, and where a pixel's samples fall inside it.
 #pragma once
 
 #include <cstdint>
@@ -10,14 +10,24 @@
 namespace tcfarm {
 
 struct PerspectiveCamera {
-  Float3 origin, forward, right, up;  // right and up scaled to the image plane at distance 1
+  // right and up span half the image plane: at distance 1 for a perspective camera, in
+  // world units for an orthographic one.
+  Float3 origin, forward, right, up;
   float width, height;
+  bool orthographic = false;
 
-  // The unit direction through image point (px, py), in pixels from the top left.
-  Float3 Direction(float px, float py) const {
+  // The ray through image point (px, py), in pixels from the top left: its origin and
+  // unit direction.
+  void Ray(float px, float py, Float3* rayOrigin, Float3* direction) const {
     float sx = 2.0f * px / width - 1.0f;
     float sy = 1.0f - 2.0f * py / height;
-    return Normalize(forward + right * sx + up * sy);
+    if (orthographic) {
+      *rayOrigin = origin + right * sx + up * sy;
+      *direction = forward;
+      return;
+    }
+    *rayOrigin = origin;
+    *direction = Normalize(forward + right * sx + up * sy);
   }
 };
 

@@ -19,7 +19,7 @@ std::vector<ShadingMaterial> MakeMaterials(const Scene& scene) {
   for (const Material& m : scene.materials) {
     materials.push_back({ToFloat3(m.diffuse), ToFloat3(m.specular), static_cast<float>(m.shininess),
                          static_cast<float>(m.reflectivity), static_cast<float>(m.transparency),
-                         static_cast<float>(m.indexOfRefraction)});
+                         static_cast<float>(m.indexOfRefraction), ToFloat3(m.emission), m.emission != Vec3{}});
   }
   return materials;
 }

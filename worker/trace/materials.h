@@ -16,6 +16,8 @@ constexpr float kAmbient = 0.05f;
 struct ShadingMaterial {
   Float3 diffuse, specular;
   float shininess, reflectivity, transparency, indexOfRefraction;
+  Float3 emission;
+  bool emits;
 
   // With `surfaceDiffuse` the diffuse colour at the hit (the material's, or textured).
   static Float3 Ambient(Float3 surfaceDiffuse) { return surfaceDiffuse * kAmbient; }

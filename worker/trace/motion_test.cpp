@@ -127,56 +127,5 @@ TEST(MotionTest, ShapesHeldAtATransformAreBuiltInPlace) {
   EXPECT_GT(ShareDiffering(Render(squashed, 0), instanced), 0.001);
 }
 
-// A smooth mesh shades with its interpolated vertex normals: two triangles facing the
-// camera whose vertices all lean the same way light like a plane leaning that way.
-TEST(MotionTest, SmoothMeshesShadeWithTheirVertexNormals) {
-  const double lean = std::sqrt(0.5);
-  auto scene = [&](bool smooth) {
-    std::string normals = smooth ? R"(, "normals": [[0, )" + std::to_string(lean) + ", " + std::to_string(lean) +
-                                       R"(], [0, 0.7071067811865476, 0.7071067811865476], [0, 0.7071067811865476, 0.7071067811865476],
-                                       [0, 0.7071067811865476, 0.7071067811865476]])"
-                                 : "";
-    return ParseScene(R"({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
-      "lights": [{"type": "directional", "direction": [0, -1, 0], "intensity": [1, 1, 1]}],
-      "materials": {"white": {"diffuse": [1, 1, 1]}},
-      "shapes": [{"type": "mesh", "material": "white", "vertices": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]],
-                  "triangles": [[0, 1, 2], [0, 2, 3]])" + normals + R"(}],
-      "render": {"width": 9, "height": 9}})");
-  };
-  const size_t centre = 3 * (4 * 9 + 4);
-  std::vector<float> flat = Render(scene(false), 0), smooth = Render(scene(true), 0);
-  // Flat: the light grazes the plane (cosine 0), only the ambient term is left.
-  EXPECT_NEAR(flat[centre], 0.05f, 1e-6f);
-  // Smooth: the normals lean 45 degrees toward the light.
-  EXPECT_NEAR(smooth[centre], 0.05f + std::sqrt(0.5f), 1e-5f);
-}
-
-// A spot light straight down onto a floor, seen from above: full light under it, a softer
-// ring between the cones, nothing beyond the outer cone, and no shadow ray cast there.
-TEST(MotionTest, SpotLightsLightTheirConeOnly) {
-  auto scene = [](const std::string& light) {
-    return ParseScene(R"({"camera": {"position": [0, 10, 0.001], "look_at": [0, 0, 0], "fov_degrees": 60},
-      "lights": [)" + light + R"(], "materials": {"white": {"diffuse": [1, 1, 1]}},
-      "shapes": [{"type": "quad", "corner": [-20, 0, -20], "edge_u": [0, 0, 40], "edge_v": [40, 0, 0], "material": "white"}],
-      "render": {"width": 41, "height": 41}})");
-  };
-  const std::string spot = R"({"type": "spot", "position": [0, 4, 0], "direction": [0, -1, 0], "intensity": [16, 16, 16],
-                               "inner_cone_degrees": 20, "outer_cone_degrees": 30})";
-  EmbreeDevice device;
-  TracingThreads threads(2);
-  Scene spotScene = scene(spot);
-  Tracer tracer(device, spotScene, threads);
-  std::vector<float> rgb(41 * 41 * 3);
-  tracer.TraceFrame(0, rgb.data());
-  const size_t centre = 3 * (20 * 41 + 20), corner = 3 * (1 * 41 + 1);
-  EXPECT_NEAR(rgb[centre], 0.05f + 16.0f / 16.0f, 1e-3f);  // intensity / 4^2, cosine 1
-  EXPECT_NEAR(rgb[corner], 0.05f, 1e-6f);                    // outside the cone: ambient alone
-  const uint64_t spotShadowRays = tracer.Counts().shadow;
-  Scene pointScene = scene(R"({"type": "point", "position": [0, 4, 0], "intensity": [16, 16, 16]})");
-  Tracer pointTracer(device, pointScene, threads);
-  pointTracer.TraceFrame(0, rgb.data());
-  EXPECT_LT(spotShadowRays * 4, pointTracer.Counts().shadow) << "shadow rays outside the cone";
-}
-
 }  // namespace
 }  // namespace tcfarm

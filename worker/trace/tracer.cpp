@@ -115,6 +115,7 @@ class Tracer::PixelTracer {
   bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const;
   Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction,
                            float distance) const;
+  // What the surface shows with no light: the ambient term, and its own emission.
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
@@ -213,7 +214,9 @@ Float3 Tracer::PixelTracer::LightContribution(const SurfaceHit& hit, size_t ligh
 }
 
 Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
-  return ShadingMaterial::Ambient(hit.diffuse);
+  const ShadingMaterial& m = (*frame_.materials)[hit.material];
+  const Float3 ambient = ShadingMaterial::Ambient(hit.diffuse);
+  return m.emits ? ambient + m.emission : ambient;
 }
 
 // Local shading weighted against mirror reflection and refraction, Whitted style.
@@ -314,11 +317,12 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     float px, py;
     SamplePosition(pixel[lane] % width, pixel[lane] / width, sample[lane],
                    frame_.samplesPerPixel, &px, &py);
-    Float3 d = frame_.camera.Direction(px, py);
+    Float3 o, d;
+    frame_.camera.Ray(px, py, &o, &d);
     valid[lane] = -1;
-    packet.ray.org_x[lane] = frame_.camera.origin.x;
-    packet.ray.org_y[lane] = frame_.camera.origin.y;
-    packet.ray.org_z[lane] = frame_.camera.origin.z;
+    packet.ray.org_x[lane] = o.x;
+    packet.ray.org_y[lane] = o.y;
+    packet.ray.org_z[lane] = o.z;
     packet.ray.dir_x[lane] = d.x, packet.ray.dir_y[lane] = d.y, packet.ray.dir_z[lane] = d.z;
     packet.ray.tnear[lane] = 0;
     packet.ray.tfar[lane] = kInfinity;
