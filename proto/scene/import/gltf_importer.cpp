@@ -8,12 +8,12 @@
 // scene model relies on (ranges, finiteness, key order, the graph being a forest) is
 // checked here, so that bad input is refused with the glTF pointer of the bad value.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
-#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -452,11 +452,13 @@ class GltfReader {
       loaded = loader.LoadASCIIFromString(&model_, &error, &warning, input_.bytes.data(), length, base,
                                           tinygltf::REQUIRE_VERSION);
     }
-    if (!loaded) {
-      while (!error.empty() && (error.back() == '\n' || error.back() == ' ')) error.pop_back();
-      std::replace(error.begin(), error.end(), '\n', ' ');
-      Fail("", "tinygltf cannot read it: " + error, "a valid glTF 2.0 file");
-    }
+    auto oneLine = [](std::string text) {
+      while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+      std::replace(text.begin(), text.end(), '\n', ' ');
+      return text;
+    };
+    if (!loaded) Fail("", "tinygltf cannot read it: " + oneLine(error), "a valid glTF 2.0 file");
+    if (!warning.empty()) Warn("", "tinygltf: " + oneLine(warning));
   }
 
   void CheckExtensions() const {
@@ -492,8 +494,8 @@ class GltfReader {
     const std::string pointer = Pointer("accessors", static_cast<size_t>(index));
     if (std::find(types.begin(), types.end(), accessor.type) == types.end() ||
         std::find(componentTypes.begin(), componentTypes.end(), accessor.componentType) == componentTypes.end()) {
-      Fail(pointer, "type " + std::to_string(accessor.type) + " with componentType " +
-                        std::to_string(accessor.componentType) + " where " + referencedAt + " refers to it",
+      Fail(pointer, TypeName(accessor.type) + " of " + ComponentTypeName(accessor.componentType) + " where " +
+                        referencedAt + " refers to it",
            expected);
     }
     if (accessor.sparse.isSparse) {
@@ -552,6 +554,31 @@ class GltfReader {
       }
     }
     return data;
+  }
+
+  static std::string TypeName(int type) {
+    switch (type) {
+      case TINYGLTF_TYPE_SCALAR: return "SCALAR";
+      case TINYGLTF_TYPE_VEC2: return "VEC2";
+      case TINYGLTF_TYPE_VEC3: return "VEC3";
+      case TINYGLTF_TYPE_VEC4: return "VEC4";
+      case TINYGLTF_TYPE_MAT2: return "MAT2";
+      case TINYGLTF_TYPE_MAT3: return "MAT3";
+      case TINYGLTF_TYPE_MAT4: return "MAT4";
+      default: return "type " + std::to_string(type);
+    }
+  }
+
+  static std::string ComponentTypeName(int componentType) {
+    switch (componentType) {
+      case TINYGLTF_COMPONENT_TYPE_BYTE: return "BYTE";
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return "UNSIGNED_BYTE";
+      case TINYGLTF_COMPONENT_TYPE_SHORT: return "SHORT";
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return "UNSIGNED_SHORT";
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return "UNSIGNED_INT";
+      case TINYGLTF_COMPONENT_TYPE_FLOAT: return "FLOAT";
+      default: return "component type " + std::to_string(componentType);
+    }
   }
 
   static double Component(const unsigned char* at, int componentType, bool normalized) {
@@ -809,7 +836,7 @@ class GltfReader {
   void ChooseAnimation() {
     animation_ = -1;
     frameCount_ = 1;
-    if (!options_.framesPerSecond || !(options_.framesPerSecond > 0) || !std::isfinite(options_.framesPerSecond)) {
+    if (!(options_.framesPerSecond > 0) || !std::isfinite(options_.framesPerSecond)) {
       Fail("", "a frame rate of " + std::to_string(options_.framesPerSecond), "a positive frames per second");
     }
     const std::string& wanted = options_.animation;

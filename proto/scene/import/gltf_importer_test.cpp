@@ -351,6 +351,127 @@ TEST(GltfImporterTest, RefusesWhatItCannotHold) {
       << what;
 }
 
+TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
+  GltfBuilder gltf;
+  // Position and normal interleaved, 24 bytes per vertex, in one view; UVs as normalized bytes.
+  std::vector<double> interleaved = {0, 0, 0, 0, 0, 1, 2, 0, 0, 0, 0, 1, 0, 2, 0, 0, 0, 1};
+  int both = gltf.Floats(interleaved, "VEC3");
+  json& accessors = gltf.doc()["accessors"];
+  json& views = gltf.doc()["bufferViews"];
+  views[accessors[both]["bufferView"].get<size_t>()]["byteStride"] = 24;
+  accessors[both]["count"] = 3;
+  json normals = accessors[both];
+  normals["byteOffset"] = 12;
+  accessors.push_back(normals);
+  const size_t normalsIndex = accessors.size() - 1;
+  int uvs = gltf.Indices({0, 0, 0, 0});  // replaced below by normalized unsigned bytes
+  accessors[uvs] = {{"bufferView", accessors[uvs]["bufferView"]}, {"componentType", 5121}, {"normalized", true},
+                    {"type", "VEC2"}, {"count", 3}};
+  gltf.doc()["meshes"].push_back(json::parse(R"({"primitives": [{"attributes": {}}]})"));
+  json& attributes = gltf.doc()["meshes"][0]["primitives"][0]["attributes"];
+  attributes["POSITION"] = both;
+  attributes["NORMAL"] = normalsIndex;
+  attributes["TEXCOORD_0"] = uvs;
+  gltf.Node({{"mesh", 0}}, true);
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 1u);
+  const TriangleMesh& mesh = scene.shapes[0].mesh;
+  ASSERT_EQ(mesh.vertices.size(), 3u);
+  ExpectNear(mesh.vertices[1], {2, 0, 0}, 0);
+  ExpectNear(mesh.vertices[2], {0, 2, 0}, 0);
+  ASSERT_EQ(mesh.normals.size(), 3u);
+  ExpectNear(mesh.normals[2], {0, 0, 1}, 0);
+  ASSERT_EQ(mesh.uvs.size(), 3u);
+  EXPECT_EQ(mesh.uvs[0][0], 0);
+  ExpectRoundTrip(scene);
+
+  accessors[both]["count"] = 4;  // one element past the view
+  std::string what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) + ": the gltf scene: 4 elements from byte 0 run past "
+                      "the end of buffer view"),
+            std::string::npos)
+      << what;
+  accessors[both]["count"] = 3;
+  accessors[both]["sparse"] = json::parse(R"({"count": 1, "indices": {"bufferView": 0, "componentType": 5123},
+                                              "values": {"bufferView": 0}})");
+  what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) + "/sparse: the gltf scene: sparse accessors are not "
+                      "supported"),
+            std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, SpotLightBecomesAPointLight) {
+  GltfBuilder gltf;
+  gltf.Node({{"mesh", gltf.Mesh(kTriangle)}}, true);
+  gltf.doc()["extensions"] = json::parse(R"({"KHR_lights_punctual": {"lights": [
+      {"type": "spot", "intensity": 5, "spot": {"outerConeAngle": 0.5}}]}})");
+  gltf.Node(json::parse(R"({"translation": [0, 3, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}})"), true);
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.lights.size(), 1u);
+  EXPECT_EQ(scene.lights[0].type, Light::Type::kPoint);
+  ExpectNear(scene.lights[0].PositionAt(0), {0, 3, 0});
+  ExpectNear(scene.lights[0].intensity.Evaluate(0), {5, 5, 5});
+}
+
+class TempFolder {
+ public:
+  TempFolder() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("tcfarm_gltf_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::create_directories(path_ / "scene");
+  }
+  ~TempFolder() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+TEST(GltfImporterTest, ExternalFilesStayInsideTheFolder) {
+  TempFolder folder;
+  GltfBuilder gltf;
+  gltf.Node({{"mesh", gltf.Mesh(kTriangle)}}, true);
+  json doc = json::parse(gltf.Text());
+  // The buffer as a file beside the scene (its name URI-encoded).
+  doc["buffers"][0]["uri"] = "mesh%20data.bin";
+  auto write = [&](const fs::path& path, const std::string& content) {
+    std::ofstream(path, std::ios::binary) << content;
+    return path;
+  };
+  // The bytes the builder wrote: the triangle's floats, its only accessor.
+  std::string raw;
+  for (double v : kTriangle) {
+    float f = static_cast<float>(v);
+    raw.append(reinterpret_cast<const char*>(&f), 4);
+  }
+  write(folder.path() / "scene" / "mesh data.bin", raw);
+  fs::path scenePath = write(folder.path() / "scene" / "model.gltf", doc.dump());
+  EXPECT_EQ(ImportScene(scenePath).shapes.size(), 1u);
+
+  // A missing image is refused, though images are not decoded.
+  doc["images"] = json::parse(R"([{"uri": "wood.png"}])");
+  write(scenePath, doc.dump());
+  std::string what = ErrorOf([&] { ImportScene(scenePath); });
+  EXPECT_NE(what.find("scene/images/0/uri: model.gltf: image file \"wood.png\" is missing"), std::string::npos) << what;
+  write(folder.path() / "scene" / "wood.png", "not even a PNG: never decoded");
+  EXPECT_EQ(ImportScene(scenePath).shapes.size(), 1u);
+
+  // A buffer outside the scene's folder is refused, even when it exists.
+  write(folder.path() / "secret.bin", raw);
+  doc["buffers"][0]["uri"] = "../secret.bin";
+  write(scenePath, doc.dump());
+  what = ErrorOf([&] { ImportScene(scenePath); });
+  EXPECT_NE(what.find("scene/buffers/0/uri: model.gltf: buffer file \"../secret.bin\" resolves outside the scene "
+                      "folder"),
+            std::string::npos)
+      << what;
+}
+
 TEST(GltfImporterTest, SniffsGltfBeforeTcfarmJson) {
   EXPECT_EQ(FindImporterForFile("upload", "{\"asset\": {\"version\": \"2.0\"}}")->Type(), "gltf");
   EXPECT_EQ(FindImporterForFile("upload", std::string("glTF\x02\0\0\0", 8))->Type(), "gltf");
