@@ -119,7 +119,7 @@ def test_farm_exact_equals_brute_force_on_an_animated_hierarchy(worker_binary, f
         error = compare(reference, farm.store / str(job["id"]))
     assert error["differing_pixels"] == 0, error
     # The still floor and sign keep their pixels between the movers' passes.
-    assert job["traced_pixel_ratio"] < 0.9, job["traced_pixel_ratio"]
+    assert job["traced_pixel_ratio"] < 0.6, job["traced_pixel_ratio"]  # 0.29 when written
 
 
 VALIDATOR = pathlib.Path(__file__).resolve().parent / "node_modules" / "gltf-validator"
