@@ -97,7 +97,8 @@ RenderCommandLine::RenderCommandLine(CLI::App& app) {
       ->type_name("F")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  app.add_option("--animation", options_.import.animation, "glTF: the animation to play, by name or index (default: the first)")
+  app.add_option("--animation", options_.import.animation,
+                 "glTF: the animation to play, by name or index (default: the first)")
       ->type_name("NAME|INDEX");
   app.add_option("--camera", options_.import.camera,
                  "glTF: the camera, by its (or its node's) name or its index (default: the first camera node)")

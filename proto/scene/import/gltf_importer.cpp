@@ -164,58 +164,92 @@ enum class JsonKind { kAny, kObject, kArray, kString, kNumber, kIndex, kBool };
 struct Field {
   const char* key;
   JsonKind kind;
-  const char* schema = "";            // for objects, and arrays of objects: the object's schema
-  JsonKind item = JsonKind::kAny;     // for arrays: the elements' kind
+  const char* schema = "";         // for objects, and arrays of objects: the object's schema
+  JsonKind item = JsonKind::kAny;  // for arrays: the elements' kind
 };
 
 const std::map<std::string, std::vector<Field>>& Schemas() {
   using K = JsonKind;
   static const std::map<std::string, std::vector<Field>> schemas = {
       {"root",
-       {{"asset", K::kObject, "asset"}, {"scene", K::kIndex}, {"scenes", K::kArray, "scene", K::kObject},
-        {"nodes", K::kArray, "node", K::kObject}, {"meshes", K::kArray, "mesh", K::kObject},
-        {"accessors", K::kArray, "accessor", K::kObject}, {"bufferViews", K::kArray, "bufferView", K::kObject},
-        {"buffers", K::kArray, "buffer", K::kObject}, {"materials", K::kArray, "material", K::kObject},
-        {"textures", K::kArray, "texture", K::kObject}, {"images", K::kArray, "image", K::kObject},
-        {"samplers", K::kArray, "sampler", K::kObject}, {"cameras", K::kArray, "camera", K::kObject},
-        {"animations", K::kArray, "animation", K::kObject}, {"skins", K::kArray, "skin", K::kObject},
-        {"extensionsUsed", K::kArray, "", K::kString}, {"extensionsRequired", K::kArray, "", K::kString}}},
-      {"asset", {{"version", K::kString}, {"minVersion", K::kString}, {"generator", K::kString}, {"copyright", K::kString}}},
+       {{"asset", K::kObject, "asset"},
+        {"scene", K::kIndex},
+        {"scenes", K::kArray, "scene", K::kObject},
+        {"nodes", K::kArray, "node", K::kObject},
+        {"meshes", K::kArray, "mesh", K::kObject},
+        {"accessors", K::kArray, "accessor", K::kObject},
+        {"bufferViews", K::kArray, "bufferView", K::kObject},
+        {"buffers", K::kArray, "buffer", K::kObject},
+        {"materials", K::kArray, "material", K::kObject},
+        {"textures", K::kArray, "texture", K::kObject},
+        {"images", K::kArray, "image", K::kObject},
+        {"samplers", K::kArray, "sampler", K::kObject},
+        {"cameras", K::kArray, "camera", K::kObject},
+        {"animations", K::kArray, "animation", K::kObject},
+        {"skins", K::kArray, "skin", K::kObject},
+        {"extensionsUsed", K::kArray, "", K::kString},
+        {"extensionsRequired", K::kArray, "", K::kString}}},
+      {"asset",
+       {{"version", K::kString}, {"minVersion", K::kString}, {"generator", K::kString}, {"copyright", K::kString}}},
       {"scene", {{"nodes", K::kArray, "", K::kIndex}}},
       {"node",
-       {{"camera", K::kIndex}, {"children", K::kArray, "", K::kIndex}, {"skin", K::kIndex},
-        {"matrix", K::kArray, "", K::kNumber}, {"mesh", K::kIndex}, {"rotation", K::kArray, "", K::kNumber},
-        {"scale", K::kArray, "", K::kNumber}, {"translation", K::kArray, "", K::kNumber},
+       {{"camera", K::kIndex},
+        {"children", K::kArray, "", K::kIndex},
+        {"skin", K::kIndex},
+        {"matrix", K::kArray, "", K::kNumber},
+        {"mesh", K::kIndex},
+        {"rotation", K::kArray, "", K::kNumber},
+        {"scale", K::kArray, "", K::kNumber},
+        {"translation", K::kArray, "", K::kNumber},
         {"weights", K::kArray, "", K::kNumber}}},
       {"mesh", {{"primitives", K::kArray, "primitive", K::kObject}, {"weights", K::kArray, "", K::kNumber}}},
       {"primitive",
-       {{"attributes", K::kObject, "indices"}, {"indices", K::kIndex}, {"material", K::kIndex}, {"mode", K::kIndex},
+       {{"attributes", K::kObject, "indices"},
+        {"indices", K::kIndex},
+        {"material", K::kIndex},
+        {"mode", K::kIndex},
         {"targets", K::kArray, "indices", K::kObject}}},
       {"accessor",
-       {{"bufferView", K::kIndex}, {"byteOffset", K::kIndex}, {"componentType", K::kIndex}, {"normalized", K::kBool},
-        {"count", K::kIndex}, {"type", K::kString}, {"max", K::kArray, "", K::kNumber},
-        {"min", K::kArray, "", K::kNumber}, {"sparse", K::kObject}}},
+       {{"bufferView", K::kIndex},
+        {"byteOffset", K::kIndex},
+        {"componentType", K::kIndex},
+        {"normalized", K::kBool},
+        {"count", K::kIndex},
+        {"type", K::kString},
+        {"max", K::kArray, "", K::kNumber},
+        {"min", K::kArray, "", K::kNumber},
+        {"sparse", K::kObject}}},
       {"bufferView",
-       {{"buffer", K::kIndex}, {"byteOffset", K::kIndex}, {"byteLength", K::kIndex}, {"byteStride", K::kIndex},
+       {{"buffer", K::kIndex},
+        {"byteOffset", K::kIndex},
+        {"byteLength", K::kIndex},
+        {"byteStride", K::kIndex},
         {"target", K::kIndex}}},
       {"buffer", {{"uri", K::kString}, {"byteLength", K::kIndex}}},
       {"material",
-       {{"pbrMetallicRoughness", K::kObject, "pbr"}, {"normalTexture", K::kObject, "textureInfo"},
-        {"occlusionTexture", K::kObject, "textureInfo"}, {"emissiveTexture", K::kObject, "textureInfo"},
-        {"emissiveFactor", K::kArray, "", K::kNumber}, {"alphaMode", K::kString}, {"alphaCutoff", K::kNumber},
+       {{"pbrMetallicRoughness", K::kObject, "pbr"},
+        {"normalTexture", K::kObject, "textureInfo"},
+        {"occlusionTexture", K::kObject, "textureInfo"},
+        {"emissiveTexture", K::kObject, "textureInfo"},
+        {"emissiveFactor", K::kArray, "", K::kNumber},
+        {"alphaMode", K::kString},
+        {"alphaCutoff", K::kNumber},
         {"doubleSided", K::kBool}}},
       {"pbr",
-       {{"baseColorFactor", K::kArray, "", K::kNumber}, {"baseColorTexture", K::kObject, "textureInfo"},
-        {"metallicFactor", K::kNumber}, {"roughnessFactor", K::kNumber},
+       {{"baseColorFactor", K::kArray, "", K::kNumber},
+        {"baseColorTexture", K::kObject, "textureInfo"},
+        {"metallicFactor", K::kNumber},
+        {"roughnessFactor", K::kNumber},
         {"metallicRoughnessTexture", K::kObject, "textureInfo"}}},
       {"textureInfo", {{"index", K::kIndex}, {"texCoord", K::kIndex}, {"scale", K::kNumber}, {"strength", K::kNumber}}},
       {"texture", {{"sampler", K::kIndex}, {"source", K::kIndex}}},
       {"image", {{"uri", K::kString}, {"mimeType", K::kString}, {"bufferView", K::kIndex}}},
       {"sampler", {{"magFilter", K::kIndex}, {"minFilter", K::kIndex}, {"wrapS", K::kIndex}, {"wrapT", K::kIndex}}},
       {"camera",
-       {{"type", K::kString}, {"perspective", K::kObject, "perspective"}, {"orthographic", K::kObject, "orthographic"}}},
-      {"perspective",
-       {{"aspectRatio", K::kNumber}, {"yfov", K::kNumber}, {"zfar", K::kNumber}, {"znear", K::kNumber}}},
+       {{"type", K::kString},
+        {"perspective", K::kObject, "perspective"},
+        {"orthographic", K::kObject, "orthographic"}}},
+      {"perspective", {{"aspectRatio", K::kNumber}, {"yfov", K::kNumber}, {"zfar", K::kNumber}, {"znear", K::kNumber}}},
       {"orthographic", {{"xmag", K::kNumber}, {"ymag", K::kNumber}, {"zfar", K::kNumber}, {"znear", K::kNumber}}},
       {"animation",
        {{"channels", K::kArray, "channel", K::kObject}, {"samplers", K::kArray, "animationSampler", K::kObject}}},
@@ -229,28 +263,42 @@ const std::map<std::string, std::vector<Field>>& Schemas() {
 
 const char* KindName(JsonKind kind) {
   switch (kind) {
-    case JsonKind::kObject: return "an object";
-    case JsonKind::kArray: return "an array";
-    case JsonKind::kString: return "a string";
-    case JsonKind::kNumber: return "a number";
-    case JsonKind::kIndex: return "a non-negative integer";
-    case JsonKind::kBool: return "a boolean";
-    case JsonKind::kAny: break;
+    case JsonKind::kObject:
+      return "an object";
+    case JsonKind::kArray:
+      return "an array";
+    case JsonKind::kString:
+      return "a string";
+    case JsonKind::kNumber:
+      return "a number";
+    case JsonKind::kIndex:
+      return "a non-negative integer";
+    case JsonKind::kBool:
+      return "a boolean";
+    case JsonKind::kAny:
+      break;
   }
   return "any value";
 }
 
 bool IsKind(const nlohmann::json& value, JsonKind kind) {
   switch (kind) {
-    case JsonKind::kObject: return value.is_object();
-    case JsonKind::kArray: return value.is_array();
-    case JsonKind::kString: return value.is_string();
-    case JsonKind::kNumber: return value.is_number();
+    case JsonKind::kObject:
+      return value.is_object();
+    case JsonKind::kArray:
+      return value.is_array();
+    case JsonKind::kString:
+      return value.is_string();
+    case JsonKind::kNumber:
+      return value.is_number();
     case JsonKind::kIndex:
       return value.is_number_unsigned() || (value.is_number_integer() && value.get<int64_t>() >= 0) ||
-             (value.is_number_float() && value.get<double>() >= 0 && value.get<double>() == std::floor(value.get<double>()));
-    case JsonKind::kBool: return value.is_boolean();
-    case JsonKind::kAny: return true;
+             (value.is_number_float() && value.get<double>() >= 0 &&
+              value.get<double>() == std::floor(value.get<double>()));
+    case JsonKind::kBool:
+      return value.is_boolean();
+    case JsonKind::kAny:
+      return true;
   }
   return true;
 }
@@ -355,11 +403,13 @@ class GltfReader {
       return value;
     };
     const std::string glb = "a GLB file: a 12-byte header, a JSON chunk, an optional BIN chunk";
-    if (bytes.size() < 20) Fail("", "GLB byte " + std::to_string(bytes.size()) + ": the file ends inside its header", glb);
+    if (bytes.size() < 20)
+      Fail("", "GLB byte " + std::to_string(bytes.size()) + ": the file ends inside its header", glb);
     if (word(4) != 2) Fail("", "GLB byte 4: version " + std::to_string(word(4)), "GLB version 2");
     if (word(8) != bytes.size()) {
-      Fail("", "GLB byte 8: the header gives a length of " + std::to_string(word(8)) + " bytes but the file holds " +
-                   std::to_string(bytes.size()) + (word(8) > bytes.size() ? " (truncated)" : ""),
+      Fail("",
+           "GLB byte 8: the header gives a length of " + std::to_string(word(8)) + " bytes but the file holds " +
+               std::to_string(bytes.size()) + (word(8) > bytes.size() ? " (truncated)" : ""),
            glb);
     }
     uint32_t jsonLength = word(12);
@@ -372,8 +422,9 @@ class GltfReader {
     if (next + 8 <= bytes.size()) {
       uint32_t binLength = word(next);
       if (next + 8 + static_cast<uint64_t>(binLength) > bytes.size()) {
-        Fail("", "GLB byte " + std::to_string(next) + ": a chunk of " + std::to_string(binLength) +
-                     " bytes runs past the end of the file",
+        Fail("",
+             "GLB byte " + std::to_string(next) + ": a chunk of " + std::to_string(binLength) +
+                 " bytes runs past the end of the file",
              glb);
       }
     } else if (next != bytes.size()) {
@@ -389,7 +440,8 @@ class GltfReader {
     if (!document.is_object()) return;  // tinygltf says what is wrong with the syntax
     auto [pointer, expected] = WrongType(document, "root", "");
     if (!pointer.empty()) {
-      Fail(pointer, std::string("a value of JSON type ") + document.at(nlohmann::json::json_pointer(pointer)).type_name(),
+      Fail(pointer,
+           std::string("a value of JSON type ") + document.at(nlohmann::json::json_pointer(pointer)).type_name(),
            expected);
     }
     if (document.contains("extensionsRequired") && document["extensionsRequired"].is_array()) {
@@ -486,16 +538,18 @@ class GltfReader {
   AccessorData ReadAccessor(int index, const std::string& referencedAt, const std::vector<int>& types,
                             const std::vector<int>& componentTypes, const std::string& expected) const {
     if (index < 0 || static_cast<size_t>(index) >= model_.accessors.size()) {
-      Fail(referencedAt, "accessor " + std::to_string(index) + " does not exist (the file has " +
-                             std::to_string(model_.accessors.size()) + ")",
+      Fail(referencedAt,
+           "accessor " + std::to_string(index) + " does not exist (the file has " +
+               std::to_string(model_.accessors.size()) + ")",
            "the index of an accessor");
     }
     const tinygltf::Accessor& accessor = model_.accessors[static_cast<size_t>(index)];
     const std::string pointer = Pointer("accessors", static_cast<size_t>(index));
     if (std::find(types.begin(), types.end(), accessor.type) == types.end() ||
         std::find(componentTypes.begin(), componentTypes.end(), accessor.componentType) == componentTypes.end()) {
-      Fail(pointer, TypeName(accessor.type) + " of " + ComponentTypeName(accessor.componentType) + " where " +
-                        referencedAt + " refers to it",
+      Fail(pointer,
+           TypeName(accessor.type) + " of " + ComponentTypeName(accessor.componentType) + " where " + referencedAt +
+               " refers to it",
            expected);
     }
     if (accessor.sparse.isSparse) {
@@ -519,29 +573,30 @@ class GltfReader {
     const tinygltf::BufferView& view = model_.bufferViews[static_cast<size_t>(accessor.bufferView)];
     const std::string viewPointer = Pointer("bufferViews", static_cast<size_t>(accessor.bufferView));
     if (view.buffer < 0 || static_cast<size_t>(view.buffer) >= model_.buffers.size()) {
-      Fail(viewPointer + "/buffer", "buffer " + std::to_string(view.buffer) + " does not exist", "the index of a buffer");
+      Fail(viewPointer + "/buffer", "buffer " + std::to_string(view.buffer) + " does not exist",
+           "the index of a buffer");
     }
     const std::vector<unsigned char>& buffer = model_.buffers[static_cast<size_t>(view.buffer)].data;
     if (view.byteOffset > buffer.size() || view.byteLength > buffer.size() - view.byteOffset) {
-      Fail(viewPointer, "bytes " + std::to_string(view.byteOffset) + " to " +
-                            std::to_string(view.byteOffset + view.byteLength) + " of a buffer of " +
-                            std::to_string(buffer.size()) + " bytes",
+      Fail(viewPointer,
+           "bytes " + std::to_string(view.byteOffset) + " to " + std::to_string(view.byteOffset + view.byteLength) +
+               " of a buffer of " + std::to_string(buffer.size()) + " bytes",
            "a buffer view inside its buffer");
     }
     const size_t elementSize = static_cast<size_t>(componentSize) * static_cast<size_t>(components);
     const size_t stride = view.byteStride != 0 ? view.byteStride : elementSize;
     if (stride < elementSize) {
-      Fail(viewPointer + "/byteStride", "a stride of " + std::to_string(stride) + " bytes for elements of " +
-                                            std::to_string(elementSize),
+      Fail(viewPointer + "/byteStride",
+           "a stride of " + std::to_string(stride) + " bytes for elements of " + std::to_string(elementSize),
            "a stride at least the element size");
     }
-    if (accessor.count > 0 &&
-        (accessor.byteOffset > view.byteLength ||
-         (accessor.count - 1) > (view.byteLength - accessor.byteOffset) / stride ||
-         accessor.byteOffset + (accessor.count - 1) * stride + elementSize > view.byteLength)) {
-      Fail(pointer, std::to_string(accessor.count) + " elements from byte " + std::to_string(accessor.byteOffset) +
-                        " run past the end of buffer view " + std::to_string(accessor.bufferView) + " (" +
-                        std::to_string(view.byteLength) + " bytes)",
+    if (accessor.count > 0 && (accessor.byteOffset > view.byteLength ||
+                               (accessor.count - 1) > (view.byteLength - accessor.byteOffset) / stride ||
+                               accessor.byteOffset + (accessor.count - 1) * stride + elementSize > view.byteLength)) {
+      Fail(pointer,
+           std::to_string(accessor.count) + " elements from byte " + std::to_string(accessor.byteOffset) +
+               " run past the end of buffer view " + std::to_string(accessor.bufferView) + " (" +
+               std::to_string(view.byteLength) + " bytes)",
            "an accessor inside its buffer view");
     }
     const unsigned char* base = buffer.data() + view.byteOffset + accessor.byteOffset;
@@ -558,26 +613,41 @@ class GltfReader {
 
   static std::string TypeName(int type) {
     switch (type) {
-      case TINYGLTF_TYPE_SCALAR: return "SCALAR";
-      case TINYGLTF_TYPE_VEC2: return "VEC2";
-      case TINYGLTF_TYPE_VEC3: return "VEC3";
-      case TINYGLTF_TYPE_VEC4: return "VEC4";
-      case TINYGLTF_TYPE_MAT2: return "MAT2";
-      case TINYGLTF_TYPE_MAT3: return "MAT3";
-      case TINYGLTF_TYPE_MAT4: return "MAT4";
-      default: return "type " + std::to_string(type);
+      case TINYGLTF_TYPE_SCALAR:
+        return "SCALAR";
+      case TINYGLTF_TYPE_VEC2:
+        return "VEC2";
+      case TINYGLTF_TYPE_VEC3:
+        return "VEC3";
+      case TINYGLTF_TYPE_VEC4:
+        return "VEC4";
+      case TINYGLTF_TYPE_MAT2:
+        return "MAT2";
+      case TINYGLTF_TYPE_MAT3:
+        return "MAT3";
+      case TINYGLTF_TYPE_MAT4:
+        return "MAT4";
+      default:
+        return "type " + std::to_string(type);
     }
   }
 
   static std::string ComponentTypeName(int componentType) {
     switch (componentType) {
-      case TINYGLTF_COMPONENT_TYPE_BYTE: return "BYTE";
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return "UNSIGNED_BYTE";
-      case TINYGLTF_COMPONENT_TYPE_SHORT: return "SHORT";
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return "UNSIGNED_SHORT";
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return "UNSIGNED_INT";
-      case TINYGLTF_COMPONENT_TYPE_FLOAT: return "FLOAT";
-      default: return "component type " + std::to_string(componentType);
+      case TINYGLTF_COMPONENT_TYPE_BYTE:
+        return "BYTE";
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+        return "UNSIGNED_BYTE";
+      case TINYGLTF_COMPONENT_TYPE_SHORT:
+        return "SHORT";
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+        return "UNSIGNED_SHORT";
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+        return "UNSIGNED_INT";
+      case TINYGLTF_COMPONENT_TYPE_FLOAT:
+        return "FLOAT";
+      default:
+        return "component type " + std::to_string(componentType);
     }
   }
 
@@ -625,7 +695,9 @@ class GltfReader {
       if (!(std::fabs(v) <= kMaxMagnitude)) {
         Fail(Pointer("accessors", static_cast<size_t>(index)),
              what + " " + std::to_string(i / static_cast<size_t>(data.components)) + " holds " +
-                 (std::isnan(v) ? std::string("NaN") : std::isinf(v) ? std::string("an infinity") : std::to_string(v)),
+                 (std::isnan(v)   ? std::string("NaN")
+                  : std::isinf(v) ? std::string("an infinity")
+                                  : std::to_string(v)),
              "finite values of magnitude at most 1e30");
       }
     }
@@ -633,8 +705,8 @@ class GltfReader {
 
   // ---- materials ------------------------------------------------------------------------
 
-  static double NumberIn(const tinygltf::ExtensionMap& extensions, const std::string& extension,
-                         const std::string& key, double fallback) {
+  static double NumberIn(const tinygltf::ExtensionMap& extensions, const std::string& extension, const std::string& key,
+                         double fallback) {
     auto found = extensions.find(extension);
     if (found == extensions.end() || !found->second.IsObject() || !found->second.Has(key)) return fallback;
     const tinygltf::Value& value = found->second.Get(key);
@@ -659,7 +731,8 @@ class GltfReader {
       Fail(pointer + "/extensions/KHR_materials_transmission/transmissionFactor", std::to_string(transmission),
            "a factor in [0, 1]");
     }
-    if (!std::isfinite(ior) || ior < 0) Fail(pointer + "/extensions/KHR_materials_ior/ior", std::to_string(ior), "an ior >= 1");
+    if (!std::isfinite(ior) || ior < 0)
+      Fail(pointer + "/extensions/KHR_materials_ior/ior", std::to_string(ior), "an ior >= 1");
     Material material;
     material.reflectivity = metallic * (1 - roughness) * (1 - roughness);
     // Metals transmit nothing; what reflects is not also transmitted.
@@ -720,13 +793,16 @@ class GltfReader {
         int child = children[k];
         std::string pointer = Pointer("nodes", i) + "/children/" + std::to_string(k);
         if (child < 0 || static_cast<size_t>(child) >= count) {
-          Fail(pointer, "node " + std::to_string(child) + " does not exist (the file has " + std::to_string(count) + ")",
+          Fail(pointer,
+               "node " + std::to_string(child) + " does not exist (the file has " + std::to_string(count) + ")",
                "the index of a node");
         }
-        if (static_cast<size_t>(child) == i) Fail(pointer, "node " + std::to_string(i) + " is its own child", "a tree of nodes");
+        if (static_cast<size_t>(child) == i)
+          Fail(pointer, "node " + std::to_string(i) + " is its own child", "a tree of nodes");
         if (parent_[static_cast<size_t>(child)] >= 0) {
-          Fail(pointer, "node " + std::to_string(child) + " already has parent " +
-                            std::to_string(parent_[static_cast<size_t>(child)]),
+          Fail(pointer,
+               "node " + std::to_string(child) + " already has parent " +
+                   std::to_string(parent_[static_cast<size_t>(child)]),
                "a tree of nodes: each node the child of at most one");
         }
         parent_[static_cast<size_t>(child)] = static_cast<int>(i);
@@ -754,7 +830,8 @@ class GltfReader {
         if (nodes[k] < 0 || static_cast<size_t>(nodes[k]) >= count) {
           Fail(pointer, "node " + std::to_string(nodes[k]) + " does not exist", "the index of a node");
         }
-        if (parent_[static_cast<size_t>(nodes[k])] >= 0) Fail(pointer, "node " + std::to_string(nodes[k]) + " has a parent", "a root node");
+        if (parent_[static_cast<size_t>(nodes[k])] >= 0)
+          Fail(pointer, "node " + std::to_string(nodes[k]) + " has a parent", "a root node");
         roots.push_back(nodes[k]);
       }
     } else {
@@ -854,8 +931,9 @@ class GltfReader {
         animation_ = std::stoi(wanted);
       }
       if (animation_ < 0) {
-        Fail("/animations", "no animation named or numbered " + QuoteInput(wanted) + " (the file has " +
-                                std::to_string(model_.animations.size()) + ")",
+        Fail("/animations",
+             "no animation named or numbered " + QuoteInput(wanted) + " (the file has " +
+                 std::to_string(model_.animations.size()) + ")",
              "an animation's name or index");
       }
     }
@@ -882,8 +960,9 @@ class GltfReader {
       }
       double frame = time * options_.framesPerSecond;
       if (!frames.empty() && !(frame > frames.back())) {
-        Fail(pointer, "key time " + std::to_string(k) + " (" + std::to_string(time) + " s) does not follow key " +
-                          std::to_string(k - 1),
+        Fail(pointer,
+             "key time " + std::to_string(k) + " (" + std::to_string(time) + " s) does not follow key " +
+                 std::to_string(k - 1),
              "strictly increasing key times");
       }
       frames.push_back(frame);
@@ -905,7 +984,8 @@ class GltfReader {
         const std::string pointer = animationPointer + "/channels/" + std::to_string(c);
         if (channel.target_node < 0) continue;  // a target for an extension
         if (static_cast<size_t>(channel.target_node) >= count) {
-          Fail(pointer + "/target/node", "node " + std::to_string(channel.target_node) + " does not exist", "the index of a node");
+          Fail(pointer + "/target/node", "node " + std::to_string(channel.target_node) + " does not exist",
+               "the index of a node");
         }
         const std::string& path = channel.target_path;
         if (path == "weights") {
@@ -916,7 +996,8 @@ class GltfReader {
           Fail(pointer + "/target/path", "path " + QuoteInput(path), "translation, rotation, scale or weights");
         }
         if (channel.sampler < 0 || static_cast<size_t>(channel.sampler) >= animation.samplers.size()) {
-          Fail(pointer + "/sampler", "sampler " + std::to_string(channel.sampler) + " does not exist", "the index of a sampler");
+          Fail(pointer + "/sampler", "sampler " + std::to_string(channel.sampler) + " does not exist",
+               "the index of a sampler");
         }
         const auto& node = model_.nodes[static_cast<size_t>(channel.target_node)];
         if (!node.matrix.empty()) {
@@ -924,7 +1005,8 @@ class GltfReader {
                "animated nodes with translation, rotation and scale (the glTF rule)");
         }
         Channel& target = channels[static_cast<size_t>(channel.target_node)][path];
-        if (target.present) Fail(pointer, "a second channel for " + path + " of the same node", "one channel per node and path");
+        if (target.present)
+          Fail(pointer, "a second channel for " + path + " of the same node", "one channel per node and path");
         const std::string samplerPointer = animationPointer + "/samplers/" + std::to_string(channel.sampler);
         const auto& sampler = animation.samplers[static_cast<size_t>(channel.sampler)];
         target.present = true;
@@ -941,9 +1023,9 @@ class GltfReader {
         bool rotation = path == "rotation";
         std::vector<int> componentTypes = {TINYGLTF_COMPONENT_TYPE_FLOAT};
         if (rotation) {
-          componentTypes.insert(componentTypes.end(), {TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
-                                                       TINYGLTF_COMPONENT_TYPE_SHORT,
-                                                       TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
+          componentTypes.insert(componentTypes.end(),
+                                {TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                                 TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
         }
         target.values = ReadAccessor(sampler.output, samplerPointer + "/output",
                                      {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3}, componentTypes,
@@ -951,10 +1033,11 @@ class GltfReader {
         CheckFinite(target.values, sampler.output, "key value");
         size_t perKey = target.interpolation == Interpolation::kCubicSpline ? 3 : 1;
         if (target.values.count != target.times.size() * perKey) {
-          Fail(Pointer("accessors", static_cast<size_t>(sampler.output)) + "/count",
-               std::to_string(target.values.count) + " values for " + std::to_string(target.times.size()) + " key times",
-               std::to_string(target.times.size() * perKey) + " values (" +
-                   (perKey == 3 ? "in-tangent, value, out-tangent per key)" : "one per key)"));
+          Fail(
+              Pointer("accessors", static_cast<size_t>(sampler.output)) + "/count",
+              std::to_string(target.values.count) + " values for " + std::to_string(target.times.size()) + " key times",
+              std::to_string(target.times.size() * perKey) + " values (" +
+                  (perKey == 3 ? "in-tangent, value, out-tangent per key)" : "one per key)"));
         }
         lastFrame = std::max(lastFrame, target.times.back());
       }
@@ -970,7 +1053,8 @@ class GltfReader {
 
     motions_.assign(count, nullptr);
     for (int node : order_) {
-      auto motion = std::make_shared<Motion>(LocalMotion(static_cast<size_t>(node), channels[static_cast<size_t>(node)]));
+      auto motion =
+          std::make_shared<Motion>(LocalMotion(static_cast<size_t>(node), channels[static_cast<size_t>(node)]));
       int parent = parent_[static_cast<size_t>(node)];
       if (parent >= 0 && !motions_[static_cast<size_t>(parent)]->IsNone()) {
         motion->parent = motions_[static_cast<size_t>(parent)];
@@ -991,7 +1075,8 @@ class GltfReader {
     Vec3 translation, scale{1, 1, 1};
     Quaternion rotation;
     if (!node.matrix.empty()) {
-      if (node.matrix.size() != 16) Fail(pointer + "/matrix", std::to_string(node.matrix.size()) + " numbers", "16 numbers");
+      if (node.matrix.size() != 16)
+        Fail(pointer + "/matrix", std::to_string(node.matrix.size()) + " numbers", "16 numbers");
       Decompose(node.matrix, pointer + "/matrix", &translation, &rotation, &scale);
     } else {
       auto check = [&](const std::vector<double>& values, size_t size, const char* key) {
@@ -999,7 +1084,8 @@ class GltfReader {
           Fail(pointer + "/" + key, std::to_string(values.size()) + " numbers", std::to_string(size) + " numbers");
         }
         for (double v : values) {
-          if (!(std::fabs(v) <= kMaxMagnitude)) Fail(pointer + "/" + key, "a value of " + std::to_string(v), "finite numbers");
+          if (!(std::fabs(v) <= kMaxMagnitude))
+            Fail(pointer + "/" + key, "a value of " + std::to_string(v), "finite numbers");
         }
       };
       check(node.translation, 3, "translation");
@@ -1027,7 +1113,8 @@ class GltfReader {
       bool cubic = channel.interpolation == Interpolation::kCubicSpline;
       for (size_t k = 0; k < channel.times.size(); ++k) {
         size_t at = cubic ? 3 * k + 1 : k;
-        AnimatedVec3::Keyframe key{channel.times[k], {channel.values.At(at, 0), channel.values.At(at, 1), channel.values.At(at, 2)}};
+        AnimatedVec3::Keyframe key{channel.times[k],
+                                   {channel.values.At(at, 0), channel.values.At(at, 1), channel.values.At(at, 2)}};
         if (cubic) {
           // glTF's tangents are per second; the scene's per frame.
           key.inTangent = {channel.values.At(at - 1, 0) / fps, channel.values.At(at - 1, 1) / fps,
@@ -1039,7 +1126,8 @@ class GltfReader {
       }
       return AnimatedVec3::Keyframes(std::move(keys), channel.interpolation);
     };
-    if (auto found = channels.find("translation"); found != channels.end()) motion.translation = vectorKeys(found->second);
+    if (auto found = channels.find("translation"); found != channels.end())
+      motion.translation = vectorKeys(found->second);
     if (auto found = channels.find("scale"); found != channels.end()) {
       const Channel& channel = found->second;
       for (size_t i = 0; i < channel.values.values.size(); ++i) {
@@ -1065,7 +1153,8 @@ class GltfReader {
         size_t at = cubic ? 3 * k + 1 : k;
         AnimatedRotation::Keyframe key{channel.times[k], quaternion(at, 1)};
         if (key.value.w == 0 && key.value.x == 0 && key.value.y == 0 && key.value.z == 0) {
-          Fail(pointer, "a zero quaternion at key " + std::to_string(k) + " of its rotation channel", "unit quaternions");
+          Fail(pointer, "a zero quaternion at key " + std::to_string(k) + " of its rotation channel",
+               "unit quaternions");
         }
         if (cubic) {
           key.inTangent = quaternion(at - 1, fps);
@@ -1092,22 +1181,25 @@ class GltfReader {
                                           anyComponent, "a VEC3 accessor of positions");
     CheckFinite(positions, position->second, "position");
     TriangleMesh mesh;
-    for (size_t v = 0; v < positions.count; ++v) mesh.vertices.push_back({positions.At(v, 0), positions.At(v, 1), positions.At(v, 2)});
+    for (size_t v = 0; v < positions.count; ++v)
+      mesh.vertices.push_back({positions.At(v, 0), positions.At(v, 1), positions.At(v, 2)});
     if (auto normal = primitive.attributes.find("NORMAL"); normal != primitive.attributes.end()) {
-      AccessorData normals = ReadAccessor(normal->second, pointer + "/attributes/NORMAL", {TINYGLTF_TYPE_VEC3},
-                                          {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT},
-                                          "a VEC3 accessor of normals");
+      AccessorData normals =
+          ReadAccessor(normal->second, pointer + "/attributes/NORMAL", {TINYGLTF_TYPE_VEC3},
+                       {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT},
+                       "a VEC3 accessor of normals");
       CheckFinite(normals, normal->second, "normal");
       if (normals.count != positions.count) {
         Fail(Pointer("accessors", static_cast<size_t>(normal->second)) + "/count",
              std::to_string(normals.count) + " normals for " + std::to_string(positions.count) + " positions",
              "one normal per position");
       }
-      for (size_t v = 0; v < normals.count; ++v) mesh.normals.push_back({normals.At(v, 0), normals.At(v, 1), normals.At(v, 2)});
+      for (size_t v = 0; v < normals.count; ++v)
+        mesh.normals.push_back({normals.At(v, 0), normals.At(v, 1), normals.At(v, 2)});
     }
     if (auto uv = primitive.attributes.find("TEXCOORD_0"); uv != primitive.attributes.end()) {
-      AccessorData uvs = ReadAccessor(uv->second, pointer + "/attributes/TEXCOORD_0", {TINYGLTF_TYPE_VEC2}, anyComponent,
-                                      "a VEC2 accessor of texture coordinates");
+      AccessorData uvs = ReadAccessor(uv->second, pointer + "/attributes/TEXCOORD_0", {TINYGLTF_TYPE_VEC2},
+                                      anyComponent, "a VEC2 accessor of texture coordinates");
       CheckFinite(uvs, uv->second, "texture coordinate");
       if (uvs.count != positions.count) {
         Fail(Pointer("accessors", static_cast<size_t>(uv->second)) + "/count",
@@ -1172,9 +1264,11 @@ class GltfReader {
       const auto& mesh = model_.meshes[static_cast<size_t>(source.mesh)];
       for (size_t p = 0; p < mesh.primitives.size(); ++p) {
         const auto& primitive = mesh.primitives[p];
-        const std::string pointer = Pointer("meshes", static_cast<size_t>(source.mesh)) + "/primitives/" + std::to_string(p);
+        const std::string pointer =
+            Pointer("meshes", static_cast<size_t>(source.mesh)) + "/primitives/" + std::to_string(p);
         int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
-        if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP && mode != TINYGLTF_MODE_TRIANGLE_FAN) {
+        if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
+            mode != TINYGLTF_MODE_TRIANGLE_FAN) {
           if (mode < TINYGLTF_MODE_POINTS || mode > TINYGLTF_MODE_TRIANGLE_FAN) {
             Fail(pointer + "/mode", "mode " + std::to_string(mode), "a primitive mode from 0 to 6");
           }
@@ -1220,7 +1314,8 @@ class GltfReader {
       if (extension == source.extensions.end() || !extension->second.Has("light")) continue;
       const std::string pointer = Pointer("nodes", static_cast<size_t>(node)) + "/extensions/KHR_lights_punctual/light";
       const tinygltf::Value& index = extension->second.Get("light");
-      if (!index.IsInt() || index.GetNumberAsInt() < 0 || static_cast<size_t>(index.GetNumberAsInt()) >= model_.lights.size()) {
+      if (!index.IsInt() || index.GetNumberAsInt() < 0 ||
+          static_cast<size_t>(index.GetNumberAsInt()) >= model_.lights.size()) {
         Fail(pointer, "no such light", "the index of a KHR_lights_punctual light");
       }
       const size_t lightIndex = static_cast<size_t>(index.GetNumberAsInt());
@@ -1228,7 +1323,8 @@ class GltfReader {
       const std::string lightPointer = "/extensions/KHR_lights_punctual/lights/" + std::to_string(lightIndex);
       std::vector<double> color = light.color.size() == 3 ? light.color : std::vector<double>{1, 1, 1};
       for (double v : {color[0], color[1], color[2], light.intensity}) {
-        if (!(v >= 0 && v <= kMaxMagnitude)) Fail(lightPointer, "a colour or intensity of " + std::to_string(v), "finite non-negative values");
+        if (!(v >= 0 && v <= kMaxMagnitude))
+          Fail(lightPointer, "a colour or intensity of " + std::to_string(v), "finite non-negative values");
       }
       Light out;
       if (light.type == "directional") {
@@ -1242,7 +1338,8 @@ class GltfReader {
         Fail(lightPointer + "/type", "type " + QuoteInput(light.type), "point, spot or directional");
       }
       // Photometric units taken one for one as the scene's radiometric ones (scene.md).
-      out.intensity = AnimatedVec3::Constant({color[0] * light.intensity, color[1] * light.intensity, color[2] * light.intensity});
+      out.intensity =
+          AnimatedVec3::Constant({color[0] * light.intensity, color[1] * light.intensity, color[2] * light.intensity});
       out.motion = *motions_[static_cast<size_t>(node)];
       scene.lights.push_back(out);
       any = true;
@@ -1263,8 +1360,8 @@ class GltfReader {
       int camera = model_.nodes[static_cast<size_t>(node)].camera;
       if (camera < 0) continue;
       if (static_cast<size_t>(camera) >= model_.cameras.size()) {
-        Fail(Pointer("nodes", static_cast<size_t>(node)) + "/camera", "camera " + std::to_string(camera) + " does not exist",
-             "the index of a camera");
+        Fail(Pointer("nodes", static_cast<size_t>(node)) + "/camera",
+             "camera " + std::to_string(camera) + " does not exist", "the index of a camera");
       }
       bool match = wanted.empty() || model_.nodes[static_cast<size_t>(node)].name == wanted ||
                    model_.cameras[static_cast<size_t>(camera)].name == wanted || std::to_string(camera) == wanted;
@@ -1272,7 +1369,8 @@ class GltfReader {
       if (match && (chosenNode < 0 || node < chosenNode)) chosenNode = node;
     }
     if (chosenNode < 0 && !wanted.empty()) {
-      Fail("/cameras", "no camera node named or numbered " + QuoteInput(wanted), "a camera's (or its node's) name, or its index");
+      Fail("/cameras", "no camera node named or numbered " + QuoteInput(wanted),
+           "a camera's (or its node's) name, or its index");
     }
     if (chosenNode < 0) {
       FrameBounds(scene);
@@ -1287,7 +1385,8 @@ class GltfReader {
     if (camera.type != "perspective") Fail(pointer + "/type", "type " + QuoteInput(camera.type), "perspective");
     double degrees = camera.perspective.yfov * 180 / kPi;
     if (!(degrees > 0 && degrees < 180)) {
-      Fail(pointer + "/perspective/yfov", std::to_string(camera.perspective.yfov) + " radians", "a field of view in (0, pi)");
+      Fail(pointer + "/perspective/yfov", std::to_string(camera.perspective.yfov) + " radians",
+           "a field of view in (0, pi)");
     }
     // glTF cameras look down their node's -z with +y up; the node's motion carries them.
     scene.camera.position = AnimatedVec3::Constant({0, 0, 0});

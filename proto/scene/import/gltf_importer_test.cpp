@@ -57,9 +57,14 @@ std::string Base64(const std::string& bytes) {
 class GltfBuilder {
  public:
   GltfBuilder() {
-    doc_ = {{"asset", {{"version", "2.0"}}}, {"scene", 0}, {"scenes", json::array({json{{"nodes", json::array()}}})},
-            {"nodes", json::array()}, {"meshes", json::array()}, {"accessors", json::array()},
-            {"bufferViews", json::array()}, {"buffers", json::array()}};
+    doc_ = {{"asset", {{"version", "2.0"}}},
+            {"scene", 0},
+            {"scenes", json::array({json{{"nodes", json::array()}}})},
+            {"nodes", json::array()},
+            {"meshes", json::array()},
+            {"accessors", json::array()},
+            {"bufferViews", json::array()},
+            {"buffers", json::array()}};
   }
   json& doc() { return doc_; }
 
@@ -250,7 +255,8 @@ TEST(GltfImporterTest, CameraLightsAndMaterials) {
       {"name": "glass", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0,
                                                  "roughnessFactor": 0},
        "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.9}, "KHR_materials_ior": {"ior": 1.33}}}])");
-  gltf.doc()["cameras"] = json::parse(R"([{"type": "perspective", "perspective": {"yfov": 1.0471975511965976, "znear": 0.1}}])");
+  gltf.doc()["cameras"] =
+      json::parse(R"([{"type": "perspective", "perspective": {"yfov": 1.0471975511965976, "znear": 0.1}}])");
   gltf.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
   gltf.doc()["extensions"] = json::parse(R"({"KHR_lights_punctual": {"lights": [
       {"type": "point", "color": [1, 0.5, 0.25], "intensity": 8}, {"type": "directional", "intensity": 2}]}})");
@@ -365,8 +371,11 @@ TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
   accessors.push_back(normals);
   const size_t normalsIndex = accessors.size() - 1;
   int uvs = gltf.Indices({0, 0, 0, 0});  // replaced below by normalized unsigned bytes
-  accessors[uvs] = {{"bufferView", accessors[uvs]["bufferView"]}, {"componentType", 5121}, {"normalized", true},
-                    {"type", "VEC2"}, {"count", 3}};
+  accessors[uvs] = {{"bufferView", accessors[uvs]["bufferView"]},
+                    {"componentType", 5121},
+                    {"normalized", true},
+                    {"type", "VEC2"},
+                    {"count", 3}};
   gltf.doc()["meshes"].push_back(json::parse(R"({"primitives": [{"attributes": {}}]})"));
   json& attributes = gltf.doc()["meshes"][0]["primitives"][0]["attributes"];
   attributes["POSITION"] = both;
@@ -387,7 +396,8 @@ TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
 
   accessors[both]["count"] = 4;  // one element past the view
   std::string what = ErrorOf([&] { gltf.Import(); });
-  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) + ": the gltf scene: 4 elements from byte 0 run past "
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) +
+                      ": the gltf scene: 4 elements from byte 0 run past "
                       "the end of buffer view"),
             std::string::npos)
       << what;
@@ -395,7 +405,8 @@ TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
   accessors[both]["sparse"] = json::parse(R"({"count": 1, "indices": {"bufferView": 0, "componentType": 5123},
                                               "values": {"bufferView": 0}})");
   what = ErrorOf([&] { gltf.Import(); });
-  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) + "/sparse: the gltf scene: sparse accessors are not "
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) +
+                      "/sparse: the gltf scene: sparse accessors are not "
                       "supported"),
             std::string::npos)
       << what;
@@ -503,9 +514,12 @@ TEST(GltfImporterTest, BrokenTestModelsAreRefusedWithTheirPointers) {
        "scene/buffers/0/uri: BoxTextured.gltf: buffer file \"BoxTextured0.bin\" is missing"},
       {"SchemaFailures/sceneWrongType.gltf",
        "scene/scene: sceneWrongType.gltf: a value of JSON type string; expected a non-negative integer"},
-      {"wrongTypes/badArray.gltf", "scene/meshes/0/primitives: badArray.gltf: a value of JSON type object; expected an array"},
-      {"wrongTypes/badObject.gltf", "scene/materials/0/pbrMetallicRoughness: badObject.gltf: a value of JSON type array"},
-      {"wrongTypes/badString.gltf", "scene/scenes/0/name: badString.gltf: a value of JSON type number; expected a string"},
+      {"wrongTypes/badArray.gltf",
+       "scene/meshes/0/primitives: badArray.gltf: a value of JSON type object; expected an array"},
+      {"wrongTypes/badObject.gltf",
+       "scene/materials/0/pbrMetallicRoughness: badObject.gltf: a value of JSON type array"},
+      {"wrongTypes/badString.gltf",
+       "scene/scenes/0/name: badString.gltf: a value of JSON type number; expected a string"},
       {"wrongTypes/badNumber.gltf", "scene/materials/0/normalTexture/scale: badNumber.gltf"},
       {"wrongTypes/badUint.gltf", "scene/materials/0/pbrMetallicRoughness/baseColorTexture/index: badUint.gltf"},
       {"wrongTypes/badExtension.gltf",
@@ -526,9 +540,10 @@ TEST(GltfImporterTest, TruncatedGlbNamesTheByteOffset) {
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(ImportSceneBytes(bytes, "").shapes.size(), 1u);
   std::string what = ErrorOf([&] { ImportSceneBytes(bytes.substr(0, bytes.size() / 2), ""); });
-  EXPECT_NE(what.find("scene: the gltf scene: GLB byte 8: the header gives a length of " + std::to_string(bytes.size()) +
-                      " bytes but the file holds " + std::to_string(bytes.size() / 2) + " (truncated)"),
-            std::string::npos)
+  EXPECT_NE(
+      what.find("scene: the gltf scene: GLB byte 8: the header gives a length of " + std::to_string(bytes.size()) +
+                " bytes but the file holds " + std::to_string(bytes.size() / 2) + " (truncated)"),
+      std::string::npos)
       << what;
   what = ErrorOf([&] { ImportSceneBytes(bytes.substr(0, 10), "gltf"); });
   EXPECT_NE(what.find("GLB byte 10: the file ends inside its header"), std::string::npos) << what;
@@ -536,11 +551,12 @@ TEST(GltfImporterTest, TruncatedGlbNamesTheByteOffset) {
 
 TEST(GltfImporterTest, GoodTestModelsImportAndReadBack) {
   if (!fs::exists(kTestModels)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
-  for (const char* file : {"BoxTextured-glTF/BoxTextured.gltf", "BoxTextured-glTF-Binary/BoxTextured.glb",
-                           "BoxTextured-glTF-Embedded/BoxTextured.gltf", "2CylinderEngine-glTF-Binary/2CylinderEngine.glb",
-                           "cameras/Cameras.gltf", "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_04.gltf",
-                           "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_05.gltf",
-                           "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_06.gltf"}) {
+  for (const char* file :
+       {"BoxTextured-glTF/BoxTextured.gltf", "BoxTextured-glTF-Binary/BoxTextured.glb",
+        "BoxTextured-glTF-Embedded/BoxTextured.gltf", "2CylinderEngine-glTF-Binary/2CylinderEngine.glb",
+        "cameras/Cameras.gltf", "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_04.gltf",
+        "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_05.gltf",
+        "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_06.gltf"}) {
     Scene scene = ImportScene(kTestModels / file);
     EXPECT_FALSE(scene.shapes.empty()) << file;
     ExpectRoundTrip(scene);
