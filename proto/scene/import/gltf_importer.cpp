@@ -1446,11 +1446,30 @@ class GltfImporter : public SceneImporter {
   std::vector<std::string> Extensions() const override { return {".gltf", ".glb"}; }
 
   // GLB's magic, or a JSON object naming "asset" (required in glTF, unknown to tcfarm JSON).
+  // The key must be the top object's own: tcfarm JSON may use "asset" as a material's name.
   bool Sniff(std::string_view head) const override {
     if (head.substr(0, 4) == "glTF") return true;
     if (head.substr(0, 3) == "\xEF\xBB\xBF") head.remove_prefix(3);
     size_t first = head.find_first_not_of(" \t\r\n");
-    return first != std::string_view::npos && head[first] == '{' && head.find("\"asset\"") != std::string_view::npos;
+    if (first == std::string_view::npos || head[first] != '{') return false;
+    int depth = 0;
+    for (size_t i = first; i < head.size(); ++i) {
+      char c = head[i];
+      if (c == '{' || c == '[') {
+        ++depth;
+      } else if (c == '}' || c == ']') {
+        if (--depth == 0) return false;
+      } else if (c == '"') {
+        size_t end = i + 1;
+        while (end < head.size() && head[end] != '"') end += head[end] == '\\' ? 2 : 1;
+        if (end >= head.size()) return false;
+        std::string_view text = head.substr(i + 1, end - i - 1);
+        size_t next = head.find_first_not_of(" \t\r\n", end + 1);
+        if (depth == 1 && text == "asset" && next != std::string_view::npos && head[next] == ':') return true;
+        i = end;
+      }
+    }
+    return false;
   }
 
   Scene Import(const ImportInput& input) const override {

@@ -487,6 +487,9 @@ TEST(GltfImporterTest, SniffsGltfBeforeTcfarmJson) {
   EXPECT_EQ(FindImporterForFile("upload", "{\"asset\": {\"version\": \"2.0\"}}")->Type(), "gltf");
   EXPECT_EQ(FindImporterForFile("upload", std::string("glTF\x02\0\0\0", 8))->Type(), "gltf");
   EXPECT_EQ(FindImporterForFile("upload", "{\"camera\": {}}")->Type(), "tcfarm-json");
+  EXPECT_EQ(FindImporterForFile("upload", "{\"materials\": {\"asset\": {}}, \"x\": \"\\\"asset\\\": 1\"}")->Type(),
+            "tcfarm-json");
+  EXPECT_EQ(FindImporterForFile("upload", "{\"extras\": [\"}\"], \"asset\" : {}")->Type(), "gltf");
   EXPECT_EQ(FindImporterForFile("a/Box.GLB", "")->Type(), "gltf");
 }
 
