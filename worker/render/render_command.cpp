@@ -45,6 +45,22 @@ void ParseFrameRange(const std::string& text, RenderOptions* options) {
   }
 }
 
+void ParseSize(const std::string& text, RenderOptions* options) {
+  size_t x = text.find('x');
+  const std::string expected = "--size " + text + ": expected WxH, both from 1 to 16384";
+  if (x == std::string::npos) throw std::invalid_argument(expected);
+  try {
+    options->import.width = ParseInt(text.substr(0, x), "--size width");
+    options->import.height = ParseInt(text.substr(x + 1), "--size height");
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument(expected);
+  }
+  if (options->import.width < 1 || options->import.width > 16384 || options->import.height < 1 ||
+      options->import.height > 16384) {
+    throw std::invalid_argument(expected);
+  }
+}
+
 // Motion is validated over the scene's own frame range only, so frames outside it are
 // not trusted to be finite.
 void ResolveFrameRange(const Scene& scene, RenderOptions* options) {
@@ -65,7 +81,7 @@ void ResolveFrameRange(const Scene& scene, RenderOptions* options) {
 
 RenderCommandLine::RenderCommandLine(CLI::App& app) {
   options_.outDirectory = "out";
-  app.add_option("SCENE", options_.scenePath, "Scene file: tcfarm JSON (.json) or Wavefront OBJ (.obj)")->type_name("FILE")->required();
+  app.add_option("SCENE", options_.scenePath, "Scene file: tcfarm JSON (.json), Wavefront OBJ (.obj) or glTF 2.0 (.gltf, .glb)")->type_name("FILE")->required();
   app.add_option("--frames", frames_,
                  "Frames to render, both inclusive, or one frame (default: the scene's own)")
       ->type_name("A:B");
@@ -76,6 +92,23 @@ RenderCommandLine::RenderCommandLine(CLI::App& app) {
       ->type_name("N")
       ->check(cli::IntegerFrom(0, std::numeric_limits<int>::max()))
       ->capture_default_str();
+  app.add_option("--fps", options_.import.framesPerSecond,
+                 "glTF: frames per second; frame f shows the animation at time f / fps")
+      ->type_name("F")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--animation", options_.import.animation,
+                 "glTF: the animation to play, by name or index (default: the first)")
+      ->type_name("NAME|INDEX");
+  app.add_option("--camera", options_.import.camera,
+                 "glTF: the camera, by its (or its node's) name or its index (default: the first camera node)")
+      ->type_name("NAME|INDEX");
+  app.add_option("--size", size_, "Image size (default: the scene's; 640x480 for glTF and OBJ)")->type_name("WxH");
+  app.add_option("--spp", options_.import.samplesPerPixel, "Samples per pixel (default: the scene's)")
+      ->type_name("N")
+      ->check(cli::IntegerFrom(1, 1024));
+  app.add_flag("--print-scene", options_.printScene,
+               "Print the scene as tcfarm JSON, as the farm is given it, and render nothing");
   app.add_flag("--no-exr", noExr_, "Write no EXR frames");
   app.add_flag("--no-png", noPng_, "Write no PNG frames");
   app.add_option("--exr-compression", options_.output.exrCompression,
@@ -87,6 +120,7 @@ RenderCommandLine::RenderCommandLine(CLI::App& app) {
 RenderOptions RenderCommandLine::Options() const {
   RenderOptions options = options_;
   if (!frames_.empty()) ParseFrameRange(frames_, &options);
+  if (!size_.empty()) ParseSize(size_, &options);
   options.output.writeExr = !noExr_;
   options.output.writePng = !noPng_;
   if (!IsLosslessExrCompression(options.output.exrCompression)) {
@@ -98,7 +132,11 @@ RenderOptions RenderCommandLine::Options() const {
 
 int RunRender(const RenderOptions& requested) {
   RenderOptions options = requested;
-  Scene scene = ImportScene(options.scenePath);
+  Scene scene = ImportScene(options.scenePath, options.import);
+  if (options.printScene) {
+    std::printf("%s\n", SerializeScene(scene).c_str());
+    return 0;
+  }
   ResolveFrameRange(scene, &options);
   PrepareForTracing(scene);  // as the farm's workers do: the same bits
 

@@ -8,6 +8,7 @@
 
 #include "command_line/command_line.h"
 #include "frame/frame_writer.h"
+#include "scene/import/scene_import.h"
 
 namespace tcfarm {
 
@@ -18,6 +19,11 @@ struct RenderOptions {
   int lastFrame = -1;
   unsigned threads = 0;  // 0: all cores
   FrameWriterOptions output;
+  // How a file that is not tcfarm JSON becomes a scene (glTF: fps, animation, camera), and
+  // the render size and samples for any format.
+  ImportOptions import;
+  // Print the scene as tcfarm JSON (what the farm is given) instead of rendering it.
+  bool printScene = false;
 };
 
 // The renderer's command line, SCENE and its flags, on app; Options() once app has parsed.
@@ -33,6 +39,7 @@ class RenderCommandLine {
  private:
   RenderOptions options_;
   std::string frames_;  // empty: the scene's own frames
+  std::string size_;    // WxH; empty: the scene's own
   bool noExr_ = false;
   bool noPng_ = false;
 };

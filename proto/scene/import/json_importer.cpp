@@ -13,7 +13,7 @@ class JsonImporter : public SceneImporter {
   std::vector<std::string> Extensions() const override { return {".json"}; }
 
   // An object at the top, after an optional UTF-8 byte order mark. A glTF file is JSON too:
-  // its importer, once there, is tried first and claims the objects that hold "asset".
+  // its importer is tried first and claims the objects that hold "asset".
   bool Sniff(std::string_view head) const override {
     if (head.substr(0, 3) == "\xEF\xBB\xBF") head.remove_prefix(3);
     size_t first = head.find_first_not_of(" \t\r\n");

@@ -37,6 +37,28 @@ std::string KnownExtensions() {
   return extensions;
 }
 
+// The caller's render size and samples win over the file's, within the scene format's
+// limits (proto/scene.md, "Render").
+Scene ApplyOptions(Scene scene, const ImportOptions& options) {
+  constexpr int kMaxSize = 16384, kMaxSamples = 1024;
+  if (options.width != 0 || options.height != 0) {
+    if (options.width < 1 || options.width > kMaxSize || options.height < 1 || options.height > kMaxSize) {
+      FailInput("/render", "a render size of " + std::to_string(options.width) + " x " + std::to_string(options.height),
+                "a width and a height from 1 to 16384");
+    }
+    scene.render.width = options.width;
+    scene.render.height = options.height;
+  }
+  if (options.samplesPerPixel != 0) {
+    if (options.samplesPerPixel < 1 || options.samplesPerPixel > kMaxSamples) {
+      FailInput("/render/samples_per_pixel", std::to_string(options.samplesPerPixel) + " samples per pixel",
+                "1 to 1024");
+    }
+    scene.render.samplesPerPixel = options.samplesPerPixel;
+  }
+  return scene;
+}
+
 }  // namespace
 
 // The registry is this one list, not self-registration: static initialisers in a static
@@ -44,6 +66,8 @@ std::string KnownExtensions() {
 const std::vector<const SceneImporter*>& SceneImporters() {
   static const std::vector<std::unique_ptr<SceneImporter>> owned = [] {
     std::vector<std::unique_ptr<SceneImporter>> importers;
+    // glTF first: a .gltf is JSON too, and its Sniff claims only objects holding "asset".
+    importers.push_back(MakeGltfImporter());
     importers.push_back(MakeJsonImporter());
     importers.push_back(MakeObjImporter());
     return importers;
@@ -76,7 +100,7 @@ const SceneImporter* FindImporterForFile(const std::filesystem::path& path, std:
   return nullptr;
 }
 
-Scene ImportScene(const std::filesystem::path& path) {
+Scene ImportScene(const std::filesystem::path& path, const ImportOptions& options) {
   // The message LoadSceneFile has always given: the whole path, unquoted.
   std::ifstream in(path, std::ios::binary);
   std::error_code error;
@@ -93,12 +117,13 @@ Scene ImportScene(const std::filesystem::path& path) {
                       " from its name or its first bytes",
               "a file named " + KnownExtensions() + ", or holding one of those formats");
   }
-  return importer->Import(
-      ImportInput{std::move(bytes), path.filename().string(), std::filesystem::absolute(path).parent_path()});
+  return ApplyOptions(importer->Import(ImportInput{std::move(bytes), path.filename().string(),
+                                                   std::filesystem::absolute(path).parent_path(), options}),
+                      options);
 }
 
 Scene ImportSceneBytes(const std::string& bytes, const std::string& type,
-                       const std::optional<std::filesystem::path>& baseDirectory) {
+                       const std::optional<std::filesystem::path>& baseDirectory, const ImportOptions& options) {
   const SceneImporter* importer = nullptr;
   if (type.empty()) {
     std::string_view head(bytes);
@@ -116,7 +141,8 @@ Scene ImportSceneBytes(const std::string& bytes, const std::string& type,
     importer = FindImporterByType(type);
     if (importer == nullptr) FailInput("", "unknown scene type " + QuoteInput(type), "one of " + KnownTypes());
   }
-  return importer->Import(ImportInput{bytes, "the " + importer->Type() + " scene", baseDirectory});
+  return ApplyOptions(importer->Import(ImportInput{bytes, "the " + importer->Type() + " scene", baseDirectory, options}),
+                      options);
 }
 
 }  // namespace tcfarm

@@ -1,6 +1,6 @@
 // The import seam: the one place where a file format becomes the scene model (Scene).
 //
-// Each format is a SceneImporter; tcfarm JSON, OBJ and (next) glTF 2.0 are peers. A file is
+// Each format is a SceneImporter; tcfarm JSON, OBJ and glTF 2.0 are peers. A file is
 // given to the importer its extension names, or else to the first whose Sniff accepts its
 // first bytes. Whatever the format, the result is a Scene as ParseScene would give it:
 // validated, self-contained (meshes inline), and written back by SerializeScene as tcfarm
@@ -21,12 +21,24 @@
 
 namespace tcfarm {
 
+// What a file may leave to the caller. The render size and samples apply to every format
+// (ImportScene sets them on the scene an importer gives); the rest only to formats that
+// carry animations and cameras of their own (glTF).
+struct ImportOptions {
+  double framesPerSecond = 24;  // frame f samples time f / framesPerSecond
+  std::string animation;        // its name or index; empty: the first
+  std::string camera;           // a camera's (or its node's) name, or the camera's index; empty: the first camera node
+  int width = 0, height = 0;    // 0: the file's own, else 640 x 480
+  int samplesPerPixel = 0;      // 0: the file's own, else 1
+};
+
 struct ImportInput {
   std::string bytes;        // the whole file
   std::string displayName;  // how messages name it (the file name, or the type for bytes)
   // Where relative references (mesh files, material libraries, buffers, textures) resolve;
   // none for data that arrives over the network, which must then be self-contained.
   std::optional<std::filesystem::path> baseDirectory;
+  ImportOptions options;
 };
 
 class SceneImporter {
@@ -51,10 +63,11 @@ const SceneImporter* FindImporterByType(const std::string& type);
 const SceneImporter* FindImporterForFile(const std::filesystem::path& path, std::string_view head);
 
 // Reads a scene file of any supported format; references resolve in its folder.
-Scene ImportScene(const std::filesystem::path& path);
+Scene ImportScene(const std::filesystem::path& path, const ImportOptions& options = {});
 // Imports bytes of the given type (an importer's Type(); "" to sniff the content).
 // Without a base directory, references to other files are rejected.
 Scene ImportSceneBytes(const std::string& bytes, const std::string& type,
-                       const std::optional<std::filesystem::path>& baseDirectory = std::nullopt);
+                       const std::optional<std::filesystem::path>& baseDirectory = std::nullopt,
+                       const ImportOptions& options = {});
 
 }  // namespace tcfarm

@@ -108,9 +108,9 @@ TEST(SceneImportTest, UnknownFormatAndType) {
   fs::path path = folder.Write("notes.txt", "hello\n");
   std::string what = ErrorOf([&] { ImportScene(path); });
   EXPECT_NE(what.find("cannot tell the format of scene file"), std::string::npos) << what;
-  EXPECT_NE(what.find("expected a file named .json, .obj"), std::string::npos) << what;
+  EXPECT_NE(what.find("expected a file named .gltf, .glb, .json, .obj"), std::string::npos) << what;
   what = ErrorOf([] { ImportSceneBytes("{}", "fbx"); });
-  EXPECT_NE(what.find("unknown scene type \"fbx\"; expected one of \"tcfarm-json\", \"obj\""), std::string::npos)
+  EXPECT_NE(what.find("unknown scene type \"fbx\"; expected one of \"gltf\", \"tcfarm-json\", \"obj\""), std::string::npos)
       << what;
   what = ErrorOf([] { ImportScene("/nonexistent/scene.json"); });
   EXPECT_EQ(what, "scene: cannot read scene file /nonexistent/scene.json; expected a readable scene file");

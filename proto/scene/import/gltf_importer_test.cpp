@@ -1,0 +1,574 @@
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include "scene/import/importers.h"
+#include "scene/import/scene_import.h"
+
+namespace tcfarm {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr double kPi = 3.14159265358979323846;
+// Debian's assimp-testmodels (scripts/bootstrap installs it): read where it lies, never copied.
+const fs::path kTestModels = "/usr/share/assimp/models/glTF2";
+
+std::string ErrorOf(const std::function<void()>& action) {
+  try {
+    action();
+  } catch (const SceneError& error) {
+    return error.what();
+  }
+  return "no SceneError";
+}
+
+std::string Base64(const std::string& bytes) {
+  static const char* const kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  size_t i = 0;
+  for (; i + 2 < bytes.size(); i += 3) {
+    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16 | static_cast<uint8_t>(bytes[i + 1]) << 8 |
+                 static_cast<uint8_t>(bytes[i + 2]);
+    for (int k = 3; k >= 0; --k) out += kAlphabet[(v >> (6 * k)) & 63];
+  }
+  if (i + 1 == bytes.size()) {
+    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16;
+    out += std::string{kAlphabet[v >> 18], kAlphabet[(v >> 12) & 63]} + "==";
+  } else if (i + 2 == bytes.size()) {
+    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16 | static_cast<uint8_t>(bytes[i + 1]) << 8;
+    out += std::string{kAlphabet[v >> 18], kAlphabet[(v >> 12) & 63], kAlphabet[(v >> 6) & 63]} + "=";
+  }
+  return out;
+}
+
+// A glTF document built in memory: one data-URI buffer that accessors are appended to.
+class GltfBuilder {
+ public:
+  GltfBuilder() {
+    doc_ = {{"asset", {{"version", "2.0"}}},
+            {"scene", 0},
+            {"scenes", json::array({json{{"nodes", json::array()}}})},
+            {"nodes", json::array()},
+            {"meshes", json::array()},
+            {"accessors", json::array()},
+            {"bufferViews", json::array()},
+            {"buffers", json::array()}};
+  }
+  json& doc() { return doc_; }
+
+  // An accessor of floats ("SCALAR", "VEC2", "VEC3", "VEC4"), returning its index.
+  int Floats(const std::vector<double>& values, const std::string& type) {
+    std::string bytes;
+    for (double v : values) {
+      float f = static_cast<float>(v);
+      bytes.append(reinterpret_cast<const char*>(&f), 4);
+    }
+    int components = type == "SCALAR" ? 1 : type[3] - '0';
+    return Add(bytes, 5126, type, values.size() / static_cast<size_t>(components));
+  }
+  int Indices(const std::vector<uint16_t>& values) {
+    std::string bytes;
+    for (uint16_t v : values) bytes.append(reinterpret_cast<const char*>(&v), 2);
+    return Add(bytes, 5123, "SCALAR", values.size());
+  }
+  // A mesh of one primitive over `positions` (VEC3 floats), returning the mesh's index.
+  int Mesh(const std::vector<double>& positions, const std::vector<uint16_t>& indices = {}, int mode = 4) {
+    json primitive = {{"attributes", {{"POSITION", Floats(positions, "VEC3")}}}, {"mode", mode}};
+    if (!indices.empty()) primitive["indices"] = Indices(indices);
+    doc_["meshes"].push_back({{"primitives", json::array({primitive})}});
+    return static_cast<int>(doc_["meshes"].size()) - 1;
+  }
+  int Node(json node, bool root) {
+    doc_["nodes"].push_back(std::move(node));
+    int index = static_cast<int>(doc_["nodes"].size()) - 1;
+    if (root) doc_["scenes"][0]["nodes"].push_back(index);
+    return index;
+  }
+  std::string Text() {
+    json out = doc_;
+    out["buffers"] = json::array(
+        {{{"byteLength", buffer_.size()}, {"uri", "data:application/octet-stream;base64," + Base64(buffer_)}}});
+    return out.dump();
+  }
+  // A channel of the first animation, with a sampler of its own.
+  void Animate(int node, const std::string& path, int input, int output, const std::string& interpolation = "LINEAR") {
+    if (!doc_.contains("animations")) {
+      doc_["animations"] = json::array({json{{"channels", json::array()}, {"samplers", json::array()}}});
+    }
+    json& animation = doc_["animations"][0];
+    animation["samplers"].push_back(json{{"input", input}, {"output", output}, {"interpolation", interpolation}});
+    animation["channels"].push_back(
+        json{{"sampler", animation["samplers"].size() - 1}, {"target", json{{"node", node}, {"path", path}}}});
+  }
+  Scene Import(const ImportOptions& options = {}) { return ImportSceneBytes(Text(), "gltf", std::nullopt, options); }
+
+ private:
+  int Add(const std::string& bytes, int componentType, const std::string& type, size_t count) {
+    while (buffer_.size() % 4 != 0) buffer_ += '\0';
+    doc_["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", buffer_.size()}, {"byteLength", bytes.size()}});
+    buffer_ += bytes;
+    doc_["accessors"].push_back({{"bufferView", doc_["bufferViews"].size() - 1},
+                                 {"componentType", componentType},
+                                 {"type", type},
+                                 {"count", count}});
+    return static_cast<int>(doc_["accessors"].size()) - 1;
+  }
+
+  json doc_;
+  std::string buffer_;
+};
+
+const std::vector<double> kTriangle = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+
+void ExpectNear(const Vec3& a, const Vec3& b, double tolerance = 1e-6) {
+  EXPECT_NEAR(a.x, b.x, tolerance);
+  EXPECT_NEAR(a.y, b.y, tolerance);
+  EXPECT_NEAR(a.z, b.z, tolerance);
+}
+
+// What workers are given must read back as it was written.
+void ExpectRoundTrip(const Scene& scene) {
+  std::string written = SerializeScene(scene);
+  EXPECT_EQ(SerializeScene(ParseScene(written)), written);
+}
+
+TEST(GltfImporterTest, StripsAndFansAsTheSpecNumbersThem) {
+  using T = std::vector<std::array<uint32_t, 3>>;
+  EXPECT_EQ(GltfTriangles({0, 1, 2, 3, 4}, 5), (T{{0, 1, 2}, {1, 3, 2}, {2, 3, 4}}));
+  EXPECT_EQ(GltfTriangles({0, 1, 2, 3}, 6), (T{{1, 2, 0}, {2, 3, 0}}));
+  EXPECT_EQ(GltfTriangles({0, 1, 2, 3, 4, 5, 6}, 4), (T{{0, 1, 2}, {3, 4, 5}}));
+}
+
+TEST(GltfImporterTest, StripPrimitiveBecomesItsTriangles) {
+  GltfBuilder gltf;
+  // A unit square as a strip of 4 vertices: two triangles facing +z.
+  int mesh = gltf.Mesh({0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0}, {}, 5);
+  gltf.Node({{"mesh", mesh}}, true);
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 1u);
+  using T = std::vector<std::array<uint32_t, 3>>;
+  EXPECT_EQ(scene.shapes[0].mesh.triangles, (T{{0, 1, 2}, {1, 3, 2}}));
+  EXPECT_TRUE(scene.shapes[0].mesh.normals.empty());
+  ExpectRoundTrip(scene);
+}
+
+// A child's world position through an animated, turned parent, in closed form.
+TEST(GltfImporterTest, ChildIsCarriedByItsParents) {
+  GltfBuilder gltf;
+  int mesh = gltf.Mesh(kTriangle);
+  // Grandparent: turned 90 degrees about z. Parent: moving along x from 0 to 10 over 1 s.
+  // Child: 1 along x of its parent, holding the mesh (twice: the parent is shared).
+  double s = std::sqrt(0.5);
+  int child = gltf.Node({{"translation", {1, 0, 0}}, {"mesh", mesh}, {"name", "child"}}, false);
+  int sibling = gltf.Node({{"translation", {0, 2, 0}}, {"mesh", mesh}}, false);
+  int parent = gltf.Node({{"children", {child, sibling}}}, false);
+  gltf.Node({{"rotation", {0, 0, s, s}}, {"children", {parent}}}, true);
+  int times = gltf.Floats({0, 1}, "SCALAR");
+  int values = gltf.Floats({0, 0, 0, 10, 0, 0}, "VEC3");
+  gltf.Animate(parent, "translation", times, values);
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 2u);
+  EXPECT_EQ(scene.render.frameCount, 25);  // frames 0..24 at 24 per second
+  const Shape& shape = scene.shapes[0];
+  EXPECT_EQ(shape.name, "child");
+  // Frame 12 is 0.5 s: the parent is at x = 5, the child at (6, 0, 0) before the turn.
+  ExpectNear(shape.motion.WorldFromObject(12).Apply({0, 0, 0}), {0, 6, 0});
+  ExpectNear(shape.motion.WorldFromObject(12).Apply({1, 0, 0}), {0, 7, 0});
+  ExpectNear(scene.shapes[1].motion.WorldFromObject(24).Apply({0, 0, 0}), {-2, 10, 0});
+  ASSERT_TRUE(shape.motion.parent);
+  EXPECT_EQ(shape.motion.parent, scene.shapes[1].motion.parent);  // built once, shared
+  EXPECT_TRUE(shape.Moves());
+  ExpectRoundTrip(scene);
+
+  ImportOptions options;
+  options.framesPerSecond = 30;
+  EXPECT_EQ(gltf.Import(options).render.frameCount, 31);
+}
+
+TEST(GltfImporterTest, KeyframedRotationStepAndCubicSpline) {
+  GltfBuilder gltf;
+  int mesh = gltf.Mesh(kTriangle);
+  int node = gltf.Node({{"mesh", mesh}}, true);
+  int other = gltf.Node({{"mesh", mesh}}, true);
+  double s = std::sqrt(0.5);
+  int times = gltf.Floats({0, 0.5, 1}, "SCALAR");
+  // Identity, 90 degrees about y, 180 degrees about y (x, y, z, w).
+  int rotations = gltf.Floats({0, 0, 0, 1, 0, s, 0, s, 0, 1, 0, 0}, "VEC4");
+  // Cubic spline translation: (in-tangent, value, out-tangent) per key, tangents per second.
+  int splineTimes = gltf.Floats({0, 1}, "SCALAR");
+  int spline = gltf.Floats({0, 0, 0, 0, 0, 0, 48, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 0}, "VEC3");
+  gltf.Animate(node, "rotation", times, rotations, "STEP");
+  gltf.Animate(other, "translation", splineTimes, spline, "CUBICSPLINE");
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 2u);
+  const Motion& turning = scene.shapes[0].motion;
+  // At the key time 0.5 s (frame 12): 90 degrees about y takes +x to -z.
+  ExpectNear(turning.WorldFromObject(12).Apply({1, 0, 0}), {0, 0, -1});
+  // STEP holds the key until the next one.
+  ExpectNear(turning.WorldFromObject(23.9).Apply({1, 0, 0}), {0, 0, -1});
+  ExpectNear(turning.WorldFromObject(24).Apply({1, 0, 0}), {-1, 0, 0});
+  const Motion& sliding = scene.shapes[1].motion;
+  ASSERT_EQ(sliding.translation.keys().size(), 2u);
+  EXPECT_EQ(sliding.translation.interpolation(), Interpolation::kCubicSpline);
+  EXPECT_DOUBLE_EQ(sliding.translation.keys()[0].outTangent.x, 2.0);  // 48 per second / 24
+  ExpectNear(sliding.WorldFromObject(24).Apply({0, 0, 0}), {2, 0, 0});
+  // Half way: h01(0.5) * 2 + h10(0.5) * 2 per frame * 24 frames = 1 + 0.125 * 48 = 7.
+  ExpectNear(sliding.WorldFromObject(12).Apply({0, 0, 0}), {7, 0, 0});
+  ExpectRoundTrip(scene);
+}
+
+TEST(GltfImporterTest, MatrixIsDecomposedAndShearRefused) {
+  GltfBuilder gltf;
+  int mesh = gltf.Mesh(kTriangle);
+  // Column-major: scale 2, turned 90 degrees about z, moved to (1, 2, 3).
+  gltf.Node({{"mesh", mesh}, {"matrix", {0, 2, 0, 0, -2, 0, 0, 0, 0, 0, 2, 0, 1, 2, 3, 1}}}, true);
+  Scene scene = gltf.Import();
+  ExpectNear(scene.shapes[0].motion.WorldFromObject(0).Apply({1, 0, 0}), {1, 4, 3});
+  ExpectNear(scene.shapes[0].motion.WorldFromObject(0).Apply({0, 0, 1}), {1, 2, 5});
+  gltf.doc()["nodes"][0]["matrix"] = {1, 0, 0, 0, 0.5, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  std::string what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/nodes/0/matrix: the gltf scene: a matrix with shear"), std::string::npos) << what;
+  gltf.doc()["nodes"][0]["matrix"] = {1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/nodes/0/matrix: the gltf scene: a singular matrix"), std::string::npos) << what;
+}
+
+TEST(GltfImporterTest, CameraLightsAndMaterials) {
+  GltfBuilder gltf;
+  int mesh = gltf.Mesh(kTriangle);
+  gltf.doc()["meshes"][0]["primitives"][0]["material"] = 0;
+  gltf.doc()["materials"] = json::parse(R"([
+      {"name": "gold", "pbrMetallicRoughness": {"baseColorFactor": [1, 0.5, 0, 1], "metallicFactor": 1,
+                                                "roughnessFactor": 0.5}},
+      {"name": "glass", "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 1], "metallicFactor": 0,
+                                                 "roughnessFactor": 0},
+       "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.9}, "KHR_materials_ior": {"ior": 1.33}}}])");
+  gltf.doc()["cameras"] =
+      json::parse(R"([{"type": "perspective", "perspective": {"yfov": 1.0471975511965976, "znear": 0.1}}])");
+  gltf.doc()["extensionsUsed"] = {"KHR_lights_punctual"};
+  gltf.doc()["extensions"] = json::parse(R"({"KHR_lights_punctual": {"lights": [
+      {"type": "point", "color": [1, 0.5, 0.25], "intensity": 8}, {"type": "directional", "intensity": 2}]}})");
+  gltf.Node({{"mesh", mesh}}, true);
+  gltf.Node({{"camera", 0}, {"translation", {0, 1, 5}}, {"name", "eye"}}, true);
+  gltf.Node(json::parse(R"({"translation": [3, 4, 5], "extensions": {"KHR_lights_punctual": {"light": 0}}})"), true);
+  // Turned 90 degrees about x: its -z becomes -y, straight down.
+  double s = std::sqrt(0.5);
+  json sun = json::parse(R"({"extensions": {"KHR_lights_punctual": {"light": 1}}})");
+  sun["rotation"] = {-s, 0, 0, s};
+  gltf.Node(sun, true);
+  Scene scene = gltf.Import();
+
+  CameraPose pose = scene.camera.At(0);
+  ExpectNear(pose.position, {0, 1, 5});
+  ExpectNear(pose.lookAt, {0, 1, 4});
+  EXPECT_NEAR(scene.camera.verticalFovDegrees, 60, 1e-9);  // yfov pi / 3
+  EXPECT_EQ(scene.render.width, 640);
+  EXPECT_EQ(scene.render.height, 480);
+
+  ASSERT_EQ(scene.lights.size(), 2u);
+  EXPECT_EQ(scene.lights[0].type, Light::Type::kPoint);
+  ExpectNear(scene.lights[0].PositionAt(0), {3, 4, 5});
+  ExpectNear(scene.lights[0].intensity.Evaluate(0), {8, 4, 2});
+  EXPECT_EQ(scene.lights[1].type, Light::Type::kDirectional);
+  ExpectNear(scene.lights[1].DirectionAt(0), {0, -1, 0});
+  ExpectNear(scene.lights[1].intensity.Evaluate(0), {2, 2, 2});
+
+  ASSERT_EQ(scene.materials.size(), 3u);  // default, glass, gold: the parser's order
+  EXPECT_EQ(scene.materials[0].name, "default");
+  const Material& glass = scene.materials[1];
+  const Material& gold = scene.materials[2];
+  EXPECT_EQ(gold.name, "gold");
+  EXPECT_EQ(scene.shapes[0].material, 2);
+  ExpectNear(gold.diffuse, {0, 0, 0});
+  ExpectNear(gold.specular, {1, 0.5, 0});
+  EXPECT_DOUBLE_EQ(gold.reflectivity, 0.25);
+  EXPECT_DOUBLE_EQ(gold.shininess, 30);  // 2 / 0.5^4 - 2
+  EXPECT_DOUBLE_EQ(glass.transparency, 0.9);
+  EXPECT_DOUBLE_EQ(glass.indexOfRefraction, 1.33);
+  EXPECT_DOUBLE_EQ(glass.reflectivity, 0);
+  EXPECT_DOUBLE_EQ(glass.shininess, 10000);
+  ExpectNear(glass.diffuse, {0.1, 0.1, 0.1});
+  ExpectNear(glass.specular, {0.04, 0.04, 0.04});
+  ExpectRoundTrip(scene);
+
+  ImportOptions options;
+  options.camera = "nobody";
+  EXPECT_NE(ErrorOf([&] { gltf.Import(options); }).find("no camera node named or numbered \"nobody\""),
+            std::string::npos);
+  options.camera = "eye";
+  options.width = 320;
+  options.height = 200;
+  options.samplesPerPixel = 4;
+  Scene sized = gltf.Import(options);
+  EXPECT_EQ(sized.render.width, 320);
+  EXPECT_EQ(sized.render.samplesPerPixel, 4);
+
+  gltf.doc()["cameras"][0] =
+      json::parse(R"({"type": "orthographic", "orthographic": {"xmag": 1, "ymag": 1, "znear": 0.1, "zfar": 10}})");
+  std::string what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/cameras/0: the gltf scene: orthographic cameras are not supported yet"), std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, RefusesWhatItCannotHold) {
+  GltfBuilder gltf;
+  int mesh = gltf.Mesh(kTriangle);
+  gltf.Node({{"mesh", mesh}}, true);
+  gltf.doc()["extensionsRequired"] = {"KHR_draco_mesh_compression"};
+  std::string what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/extensionsRequired/0: the gltf scene: the file requires extension "
+                      "\"KHR_draco_mesh_compression\""),
+            std::string::npos)
+      << what;
+  gltf.doc().erase("extensionsRequired");
+  gltf.doc()["extensionsUsed"] = {"EXT_unknown_optional"};
+  EXPECT_EQ(gltf.Import().shapes.size(), 1u);
+
+  int times = gltf.Floats({0, 1, 1}, "SCALAR");
+  int values = gltf.Floats({0, 0, 0, 1, 0, 0, 2, 0, 0}, "VEC3");
+  gltf.Animate(0, "translation", times, values);
+  what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(times) +
+                      ": the gltf scene: key time 2 (1.000000 s) does not follow key 1; expected strictly increasing"),
+            std::string::npos)
+      << what;
+
+  GltfBuilder external;
+  external.Node({{"mesh", external.Mesh(kTriangle)}}, true);
+  std::string text = external.Text();
+  json doc = json::parse(text);
+  doc["buffers"][0]["uri"] = "mesh.bin";
+  what = ErrorOf([&] { ImportSceneBytes(doc.dump(), "gltf"); });
+  EXPECT_NE(what.find("scene/buffers/0/uri: the gltf scene: buffer file \"mesh.bin\" cannot be read: the file was "
+                      "submitted without a folder"),
+            std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
+  GltfBuilder gltf;
+  // Position and normal interleaved, 24 bytes per vertex, in one view; UVs as normalized bytes.
+  std::vector<double> interleaved = {0, 0, 0, 0, 0, 1, 2, 0, 0, 0, 0, 1, 0, 2, 0, 0, 0, 1};
+  int both = gltf.Floats(interleaved, "VEC3");
+  json& accessors = gltf.doc()["accessors"];
+  json& views = gltf.doc()["bufferViews"];
+  views[accessors[both]["bufferView"].get<size_t>()]["byteStride"] = 24;
+  accessors[both]["count"] = 3;
+  json normals = accessors[both];
+  normals["byteOffset"] = 12;
+  accessors.push_back(normals);
+  const size_t normalsIndex = accessors.size() - 1;
+  int uvs = gltf.Indices({0, 0, 0, 0});  // replaced below by normalized unsigned bytes
+  accessors[uvs] = {{"bufferView", accessors[uvs]["bufferView"]},
+                    {"componentType", 5121},
+                    {"normalized", true},
+                    {"type", "VEC2"},
+                    {"count", 3}};
+  gltf.doc()["meshes"].push_back(json::parse(R"({"primitives": [{"attributes": {}}]})"));
+  json& attributes = gltf.doc()["meshes"][0]["primitives"][0]["attributes"];
+  attributes["POSITION"] = both;
+  attributes["NORMAL"] = normalsIndex;
+  attributes["TEXCOORD_0"] = uvs;
+  gltf.Node({{"mesh", 0}}, true);
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 1u);
+  const TriangleMesh& mesh = scene.shapes[0].mesh;
+  ASSERT_EQ(mesh.vertices.size(), 3u);
+  ExpectNear(mesh.vertices[1], {2, 0, 0}, 0);
+  ExpectNear(mesh.vertices[2], {0, 2, 0}, 0);
+  ASSERT_EQ(mesh.normals.size(), 3u);
+  ExpectNear(mesh.normals[2], {0, 0, 1}, 0);
+  ASSERT_EQ(mesh.uvs.size(), 3u);
+  EXPECT_EQ(mesh.uvs[0][0], 0);
+  ExpectRoundTrip(scene);
+
+  accessors[both]["count"] = 4;  // one element past the view
+  std::string what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) +
+                      ": the gltf scene: 4 elements from byte 0 run past "
+                      "the end of buffer view"),
+            std::string::npos)
+      << what;
+  accessors[both]["count"] = 3;
+  accessors[both]["sparse"] = json::parse(R"({"count": 1, "indices": {"bufferView": 0, "componentType": 5123},
+                                              "values": {"bufferView": 0}})");
+  what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) +
+                      "/sparse: the gltf scene: sparse accessors are not "
+                      "supported"),
+            std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, SpotLightBecomesAPointLight) {
+  GltfBuilder gltf;
+  gltf.Node({{"mesh", gltf.Mesh(kTriangle)}}, true);
+  gltf.doc()["extensions"] = json::parse(R"({"KHR_lights_punctual": {"lights": [
+      {"type": "spot", "intensity": 5, "spot": {"outerConeAngle": 0.5}}]}})");
+  gltf.Node(json::parse(R"({"translation": [0, 3, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}})"), true);
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.lights.size(), 1u);
+  EXPECT_EQ(scene.lights[0].type, Light::Type::kPoint);
+  ExpectNear(scene.lights[0].PositionAt(0), {0, 3, 0});
+  ExpectNear(scene.lights[0].intensity.Evaluate(0), {5, 5, 5});
+}
+
+class TempFolder {
+ public:
+  TempFolder() {
+    static std::atomic<int> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("tcfarm_gltf_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    fs::create_directories(path_ / "scene");
+  }
+  ~TempFolder() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+TEST(GltfImporterTest, ExternalFilesStayInsideTheFolder) {
+  TempFolder folder;
+  GltfBuilder gltf;
+  gltf.Node({{"mesh", gltf.Mesh(kTriangle)}}, true);
+  json doc = json::parse(gltf.Text());
+  // The buffer as a file beside the scene (its name URI-encoded).
+  doc["buffers"][0]["uri"] = "mesh%20data.bin";
+  auto write = [&](const fs::path& path, const std::string& content) {
+    std::ofstream(path, std::ios::binary) << content;
+    return path;
+  };
+  // The bytes the builder wrote: the triangle's floats, its only accessor.
+  std::string raw;
+  for (double v : kTriangle) {
+    float f = static_cast<float>(v);
+    raw.append(reinterpret_cast<const char*>(&f), 4);
+  }
+  write(folder.path() / "scene" / "mesh data.bin", raw);
+  fs::path scenePath = write(folder.path() / "scene" / "model.gltf", doc.dump());
+  EXPECT_EQ(ImportScene(scenePath).shapes.size(), 1u);
+
+  // A missing image is refused, though images are not decoded.
+  doc["images"] = json::parse(R"([{"uri": "wood.png"}])");
+  write(scenePath, doc.dump());
+  std::string what = ErrorOf([&] { ImportScene(scenePath); });
+  EXPECT_NE(what.find("scene/images/0/uri: model.gltf: image file \"wood.png\" is missing"), std::string::npos) << what;
+  write(folder.path() / "scene" / "wood.png", "not even a PNG: never decoded");
+  EXPECT_EQ(ImportScene(scenePath).shapes.size(), 1u);
+
+  // A buffer outside the scene's folder is refused, even when it exists.
+  write(folder.path() / "secret.bin", raw);
+  doc["buffers"][0]["uri"] = "../secret.bin";
+  write(scenePath, doc.dump());
+  what = ErrorOf([&] { ImportScene(scenePath); });
+  EXPECT_NE(what.find("scene/buffers/0/uri: model.gltf: buffer file \"../secret.bin\" resolves outside the scene "
+                      "folder"),
+            std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, SniffsGltfBeforeTcfarmJson) {
+  EXPECT_EQ(FindImporterForFile("upload", "{\"asset\": {\"version\": \"2.0\"}}")->Type(), "gltf");
+  EXPECT_EQ(FindImporterForFile("upload", std::string("glTF\x02\0\0\0", 8))->Type(), "gltf");
+  EXPECT_EQ(FindImporterForFile("upload", "{\"camera\": {}}")->Type(), "tcfarm-json");
+  EXPECT_EQ(FindImporterForFile("upload", "{\"materials\": {\"asset\": {}}, \"x\": \"\\\"asset\\\": 1\"}")->Type(),
+            "tcfarm-json");
+  EXPECT_EQ(FindImporterForFile("upload", "{\"extras\": [\"}\"], \"asset\" : {}")->Type(), "gltf");
+  EXPECT_EQ(FindImporterForFile("a/Box.GLB", "")->Type(), "gltf");
+}
+
+// --- Debian's assimp-testmodels: good files import, broken ones are refused where they break.
+
+std::string ModelError(const std::string& relative) {
+  return ErrorOf([&] { ImportScene(kTestModels / relative); });
+}
+
+TEST(GltfImporterTest, BrokenTestModelsAreRefusedWithTheirPointers) {
+  if (!fs::exists(kTestModels)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  struct Case {
+    const char* file;
+    const char* message;
+  };
+  const Case cases[] = {
+      {"IndexOutOfRange/IndexOutOfRange.gltf",
+       "scene/accessors/0: IndexOutOfRange.gltf: index 0 is 255, out of range for 24 vertices"},
+      {"IndexOutOfRange/AllIndicesOutOfRange.gltf", "scene/accessors/0: AllIndicesOutOfRange.gltf: index 0 is 65535"},
+      {"BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb",
+       "scene/accessors/2: BoxWithInfinites.glb: position 0 holds an infinity"},
+      {"RecursiveNodes/RecursiveNodes.gltf",
+       "scene/nodes/0: RecursiveNodes.gltf: node 0 is its own ancestor (a recursive node graph)"},
+      {"MissingBin/BoxTextured.gltf",
+       "scene/buffers/0/uri: BoxTextured.gltf: buffer file \"BoxTextured0.bin\" is missing"},
+      {"SchemaFailures/sceneWrongType.gltf",
+       "scene/scene: sceneWrongType.gltf: a value of JSON type string; expected a non-negative integer"},
+      {"wrongTypes/badArray.gltf",
+       "scene/meshes/0/primitives: badArray.gltf: a value of JSON type object; expected an array"},
+      {"wrongTypes/badObject.gltf",
+       "scene/materials/0/pbrMetallicRoughness: badObject.gltf: a value of JSON type array"},
+      {"wrongTypes/badString.gltf",
+       "scene/scenes/0/name: badString.gltf: a value of JSON type number; expected a string"},
+      {"wrongTypes/badNumber.gltf", "scene/materials/0/normalTexture/scale: badNumber.gltf"},
+      {"wrongTypes/badUint.gltf", "scene/materials/0/pbrMetallicRoughness/baseColorTexture/index: badUint.gltf"},
+      {"wrongTypes/badExtension.gltf",
+       "scene/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform: badExtension.gltf"},
+      {"draco/2CylinderEngine.gltf",
+       "scene/extensionsRequired/0: 2CylinderEngine.gltf: the file requires extension \"KHR_draco_mesh_compression\""},
+  };
+  for (const Case& c : cases) {
+    std::string what = ModelError(c.file);
+    EXPECT_NE(what.find(c.message), std::string::npos) << c.file << ": " << what;
+  }
+}
+
+TEST(GltfImporterTest, TruncatedGlbNamesTheByteOffset) {
+  const fs::path path = kTestModels / "BoxTextured-glTF-Binary/BoxTextured.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(ImportSceneBytes(bytes, "").shapes.size(), 1u);
+  std::string what = ErrorOf([&] { ImportSceneBytes(bytes.substr(0, bytes.size() / 2), ""); });
+  EXPECT_NE(
+      what.find("scene: the gltf scene: GLB byte 8: the header gives a length of " + std::to_string(bytes.size()) +
+                " bytes but the file holds " + std::to_string(bytes.size() / 2) + " (truncated)"),
+      std::string::npos)
+      << what;
+  what = ErrorOf([&] { ImportSceneBytes(bytes.substr(0, 10), "gltf"); });
+  EXPECT_NE(what.find("GLB byte 10: the file ends inside its header"), std::string::npos) << what;
+}
+
+TEST(GltfImporterTest, GoodTestModelsImportAndReadBack) {
+  if (!fs::exists(kTestModels)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  for (const char* file :
+       {"BoxTextured-glTF/BoxTextured.gltf", "BoxTextured-glTF-Binary/BoxTextured.glb",
+        "BoxTextured-glTF-Embedded/BoxTextured.gltf", "2CylinderEngine-glTF-Binary/2CylinderEngine.glb",
+        "cameras/Cameras.gltf", "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_04.gltf",
+        "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_05.gltf",
+        "glTF-Asset-Generator/Mesh_PrimitiveMode/Mesh_PrimitiveMode_06.gltf"}) {
+    Scene scene = ImportScene(kTestModels / file);
+    EXPECT_FALSE(scene.shapes.empty()) << file;
+    ExpectRoundTrip(scene);
+  }
+  // A morph animation: the weights channel is skipped (with a warning), the base cube kept.
+  Scene morph = ImportScene(kTestModels / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf");
+  EXPECT_EQ(morph.shapes.size(), 1u);
+  EXPECT_FALSE(morph.AnyShapeMoves());
+}
+
+}  // namespace
+}  // namespace tcfarm

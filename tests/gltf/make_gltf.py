@@ -1,0 +1,270 @@
+"""Writes small glTF 2.0 files for the importer's tests: plain JSON, buffers as base64 data
+URIs (or one GLB), no dependencies beyond the standard library.
+
+    python3 tests/gltf/make_gltf.py OUT_DIR     # writes every example scene there
+
+Each example is a function returning a Gltf; tests call them and pick what they need.
+"""
+import base64
+import json
+import math
+import pathlib
+import struct
+import sys
+
+FLOAT, UNSIGNED_BYTE, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5121, 5123, 5125
+TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN = 4, 5, 6
+_FORMATS = {FLOAT: "f", UNSIGNED_BYTE: "B", UNSIGNED_SHORT: "H", UNSIGNED_INT: "I"}
+_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+
+
+def axis_angle(axis, degrees):
+    """glTF's quaternion [x, y, z, w] of a turn about axis."""
+    length = math.sqrt(sum(a * a for a in axis))
+    half = math.radians(degrees) / 2
+    return [a / length * math.sin(half) for a in axis] + [math.cos(half)]
+
+
+class Gltf:
+    def __init__(self):
+        self.doc = {"asset": {"version": "2.0", "generator": "tcfarm tests/gltf/make_gltf.py"},
+                    "scene": 0, "scenes": [{"nodes": []}], "nodes": [], "meshes": [],
+                    "accessors": [], "bufferViews": [], "buffers": []}
+        self.buffer = bytearray()
+
+    def _add(self, name, item):
+        self.doc.setdefault(name, []).append(item)
+        return len(self.doc[name]) - 1
+
+    def accessor(self, values, type_, component=FLOAT, normalized=False, target=None, bounds=False):
+        """A tightly packed accessor of flat `values`; returns its index. target: 34962 for
+        vertex attributes, 34963 for indices; bounds: write min and max (positions and
+        key times need them)."""
+        while len(self.buffer) % 4:
+            self.buffer.append(0)
+        data = struct.pack("<%d%s" % (len(values), _FORMATS[component]), *values)
+        view = {"buffer": 0, "byteOffset": len(self.buffer), "byteLength": len(data)}
+        if target:
+            view["target"] = target
+        view = self._add("bufferViews", view)
+        self.buffer += data
+        accessor = {"bufferView": view, "componentType": component, "type": type_,
+                    "count": len(values) // _COMPONENTS[type_]}
+        if normalized:
+            accessor["normalized"] = True
+        if bounds:  # as stored: rounded to float
+            stored = struct.unpack("<%d%s" % (len(values), _FORMATS[component]), data)
+            n = _COMPONENTS[type_]
+            accessor["min"] = [min(stored[i::n]) for i in range(n)]
+            accessor["max"] = [max(stored[i::n]) for i in range(n)]
+        return self._add("accessors", accessor)
+
+    def material(self, name, base_color, metallic=0.0, roughness=1.0, transmission=None, ior=None):
+        material = {"name": name, "pbrMetallicRoughness": {
+            "baseColorFactor": list(base_color) + [1.0], "metallicFactor": metallic,
+            "roughnessFactor": roughness}}
+        if transmission is not None or ior is not None:
+            material["extensions"] = {}
+        if transmission is not None:
+            material["extensions"]["KHR_materials_transmission"] = {"transmissionFactor": transmission}
+            self._use("KHR_materials_transmission")
+        if ior is not None:
+            material["extensions"]["KHR_materials_ior"] = {"ior": ior}
+            self._use("KHR_materials_ior")
+        return self._add("materials", material)
+
+    def mesh(self, primitives, name=None):
+        """primitives: dicts of positions (flat), indices, mode, material, normals, uvs."""
+        out = []
+        for p in primitives:
+            primitive = {"attributes": {"POSITION": self.accessor(p["positions"], "VEC3", target=34962,
+                                                                  bounds=True)}}
+            if p.get("normals"):
+                primitive["attributes"]["NORMAL"] = self.accessor(p["normals"], "VEC3", target=34962)
+            if p.get("uvs"):
+                primitive["attributes"]["TEXCOORD_0"] = self.accessor(
+                    [round(u * 65535) for u in p["uvs"]], "VEC2", UNSIGNED_SHORT, normalized=True,
+                    target=34962)
+            if p.get("indices"):
+                primitive["indices"] = self.accessor(p["indices"], "SCALAR", UNSIGNED_SHORT, target=34963)
+            if p.get("mode", TRIANGLES) != TRIANGLES:
+                primitive["mode"] = p["mode"]
+            if p.get("material") is not None:
+                primitive["material"] = p["material"]
+            out.append(primitive)
+        mesh = {"primitives": out}
+        if name:
+            mesh["name"] = name
+        return self._add("meshes", mesh)
+
+    def node(self, parent=None, **properties):
+        """A node (name, mesh, camera, translation, rotation, scale, matrix, light); a root
+        of the scene unless it has a parent."""
+        light = properties.pop("light", None)
+        if light is not None:
+            properties["extensions"] = {"KHR_lights_punctual": {"light": light}}
+        index = self._add("nodes", properties)
+        if parent is None:
+            self.doc["scenes"][0]["nodes"].append(index)
+        else:
+            self.doc["nodes"][parent].setdefault("children", []).append(index)
+        return index
+
+    def camera(self, yfov, name=None):
+        camera = {"type": "perspective", "perspective": {"yfov": yfov, "znear": 0.05}}
+        if name:
+            camera["name"] = name
+        return self._add("cameras", camera)
+
+    def light(self, type_, intensity, color=(1.0, 1.0, 1.0)):
+        self._use("KHR_lights_punctual")
+        lights = self.doc.setdefault("extensions", {}).setdefault(
+            "KHR_lights_punctual", {"lights": []})["lights"]
+        lights.append({"type": type_, "intensity": intensity, "color": list(color)})
+        return len(lights) - 1
+
+    def animate(self, node, path, times, values, interpolation="LINEAR", animation=0, name=None):
+        """A channel of animation `animation`; values flat (for CUBICSPLINE: in-tangent,
+        value, out-tangent per key, tangents per second)."""
+        animations = self.doc.setdefault("animations", [])
+        while len(animations) <= animation:
+            animations.append({"channels": [], "samplers": []})
+        if name:
+            animations[animation]["name"] = name
+        samplers = animations[animation]["samplers"]
+        type_ = "VEC4" if path == "rotation" else "VEC3"
+        samplers.append({"input": self.accessor(times, "SCALAR", bounds=True),
+                         "output": self.accessor(values, type_), "interpolation": interpolation})
+        animations[animation]["channels"].append(
+            {"sampler": len(samplers) - 1, "target": {"node": node, "path": path}})
+
+    def _use(self, extension):
+        used = self.doc.setdefault("extensionsUsed", [])
+        if extension not in used:
+            used.append(extension)
+
+    def _document(self, uri):
+        doc = json.loads(json.dumps(self.doc))
+        buffer = {"byteLength": len(self.buffer)}
+        if uri:
+            buffer["uri"] = "data:application/octet-stream;base64," + base64.b64encode(
+                bytes(self.buffer)).decode()
+        doc["buffers"] = [buffer]
+        return doc
+
+    def gltf_text(self):
+        return json.dumps(self._document(uri=True), indent=1)
+
+    def glb_bytes(self):
+        text = json.dumps(self._document(uri=False)).encode()
+        text += b" " * (-len(text) % 4)
+        binary = bytes(self.buffer) + b"\0" * (-len(self.buffer) % 4)
+        chunks = (struct.pack("<I4s", len(text), b"JSON") + text +
+                  struct.pack("<I4s", len(binary), b"BIN\0") + binary)
+        return struct.pack("<4sII", b"glTF", 2, 12 + len(chunks)) + chunks
+
+    def write(self, path):
+        path = pathlib.Path(path)
+        if path.suffix == ".glb":
+            path.write_bytes(self.glb_bytes())
+        else:
+            path.write_text(self.gltf_text())
+        return path
+
+
+def quad(size, z=0.0):
+    """A square of side 2 * size in the plane z, facing +z, as 4 positions."""
+    return [-size, -size, z, size, -size, z, size, size, z, -size, size, z]
+
+
+def red_quad():
+    """A red quad of side 2 at z = 0 facing a camera at z = 3 (yfov 0.8 rad: the quad covers
+    the image centre, not its corners), lit head-on by a white directional light of 1 lux
+    travelling along -z. The centre pixel is diffuse + specular = (1.04, 0.04, 0.04)."""
+    g = Gltf()
+    red = g.material("red", (1.0, 0.0, 0.0), metallic=0.0, roughness=1.0)
+    g.node(name="quad", mesh=g.mesh([{"positions": quad(1.0), "indices": [0, 1, 2, 0, 2, 3],
+                                      "material": red,
+                                      "normals": [0, 0, 1] * 4, "uvs": [0, 0, 1, 0, 1, 1, 0, 1]}]))
+    g.node(name="eye", camera=g.camera(0.8), translation=[0, 0, 3])
+    g.node(name="sun", light=g.light("directional", 1.0))
+    return g
+
+
+def cube(size):
+    """A cube of side 2 * size about the origin: 8 positions, 12 triangles."""
+    s = size
+    positions = [-s, -s, -s, s, -s, -s, s, s, -s, -s, s, -s, -s, -s, s, s, -s, s, s, s, s, -s, s, s]
+    indices = [0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
+               3, 6, 2, 3, 7, 6, 0, 4, 7, 0, 7, 3, 1, 2, 6, 1, 6, 5]
+    return positions, indices
+
+
+def animated_hierarchy():
+    """Every channel (translation, rotation, scale) with every interpolation (LINEAR, STEP,
+    CUBICSPLINE), on a hierarchy: a parent turning about y carries three children; a still
+    floor (a strip), a still fan and a matrix node, a camera looking down at them, a point
+    and a directional light. One second of animation: 13 frames at 12 frames per second."""
+    g = Gltf()
+    red = g.material("red", (0.8, 0.1, 0.1), metallic=0.0, roughness=0.4)
+    chrome = g.material("chrome", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.1)
+    glass = g.material("glass", (1.0, 1.0, 1.0), roughness=0.05, transmission=0.8, ior=1.4)
+    floor = g.material("floor", (0.6, 0.6, 0.6), roughness=0.9)
+    # The floor: a strip of 4 vertices in y = 0 facing up.
+    g.node(name="floor", mesh=g.mesh([{"positions": [-6, 0, -6, -6, 0, 6, 6, 0, -6, 6, 0, 6],
+                                       "mode": TRIANGLE_STRIP, "material": floor}]))
+    # A still hexagon fan, off to the side, placed by a matrix (scale 0.5, moved).
+    hexagon = [0, 0, 0] + [c for k in range(7) for c in
+                           (math.cos(k * math.pi / 3), math.sin(k * math.pi / 3), 0)]
+    g.node(name="sign", mesh=g.mesh([{"positions": hexagon, "indices": list(range(8)),
+                                      "mode": TRIANGLE_FAN, "material": red}]),
+           matrix=[0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, -3, 1, -3, 1])
+    positions, indices = cube(0.4)
+    box = g.mesh([{"positions": positions, "indices": indices, "material": red}], name="box")
+    shiny = g.mesh([{"positions": positions, "indices": indices, "material": chrome}])
+    clear = g.mesh([{"positions": positions, "indices": indices, "material": glass}])
+    parent = g.node(name="turntable", translation=[0, 0.5, 0])
+    a = g.node(parent, name="a", mesh=box, translation=[1.5, 0, 0])
+    b = g.node(parent, name="b", mesh=shiny, translation=[-1.5, 0, 0])
+    c = g.node(parent, name="c", mesh=clear, translation=[0, 0, 1.5])
+    t = [0.0, 0.5, 1.0]
+    # Parent: LINEAR rotation about y, a quarter turn.
+    g.animate(parent, "rotation", t, axis_angle([0, 1, 0], 0) + axis_angle([0, 1, 0], 45) +
+              axis_angle([0, 1, 0], 90), name="show")
+    # a: CUBICSPLINE translation up and back, STEP scale.
+    g.animate(a, "translation", [0.0, 1.0], [0, 0, 0, 1.5, 0, 0, 0, 2, 0,
+                                            0, 0, 0, 1.5, 0.6, 0, 0, 0, 0], "CUBICSPLINE")
+    g.animate(a, "scale", t, [1, 1, 1, 1.3, 0.8, 1.3, 1, 1, 1], "STEP")
+    # b: STEP translation, CUBICSPLINE rotation (tangents zero: eased).
+    g.animate(b, "translation", t, [-1.5, 0, 0, -1.5, 0.4, 0, -1.5, 0, 0], "STEP")
+    g.animate(b, "rotation", [0.0, 1.0], [0, 0, 0, 0] + axis_angle([1, 0, 0], 0) + [0, 0, 0, 0] +
+              [0, 0, 0, 0] + axis_angle([1, 0, 0], 60) + [0, 0, 0, 0], "CUBICSPLINE")
+    # c: LINEAR scale.
+    g.animate(c, "scale", t, [1, 1, 1, 0.6, 1.4, 0.6, 1, 1, 1])
+    # A second, shorter animation, chosen by name in tests.
+    g.animate(a, "translation", [0.0, 0.25], [1.5, 0, 0, 1.5, 1, 0], animation=1, name="hop")
+    # The camera: up and back, looking down 20 degrees.
+    g.node(name="eye", camera=g.camera(0.9, name="main"), translation=[0, 2.5, 6],
+           rotation=axis_angle([1, 0, 0], -20))
+    g.node(name="side", camera=g.camera(0.6, name="side"), translation=[7, 1, 0],
+           rotation=axis_angle([0, 1, 0], 90))
+    g.node(name="bulb", light=g.light("point", 30.0, (1.0, 0.9, 0.8)), translation=[3, 5, 4])
+    g.node(name="sun", light=g.light("directional", 0.3), rotation=axis_angle([1, -0.3, 0], -60))
+    return g
+
+
+EXAMPLES = {"red_quad.gltf": red_quad, "red_quad.glb": red_quad,
+            "animated_hierarchy.gltf": animated_hierarchy}
+
+
+def main(argv):
+    if len(argv) != 2:
+        sys.exit("usage: make_gltf.py OUT_DIR")
+    out = pathlib.Path(argv[1])
+    out.mkdir(parents=True, exist_ok=True)
+    for name, make in EXAMPLES.items():
+        print(make().write(out / name))
+
+
+if __name__ == "__main__":
+    main(sys.argv)

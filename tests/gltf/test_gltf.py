@@ -1,0 +1,135 @@
+"""glTF files through `tcfarm-worker render` and through the farm: generated files render
+with closed-form pixels, the render flags choose what they say, broken files are refused
+naming where, and exact equals brute force on an animated hierarchy."""
+import json
+import pathlib
+import re
+import subprocess
+import sys
+
+import pytest
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+
+import make_gltf  # noqa: E402
+from farm_harness import LocalFarm, compare, render_reference  # noqa: E402
+
+# Debian's assimp-testmodels (scripts/bootstrap installs it), read where it lies.
+TEST_MODELS = pathlib.Path("/usr/share/assimp/models/glTF2")
+
+
+def run(binary, *args):
+    return subprocess.run([str(binary), *map(str, args)], capture_output=True, text=True, timeout=300)
+
+
+def exr_pixels(path):
+    """{(x, y): (r, g, b)} of a float EXR, as oiiotool prints them."""
+    result = subprocess.run(["oiiotool", "--dumpdata", str(path)], capture_output=True, text=True,
+                            check=True, timeout=60)
+    pixels = {}
+    for match in re.finditer(r"Pixel \((\d+), (\d+)\): (\S+) (\S+) (\S+)", result.stdout):
+        pixels[int(match[1]), int(match[2])] = tuple(float(v) for v in match.group(3, 4, 5))
+    return pixels
+
+
+def printed_scene(worker_binary, path, *flags):
+    result = run(worker_binary, "render", path, "--print-scene", *flags)
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("gltf")
+    return {name: make().write(directory / name) for name, make in make_gltf.EXAMPLES.items()}
+
+
+@pytest.mark.parametrize("name", ["red_quad.gltf", "red_quad.glb"])
+def test_red_quad_covers_the_centre(worker_binary, files, tmp_path, name):
+    out = tmp_path / "out"
+    result = run(worker_binary, "render", files[name], "--size", "33x25", "--out", out, "--no-png")
+    assert result.returncode == 0, result.stderr
+    assert "rendered 1 frames of 33x25" in result.stdout
+    pixels = exr_pixels(out / "frame_0000.exr")
+    r, g, b = pixels[16, 12]
+    # Head-on light of 1: red = ambient 0.05 + diffuse 1 + the grey specular glint, which is
+    # 0.04 times the cosine between the eye ray and the normal (about 1 near the centre).
+    assert g == b and 0.038 <= g <= 0.04, (r, g, b)
+    assert r == pytest.approx(1.05 + g, abs=1e-5), (r, g, b)
+    # The quad's side of 2 fills 2 / (2 * 3 * tan(0.4)) = 79 % of the height: corners are empty.
+    assert pixels[0, 0] == (0.0, 0.0, 0.0) and pixels[32, 24] == (0.0, 0.0, 0.0)
+
+
+def test_flags_choose_frames_animation_camera_size_and_samples(worker_binary, files):
+    path = files["animated_hierarchy.gltf"]
+    scene = printed_scene(worker_binary, path)
+    assert scene["render"]["frames"] == {"start": 0, "count": 25}  # 1 s at 24 per second
+    assert (scene["render"]["width"], scene["render"]["height"]) == (640, 480)
+    assert printed_scene(worker_binary, path, "--fps", "12")["render"]["frames"]["count"] == 13
+    hop = printed_scene(worker_binary, path, "--animation", "hop")
+    assert hop["render"]["frames"]["count"] == 7  # 0.25 s: frames 0 to ceil(6)
+    assert printed_scene(worker_binary, path, "--animation", "1") == hop
+    main = printed_scene(worker_binary, path, "--camera", "main")
+    assert main == scene
+    side = printed_scene(worker_binary, path, "--camera", "side", "--size", "200x100", "--spp", "3")
+    assert side["camera"]["fov_degrees"] == pytest.approx(0.6 * 180 / 3.141592653589793)
+    assert (side["render"]["width"], side["render"]["height"]) == (200, 100)
+    assert side["render"]["samples_per_pixel"] == 3
+
+    for flags, named in ((["--size", "0x5"], "--size"), (["--fps", "0"], "--fps"), (["--spp", "0"], "--spp")):
+        result = run(worker_binary, "render", path, "--print-scene", *flags)
+        assert result.returncode == 2 and named in result.stderr, (flags, result.stderr)
+    result = run(worker_binary, "render", path, "--print-scene", "--animation", "nope")
+    assert result.returncode == 1
+    assert "scene/animations: animated_hierarchy.gltf: no animation named or numbered \"nope\"" in result.stderr
+
+
+@pytest.mark.skipif(not TEST_MODELS.exists(), reason="assimp-testmodels is not installed (scripts/bootstrap)")
+@pytest.mark.parametrize("model,where", [
+    ("IndexOutOfRange/IndexOutOfRange.gltf", "scene/accessors/0: IndexOutOfRange.gltf: index 0 is 255"),
+    ("BoxWithInfinites-glTF-Binary/BoxWithInfinites.glb", "scene/accessors/2: BoxWithInfinites.glb"),
+    ("RecursiveNodes/RecursiveNodes.gltf", "scene/nodes/0: RecursiveNodes.gltf"),
+    ("MissingBin/BoxTextured.gltf", "scene/buffers/0/uri: BoxTextured.gltf"),
+])
+def test_broken_models_are_refused_naming_where(worker_binary, tmp_path, model, where):
+    result = run(worker_binary, "render", TEST_MODELS / model, "--out", tmp_path)
+    assert result.returncode == 1
+    assert where in result.stderr, result.stderr
+
+
+@pytest.mark.skipif(not TEST_MODELS.exists(), reason="assimp-testmodels is not installed (scripts/bootstrap)")
+def test_good_models_render(worker_binary, tmp_path):
+    for model in ("BoxTextured-glTF-Binary/BoxTextured.glb", "cameras/Cameras.gltf",
+                  "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf"):
+        result = run(worker_binary, "render", TEST_MODELS / model, "--size", "32x24", "--frames", "0",
+                     "--out", tmp_path / pathlib.Path(model).stem, "--no-exr")
+        assert result.returncode == 0, (model, result.stderr)
+    # The morph's weights are skipped, and said to be.
+    assert "morph target weights are not supported" in result.stderr
+
+
+def test_farm_exact_equals_brute_force_on_an_animated_hierarchy(worker_binary, files, tmp_path):
+    scene = printed_scene(worker_binary, files["animated_hierarchy.gltf"], "--fps", "12", "--size", "96x72")
+    assert scene["render"]["frames"]["count"] == 13
+    reference = render_reference(scene, tmp_path / "reference")
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=2) as farm:
+        farm.wait_for_workers(2)
+        job = farm.run_job(scene, strategy="exact", bin_width=8)
+        error = compare(reference, farm.store / str(job["id"]))
+    assert error["differing_pixels"] == 0, error
+    # The still floor and sign keep their pixels between the movers' passes.
+    assert job["traced_pixel_ratio"] < 0.6, job["traced_pixel_ratio"]  # 0.29 when written
+
+
+VALIDATOR = pathlib.Path(__file__).resolve().parent / "node_modules" / "gltf-validator"
+
+
+@pytest.mark.skipif(not VALIDATOR.exists(), reason="gltf-validator is not installed (scripts/bootstrap)")
+def test_generated_files_pass_the_khronos_validator(files):
+    result = subprocess.run(["node", str(VALIDATOR.parent.parent / "validate.js"), *map(str, files.values())],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    for report in json.loads(result.stdout):
+        issues = report["issues"]
+        assert (issues["numErrors"], issues["numWarnings"]) == (0, 0), (report["uri"], issues["messages"])
