@@ -237,6 +237,8 @@ int RunServe(const ServeOptions& options) {
   api.jobMemoryBytes = options.farm.jobMemoryBytes;
   api.assetMaxFileBytes = options.assetMaxFileBytes;
   api.assetMaxJobBytes = options.assetMaxJobBytes;
+  // One coordinator per store: what a crashed one left half-written is nobody's.
+  AssetStore(api.storeRoot / "assets").RemoveLeftovers();
   ApiServer server(store, farm, farm.metrics().registry, api);
   int port = server.Start();
 

@@ -492,10 +492,17 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
 void ApiServer::PutAsset(const httplib::Request& request, const BodyPieces& read, httplib::Response& response) {
   const std::string hash = request.matches[1];
   const bool validHash = IsAssetHash(hash);
-  std::unique_ptr<AssetStore::Upload> upload = validHash ? assetStore_.BeginUpload() : nullptr;
+  std::unique_ptr<AssetStore::Upload> upload;
+  std::optional<std::string> writeError;
+  if (validHash) {
+    try {
+      upload = assetStore_.BeginUpload();
+    } catch (const std::runtime_error& error) {
+      writeError = error.what();  // answered once the body is read
+    }
+  }
   uint64_t received = 0;
   bool tooLarge = false;
-  std::optional<std::string> writeError;
   const bool complete = !read || read([&](const char* data, size_t length) {
     received += length;
     if (!upload) return;

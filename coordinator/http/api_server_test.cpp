@@ -656,6 +656,15 @@ TEST_F(ApiServerTest, AnUploadedSceneFileIsImportedByItsType) {
   body = base;
   body["scene_file"] = 3;
   ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/scene_file");
+
+  // A JSON scene file in a folder of the assets: its mesh files resolve beside it.
+  body = json{{"scene_file", "shots/one.json"},
+              {"assets", {{"shots/one.json", PutAssetOk(SceneWithMeshFile("tri.obj").dump())},
+                          {"shots/tri.obj", PutAssetOk(kTriangleObj)}}}};
+  EXPECT_EQ(json::parse(store_->Get(SubmitOk(body))->spec.sceneJson)["shapes"].size(), 2u);
+  body["assets"].erase("shots/tri.obj");
+  body["assets"]["tri.obj"] = wire::Sha256Hex(kTriangleObj);
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_scene", "/scene_file", "tri.obj");
 }
 
 TEST_F(ApiServerTest, AssetPathsThatCouldEscapeTheFolderAreRefusedWithTheirPointer) {

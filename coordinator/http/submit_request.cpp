@@ -341,6 +341,9 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
       throw ApiError(400, error_code::kInvalidField, std::string("assets: ") + error.what() +
                                                          "; expected paths that name files, not folders of other paths",
                      "/assets");
+    } catch (const std::runtime_error& error) {
+      throw ApiError(507, error_code::kInsufficientStorage,
+                     std::string("the store could not lay out the assets: ") + error.what());
     }
   }
   const std::optional<std::filesystem::path> base =

@@ -153,6 +153,16 @@ AssetStore::CommitResult AssetStore::Put(const std::string& expectedHash, std::s
   return Commit(*upload, expectedHash);
 }
 
+void AssetStore::RemoveLeftovers() {
+  for (const char* leftovers : {kIncoming, kSubmissions}) {
+    std::error_code error;
+    fs::remove_all(root_ / leftovers, error);
+    if (error) {
+      std::fprintf(stderr, "coordinator: cannot remove %s: %s\n", (root_ / leftovers).c_str(), error.message().c_str());
+    }
+  }
+}
+
 // --- a submission's folder -----------------------------------------------------------------
 
 AssetStore::Folder::~Folder() {

@@ -95,6 +95,10 @@ class AssetStore {
     explicit Folder(std::filesystem::path path) : path_(std::move(path)) {}
     std::filesystem::path path_;
   };
+  // Removes what a coordinator that stopped abruptly left: half-written uploads and
+  // submission folders. Only for a store no running coordinator uses; the assets stay.
+  void RemoveLeftovers();
+
   // files: path (checked by AssetPathProblem) -> hash of an asset the store has. Throws
   // std::invalid_argument for a bad path, a path that is both a file and a folder, or a
   // hash the store does not have (the caller checks those first to name them better),

@@ -156,5 +156,19 @@ TEST_F(AssetStoreTest, MaterialiseRefusesWhatItCannotLayOutAndLeavesNothing) {
   EXPECT_TRUE(fs::is_empty(submissions));
 }
 
+TEST_F(AssetStoreTest, LeftoversOfAnAbruptStopAreRemovedAndAssetsKept) {
+  const std::string hash = wire::Sha256Hex("kept");
+  store_->Put(hash, "kept");
+  std::unique_ptr<AssetStore::Upload> upload = store_->BeginUpload();
+  upload->Write("interrupted");
+  std::unique_ptr<AssetStore::Folder> folder = store_->Materialise({{"a/kept.bin", hash}});
+  EXPECT_EQ(FilesUnder(folder_ / "assets"), 3u);
+  store_->RemoveLeftovers();
+  EXPECT_EQ(FilesUnder(folder_ / "assets"), 1u);
+  EXPECT_TRUE(store_->Has(hash));
+  // A store that was never used has nothing to remove.
+  AssetStore("/nonexistent/tcfarm/assets").RemoveLeftovers();
+}
+
 }  // namespace
 }  // namespace tcfarm
