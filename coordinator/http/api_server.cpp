@@ -525,17 +525,21 @@ void ApiServer::PutAsset(const httplib::Request& request, const BodyPieces& read
     throw ApiError(400, error_code::kInvalidParameter,
                    "asset " + http::ShowValue(hash) + " is not a SHA-256; expected 64 lowercase hex characters");
   }
-  if (writeError) throw ApiError(507, error_code::kInsufficientStorage, "the store could not take the asset: " + *writeError);
+  if (writeError) {
+    throw ApiError(507, error_code::kInsufficientStorage, "the store could not take the asset: " + *writeError);
+  }
   std::string actual;
   AssetStore::CommitResult result = AssetStore::CommitResult::kHashMismatch;
   try {
     result = assetStore_.Commit(*upload, hash, &actual);
   } catch (const std::runtime_error& error) {
-    throw ApiError(507, error_code::kInsufficientStorage, std::string("the store could not take the asset: ") + error.what());
+    throw ApiError(507, error_code::kInsufficientStorage,
+                   std::string("the store could not take the asset: ") + error.what());
   }
   if (result == AssetStore::CommitResult::kHashMismatch) {
     throw ApiError(400, error_code::kAssetHashMismatch,
-                   "the body's SHA-256 is " + actual + ", not " + hash + "; expected the bytes whose SHA-256 the path names");
+                   "the body's SHA-256 is " + actual + ", not " + hash +
+                       "; expected the bytes whose SHA-256 the path names");
   }
   if (assetUploads_ != nullptr) {
     assetUploads_->Increment();

@@ -158,7 +158,9 @@ std::map<std::string, std::string> ReadAssets(const json& request, const Submiss
   const auto field = request.find("assets");
   if (field == request.end()) return {};
   const std::string expected = "an object mapping relative paths to SHA-256 hashes of uploaded assets";
-  if (!field->is_object()) Fail(error_code::kInvalidField, "/assets", ShowValue(*field) + " is not an object", expected);
+  if (!field->is_object()) {
+    Fail(error_code::kInvalidField, "/assets", ShowValue(*field) + " is not an object", expected);
+  }
   if (field->size() > kMaxAssetsPerJob) {
     Fail(error_code::kInvalidField, "/assets", std::to_string(field->size()) + " assets are too many",
          "at most " + std::to_string(kMaxAssetsPerJob) + " assets in one job");
@@ -371,7 +373,9 @@ std::vector<std::string> ParseMissingAssetsQuery(const std::string& body) {
   }
   const auto hashes = request.find("hashes");
   if (hashes == request.end()) Fail(error_code::kMissingField, "/hashes", "missing", expected);
-  if (!hashes->is_array()) Fail(error_code::kInvalidField, "/hashes", ShowValue(*hashes) + " is not an array", expected);
+  if (!hashes->is_array()) {
+    Fail(error_code::kInvalidField, "/hashes", ShowValue(*hashes) + " is not an array", expected);
+  }
   if (hashes->size() > kMaxHashesPerQuery) {
     Fail(error_code::kInvalidField, "/hashes", std::to_string(hashes->size()) + " hashes are too many",
          "at most " + std::to_string(kMaxHashesPerQuery) + " in one question");
