@@ -187,3 +187,15 @@ def test_the_cli_submits_an_obj_with_its_material_library(farm, still_life, tmp_
     lonely.write_bytes(still_life.read_bytes())
     missing = tcfarm(farm, "submit", lonely)
     assert missing.returncode == 1 and "still_life.mtl" in missing.stderr
+
+
+def test_the_cli_refuses_a_scene_naming_a_file_outside_its_folder(farm, tmp_path):
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "outside.obj").write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "scenes" / "scene.json").write_text(json.dumps(scene_with_mesh_file("../outside.obj")))
+    result = tcfarm(farm, "submit", tmp_path / "scenes" / "scene.json")
+    assert result.returncode == 1
+    assert "mesh file '../outside.obj' is not a relative path inside the scene's folder" in result.stderr
+    (tmp_path / "scenes" / "scene.json").write_text(json.dumps(scene_with_mesh_file("absent.obj")))
+    absent = tcfarm(farm, "submit", tmp_path / "scenes" / "scene.json")
+    assert absent.returncode == 1 and "cannot read mesh file 'absent.obj'" in absent.stderr
