@@ -28,6 +28,8 @@ struct ServeOptions {
   unsigned workerThreads = 0;
   std::string workerBinary;
   std::filesystem::path dashboard;  // static files served at /; empty: none
+  uint64_t assetMaxFileBytes = ApiOptions{}.assetMaxFileBytes;
+  uint64_t assetMaxJobBytes = ApiOptions{}.assetMaxJobBytes;
 };
 
 // The dashboard beside a build tree (build/coordinator -> ../../services/dashboard) or
@@ -90,6 +92,8 @@ struct ServeFlags {
   long workerTimeoutMs = HeartbeatPolicy{}.timeout.count();
   uint64_t jobMemoryMib = 0;
   size_t pendingFrameMib = JobRun::kDefaultPendingFrameBytes >> 20;
+  uint64_t assetMaxFileMib = ApiOptions{}.assetMaxFileBytes >> 20;
+  uint64_t assetMaxJobMib = ApiOptions{}.assetMaxJobBytes >> 20;
   // Set when given: their defaults are worked out, not fixed.
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
@@ -157,6 +161,16 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
       ->type_name("MIB")
       ->check(IntegerFrom(0, 1 << 20))
       ->capture_default_str();
+  serve.add_option("--asset-max-file-mib", flags.assetMaxFileMib,
+                   "Largest asset one upload may store (PUT /api/v1/assets); larger is refused")
+      ->type_name("MIB")
+      ->check(IntegerFrom(1, 1 << 20))
+      ->capture_default_str();
+  serve.add_option("--asset-max-job-mib", flags.assetMaxJobMib,
+                   "Per job, the assets its scene may name together; more is refused")
+      ->type_name("MIB")
+      ->check(IntegerFrom(1, 1 << 24))
+      ->capture_default_str();
 }
 
 // Throws std::invalid_argument naming the flag whose value cannot be used.
@@ -179,6 +193,8 @@ ServeOptions Resolve(const ServeFlags& flags) {
   }
   if (flags.jobMemoryOption->count()) options.farm.jobMemoryBytes = flags.jobMemoryMib << 20;
   options.farm.pendingFrameBytes = flags.pendingFrameMib << 20;
+  options.assetMaxFileBytes = flags.assetMaxFileMib << 20;
+  options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
   if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
@@ -219,6 +235,10 @@ int RunServe(const ServeOptions& options) {
   api.storeRoot = options.farm.storeRoot;
   api.dashboardDirectory = options.dashboard;
   api.jobMemoryBytes = options.farm.jobMemoryBytes;
+  api.assetMaxFileBytes = options.assetMaxFileBytes;
+  api.assetMaxJobBytes = options.assetMaxJobBytes;
+  // One coordinator per store: what a crashed one left half-written is nobody's.
+  AssetStore(api.storeRoot / "assets").RemoveLeftovers();
   ApiServer server(store, farm, farm.metrics().registry, api);
   int port = server.Start();
 

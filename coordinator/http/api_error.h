@@ -23,6 +23,8 @@ inline constexpr const char* kMissingField = "missing_field";          // 400
 inline constexpr const char* kInvalidField = "invalid_field";          // 400
 inline constexpr const char* kInvalidScene = "invalid_scene";          // 400
 inline constexpr const char* kInvalidParameter = "invalid_parameter";  // 400, path or query
+inline constexpr const char* kMissingAsset = "missing_asset";          // 400, a hash the store lacks
+inline constexpr const char* kAssetHashMismatch = "asset_hash_mismatch"; // 400, body is not the named asset
 inline constexpr const char* kBadRequest = "bad_request";              // 400, malformed HTTP
 inline constexpr const char* kNotFound = "not_found";                  // 404, no such route
 inline constexpr const char* kJobNotFound = "job_not_found";           // 404
@@ -32,6 +34,7 @@ inline constexpr const char* kJobFinished = "job_finished";            // 409
 inline constexpr const char* kPayloadTooLarge = "payload_too_large";   // 413
 inline constexpr const char* kJobTooLarge = "job_too_large";           // 413, frames beyond memory
 inline constexpr const char* kInternal = "internal";                   // 500
+inline constexpr const char* kInsufficientStorage = "insufficient_storage";  // 507, the disk refused
 }  // namespace error_code
 
 class ApiError : public std::runtime_error {

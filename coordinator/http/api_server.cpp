@@ -17,6 +17,7 @@
 #include "frame/frame_io.h"
 #include "http/api_error.h"
 #include "http/submit_request.h"
+#include "metrics/metric_builders.h"
 #include "planner/planner.h"
 
 namespace tcfarm {
@@ -46,6 +47,12 @@ void WriteError(httplib::Response& response, const ApiError& error) {
 ApiError PayloadTooLarge(size_t maxBytes) {
   return ApiError(413, error_code::kPayloadTooLarge,
                   "request body is larger than the limit of " + std::to_string(maxBytes) + " bytes");
+}
+
+ApiError AssetTooLarge(uint64_t maxBytes) {
+  return ApiError(413, error_code::kPayloadTooLarge,
+                  "asset is larger than the limit of " + std::to_string(maxBytes) + " bytes (" +
+                      std::to_string(maxBytes >> 20) + " MiB, --asset-max-file-mib)");
 }
 
 bool TakesBody(const std::string& method) {
@@ -200,8 +207,15 @@ ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometh
       farm_(farm),
       metrics_(std::move(metrics)),
       options_(std::move(options)),
-      frameStore_(options_.storeRoot) {
+      frameStore_(options_.storeRoot),
+      assetStore_(options_.storeRoot / "assets") {
   for (const Route& route : Routes()) routePatterns_.emplace_back(route.pattern);
+  if (metrics_) {
+    assetUploads_ = &NewCounter(*metrics_, "tcfarm_asset_uploads_total",
+                                "Asset uploads accepted (hash verified), whether the store had the asset or not.");
+    assetUploadBytes_ = &NewCounter(*metrics_, "tcfarm_asset_upload_bytes_total",
+                                    "Bytes of the asset uploads accepted.");
+  }
 }
 
 ApiServer::~ApiServer() { Stop(); }
@@ -214,6 +228,8 @@ const std::vector<ApiServer::Route>& ApiServer::Routes() {
       {"POST", "/api/v1/jobs/([^/]+)/cancel", &ApiServer::CancelJob},
       {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)", &ApiServer::GetFrame},
       {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)/(mask|change)\\.png", &ApiServer::GetFrameMask},
+      {"PUT", "/api/v1/assets/([^/]+)", nullptr, &ApiServer::PutAsset},
+      {"POST", "/api/v1/assets/missing", &ApiServer::FindMissingAssets},
       {"GET", "/api/v1/workers", &ApiServer::ListWorkers},
       {"GET", "/healthz", &ApiServer::Health},
       {"GET", "/metrics", &ApiServer::Metrics},
@@ -230,8 +246,17 @@ int ApiServer::Start() {
 void ApiServer::Stop() { listener_.Stop(); }
 
 void ApiServer::Configure(httplib::Server& server) {
-  server.set_payload_max_length(options_.maxBodyBytes);
-  for (const Route& route : Routes()) Register(server, route.method, route.pattern, route.handle);
+  // The library's own limit is the larger of the two; each route keeps to its own (the JSON
+  // routes to maxBodyBytes in ReadLimitedBody, asset uploads to assetMaxFileBytes).
+  server.set_payload_max_length(
+      static_cast<size_t>(std::max<uint64_t>(options_.maxBodyBytes, options_.assetMaxFileBytes)));
+  for (const Route& route : Routes()) {
+    if (route.stream != nullptr) {
+      RegisterStream(server, route.pattern, route.stream);
+    } else {
+      Register(server, route.method, route.pattern, route.handle);
+    }
+  }
   // Registered last, so they only see what no route matched: answers 405 or 404 in the
   // error shape instead of the library's empty 404.
   for (const char* method : kMethodsWithCatchAll) Register(server, method, ".*", &ApiServer::RouteMiss);
@@ -288,10 +313,36 @@ void ApiServer::Register(httplib::Server& server, const std::string& method, con
   }
 }
 
+// Only PUT streams today (asset uploads).
+void ApiServer::RegisterStream(httplib::Server& server, const std::string& pattern, StreamHandler stream) {
+  server.Put(pattern, [this, stream](const httplib::Request& request, httplib::Response& response) {
+    Guard(request, response, [&] { (this->*stream)(request, BodyPieces(), response); });
+  });
+  server.Put(pattern, [this, stream](const httplib::Request& request, httplib::Response& response,
+                                     const httplib::ContentReader& reader) {
+    BodyPieces read;
+    // As in Register: neither length header means no body (RFC 9112).
+    if (request.has_header("Content-Length") || request.has_header("Transfer-Encoding")) {
+      read = [&reader](const std::function<void(const char*, size_t)>& piece) {
+        return reader([&piece](const char* data, size_t length) {
+          piece(data, length);
+          return true;  // read on to the end whatever happens, so the connection stays in step
+        });
+      };
+    }
+    Guard(request, response, [&] { (this->*stream)(request, read, response); });
+  });
+}
+
 void ApiServer::Dispatch(Handler handle, const httplib::Request& request, const std::string& body,
                          httplib::Response& response) {
+  Guard(request, response, [&] { (this->*handle)(request, body, response); });
+}
+
+void ApiServer::Guard(const httplib::Request& request, httplib::Response& response,
+                      const std::function<void()>& handle) {
   try {
-    (this->*handle)(request, body, response);
+    handle();
   } catch (const ApiError& error) {
     WriteError(response, error);
   } catch (const std::exception& error) {
@@ -342,7 +393,8 @@ void ApiServer::CheckJobFitsInMemory(const JobSpec& spec) const {
 }
 
 void ApiServer::SubmitJob(const httplib::Request&, const std::string& body, httplib::Response& response) {
-  const JobSpec spec = http::ParseSubmission(body);
+  const JobSpec spec = http::ParseSubmission(
+      body, http::SubmissionAssets{&assetStore_, options_.assetMaxJobBytes, "--asset-max-job-mib"});
   CheckJobFitsInMemory(spec);
   const uint64_t id = store_.Submit(spec);
   {
@@ -432,6 +484,73 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
                        std::to_string(frame) + " of job " +
                        std::to_string(id) + " is not written yet");
   }
+}
+
+// The body streams to a temp file, hashed on the way; the asset is stored only when the
+// hash is the one in the path. The body is read to its end even when the answer is known
+// before (a bad hash, too large), so that the connection stays usable.
+void ApiServer::PutAsset(const httplib::Request& request, const BodyPieces& read, httplib::Response& response) {
+  const std::string hash = request.matches[1];
+  const bool validHash = IsAssetHash(hash);
+  std::unique_ptr<AssetStore::Upload> upload;
+  std::optional<std::string> writeError;
+  if (validHash) {
+    try {
+      upload = assetStore_.BeginUpload();
+    } catch (const std::runtime_error& error) {
+      writeError = error.what();  // answered once the body is read
+    }
+  }
+  uint64_t received = 0;
+  bool tooLarge = false;
+  const bool complete = !read || read([&](const char* data, size_t length) {
+    received += length;
+    if (!upload) return;
+    if (received > options_.assetMaxFileBytes) {
+      tooLarge = true;
+      upload.reset();
+      return;
+    }
+    try {
+      upload->Write(std::string_view(data, length));
+    } catch (const std::runtime_error& error) {
+      writeError = error.what();
+      upload.reset();
+    }
+  });
+  // 413 here: the library refused a Content-Length over its limit before reading anything.
+  if (tooLarge || response.status == 413) throw AssetTooLarge(options_.assetMaxFileBytes);
+  if (!complete) throw ApiError(400, error_code::kBadRequest, "the request body could not be read");
+  if (!validHash) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "asset " + http::ShowValue(hash) + " is not a SHA-256; expected 64 lowercase hex characters");
+  }
+  if (writeError) {
+    throw ApiError(507, error_code::kInsufficientStorage, "the store could not take the asset: " + *writeError);
+  }
+  std::string actual;
+  AssetStore::CommitResult result = AssetStore::CommitResult::kHashMismatch;
+  try {
+    result = assetStore_.Commit(*upload, hash, &actual);
+  } catch (const std::runtime_error& error) {
+    throw ApiError(507, error_code::kInsufficientStorage,
+                   std::string("the store could not take the asset: ") + error.what());
+  }
+  if (result == AssetStore::CommitResult::kHashMismatch) {
+    throw ApiError(400, error_code::kAssetHashMismatch,
+                   "the body's SHA-256 is " + actual + ", not " + hash +
+                       "; expected the bytes whose SHA-256 the path names");
+  }
+  if (assetUploads_ != nullptr) {
+    assetUploads_->Increment();
+    assetUploadBytes_->Increment(static_cast<double>(received));
+  }
+  WriteJson(response, json{{"sha256", hash}, {"size", received}},
+            result == AssetStore::CommitResult::kCreated ? 201 : 200);
+}
+
+void ApiServer::FindMissingAssets(const httplib::Request&, const std::string& body, httplib::Response& response) {
+  WriteJson(response, json{{"missing", assetStore_.Missing(http::ParseMissingAssetsQuery(body))}});
 }
 
 void ApiServer::ListWorkers(const httplib::Request&, const std::string&, httplib::Response& response) {

@@ -11,6 +11,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <regex>
@@ -23,6 +24,7 @@
 #include "http/submit_request.h"
 #include "net/http_listener.h"
 #include "jobs/job_store.h"
+#include "store/asset_store.h"
 #include "store/frame_store.h"
 
 namespace httplib {
@@ -32,8 +34,9 @@ struct Response;
 }  // namespace httplib
 
 namespace prometheus {
+class Counter;
 class Registry;
-}
+}  // namespace prometheus
 
 namespace tcfarm {
 
@@ -44,10 +47,16 @@ struct ApiOptions {
   // with 413 before it is read into memory.
   size_t maxBodyBytes = 64u << 20;
   std::filesystem::path storeRoot = "store";  // frames: storeRoot/<job id>/frame_NNNN.{exr,png}
+                                              // assets: storeRoot/assets/<sha256>
   std::filesystem::path dashboardDirectory;   // static files served at / when set
   // The coordinator's memory for one job's frames (0: no limit): a job that would need
   // more even one bin at a time is refused at submit with 413 job_too_large.
   uint64_t jobMemoryBytes = 0;
+  // One uploaded asset (PUT /api/v1/assets/{sha256}), streamed to disk, never held whole;
+  // larger is refused with 413 (--asset-max-file-mib).
+  uint64_t assetMaxFileBytes = uint64_t{512} << 20;
+  // All the assets one submission names together (--asset-max-job-mib); 0: no limit.
+  uint64_t assetMaxJobBytes = uint64_t{2048} << 20;
 };
 
 class ApiServer {
@@ -70,10 +79,17 @@ class ApiServer {
   // Request::body stays empty for bodies read that way).
   using Handler = void (ApiServer::*)(const httplib::Request& request, const std::string& body,
                                       httplib::Response& response);
+  // For a body too large to hold in memory (asset uploads): the handler reads it from
+  // `read` as it arrives. `read` calls its argument per piece, false when the body could not
+  // be read whole; a request without a body has none.
+  using BodyPieces = std::function<bool(const std::function<void(const char* data, size_t length)>&)>;
+  using StreamHandler = void (ApiServer::*)(const httplib::Request& request, const BodyPieces& read,
+                                            httplib::Response& response);
   struct Route {
     const char* method;
     const char* pattern;  // a regex on the decoded path; groups are the path parameters
     Handler handle;
+    StreamHandler stream = nullptr;  // instead of handle, for routes that stream their body
   };
   // A job's frames, which never change once it is submitted.
   struct FrameRange {
@@ -85,8 +101,11 @@ class ApiServer {
   void Configure(httplib::Server& server);
   void Register(httplib::Server& server, const std::string& method, const std::string& pattern,
                 Handler handle);
+  void RegisterStream(httplib::Server& server, const std::string& pattern, StreamHandler stream);
   void Dispatch(Handler handle, const httplib::Request& request, const std::string& body,
                 httplib::Response& response);
+  // Runs a handler, turning what it throws into the one error shape.
+  void Guard(const httplib::Request& request, httplib::Response& response, const std::function<void()>& handle);
   void RouteMiss(const httplib::Request& request, const std::string& body, httplib::Response& response);
 
   void SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
@@ -96,6 +115,8 @@ class ApiServer {
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetFrame(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetFrameMask(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void PutAsset(const httplib::Request& request, const BodyPieces& read, httplib::Response& response);
+  void FindMissingAssets(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void ListWorkers(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Health(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
@@ -113,6 +134,9 @@ class ApiServer {
   std::shared_ptr<prometheus::Registry> metrics_;
   ApiOptions options_;
   FrameStore frameStore_;  // where options_.storeRoot holds each job's files
+  AssetStore assetStore_;  // options_.storeRoot/assets
+  prometheus::Counter* assetUploads_ = nullptr;      // with a metrics registry only
+  prometheus::Counter* assetUploadBytes_ = nullptr;
   std::vector<std::regex> routePatterns_;  // Routes() compiled once, for 405 vs 404
 
   std::mutex frameRangesMutex_;

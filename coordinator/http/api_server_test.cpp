@@ -35,6 +35,9 @@ using nlohmann::json;
 
 constexpr int64_t kNowMs = 1714566896789;  // 2024-05-01T12:34:56.789Z
 constexpr size_t kMaxBodyBytes = 64u << 10;
+// Above the JSON routes' limit, so the test shows each route keeps to its own.
+constexpr uint64_t kAssetMaxFileBytes = uint64_t{1} << 20;
+constexpr uint64_t kAssetMaxJobBytes = uint64_t{2} << 20;
 
 class FakeFarm : public FarmControl {
  public:
@@ -147,6 +150,8 @@ class ApiServerTest : public ::testing::Test {
     options.maxBodyBytes = kMaxBodyBytes;
     options.storeRoot = folder_ / "store";
     options.jobMemoryBytes = kJobMemoryBytes;
+    options.assetMaxFileBytes = kAssetMaxFileBytes;
+    options.assetMaxJobBytes = kAssetMaxJobBytes;
     server_ = std::make_unique<ApiServer>(*store_, farm_, registry_, options);
     port_ = server_->Start();
     client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
@@ -174,6 +179,17 @@ class ApiServerTest : public ::testing::Test {
     if (!result) return 0;
     EXPECT_EQ(result->status, 201) << result->body;
     return json::parse(result->body).at("id").get<uint64_t>();
+  }
+
+  // Uploads bytes as an asset and returns its hash.
+  std::string PutAssetOk(const std::string& bytes) {
+    const std::string hash = wire::Sha256Hex(bytes);
+    httplib::Result result = client_->Put(("/api/v1/assets/" + hash).c_str(), bytes, "application/octet-stream");
+    EXPECT_TRUE(result);
+    if (result) {
+      EXPECT_TRUE(result->status == 201 || result->status == 200) << result->body;
+    }
+    return hash;
   }
 
   fs::path FramePath(uint64_t id, int frame, const std::string& extension) const {
@@ -492,6 +508,222 @@ TEST_F(ApiServerTest, ChunkedBodyOverTheLimitIsRefusedToo) {
       },
       "application/json");
   ExpectError(result, 413, "payload_too_large");
+}
+
+// --- assets ------------------------------------------------------------------------------
+
+const std::string kTriangleObj = "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n";
+
+// SmallScene with a mesh read from an OBJ file of the submission's assets.
+json SceneWithMeshFile(const std::string& file) {
+  json scene = SmallScene();
+  scene["shapes"].push_back({{"type", "mesh"}, {"file", file}});
+  return scene;
+}
+
+size_t FilesUnder(const fs::path& folder) {
+  std::error_code error;
+  if (!fs::exists(folder, error)) return 0;
+  size_t count = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(folder)) count += entry.is_regular_file() ? 1 : 0;
+  return count;
+}
+
+TEST_F(ApiServerTest, AssetUploadIsStoredUnderItsHashOnce) {
+  const std::string hash = wire::Sha256Hex(kTriangleObj);
+  const std::string path = "/api/v1/assets/" + hash;
+  httplib::Result result = client_->Put(path.c_str(), kTriangleObj, "application/octet-stream");
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 201) << result->body;
+  EXPECT_EQ(json::parse(result->body), (json{{"sha256", hash}, {"size", kTriangleObj.size()}}));
+  std::ifstream stored(folder_ / "store" / "assets" / hash, std::ios::binary);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(stored), {}), kTriangleObj);
+  // Again: nothing new, 200.
+  result = client_->Put(path.c_str(), kTriangleObj, "application/octet-stream");
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(FilesUnder(folder_ / "store" / "assets"), 1u);
+  const std::string metrics = Get("/metrics")->body;
+  EXPECT_NE(metrics.find("tcfarm_asset_uploads_total 2"), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("tcfarm_asset_upload_bytes_total " + std::to_string(2 * kTriangleObj.size())),
+            std::string::npos);
+  // An empty file is an asset too.
+  result = client_->Put(("/api/v1/assets/" + wire::Sha256Hex("")).c_str(), "", "application/octet-stream");
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 201) << result->body;
+}
+
+TEST_F(ApiServerTest, AssetWhoseBytesDoNotMatchItsHashIsRefused) {
+  const std::string hash = wire::Sha256Hex(kTriangleObj);
+  const json error = ExpectError(client_->Put(("/api/v1/assets/" + hash).c_str(), kTriangleObj + "\n",
+                                              "application/octet-stream"),
+                                 400, "asset_hash_mismatch");
+  EXPECT_NE(error["message"].get<std::string>().find(wire::Sha256Hex(kTriangleObj + "\n")), std::string::npos);
+  EXPECT_EQ(FilesUnder(folder_ / "store" / "assets"), 0u);
+  for (const std::string& bad : {std::string(63, 'a'), std::string(64, 'A'), std::string("missing")}) {
+    ExpectError(client_->Put(("/api/v1/assets/" + bad).c_str(), kTriangleObj, "application/octet-stream"), 400,
+                "invalid_parameter");
+  }
+  // The connection is still good for the next request.
+  PutAssetOk(kTriangleObj);
+}
+
+TEST_F(ApiServerTest, AssetOverItsLimitIs413NamingTheLimit) {
+  const std::string big(kAssetMaxFileBytes + 1, 'x');
+  const json error = ExpectError(client_->Put(("/api/v1/assets/" + wire::Sha256Hex(big)).c_str(), big,
+                                              "application/octet-stream"),
+                                 413, "payload_too_large");
+  EXPECT_NE(error["message"].get<std::string>().find(std::to_string(kAssetMaxFileBytes) + " bytes"), std::string::npos);
+  EXPECT_NE(error["message"].get<std::string>().find("--asset-max-file-mib"), std::string::npos);
+  // Chunked, so no Content-Length tells the size before the bytes come.
+  httplib::Result chunked = client_->Put(
+      ("/api/v1/assets/" + wire::Sha256Hex(big)).c_str(),
+      [&big](size_t offset, httplib::DataSink& sink) {
+        constexpr size_t kChunk = 65536;
+        if (offset >= big.size()) {
+          sink.done();
+        } else {
+          sink.write(big.data() + offset, std::min(kChunk, big.size() - offset));
+        }
+        return true;
+      },
+      "application/octet-stream");
+  ExpectError(chunked, 413, "payload_too_large");
+  EXPECT_EQ(FilesUnder(folder_ / "store" / "assets"), 0u);
+  // At the limit, larger than the JSON routes' limit, is fine.
+  PutAssetOk(std::string(kAssetMaxFileBytes, 'y'));
+}
+
+TEST_F(ApiServerTest, MissingAssetsAreTheHashesTheStoreLacks) {
+  const std::string have = PutAssetOk(kTriangleObj);
+  const std::string lack = wire::Sha256Hex("not uploaded");
+  httplib::Result result = Post("/api/v1/assets/missing", json{{"hashes", {have, lack, lack}}});
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(json::parse(result->body), (json{{"missing", {lack}}}));
+  result = Post("/api/v1/assets/missing", json{{"hashes", json::array()}});
+  ASSERT_TRUE(result);
+  EXPECT_EQ(json::parse(result->body), (json{{"missing", json::array()}}));
+
+  ExpectBadField(Post("/api/v1/assets/missing", json{{"hashes", {have, "../../jobs.sqlite"}}}), "invalid_field",
+                 "/hashes/1", "not a SHA-256");
+  ExpectBadField(Post("/api/v1/assets/missing", json{{"hashes", have}}), "invalid_field", "/hashes");
+  ExpectBadField(Post("/api/v1/assets/missing", json::object()), "missing_field", "/hashes");
+  ExpectBadField(Post("/api/v1/assets/missing", json{{"hashes", json::array()}, {"more", 1}}), "unknown_field",
+                 "/more");
+  ExpectError(PostText("/api/v1/assets/missing", "{"), 400, "invalid_json");
+  httplib::Result wrong = Get("/api/v1/assets/" + have);
+  ExpectError(wrong, 405, "method_not_allowed");
+  EXPECT_EQ(wrong->get_header_value("Allow"), "PUT");
+}
+
+TEST_F(ApiServerTest, MeshFilesComeFromTheSubmissionsAssets) {
+  const std::string hash = PutAssetOk(kTriangleObj);
+  json body = Submission(SceneWithMeshFile("meshes/tri.obj"));
+  body["assets"] = {{"meshes/tri.obj", hash}};
+  const JobSpec spec = store_->Get(SubmitOk(body))->spec;
+  // The stored scene is self-contained: the mesh is inline, the workers need no file.
+  const json stored = json::parse(spec.sceneJson);
+  EXPECT_FALSE(stored["shapes"][1].contains("file")) << stored["shapes"][1];
+  EXPECT_EQ(stored["shapes"][1]["triangles"], json::array({json::array({0, 1, 2})}));
+  EXPECT_EQ(spec.sceneHash, wire::Sha256Hex(spec.sceneJson));
+  // The folder the scene was parsed in is gone; the asset stays.
+  EXPECT_TRUE(fs::is_empty(folder_ / "store" / "assets" / ".submissions"));
+  EXPECT_EQ(FilesUnder(folder_ / "store" / "assets"), 1u);
+}
+
+TEST_F(ApiServerTest, AnUploadedSceneFileIsImportedByItsType) {
+  const std::string obj = "mtllib red.mtl\nusemtl red\n" + kTriangleObj;
+  const json base{{"scene_file", "shot.obj"},
+               {"assets", {{"shot.obj", PutAssetOk(obj)}, {"red.mtl", PutAssetOk("newmtl red\nKd 1 0 0\n")}}},
+               {"name", "obj"}};
+  const JobSpec spec = store_->Get(SubmitOk(base))->spec;
+  const json stored = json::parse(spec.sceneJson);
+  ASSERT_EQ(stored["shapes"].size(), 1u);
+  EXPECT_EQ(spec.name, "obj");
+  EXPECT_GT(spec.frameSize.width, 0);
+
+  // Without its library the OBJ says which line asked for it.
+  json body = base;
+  body["assets"].erase("red.mtl");
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_scene", "/scene_file", "red.mtl");
+  body = base;
+  body["scene_file"] = "other.obj";
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/scene_file", "not among the assets");
+  body = base;
+  body["scene"] = SmallScene();
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/scene_file", "not both");
+  body = base;
+  body["scene_file"] = 3;
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/scene_file");
+
+  // A JSON scene file in a folder of the assets: its mesh files resolve beside it.
+  body = json{{"scene_file", "shots/one.json"},
+              {"assets", {{"shots/one.json", PutAssetOk(SceneWithMeshFile("tri.obj").dump())},
+                          {"shots/tri.obj", PutAssetOk(kTriangleObj)}}}};
+  EXPECT_EQ(json::parse(store_->Get(SubmitOk(body))->spec.sceneJson)["shapes"].size(), 2u);
+  body["assets"].erase("shots/tri.obj");
+  body["assets"]["tri.obj"] = wire::Sha256Hex(kTriangleObj);
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_scene", "/scene_file", "tri.obj");
+}
+
+TEST_F(ApiServerTest, AssetPathsThatCouldEscapeTheFolderAreRefusedWithTheirPointer) {
+  const std::string hash = PutAssetOk(kTriangleObj);
+  const std::vector<std::pair<std::string, std::string>> bad{
+      {"../tri.obj", "/assets/..~1tri.obj"},
+      {"meshes/../../tri.obj", "/assets/meshes~1..~1..~1tri.obj"},
+      {"/etc/passwd", "/assets/~1etc~1passwd"},
+      {"./tri.obj", "/assets/.~1tri.obj"},
+      {std::string("tri\0.obj", 8), std::string("/assets/tri\0.obj", 16)},
+      {std::string(2000, 'a'), "/assets/" + std::string(2000, 'a')},
+  };
+  for (const auto& [path, pointer] : bad) {
+    json body = Submission(SceneWithMeshFile("tri.obj"));
+    body["assets"] = {{path, hash}};
+    SCOPED_TRACE(pointer.substr(0, 40));
+    ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", pointer, "refused");
+  }
+  json body = Submission(SceneWithMeshFile("tri.obj"));
+  body["assets"] = {{"tri.obj", "TRI"}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/assets/tri.obj", "not a SHA-256");
+  body["assets"] = {{"tri.obj", hash}, {"tri.obj/inner.obj", hash}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/assets", "both a file and a folder");
+  body["assets"] = json::array({hash});
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/assets");
+  // The scene may only reach its own assets, whatever it writes.
+  body = Submission(SceneWithMeshFile("../tri.obj"));
+  body["assets"] = {{"tri.obj", hash}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_scene", "/scene/shapes/1/file", "outside the scene folder");
+  body = Submission(SceneWithMeshFile("other.obj"));
+  body["assets"] = {{"tri.obj", hash}};
+  ExpectBadField(Post("/api/v1/jobs", body), "invalid_scene", "/scene/shapes/1/file", "other.obj");
+  // No job was written, and no folder is left.
+  EXPECT_TRUE(store_->List(std::nullopt, 10).empty());
+  EXPECT_TRUE(fs::is_empty(folder_ / "store" / "assets" / ".submissions"));
+}
+
+TEST_F(ApiServerTest, AnAssetTheFarmLacksIsNamed) {
+  const std::string lack = wire::Sha256Hex(kTriangleObj);
+  json body = Submission(SceneWithMeshFile("tri.obj"));
+  body["assets"] = {{"tri.obj", lack}};
+  const json error = ExpectError(Post("/api/v1/jobs", body), 400, "missing_asset");
+  EXPECT_EQ(error["pointer"], "/assets/tri.obj");
+  EXPECT_NE(error["message"].get<std::string>().find(lack), std::string::npos);
+  EXPECT_TRUE(store_->List(std::nullopt, 10).empty());
+}
+
+TEST_F(ApiServerTest, AssetsPastTheJobLimitAre413NamingTheLimit) {
+  const std::string first = PutAssetOk(std::string(kAssetMaxFileBytes, 'a'));
+  const std::string second = PutAssetOk(std::string(kAssetMaxFileBytes, 'b'));
+  const std::string third = PutAssetOk(kTriangleObj);
+  json body = Submission(SceneWithMeshFile("tri.obj"));
+  body["assets"] = {{"a.bin", first}, {"b.bin", second}, {"tri.obj", third}};
+  const json error = ExpectError(Post("/api/v1/jobs", body), 413, "job_too_large");
+  EXPECT_EQ(error["pointer"], "/assets");
+  EXPECT_NE(error["message"].get<std::string>().find("allows 2 MiB per job (--asset-max-job-mib)"), std::string::npos)
+      << error;
+  body["assets"].erase("b.bin");
+  SubmitOk(body);
 }
 
 // --- list and get ------------------------------------------------------------------------
@@ -908,6 +1140,16 @@ TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
   json tooLarge = Submission();
   tooLarge["name"] = std::string(kMaxBodyBytes, 'x');
   add("Error", Post("/api/v1/jobs", tooLarge));
+  const std::string asset = wire::Sha256Hex(kTriangleObj);
+  add("AssetStored", client_->Put(("/api/v1/assets/" + asset).c_str(), kTriangleObj, "application/octet-stream"));
+  add("AssetStored", client_->Put(("/api/v1/assets/" + asset).c_str(), kTriangleObj, "application/octet-stream"));
+  add("Error", client_->Put(("/api/v1/assets/" + asset).c_str(), "other", "application/octet-stream"));
+  add("MissingAssets", Post("/api/v1/assets/missing", json{{"hashes", {asset, wire::Sha256Hex("")}}}));
+  json withAssets = Submission(SceneWithMeshFile("tri.obj"));
+  withAssets["assets"] = {{"tri.obj", asset}};
+  add("Job", Post("/api/v1/jobs", withAssets));
+  withAssets["assets"] = {{"tri.obj", wire::Sha256Hex("")}, {"../x", asset}};
+  add("Error", Post("/api/v1/jobs", withAssets));
 
   const fs::path instances = folder_ / "instances.json";
   std::ofstream(instances) << checks.dump();
@@ -941,6 +1183,7 @@ TEST(OpenApiSpecTest, DescribesEveryRoute) {
                            "/api/v1/jobs/{id}/frames/{frame}.png:", "/api/v1/jobs/{id}/frames/{frame}.exr:",
                            "/api/v1/jobs/{id}/frames/{frame}/mask.png:",
                            "/api/v1/jobs/{id}/frames/{frame}/change.png:",
+                           "/api/v1/assets/{sha256}:", "/api/v1/assets/missing:",
                            "/api/v1/workers:", "/healthz:", "/metrics:"}) {
     EXPECT_NE(text.str().find(std::string("\n  ") + path), std::string::npos) << path;
   }

@@ -1,13 +1,18 @@
 #include "http/submit_request.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <map>
+#include <memory>
+#include <optional>
 #include <tuple>
 #include <utility>
 #include <vector>
 
 #include "http/api_error.h"
 #include "json/strict_json.h"
+#include "scene/import/scene_import.h"
 #include "scene/scene.h"
 #include "wire/content_hash.h"
 
@@ -18,14 +23,30 @@ using nlohmann::json;
 
 constexpr const char* kTopLevelFields[] = {"scene",     "name",      "frames",   "strategy",
                                            "bin_width", "tolerance", "priority", "verify",
-                                           "spot_check_share"};
+                                           "spot_check_share", "assets", "scene_file"};
 constexpr int kDefaultBinWidth = 10;
 
 // Messages read like the scene parser's: "<pointer without the leading '/'>: <problem>;
 // expected <what>", so a client sees one style for every field.
+// Control bytes in a key (an asset path may hold a NUL) written as JSON writes them: a raw
+// NUL would end the message where std::exception::what() stops reading.
+std::string EscapeControlBytes(const std::string& text) {
+  std::string escaped;
+  for (char c : text) {
+    if (static_cast<unsigned char>(c) < 0x20) {
+      char code[8];
+      std::snprintf(code, sizeof code, "\\u%04x", static_cast<unsigned>(c));
+      escaped += code;
+    } else {
+      escaped += c;
+    }
+  }
+  return escaped;
+}
+
 [[noreturn]] void Fail(const char* code, const std::string& pointer, const std::string& problem,
                        const std::string& expected) {
-  const std::string where = pointer.empty() ? "request body" : pointer.substr(1);
+  const std::string where = pointer.empty() ? "request body" : EscapeControlBytes(pointer.substr(1));
   throw ApiError(400, code, where + ": " + problem + "; expected " + expected, pointer);
 }
 
@@ -131,18 +152,83 @@ double ReadTolerance(const json& request) {
   return value;
 }
 
-Scene ReadScene(const json& request) {
-  const auto scene = request.find("scene");
-  if (scene == request.end()) {
-    Fail(error_code::kMissingField, "/scene", "missing", "a scene object (proto/scene.md)");
+// The assets a submission names, checked (paths, hashes, presence, total size) before
+// anything is laid out on disk.
+std::map<std::string, std::string> ReadAssets(const json& request, const SubmissionAssets& assets) {
+  const auto field = request.find("assets");
+  if (field == request.end()) return {};
+  const std::string expected = "an object mapping relative paths to SHA-256 hashes of uploaded assets";
+  if (!field->is_object()) {
+    Fail(error_code::kInvalidField, "/assets", ShowValue(*field) + " is not an object", expected);
   }
+  if (field->size() > kMaxAssetsPerJob) {
+    Fail(error_code::kInvalidField, "/assets", std::to_string(field->size()) + " assets are too many",
+         "at most " + std::to_string(kMaxAssetsPerJob) + " assets in one job");
+  }
+  if (assets.store == nullptr && !field->empty()) {
+    Fail(error_code::kInvalidField, "/assets", "this coordinator has no asset store", "a self-contained scene");
+  }
+  std::map<std::string, std::string> files;
+  uint64_t totalBytes = 0;
+  for (const auto& item : field->items()) {
+    const std::string& path = item.key();
+    const std::string pointer = "/assets/" + EscapePointerToken(path);
+    if (std::optional<std::string> problem = AssetPathProblem(path)) {
+      Fail(error_code::kInvalidField, pointer, "asset path " + ShowValue(path) + " is refused: " + *problem,
+           "a relative path inside the scene's folder, '/'-separated, without \".\", \"..\" or empty "
+           "components, at most " + std::to_string(kMaxAssetPathBytes) + " bytes");
+    }
+    const json& hash = item.value();
+    if (!hash.is_string() || !IsAssetHash(hash.get_ref<const std::string&>())) {
+      Fail(error_code::kInvalidField, pointer, ShowValue(hash) + " is not a SHA-256",
+           "64 lowercase hex characters, the hash of an uploaded asset");
+    }
+    const std::optional<uint64_t> size = assets.store->SizeOf(hash.get<std::string>());
+    if (!size) {
+      Fail(error_code::kMissingAsset, pointer, "the farm has no asset " + hash.get<std::string>(),
+           "an asset uploaded first with PUT /api/v1/assets/" + hash.get<std::string>());
+    }
+    totalBytes += *size;
+    files.emplace(path, hash.get<std::string>());
+  }
+  if (assets.maxJobBytes != 0 && totalBytes > assets.maxJobBytes) {
+    char total[32];
+    std::snprintf(total, sizeof total, "%.1f", static_cast<double>(totalBytes) / (1u << 20));
+    throw ApiError(413, error_code::kJobTooLarge,
+                   "assets: the job's assets total " + std::string(total) + " MiB (" + std::to_string(totalBytes) +
+                       " bytes); the coordinator allows " + std::to_string(assets.maxJobBytes >> 20) +
+                       " MiB per job (" + assets.maxJobFlag + "); expected fewer or smaller assets",
+                   "/assets");
+  }
+  return files;
+}
+
+Scene ReadInlineScene(const json& scene, const std::optional<std::filesystem::path>& folder) {
   try {
-    // No base directory: a scene from the network must inline its meshes, never name a
-    // file on the coordinator's disk.
-    return ParseScene(scene->dump());
+    // Without assets there is no folder: a scene from the network then inlines its meshes,
+    // and can never name a file on the coordinator's disk.
+    return ParseScene(scene.dump(), folder);
   } catch (const SceneError& error) {
     // SceneError's text already reads "scene<pointer>: ...", which is this body's pointer.
     throw ApiError(400, error_code::kInvalidScene, error.what(), "/scene" + error.pointer());
+  }
+}
+
+// "scene_file": one of the assets, in any format the import seam reads (tcfarm JSON, OBJ).
+Scene ReadSceneFromFile(const json& sceneFile, const std::map<std::string, std::string>& files,
+                    const std::optional<std::filesystem::path>& folder) {
+  const std::string expected = "the path of a scene file among the submission's assets";
+  if (!sceneFile.is_string()) {
+    Fail(error_code::kInvalidField, "/scene_file", ShowValue(sceneFile) + " is not a string", expected);
+  }
+  const std::string& path = sceneFile.get_ref<const std::string&>();
+  if (files.count(path) == 0 || !folder) {
+    Fail(error_code::kInvalidField, "/scene_file", ShowValue(path) + " is not among the assets", expected);
+  }
+  try {
+    return ImportScene(*folder / std::filesystem::path(path));
+  } catch (const SceneError& error) {
+    throw ApiError(400, error_code::kInvalidScene, error.what(), "/scene_file");
   }
 }
 
@@ -216,7 +302,7 @@ json ReadSpotCheckShare(const json& request) {
 
 }  // namespace
 
-JobSpec ParseSubmission(const std::string& body) {
+JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets) {
   const json request = ParseBody(body);
   if (!request.is_object()) {
     Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object",
@@ -237,7 +323,35 @@ JobSpec ParseSubmission(const std::string& body) {
     spec.options["spot_check_share"] = share;
   }
 
-  const Scene scene = ReadScene(request);
+  const auto inlineScene = request.find("scene");
+  const auto sceneFile = request.find("scene_file");
+  if (inlineScene == request.end() && sceneFile == request.end()) {
+    Fail(error_code::kMissingField, "/scene", "missing", "a scene object (proto/scene.md)");
+  }
+  if (inlineScene != request.end() && sceneFile != request.end()) {
+    Fail(error_code::kInvalidField, "/scene_file", "given beside an inline scene",
+         "either \"scene\" or \"scene_file\", not both");
+  }
+  const std::map<std::string, std::string> files = ReadAssets(request, assets);
+  // Removed when this function returns, whether the scene parses or not.
+  std::unique_ptr<AssetStore::Folder> folder;
+  if (!files.empty()) {
+    try {
+      folder = assets.store->Materialise(files);
+    } catch (const std::invalid_argument& error) {
+      // ReadAssets checked each path and hash; what is left is a path that is another's folder.
+      throw ApiError(400, error_code::kInvalidField, std::string("assets: ") + error.what() +
+                                                         "; expected paths that name files, not folders of other paths",
+                     "/assets");
+    } catch (const std::runtime_error& error) {
+      throw ApiError(507, error_code::kInsufficientStorage,
+                     std::string("the store could not lay out the assets: ") + error.what());
+    }
+  }
+  const std::optional<std::filesystem::path> base =
+      folder ? std::optional<std::filesystem::path>(folder->path()) : std::nullopt;
+  const Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, base)
+                                                   : ReadSceneFromFile(*sceneFile, files, base);
   std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);
   // The canonical text, not the client's: equal scenes get equal hashes, whatever their
   // key order or spacing, so workers cache them once.
@@ -246,6 +360,36 @@ JobSpec ParseSubmission(const std::string& body) {
   spec.frameSize = FrameSize{scene.render.width, scene.render.height};
   spec.cameraOrLightsChange = scene.CameraMoves() || scene.AnyLightChanges();
   return spec;
+}
+
+std::vector<std::string> ParseMissingAssetsQuery(const std::string& body) {
+  const json request = ParseBody(body);
+  const std::string expected = "{\"hashes\": [SHA-256, ...]}";
+  if (!request.is_object()) Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object", expected);
+  for (const auto& item : request.items()) {
+    if (item.key() != "hashes") {
+      Fail(error_code::kUnknownField, "/" + EscapePointerToken(item.key()), "unknown field", "only the field hashes");
+    }
+  }
+  const auto hashes = request.find("hashes");
+  if (hashes == request.end()) Fail(error_code::kMissingField, "/hashes", "missing", expected);
+  if (!hashes->is_array()) {
+    Fail(error_code::kInvalidField, "/hashes", ShowValue(*hashes) + " is not an array", expected);
+  }
+  if (hashes->size() > kMaxHashesPerQuery) {
+    Fail(error_code::kInvalidField, "/hashes", std::to_string(hashes->size()) + " hashes are too many",
+         "at most " + std::to_string(kMaxHashesPerQuery) + " in one question");
+  }
+  std::vector<std::string> result;
+  for (size_t i = 0; i < hashes->size(); ++i) {
+    const json& hash = (*hashes)[i];
+    if (!hash.is_string() || !IsAssetHash(hash.get_ref<const std::string&>())) {
+      Fail(error_code::kInvalidField, "/hashes/" + std::to_string(i), ShowValue(hash) + " is not a SHA-256",
+           "64 lowercase hex characters");
+    }
+    result.push_back(hash.get<std::string>());
+  }
+  return result;
 }
 
 }  // namespace tcfarm::http

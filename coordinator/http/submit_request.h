@@ -1,10 +1,14 @@
-// POST /api/v1/jobs: the request body, checked field by field, turned into a JobSpec.
+// The JSON request bodies of the API, checked field by field: POST /api/v1/jobs turned into a
+// JobSpec, POST /api/v1/assets/missing into the hashes it asks about.
 #pragma once
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "http/job_json.h"
 #include "jobs/job_store.h"
+#include "store/asset_store.h"
 
 namespace tcfarm::http {
 
@@ -15,6 +19,19 @@ inline constexpr int kMaxBinWidth = 1000;
 inline constexpr int kMinPriority = -100;
 inline constexpr int kMaxPriority = 100;
 inline constexpr size_t kMaxNameBytes = 256;  // a label for lists, not a document
+// A scene with more files than this is a project tree, not a shot; it also bounds the
+// folder a submission lays out.
+inline constexpr size_t kMaxAssetsPerJob = 10000;
+// One missing-assets question: a large project's assets, each answered by one stat.
+inline constexpr size_t kMaxHashesPerQuery = 100000;
+
+// Where a submission's "assets" come from. Without a store, a submission naming assets
+// is refused, as a scene naming files always was.
+struct SubmissionAssets {
+  AssetStore* store = nullptr;
+  uint64_t maxJobBytes = 0;  // the assets' total size a job may have; 0: no limit
+  std::string maxJobFlag;    // how messages name that limit ("--asset-max-job-mib")
+};
 
 // Throws ApiError (status 400) naming the JSON pointer of the first bad value: invalid_json,
 // unknown_field, missing_field, invalid_field or invalid_scene. Duplicate keys anywhere in
@@ -23,6 +40,17 @@ inline constexpr size_t kMaxNameBytes = 256;  // a label for lists, not a docume
 // The spec's sceneJson is canonical (SerializeScene), sceneHash its SHA-256; frameSize and
 // cameraOrLightsChange come from the scene parsed here, the only parse on the job's way
 // to the planners.
-JobSpec ParseSubmission(const std::string& body);
+//
+// "assets" ({relative path: sha256}) are laid out in a folder of the asset store while the
+// scene is parsed, so mesh "file" references and a "scene_file" (any format ImportScene
+// reads) resolve there; the folder is gone when this returns, since the parsed scene holds
+// its meshes inline. Asset errors: a bad path or hash is invalid_field and a hash the store
+// lacks missing_asset, both at /assets/<path>; a total past maxJobBytes is 413
+// job_too_large at /assets.
+JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets = {});
+
+// POST /api/v1/assets/missing: {"hashes": [sha256, ...]}. Throws ApiError 400 (invalid_json,
+// unknown_field, missing_field, invalid_field) naming the pointer of the first bad value.
+std::vector<std::string> ParseMissingAssetsQuery(const std::string& body);
 
 }  // namespace tcfarm::http

@@ -14,15 +14,43 @@ void EnsureSodium() {
   if (!ready) throw std::runtime_error("libsodium: sodium_init failed");
 }
 
+std::string DigestHex(const unsigned char (&digest)[crypto_hash_sha256_BYTES]) {
+  char hex[2 * crypto_hash_sha256_BYTES + 1];
+  sodium_bin2hex(hex, sizeof hex, digest, sizeof digest);
+  return std::string(hex, 2 * crypto_hash_sha256_BYTES);
+}
+
 }  // namespace
 
 std::string Sha256Hex(std::string_view bytes) {
   EnsureSodium();
   unsigned char digest[crypto_hash_sha256_BYTES];
   crypto_hash_sha256(digest, reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size());
-  char hex[2 * crypto_hash_sha256_BYTES + 1];
-  sodium_bin2hex(hex, sizeof hex, digest, sizeof digest);
-  return std::string(hex, 2 * crypto_hash_sha256_BYTES);
+  return DigestHex(digest);
+}
+
+struct Sha256Stream::State {
+  crypto_hash_sha256_state sodium;
+};
+
+Sha256Stream::Sha256Stream() : state_(std::make_unique<State>()) {
+  EnsureSodium();
+  crypto_hash_sha256_init(&state_->sodium);
+}
+
+Sha256Stream::~Sha256Stream() = default;
+
+void Sha256Stream::Update(std::string_view bytes) {
+  if (finished_) throw std::logic_error("Sha256Stream: Update after Hex");
+  crypto_hash_sha256_update(&state_->sodium, reinterpret_cast<const unsigned char*>(bytes.data()), bytes.size());
+}
+
+std::string Sha256Stream::Hex() {
+  if (finished_) throw std::logic_error("Sha256Stream: Hex called twice");
+  finished_ = true;
+  unsigned char digest[crypto_hash_sha256_BYTES];
+  crypto_hash_sha256_final(&state_->sodium, digest);
+  return DigestHex(digest);
 }
 
 }  // namespace tcfarm::wire

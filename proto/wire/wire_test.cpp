@@ -194,6 +194,20 @@ TEST(Sha256, PaddingBoundaries) {
   }
 }
 
+// Pieces of any size hash as the whole: an asset upload arrives in network-sized chunks.
+TEST(Sha256, StreamInPiecesEqualsTheWhole) {
+  std::string bytes(1000, '\0');
+  for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>((i * 31 + 5) % 256);
+  for (size_t piece : {size_t{1}, size_t{55}, size_t{64}, size_t{333}, size_t{1000}}) {
+    Sha256Stream stream;
+    for (size_t at = 0; at < bytes.size(); at += piece) stream.Update(std::string_view(bytes).substr(at, piece));
+    EXPECT_EQ(stream.Hex(), Sha256Hex(bytes)) << piece << "-byte pieces";
+  }
+  Sha256Stream empty;
+  EXPECT_EQ(empty.Hex(), Sha256Hex(""));
+  EXPECT_THROW(empty.Update("late"), std::logic_error);
+}
+
 // ---------------------------------------------------------------------------------
 // Round trips
 

@@ -1,4 +1,4 @@
 """Python SDK for the tcfarm render farm: talks only to its HTTP API (proto/openapi.yaml)."""
-from tcfarm.client import ApiError, Client
+from tcfarm.client import ApiError, AssetUpload, Client
 
-__all__ = ["ApiError", "Client"]
+__all__ = ["ApiError", "AssetUpload", "Client"]

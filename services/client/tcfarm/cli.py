@@ -1,6 +1,6 @@
 """tcfarm: drive a render farm from the command line.
 
-  tcfarm submit SCENE.json [--frames A:B] [--strategy S] [--bin-width N] [--verify all|K] [--wait]
+  tcfarm submit SCENE.json|MODEL.obj [--frames A:B] [--strategy S] [--bin-width N] [--verify all|K] [--wait]
   tcfarm status JOB
   tcfarm watch JOB            progress bar with ETA and the live traced-pixel ratio
   tcfarm wait JOB
@@ -19,6 +19,7 @@ import sys
 import time
 
 from tcfarm.client import ApiError, Client
+from tcfarm.scene_files import SceneFileError, scene_files
 
 # The coordinator's strategies (proto/openapi.yaml; tests/cli/test_client_cli.py keeps them equal).
 STRATEGIES = ("auto", "exact", "guarded", "search", "brute")
@@ -74,17 +75,30 @@ class _ProgressBar:
         self.stream.flush()
 
 
+def _upload(client, files, quiet):
+    """Uploads what the farm lacks of the scene's files; returns the submission's assets."""
+    if not files.assets:
+        return None
+    upload = client.upload_assets([str(path) for path in files.assets.values()])
+    if not quiet:
+        sent = set(upload.uploaded)
+        size = sum(path.stat().st_size for path in files.assets.values()
+                   if upload.hashes[str(path)] in sent)
+        sys.stderr.write(f"assets: {len(files.assets)} files, {len(sent)} uploaded "
+                         f"({size / 2**20:.1f} MiB), the rest already on the farm\n")
+    return {name: upload.hashes[str(path)] for name, path in files.assets.items()}
+
+
 def cmd_submit(client, args):
     try:
-        with open(args.scene) as f:
-            scene = json.load(f)
-    except OSError as e:
-        raise ApiError(0, "bad_input", f"cannot read scene {args.scene}: {e.strerror}")
-    except ValueError as e:
-        raise ApiError(0, "bad_input", f"{args.scene} is not JSON: {e}")
-    job = client.submit(scene, name=args.name or os.path.basename(args.scene),
+        files = scene_files(args.scene)
+    except SceneFileError as e:
+        raise ApiError(0, "bad_input", str(e))
+    assets = _upload(client, files, args.json)
+    job = client.submit(files.scene, name=args.name or os.path.basename(args.scene),
                         frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
-                        tolerance=args.tolerance, priority=args.priority, verify=args.verify)
+                        tolerance=args.tolerance, priority=args.priority, verify=args.verify,
+                        assets=assets, scene_file=files.scene_file)
     if not args.wait:
         print(json.dumps(job) if args.json else f"submitted job {job['id']}")
         return 0
@@ -166,7 +180,8 @@ def main(argv=None):
     parser.add_argument("--url", default=os.environ.get("TCFARM_URL", "http://127.0.0.1:8080"))
     parser.add_argument("--json", action="store_true", help="print JSON records")
     sub = parser.add_subparsers(dest="command", required=True)
-    submit = sub.add_parser("submit", help="submit a scene")
+    submit = sub.add_parser("submit", help="submit a scene (JSON, or OBJ), uploading the files "
+                                           "it references that the farm lacks")
     submit.add_argument("scene")
     submit.add_argument("--name")
     submit.add_argument("--frames", type=_frames)

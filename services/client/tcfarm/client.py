@@ -1,5 +1,8 @@
 """A small, dependency-free client of the coordinator's /api/v1."""
+import collections
+import hashlib
 import json
+import os
 import time
 import urllib.error
 import urllib.request
@@ -16,15 +19,34 @@ class ApiError(Exception):
         super().__init__(f"{code} ({status}){where}: {message}" if status else message)
 
 
+# What upload_assets did: every file's hash by the path it was given as, and the hashes it
+# had to send (the farm lacked them); an unchanged file is never sent twice.
+AssetUpload = collections.namedtuple("AssetUpload", ["hashes", "uploaded"])
+
+_HASH_CHUNK_BYTES = 1 << 20
+
+
+def sha256_file(path):
+    """The SHA-256 of a file's bytes in lowercase hex, read in pieces (assets may be large)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for piece in iter(lambda: f.read(_HASH_CHUNK_BYTES), b""):
+            digest.update(piece)
+    return digest.hexdigest()
+
+
 class Client:
     def __init__(self, url="http://127.0.0.1:8080", timeout=30.0):
         self.url = url.rstrip("/")
         self.timeout = timeout
 
-    def _request(self, method, path, body=None, raw=False):
-        data = None if body is None else json.dumps(body).encode()
+    def _request(self, method, path, body=None, raw=False, data=None, headers=None):
+        """body: JSON to send; or data (bytes or a file) with its headers."""
+        if data is None:
+            data = None if body is None else json.dumps(body).encode()
+            headers = {"Content-Type": "application/json"}
         request = urllib.request.Request(self.url + path, data=data, method=method,
-                                         headers={"Content-Type": "application/json"})
+                                         headers=headers)
         try:
             with urllib.request.urlopen(request, timeout=self.timeout) as response:
                 payload = response.read()
@@ -36,10 +58,34 @@ class Client:
 
     def submit(self, scene, **options):
         """Submits a job. options: name, frames={"start","end"}, strategy, bin_width,
-        tolerance, priority. Returns the job record."""
-        body = {"scene": scene}
+        tolerance, priority, verify; assets={relative path: sha256} (upload_assets gives the
+        hashes); scene_file=a path among the assets, with scene None, for a scene that is a
+        file (OBJ). Returns the job record."""
+        body = {} if scene is None else {"scene": scene}
         body.update({k: v for k, v in options.items() if v is not None})
         return self._request("POST", "/api/v1/jobs", body)
+
+    def missing_assets(self, hashes):
+        """Which of these SHA-256 hashes the farm does not have."""
+        return self._request("POST", "/api/v1/assets/missing", {"hashes": list(hashes)})["missing"]
+
+    def put_asset(self, path, sha256=None):
+        """Uploads one file, streamed; returns {"sha256", "size"}."""
+        sha256 = sha256 or sha256_file(path)
+        with open(path, "rb") as f:
+            return self._request("PUT", f"/api/v1/assets/{sha256}", data=f, headers={
+                "Content-Type": "application/octet-stream",
+                "Content-Length": str(os.fstat(f.fileno()).st_size)})
+
+    def upload_assets(self, paths):
+        """Uploads the files the farm does not have yet, asking it first; returns an
+        AssetUpload: hashes {path: sha256} for every path, and the hashes uploaded."""
+        hashes = {path: sha256_file(path) for path in paths}
+        missing = self.missing_assets(sorted(set(hashes.values()))) if hashes else []
+        by_hash = {sha256: path for path, sha256 in hashes.items()}
+        for sha256 in missing:
+            self.put_asset(by_hash[sha256], sha256)
+        return AssetUpload(hashes, missing)
 
     def job(self, job_id):
         return self._request("GET", f"/api/v1/jobs/{int(job_id)}")
