@@ -232,6 +232,22 @@ Scene ReadSceneFromFile(const json& sceneFile, const std::map<std::string, std::
   }
 }
 
+// Workers receive a scene as self-contained JSON: meshes travel inline, but texture images
+// stay files, which workers cannot fetch yet. Refused here, with the material's pointer,
+// rather than failing every task of the job later.
+void RefuseWhatWorkersCannotFetch(const Scene& scene, const std::string& scenePointer) {
+  for (const Material& material : scene.materials) {
+    if (!material.diffuseTexture) continue;
+    throw ApiError(400, error_code::kInvalidScene,
+                   "scene/materials/" + EscapePointerToken(material.name) + "/diffuse_texture: texture image " +
+                       ShowValue(material.diffuseTexture->image) +
+                       " cannot reach the farm's workers yet; expected a material without a texture (render "
+                       "textured scenes with tcfarm-worker render)",
+                   scenePointer == "/scene" ? "/scene/materials/" + EscapePointerToken(material.name) + "/diffuse_texture"
+                                            : scenePointer);
+  }
+}
+
 std::pair<int, int> ReadFrameRange(const json& request, const RenderSettings& render) {
   const int first = render.firstFrame;
   const int last = render.LastFrame();
@@ -352,6 +368,7 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
       folder ? std::optional<std::filesystem::path>(folder->path()) : std::nullopt;
   const Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, base)
                                                    : ReadSceneFromFile(*sceneFile, files, base);
+  RefuseWhatWorkersCannotFetch(scene, inlineScene != request.end() ? "/scene" : "/scene_file");
   std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);
   // The canonical text, not the client's: equal scenes get equal hashes, whatever their
   // key order or spacing, so workers cache them once.

@@ -113,6 +113,26 @@ def test_a_missing_asset_is_named(farm):
     assert lacking in str(error.value)
 
 
+def test_a_textured_scene_is_refused_until_workers_fetch_images(farm, tmp_path):
+    # A real PNG (1x1, red) uploaded as an asset: the scene parses, but its image could not
+    # reach the workers, so the submission is refused before any job exists.
+    png = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010802000000907753de"
+                        "0000000c4944415408d763f8cfc000000301010018dd8db00000000049454e44ae426082")
+    image = tmp_path / "red.png"
+    image.write_bytes(png)
+    hash_ = farm.client.upload_assets([str(image)]).hashes[str(image)]
+    scene = scene_with_mesh_file("unused.obj")
+    scene["shapes"] = []
+    scene["materials"] = {"printed": {"diffuse_texture": {"image": "red.png"}}}
+    jobs_before = len(farm.client.jobs())
+    with pytest.raises(ApiError) as error:
+        farm.client.submit(scene, assets={"red.png": hash_})
+    assert (error.value.status, error.value.code) == (400, "invalid_scene")
+    assert error.value.pointer == "/scene/materials/printed/diffuse_texture"
+    assert "tcfarm-worker render" in str(error.value)
+    assert len(farm.client.jobs()) == jobs_before
+
+
 def test_assets_past_the_job_limit_are_413_naming_it(farm, still_life):
     blobs = [bytes([i]) * (MAX_FILE_MIB * 2**20) for i in range(MAX_JOB_MIB + 1)]
     for blob in blobs:

@@ -749,9 +749,14 @@ class GltfReader {
     if (pbr.baseColorTexture.index >= 0) {
       Warn(pointer, "baseColorTexture is not rendered yet (its UVs are kept); the base colour factor is used");
     }
-    if (source.emissiveFactor.size() == 3 &&
-        (source.emissiveFactor[0] > 0 || source.emissiveFactor[1] > 0 || source.emissiveFactor[2] > 0)) {
-      Warn(pointer, "emission is not rendered (the scene model has no emissive materials)");
+    if (source.emissiveFactor.size() == 3) {
+      for (int c = 0; c < 3; ++c) {
+        const double emitted = source.emissiveFactor[static_cast<size_t>(c)];
+        if (!(emitted >= 0 && emitted <= kMaxMagnitude)) {
+          Fail(pointer + "/emissiveFactor/" + std::to_string(c), std::to_string(emitted), "a finite non-negative factor");
+        }
+        (c == 0 ? material.emission.x : c == 1 ? material.emission.y : material.emission.z) = emitted;
+      }
     }
     return material;
   }
@@ -1330,10 +1335,24 @@ class GltfReader {
       if (light.type == "directional") {
         out.type = Light::Type::kDirectional;
         out.direction = AnimatedVec3::Constant({0, 0, -1});
-      } else if (light.type == "point" || light.type == "spot") {
-        if (light.type == "spot") Warn(lightPointer, "spot lights are imported as point lights (cones come next)");
+      } else if (light.type == "point") {
         out.type = Light::Type::kPoint;
         out.position = AnimatedVec3::Constant({0, 0, 0});
+      } else if (light.type == "spot") {
+        // A spot shines down its node's -z; glTF's cone angles are radians from the axis.
+        out.type = Light::Type::kSpot;
+        out.position = AnimatedVec3::Constant({0, 0, 0});
+        out.direction = AnimatedVec3::Constant({0, 0, -1});
+        const double outer = light.spot.outerConeAngle * 180 / kPi, inner = light.spot.innerConeAngle * 180 / kPi;
+        if (!(outer > 0 && outer <= 90)) {
+          Fail(lightPointer + "/spot/outerConeAngle", std::to_string(light.spot.outerConeAngle), "an angle in (0, pi/2]");
+        }
+        if (!(inner >= 0 && inner < outer)) {
+          Fail(lightPointer + "/spot/innerConeAngle", std::to_string(light.spot.innerConeAngle),
+               "an angle in [0, outerConeAngle)");
+        }
+        out.outerConeDegrees = outer;
+        out.innerConeDegrees = inner;
       } else {
         Fail(lightPointer + "/type", "type " + QuoteInput(light.type), "point, spot or directional");
       }
@@ -1379,14 +1398,23 @@ class GltfReader {
     const size_t cameraIndex = static_cast<size_t>(model_.nodes[static_cast<size_t>(chosenNode)].camera);
     const tinygltf::Camera& camera = model_.cameras[cameraIndex];
     const std::string pointer = Pointer("cameras", cameraIndex);
+    double degrees = 45;
     if (camera.type == "orthographic") {
-      Fail(pointer, "orthographic cameras are not supported yet", "a perspective camera");
-    }
-    if (camera.type != "perspective") Fail(pointer + "/type", "type " + QuoteInput(camera.type), "perspective");
-    double degrees = camera.perspective.yfov * 180 / kPi;
-    if (!(degrees > 0 && degrees < 180)) {
-      Fail(pointer + "/perspective/yfov", std::to_string(camera.perspective.yfov) + " radians",
-           "a field of view in (0, pi)");
+      // ymag is half the view's height; the render size sets the width, as for yfov.
+      const double ymag = camera.orthographic.ymag;
+      if (!(ymag > 0 && ymag <= 5e8)) {
+        Fail(pointer + "/orthographic/ymag", std::to_string(ymag), "a positive half height of the view");
+      }
+      scene.camera.orthographic = true;
+      scene.camera.orthographicHeight = 2 * ymag;
+    } else if (camera.type == "perspective") {
+      degrees = camera.perspective.yfov * 180 / kPi;
+      if (!(degrees > 0 && degrees < 180)) {
+        Fail(pointer + "/perspective/yfov", std::to_string(camera.perspective.yfov) + " radians",
+             "a field of view in (0, pi)");
+      }
+    } else {
+      Fail(pointer + "/type", "type " + QuoteInput(camera.type), "perspective or orthographic");
     }
     // glTF cameras look down their node's -z with +y up; the node's motion carries them.
     scene.camera.position = AnimatedVec3::Constant({0, 0, 0});

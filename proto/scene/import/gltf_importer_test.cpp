@@ -315,11 +315,16 @@ TEST(GltfImporterTest, CameraLightsAndMaterials) {
   EXPECT_EQ(sized.render.width, 320);
   EXPECT_EQ(sized.render.samplesPerPixel, 4);
 
+  // Orthographic: ymag is half the view's height.
   gltf.doc()["cameras"][0] =
-      json::parse(R"({"type": "orthographic", "orthographic": {"xmag": 1, "ymag": 1, "znear": 0.1, "zfar": 10}})");
+      json::parse(R"({"type": "orthographic", "orthographic": {"xmag": 1.5, "ymag": 1.25, "znear": 0.1, "zfar": 10}})");
+  Scene orthographic = gltf.Import();
+  EXPECT_TRUE(orthographic.camera.orthographic);
+  EXPECT_DOUBLE_EQ(orthographic.camera.orthographicHeight, 2.5);
+  ExpectRoundTrip(orthographic);
+  gltf.doc()["cameras"][0]["orthographic"]["ymag"] = 0;
   std::string what = ErrorOf([&] { gltf.Import(); });
-  EXPECT_NE(what.find("scene/cameras/0: the gltf scene: orthographic cameras are not supported yet"), std::string::npos)
-      << what;
+  EXPECT_NE(what.find("scene/cameras/0/orthographic/ymag"), std::string::npos) << what;
 }
 
 TEST(GltfImporterTest, RefusesWhatItCannotHold) {
@@ -412,17 +417,23 @@ TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
       << what;
 }
 
-TEST(GltfImporterTest, SpotLightBecomesAPointLight) {
+TEST(GltfImporterTest, SpotLightsKeepTheirConeAndShineDownTheirNode) {
   GltfBuilder gltf;
   gltf.Node({{"mesh", gltf.Mesh(kTriangle)}}, true);
   gltf.doc()["extensions"] = json::parse(R"({"KHR_lights_punctual": {"lights": [
-      {"type": "spot", "intensity": 5, "spot": {"outerConeAngle": 0.5}}]}})");
-  gltf.Node(json::parse(R"({"translation": [0, 3, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}})"), true);
+      {"type": "spot", "intensity": 5, "spot": {"innerConeAngle": 0.25, "outerConeAngle": 0.5}}]}})");
+  // Turned a quarter about x: its -z axis points down.
+  gltf.Node(json::parse(R"({"translation": [0, 3, 0], "rotation": [-0.7071067811865476, 0, 0, 0.7071067811865476],
+                            "extensions": {"KHR_lights_punctual": {"light": 0}}})"), true);
   Scene scene = gltf.Import();
   ASSERT_EQ(scene.lights.size(), 1u);
-  EXPECT_EQ(scene.lights[0].type, Light::Type::kPoint);
+  EXPECT_EQ(scene.lights[0].type, Light::Type::kSpot);
   ExpectNear(scene.lights[0].PositionAt(0), {0, 3, 0});
+  ExpectNear(scene.lights[0].DirectionAt(0), {0, -1, 0});
+  EXPECT_NEAR(scene.lights[0].outerConeDegrees, 0.5 * 180 / M_PI, 1e-9);
+  EXPECT_NEAR(scene.lights[0].innerConeDegrees, 0.25 * 180 / M_PI, 1e-9);
   ExpectNear(scene.lights[0].intensity.Evaluate(0), {5, 5, 5});
+  ExpectRoundTrip(scene);
 }
 
 class TempFolder {
