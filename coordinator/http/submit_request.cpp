@@ -23,7 +23,7 @@ using nlohmann::json;
 
 constexpr const char* kTopLevelFields[] = {"scene",     "name",      "frames",   "strategy",
                                            "bin_width", "tolerance", "priority", "verify",
-                                           "spot_check_share", "assets", "scene_file"};
+                                           "spot_check_share", "assets", "scene_file", "import"};
 constexpr int kDefaultBinWidth = 10;
 
 // Messages read like the scene parser's: "<pointer without the leading '/'>: <problem>;
@@ -214,9 +214,49 @@ Scene ReadInlineScene(const json& scene, const std::optional<std::filesystem::pa
   }
 }
 
-// "scene_file": one of the assets, in any format the import seam reads (tcfarm JSON, OBJ).
+// "import": how a scene_file becomes a scene, as tcfarm-worker render's flags say it:
+// {"fps": F, "size": [W, H], "animation": name or index, "camera": name or index, "spp": N}.
+ImportOptions ReadImportOptions(const json& request) {
+  ImportOptions options;
+  const auto import = request.find("import");
+  if (import == request.end()) return options;
+  const std::string expected = R"({"fps", "size": [width, height], "animation", "camera", "spp"})";
+  if (!import->is_object()) Fail(error_code::kInvalidField, "/import", ShowValue(*import) + " is not an object", expected);
+  if (request.find("scene_file") == request.end()) {
+    Fail(error_code::kInvalidField, "/import", "given without a scene_file", "import options only with \"scene_file\"");
+  }
+  for (const auto& item : import->items()) {
+    const std::string& key = item.key();
+    const json& value = item.value();
+    const std::string pointer = "/import/" + EscapePointerToken(key);
+    if (key == "fps") {
+      if (!value.is_number() || !(value.get<double>() >= 0.001 && value.get<double>() <= 100000)) {
+        Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is out of range", "frames per second in [0.001, 100000]");
+      }
+      options.framesPerSecond = value.get<double>();
+    } else if (key == "size") {
+      const std::string sizeExpected = "[width, height], each an integer in [1, 16384]";
+      if (!value.is_array() || value.size() != 2) Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not a size", sizeExpected);
+      options.width = ReadInteger(value[0], pointer + "/0", 1, 16384, sizeExpected);
+      options.height = ReadInteger(value[1], pointer + "/1", 1, 16384, sizeExpected);
+    } else if (key == "animation" || key == "camera") {
+      if (!value.is_string() && !IsIntegral(value)) {
+        Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not a name or an index", "a name or an index");
+      }
+      (key == "animation" ? options.animation : options.camera) =
+          value.is_string() ? value.get<std::string>() : std::to_string(value.get<long long>());
+    } else if (key == "spp") {
+      options.samplesPerPixel = ReadInteger(value, pointer, 1, 1024, "samples per pixel in [1, 1024]");
+    } else {
+      Fail(error_code::kUnknownField, pointer, "unknown field", "only the fields fps, size, animation, camera, spp");
+    }
+  }
+  return options;
+}
+
+// "scene_file": one of the assets, in any format the import seam reads (tcfarm JSON, OBJ, glTF).
 Scene ReadSceneFromFile(const json& sceneFile, const std::map<std::string, std::string>& files,
-                    const std::optional<std::filesystem::path>& folder) {
+                        const std::optional<std::filesystem::path>& folder, const ImportOptions& options) {
   const std::string expected = "the path of a scene file among the submission's assets";
   if (!sceneFile.is_string()) {
     Fail(error_code::kInvalidField, "/scene_file", ShowValue(sceneFile) + " is not a string", expected);
@@ -226,7 +266,7 @@ Scene ReadSceneFromFile(const json& sceneFile, const std::map<std::string, std::
     Fail(error_code::kInvalidField, "/scene_file", ShowValue(path) + " is not among the assets", expected);
   }
   try {
-    return ImportScene(*folder / std::filesystem::path(path));
+    return ImportScene(*folder / std::filesystem::path(path), options);
   } catch (const SceneError& error) {
     throw ApiError(400, error_code::kInvalidScene, error.what(), "/scene_file");
   }
@@ -348,6 +388,7 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
     Fail(error_code::kInvalidField, "/scene_file", "given beside an inline scene",
          "either \"scene\" or \"scene_file\", not both");
   }
+  const ImportOptions importOptions = ReadImportOptions(request);
   const std::map<std::string, std::string> files = ReadAssets(request, assets);
   // Removed when this function returns, whether the scene parses or not.
   std::unique_ptr<AssetStore::Folder> folder;
@@ -367,7 +408,7 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   const std::optional<std::filesystem::path> base =
       folder ? std::optional<std::filesystem::path>(folder->path()) : std::nullopt;
   const Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, base)
-                                                   : ReadSceneFromFile(*sceneFile, files, base);
+                                                   : ReadSceneFromFile(*sceneFile, files, base, importOptions);
   RefuseWhatWorkersCannotFetch(scene, inlineScene != request.end() ? "/scene" : "/scene_file");
   std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);
   // The canonical text, not the client's: equal scenes get equal hashes, whatever their

@@ -1,7 +1,9 @@
 """glTF files through `tcfarm-worker render` and through the farm: generated files render
 with closed-form pixels, the render flags choose what they say, broken files are refused
 naming where, and exact equals brute force on an animated hierarchy."""
+import base64
 import json
+import os
 import pathlib
 import re
 import subprocess
@@ -12,7 +14,7 @@ import pytest
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
 import make_gltf  # noqa: E402
-from farm_harness import LocalFarm, compare, render_reference  # noqa: E402
+from farm_harness import ROOT, LocalFarm, compare, render_reference  # noqa: E402
 
 # Debian's assimp-testmodels (scripts/bootstrap installs it), read where it lies.
 TEST_MODELS = pathlib.Path("/usr/share/assimp/models/glTF2")
@@ -133,3 +135,43 @@ def test_generated_files_pass_the_khronos_validator(files):
     for report in json.loads(result.stdout):
         issues = report["issues"]
         assert (issues["numErrors"], issues["numWarnings"]) == (0, 0), (report["uri"], issues["messages"])
+
+
+def tcfarm_cli(farm, *args):
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "services" / "client"))
+    return subprocess.run([sys.executable, "-m", "tcfarm.cli", "--url", farm.url, "--json", *map(str, args)],
+                          capture_output=True, text=True, env=env, timeout=600)
+
+
+def test_tcfarm_submit_renders_a_gltf_as_tcfarm_worker_render_does(worker_binary, files, tmp_path):
+    """The user's path: `tcfarm submit shot.glb --fps --size --strategy exact --wait`, the
+    file and its buffer uploaded, imported on the coordinator, bit-identical to the
+    standalone render of the same file with the same flags."""
+    # The hierarchy as a .gltf with its buffer beside it, and as a .glb.
+    gltf = json.loads(files["animated_hierarchy.gltf"].read_text())
+    external = tmp_path / "shot"
+    external.mkdir()
+    (external / "shot.bin").write_bytes(base64.b64decode(gltf["buffers"][0]["uri"].split(",", 1)[1]))
+    gltf["buffers"][0]["uri"] = "shot.bin"
+    (external / "shot.gltf").write_text(json.dumps(gltf))
+    glb = make_gltf.EXAMPLES["animated_hierarchy.gltf"]().write(tmp_path / "shot.glb")
+    flags = ("--fps", "12", "--size", "96x72")
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=2) as farm:
+        farm.wait_for_workers(2)
+        for path in (external / "shot.gltf", glb):
+            reference = tmp_path / f"reference-{path.suffix[1:]}"
+            result = run(worker_binary, "render", path, *flags, "--out", reference, "--no-png")
+            assert result.returncode == 0, result.stderr
+            result = tcfarm_cli(farm, "submit", path, *flags, "--strategy", "exact", "--wait")
+            assert result.returncode == 0, result.stderr
+            job = json.loads(result.stdout.strip().splitlines()[-1])
+            assert job["state"] == "completed", job
+            error = compare(reference, farm.store / str(job["id"]))
+            assert error["differing_pixels"] == 0, (path.name, error)
+            assert error["frames"] == 13
+        # Import options belong to a scene file: with a JSON scene they are refused.
+        scene = tmp_path / "scene.json"
+        scene.write_text(json.dumps(printed_scene(worker_binary, glb, *flags)))
+        result = tcfarm_cli(farm, "submit", scene, "--fps", "12")
+        assert result.returncode != 0 and "scene file" in result.stderr

@@ -89,6 +89,27 @@ def _upload(client, files, quiet):
     return {name: upload.hashes[str(path)] for name, path in files.assets.items()}
 
 
+def _import_options(args, files):
+    """--fps, --size, --animation, --camera, --spp: how the farm imports a scene file."""
+    options = {key: value for key, value in (("fps", args.fps), ("size", args.size),
+                                              ("animation", args.animation), ("camera", args.camera),
+                                              ("spp", args.spp)) if value is not None}
+    if not options:
+        return {}
+    if files.scene_file is None:
+        raise ApiError(0, "bad_input", "--fps, --size, --animation, --camera and --spp apply to a "
+                                       "scene file (.gltf, .glb, .obj), not to a JSON scene")
+    return {"import": options}  # a reserved word in Python, a plain field name in the API
+
+
+def _size(text):
+    try:
+        width, height = (int(part) for part in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT") from None
+    return [width, height]
+
+
 def cmd_submit(client, args):
     try:
         files = scene_files(args.scene)
@@ -98,7 +119,7 @@ def cmd_submit(client, args):
     job = client.submit(files.scene, name=args.name or os.path.basename(args.scene),
                         frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
                         tolerance=args.tolerance, priority=args.priority, verify=args.verify,
-                        assets=assets, scene_file=files.scene_file)
+                        assets=assets, scene_file=files.scene_file, **_import_options(args, files))
     if not args.wait:
         print(json.dumps(job) if args.json else f"submitted job {job['id']}")
         return 0
@@ -192,6 +213,11 @@ def main(argv=None):
     submit.add_argument("--verify", type=_verify, help="'all' or K: also render K frames "
                                                         "brute force and report the error")
     submit.add_argument("--wait", action="store_true", help="wait, showing progress")
+    submit.add_argument("--fps", type=float, help="frames per second an animated file is sampled at (glTF)")
+    submit.add_argument("--size", type=_size, help="WIDTHxHEIGHT of the frames of a scene file")
+    submit.add_argument("--animation", help="the glTF animation to play, by name or index")
+    submit.add_argument("--camera", help="the glTF camera to look through, by name or index")
+    submit.add_argument("--spp", type=int, help="samples per pixel of a scene file")
     for name in ("status", "wait", "watch", "cancel"):
         sub.add_parser(name).add_argument("job", type=int)
     frames = sub.add_parser("frames", help="download a job's finished frames")

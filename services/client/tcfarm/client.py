@@ -60,7 +60,8 @@ class Client:
         """Submits a job. options: name, frames={"start","end"}, strategy, bin_width,
         tolerance, priority, verify; assets={relative path: sha256} (upload_assets gives the
         hashes); scene_file=a path among the assets, with scene None, for a scene that is a
-        file (OBJ). Returns the job record."""
+        file (OBJ, glTF), and **{"import": {"fps", "size", "animation", "camera", "spp"}} for
+        how it is imported. Returns the job record."""
         body = {} if scene is None else {"scene": scene}
         body.update({k: v for k, v in options.items() if v is not None})
         return self._request("POST", "/api/v1/jobs", body)

@@ -1,7 +1,8 @@
 """The files a scene file references, found the way the coordinator will look for them.
 
 A tcfarm JSON scene names OBJ mesh files in its shapes' "file"; an OBJ scene names its
-material libraries with mtllib. Each reference is a path relative to the scene's folder;
+material libraries with mtllib; a .gltf names its buffers and images by "uri" (data URIs
+travel inside it; a .glb carries its own). Each reference is a path relative to the scene's folder;
 the farm lays the uploaded files out under exactly those paths, so they are written here
 in the canonical form the API accepts ("meshes/a.obj", never "./meshes//a.obj").
 """
@@ -56,6 +57,17 @@ def _obj_libraries(text):
             yield from words[1:]
 
 
+def _gltf_uris(document):
+    """The external buffers and images a glTF document names (URI-encoded paths)."""
+    from urllib.parse import unquote
+    for kind, what in (("buffers", "buffer"), ("images", "image")):
+        entries = document.get(kind) if isinstance(document, dict) else None
+        for entry in entries if isinstance(entries, list) else []:
+            uri = entry.get("uri") if isinstance(entry, dict) else None
+            if isinstance(uri, str) and not uri.startswith("data:"):
+                yield unquote(uri), what
+
+
 def scene_files(path):
     """The scene at path and the files it references, ready for upload and submission."""
     path = pathlib.Path(path)
@@ -73,8 +85,18 @@ def scene_files(path):
         for name, what in _json_references(scene):
             _add(assets, folder, name, path, what)
         return SceneFiles(scene, None, assets)
-    # Any other file goes to the farm as it is, which imports it by its type (OBJ today).
+    # Any other file goes to the farm as it is, which imports it by its type.
     assets = {path.name: path}
+    if path.suffix.lower() == ".gltf":
+        try:
+            document = json.loads(data)
+        except ValueError as e:
+            raise SceneFileError(f"{path} is not glTF JSON: {e}") from None
+        for name, what in _gltf_uris(document):
+            _add(assets, folder, name, path, what)
+        return SceneFiles(None, path.name, assets)
+    if path.suffix.lower() == ".glb":
+        return SceneFiles(None, path.name, assets)
     for name in _obj_libraries(data.decode("utf-8", errors="replace")):
         _add(assets, folder, name, path, "material library")
     return SceneFiles(None, path.name, assets)
