@@ -26,12 +26,18 @@
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
+#include "scene/import/mesh_geometry.h"
 #include "scene/import/importers.h"
 #include "scene/import/messages.h"
 #include "scene/import/scene_files.h"
 
 namespace tcfarm {
 namespace {
+
+using import::CrossProduct;
+using import::HasArea;
+using import::Norm;
+using import::Sub;
 
 constexpr double kMaxMagnitude = 1e30;  // as for scene JSON numbers
 constexpr double kPi = 3.14159265358979323846;
@@ -57,8 +63,6 @@ constexpr double kDefaultFovDegrees = 45;
 constexpr double kFramingMargin = 1.1;
 // With no light in the file, one white directional light over the camera's shoulder, as OBJ.
 const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
-// As the scene parser: an area below this share of the edges' product is no area.
-constexpr double kMinAreaRatio = 1e-12;
 
 // What this importer implements, for extensionsRequired; optional others are ignored.
 const std::set<std::string> kSupportedExtensions = {"KHR_lights_punctual", "KHR_materials_transmission",
@@ -68,25 +72,6 @@ std::string Pointer(const std::string& collection, size_t index) {
   return "/" + collection + "/" + std::to_string(index);
 }
 
-Vec3 Sub(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-double Norm(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
-Vec3 CrossProduct(const Vec3& a, const Vec3& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
-// Matches the scene parser's test: a mesh needs one triangle with area.
-bool HasArea(const TriangleMesh& mesh) {
-  for (const auto& t : mesh.triangles) {
-    Vec3 ab = Sub(mesh.vertices[t[1]], mesh.vertices[t[0]]);
-    Vec3 ac = Sub(mesh.vertices[t[2]], mesh.vertices[t[0]]);
-    double a = Norm(ab), b = Norm(ac);
-    if (a * a >= std::numeric_limits<double>::min() && b * b >= std::numeric_limits<double>::min() &&
-        Norm(CrossProduct(ab, ac)) > kMinAreaRatio * a * b) {
-      return true;
-    }
-  }
-  return false;
-}
 
 std::string UrlDecode(const std::string& text) {
   std::string decoded;

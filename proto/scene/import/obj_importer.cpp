@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "scene/import/mesh_geometry.h"
 #include "scene/import/importers.h"
 #include "scene/import/messages.h"
 #include "scene/import/obj_reader.h"
@@ -15,6 +16,11 @@
 
 namespace tcfarm {
 namespace {
+
+using import::CrossProduct;
+using import::HasArea;
+using import::Norm;
+using import::Sub;
 
 constexpr double kMaxMagnitude = 1e30;  // as for scene JSON numbers
 // The default camera: a view from the front (+z, OBJ's usual facing) and a little above,
@@ -27,29 +33,7 @@ constexpr double kFramingMargin = 1.1;
 // One white directional light from above and behind the camera's right shoulder, so the
 // faces the camera sees are lit.
 const Vec3 kLightDirection{-0.4, -1, -0.7};
-// As the scene parser: an area below this share of the edges' product is no area.
-constexpr double kMinAreaRatio = 1e-12;
 
-Vec3 Sub(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-double Norm(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
-Vec3 CrossProduct(const Vec3& a, const Vec3& b) {
-  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
-}
-
-// Matches the scene parser's test, so the imported scene reads back through ParseScene
-// (workers receive it as JSON): a mesh needs one triangle with area.
-bool HasArea(const TriangleMesh& mesh) {
-  for (const auto& t : mesh.triangles) {
-    Vec3 ab = Sub(mesh.vertices[t[1]], mesh.vertices[t[0]]);
-    Vec3 ac = Sub(mesh.vertices[t[2]], mesh.vertices[t[0]]);
-    double a = Norm(ab), b = Norm(ac);
-    if (a * a >= std::numeric_limits<double>::min() && b * b >= std::numeric_limits<double>::min() &&
-        Norm(CrossProduct(ab, ac)) > kMinAreaRatio * a * b) {
-      return true;
-    }
-  }
-  return false;
-}
 
 // One part's triangles with only the vertices they use, in order of first use.
 TriangleMesh PartMesh(const TriangleMesh& all, const ObjModel::Part& part) {
