@@ -175,3 +175,21 @@ def test_tcfarm_submit_renders_a_gltf_as_tcfarm_worker_render_does(worker_binary
         scene.write_text(json.dumps(printed_scene(worker_binary, glb, *flags)))
         result = tcfarm_cli(farm, "submit", scene, "--fps", "12")
         assert result.returncode != 0 and "scene file" in result.stderr
+
+
+def test_a_moving_glTF_camera_makes_auto_pick_guarded_and_say_why(tmp_path):
+    """exact cannot copy a pixel when the camera moves, so auto picks guarded, and the job
+    record says which and why."""
+    gltf = make_gltf.animated_hierarchy()
+    eye = next(i for i, node in enumerate(gltf.doc["nodes"]) if node.get("name") == "eye")
+    gltf.animate(eye, "translation", [0.0, 1.0], [0, 2.5, 6, 0.8, 2.5, 6])
+    path = gltf.write(tmp_path / "dolly.gltf")
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=2) as farm:
+        farm.wait_for_workers(2)
+        result = tcfarm_cli(farm, "submit", path, "--fps", "8", "--size", "64x48", "--strategy", "auto", "--wait")
+        assert result.returncode == 0, result.stderr
+        job = json.loads(result.stdout.strip().splitlines()[-1])
+    strategy = job["stats"]["strategy"]
+    assert strategy["name"] == "guarded", strategy
+    assert "camera" in strategy["reason"], strategy
