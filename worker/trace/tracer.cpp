@@ -457,6 +457,8 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
     uvs_.push_back(std::move(uvs));
     shapeMoves_.push_back(shape.Moves());
   }
+  // Materials never change over frames: converted for shading once, not per task.
+  materials_ = MakeMaterials(scene);
   // Only the images a material uses are loaded, once.
   for (const Material& material : scene.materials) {
     textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
@@ -474,13 +476,12 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       oracle.reset();
     }
   }
-  const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
   FrameContext context{frame,
                        geometry_.ForFrame(frame),
                        &geometry_,
                        MakeCamera(scene_, frame),
                        MakeLights(scene_, frame),
-                       &materials,
+                       &materials_,
                        &normals_,
                        &textures_,
                        &uvs_,

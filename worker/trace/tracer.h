@@ -15,6 +15,7 @@
 
 #include "embree/scene_geometry.h"
 #include "trace/float3.h"
+#include "trace/materials.h"
 #include "trace/textures.h"
 #include "scene/scene.h"
 #include "util/tracing_threads.h"
@@ -78,6 +79,7 @@ class Tracer {
     std::vector<Float3> vertices;
   };
   std::vector<ShapeNormals> normals_;
+  std::vector<ShadingMaterial> materials_;
   // Per material: its decoded texture, if it has one. Per shape: texture coordinates.
   std::vector<std::unique_ptr<TextureImage>> textures_;
   std::vector<std::vector<std::array<float, 2>>> uvs_;
