@@ -4,7 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <unordered_map>
+#include <unordered_set>
 
 namespace tcfarm {
 namespace {
@@ -71,95 +71,61 @@ PlaneKey KeyOf(const Plane& plane, double size) {
           cell(plane.normal.z, kRelativeGrid), cell(plane.offset, kRelativeGrid * size)};
 }
 
-// The largest coordinate magnitude of the still planar shapes: the scale planes' offsets
-// are compared at.
-double StillPlanarSize(const Scene& scene) {
-  double size = 1;
+// Whether two still planar primitives (of one shape or two) lie in one plane, either way
+// round (a face seen from behind coincides as well). Planes are computed once, then their
+// offsets compared on a grid scaled to the largest of them.
+bool StillPlanesCoincide(const Scene& scene) {
+  std::vector<Plane> planes;
   for (const Shape& shape : scene.shapes) {
     if (!IsPlanar(shape) || shape.Moves()) continue;
-    ForEachPlane(shape, scene.render.firstFrame,
-                 [&](const Plane& plane) { size = std::max(size, std::fabs(plane.offset)); });
+    if (shape.mesh.triangles.size() > kMaxHashedTriangles) return true;
+    ForEachPlane(shape, scene.render.firstFrame, [&](const Plane& plane) { planes.push_back(plane); });
   }
-  return size;
+  double size = 1;
+  for (const Plane& plane : planes) size = std::max(size, std::fabs(plane.offset));
+  std::unordered_set<PlaneKey, PlaneKeyHash> seen;
+  for (const Plane& plane : planes) {
+    const Plane flipped{{-plane.normal.x, -plane.normal.y, -plane.normal.z}, -plane.offset};
+    if (!seen.insert(KeyOf(plane, size)).second || !seen.insert(KeyOf(flipped, size)).second) return true;
+  }
+  return false;
 }
 
-void MarkCoplanarStillShapes(const Scene& scene, std::vector<bool>& mayTie) {
-  const double size = StillPlanarSize(scene);
-  // Per plane (and its flip: a face seen from behind coincides as well), the first shape
-  // met with it, and whether a second primitive shares it.
-  struct Seen {
-    int shape;
-    bool shared;
-  };
-  std::unordered_map<PlaneKey, Seen, PlaneKeyHash> planes;
-  std::vector<PlaneKey> keys;  // per primitive in visiting order, for the second pass
-  std::vector<int> owners;
-  for (size_t i = 0; i < scene.shapes.size(); ++i) {
-    const Shape& shape = scene.shapes[i];
-    if (!IsPlanar(shape) || shape.Moves() || mayTie[i]) continue;
-    if (shape.mesh.triangles.size() > kMaxHashedTriangles) {
-      mayTie[i] = true;
-      continue;
-    }
-    ForEachPlane(shape, scene.render.firstFrame, [&](const Plane& plane) {
-      const Plane flipped{{-plane.normal.x, -plane.normal.y, -plane.normal.z}, -plane.offset};
-      for (const PlaneKey& key : {KeyOf(plane, size), KeyOf(flipped, size)}) {
-        auto [entry, inserted] = planes.try_emplace(key, Seen{static_cast<int>(i), false});
-        if (!inserted) entry->second.shared = true;
-      }
-      keys.push_back(KeyOf(plane, size));
-      owners.push_back(static_cast<int>(i));
-    });
-  }
-  for (size_t p = 0; p < keys.size(); ++p) {
-    if (planes.at(keys[p]).shared) mayTie[owners[p]] = true;
-  }
-}
-
-void MarkCoincidentSpheres(const Scene& scene, std::vector<bool>& mayTie) {
-  std::vector<size_t> spheres;
+// Whether two spheres may coincide: equal radii where one moves or both share a centre,
+// or any at all once a sphere scales.
+bool SpheresMayMeet(const Scene& scene) {
+  std::vector<const Shape*> spheres;
   bool anyScales = false;
-  for (size_t i = 0; i < scene.shapes.size(); ++i) {
-    if (scene.shapes[i].type != Shape::Type::kSphere) continue;
-    spheres.push_back(i);
-    anyScales = anyScales || !scene.shapes[i].motion.IsTranslationOnly();
+  for (const Shape& shape : scene.shapes) {
+    if (shape.type != Shape::Type::kSphere) continue;
+    spheres.push_back(&shape);
+    anyScales = anyScales || !shape.motion.IsTranslationOnly();
   }
-  if (spheres.size() < 2) return;
+  if (spheres.size() < 2) return false;
+  if (anyScales) return true;
   auto near = [](double a, double b) {
     return std::fabs(a - b) <= kRelativeGrid * std::max({1.0, std::fabs(a), std::fabs(b)});
   };
   for (size_t a = 0; a < spheres.size(); ++a) {
     for (size_t b = a + 1; b < spheres.size(); ++b) {
-      const Shape& s = scene.shapes[spheres[a]];
-      const Shape& t = scene.shapes[spheres[b]];
-      const bool moves = s.Moves() || t.Moves();
+      const Shape& s = *spheres[a];
+      const Shape& t = *spheres[b];
       const Vec3 sc = s.motion.WorldFromObject(scene.render.firstFrame).Apply(s.center);
       const Vec3 tc = t.motion.WorldFromObject(scene.render.firstFrame).Apply(t.center);
       const bool sameCentre = near(sc.x, tc.x) && near(sc.y, tc.y) && near(sc.z, tc.z);
-      if (anyScales || (near(s.radius, t.radius) && (moves || sameCentre))) {
-        mayTie[spheres[a]] = mayTie[spheres[b]] = true;
-      }
+      if (near(s.radius, t.radius) && (s.Moves() || t.Moves() || sameCentre)) return true;
     }
   }
+  return false;
 }
 
 }  // namespace
 
-std::vector<bool> ShapesThatMayTie(const Scene& scene) {
-  std::vector<bool> mayTie(scene.shapes.size(), false);
+bool SceneMayTie(const Scene& scene) {
+  // A moving plane may come to lie in any other at some frame.
   const bool planarMoves = std::any_of(scene.shapes.begin(), scene.shapes.end(),
                                        [](const Shape& shape) { return IsPlanar(shape) && shape.Moves(); });
-  for (size_t i = 0; i < scene.shapes.size(); ++i) {
-    if (planarMoves && IsPlanar(scene.shapes[i])) mayTie[i] = true;
-  }
-  MarkCoplanarStillShapes(scene, mayTie);
-  MarkCoincidentSpheres(scene, mayTie);
-  return mayTie;
-}
-
-bool SceneMayTie(const Scene& scene) {
-  const std::vector<bool> mayTie = ShapesThatMayTie(scene);
-  return std::find(mayTie.begin(), mayTie.end(), true) != mayTie.end();
+  return planarMoves || StillPlanesCoincide(scene) || SpheresMayMeet(scene);
 }
 
 }  // namespace tcfarm

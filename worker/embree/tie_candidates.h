@@ -19,15 +19,11 @@
 // the rule would take for a closer hit.
 #pragma once
 
-#include <vector>
-
 #include "scene/scene.h"
 
 namespace tcfarm {
 
-// Per shape: whether it may tie with another surface over an area.
-std::vector<bool> ShapesThatMayTie(const Scene& scene);
-// Whether any shape may.
+// Whether any two surfaces of the scene may tie over an area.
 bool SceneMayTie(const Scene& scene);
 
 }  // namespace tcfarm
