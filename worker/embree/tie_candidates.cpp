@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <unordered_set>
+#include <vector>
 
 namespace tcfarm {
 namespace {
