@@ -44,24 +44,20 @@ double Lerp(double a, double b, double t) { return a + (b - a) * t; }
 Vec3 InterpolateKeys(const std::vector<AnimatedVec3::Keyframe>& keys, Interpolation interpolation,
                      double frame) {
   if (keys.empty()) return Vec3{};
-  if (frame <= keys.front().frame) return keys.front().value;
-  if (frame >= keys.back().frame) return keys.back().value;
-  auto after = std::upper_bound(keys.begin(), keys.end(), frame,
-                                [](double f, const AnimatedVec3::Keyframe& key) { return f < key.frame; });
-  const auto& next = *after;
-  const auto& previous = *(after - 1);
-  // frame < next.frame here, so t < 1 and each key is reached only through t == 0.
-  double t = (frame - previous.frame) / (next.frame - previous.frame);
+  const KeySpan<AnimatedVec3::Keyframe> span = FindKeySpan(keys, frame);
+  const auto& previous = *span.previous;
+  const auto& next = *span.next;
+  const double t = span.t;
+  if (t == 0) return previous.value;
   switch (interpolation) {
     case Interpolation::kStep:
       return previous.value;
     case Interpolation::kCubicSpline: {
-      if (t == 0) return previous.value;
-      const double span = next.frame - previous.frame;
+      const double frames = next.frame - previous.frame;
       Vec3 result;
       for (int axis = 0; axis < 3; ++axis) {
         result[axis] = Hermite(previous.value[axis], previous.outTangent[axis], next.value[axis],
-                               next.inTangent[axis], span, t);
+                               next.inTangent[axis], frames, t);
       }
       return result;
     }

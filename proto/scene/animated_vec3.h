@@ -1,6 +1,7 @@
 // Vectors of the scene and their animation over frame time.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <vector>
 
@@ -21,6 +22,26 @@ enum class Interpolation { kLinear, kStep, kCubicSpline };
 // The cubic Hermite curve at t in [0, 1] from `from` to `to` over an interval of `span`
 // frames, leaving with outTangent and arriving with inTangent (both per frame).
 double Hermite(double from, double outTangent, double to, double inTangent, double span, double t);
+
+// Where a frame falls among keyframes sorted by strictly increasing frame (any struct with
+// a `frame`): the key at or before it, the key after it and how far along, t in [0, 1).
+// Before the first key and after the last the end key is held: `next` is that key too and
+// t is 0, so each key is reached only through t == 0 and keeps its bits.
+template <typename Key>
+struct KeySpan {
+  const Key* previous;
+  const Key* next;
+  double t;
+};
+
+template <typename Key>
+KeySpan<Key> FindKeySpan(const std::vector<Key>& keys, double frame) {
+  if (frame <= keys.front().frame) return {&keys.front(), &keys.front(), 0};
+  if (frame >= keys.back().frame) return {&keys.back(), &keys.back(), 0};
+  auto after = std::upper_bound(keys.begin(), keys.end(), frame, [](double f, const Key& key) { return f < key.frame; });
+  const Key& previous = *(after - 1);
+  return {&previous, &*after, (frame - previous.frame) / (after->frame - previous.frame)};
+}
 
 // A vec3-valued function of frame time, as in the paper's section 5: either a constant,
 // a polynomial per axis in the frame number, or keyframes (held constant before the first

@@ -134,16 +134,12 @@ Quaternion AnimatedRotation::Evaluate(double frame) const {
       return Quaternion::FromAxisAngle(axis_, degreesAtZero_ + degreesPerFrame_ * frame);
     case Kind::kKeyframes: {
       if (keys_.empty()) return {};
-      if (frame <= keys_.front().frame) return keys_.front().value;
-      if (frame >= keys_.back().frame) return keys_.back().value;
-      auto after = std::upper_bound(keys_.begin(), keys_.end(), frame,
-                                    [](double f, const Keyframe& key) { return f < key.frame; });
-      const Keyframe& previous = *(after - 1);
-      const double t = (frame - previous.frame) / (after->frame - previous.frame);
-      if (interpolation_ == Interpolation::kStep || t == 0) return previous.value;
-      if (interpolation_ == Interpolation::kCubicSpline) return CubicKeys(previous, *after, t);
-      if (previous.value == after->value) return previous.value;  // held: bit-identical
-      return Slerp(previous.value, after->value, t);
+      const KeySpan<Keyframe> span = FindKeySpan(keys_, frame);
+      const Keyframe& previous = *span.previous;
+      if (interpolation_ == Interpolation::kStep || span.t == 0) return previous.value;
+      if (interpolation_ == Interpolation::kCubicSpline) return CubicKeys(previous, *span.next, span.t);
+      if (previous.value == span.next->value) return previous.value;  // held: bit-identical
+      return Slerp(previous.value, span.next->value, span.t);
     }
   }
   return constant_;
