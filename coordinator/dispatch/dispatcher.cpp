@@ -1,7 +1,6 @@
 #include "dispatch/dispatcher.h"
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 
@@ -86,14 +85,7 @@ void Dispatcher::Enqueue(DispatchTask task) {
 size_t Dispatcher::PendingTasks() const { return pendingCount_; }
 
 void Dispatcher::Receive(Milliseconds timeout, DispatchSink& sink) {
-  zmq::pollitem_t item{static_cast<void*>(socket_), 0, ZMQ_POLLIN, 0};
-  try {
-    zmq::poll(&item, 1, timeout);
-  } catch (const zmq::error_t& e) {
-    // A signal (SIGTERM, SIGINT: stop) cut the wait short; the caller's loop looks at its
-    // stop flag. Anything else is a real failure.
-    if (e.num() != EINTR) throw;
-  }
+  wire::WaitForInput(socket_, timeout);
   ReceiveAll(sink);
 }
 

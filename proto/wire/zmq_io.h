@@ -6,6 +6,8 @@
 #include <zmq.hpp>
 #include <zmq_addon.hpp>
 
+#include <cerrno>
+#include <chrono>
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,6 +35,18 @@ inline bool SendMessageTo(zmq::socket_t& socket, const std::string& identity,
     return false;
   }
   return SendMessage(socket, message);
+}
+
+// Waits up to `timeout` for a message to read on the socket. A signal (SIGTERM, SIGINT:
+// stop) cuts the wait short and is no error: the caller's loop looks at its stop flag and
+// says goodbye. Any other failure throws.
+inline void WaitForInput(zmq::socket_t& socket, std::chrono::milliseconds timeout) {
+  zmq::pollitem_t item{static_cast<void*>(socket), 0, ZMQ_POLLIN, 0};
+  try {
+    zmq::poll(&item, 1, timeout);
+  } catch (const zmq::error_t& e) {
+    if (e.num() != EINTR) throw;
+  }
 }
 
 // Receives one multipart message without blocking; nullopt when none is waiting.

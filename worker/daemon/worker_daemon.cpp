@@ -1,7 +1,5 @@
 #include "daemon/worker_daemon.h"
 
-#include <cerrno>
-
 #include <unistd.h>
 
 #include <algorithm>
@@ -102,14 +100,7 @@ void WorkerDaemon::Send(const wire::Message& message) {
 void WorkerDaemon::Run(const std::atomic<bool>& stop) {
   Connect();
   while (!stop) {
-    zmq::pollitem_t item{static_cast<void*>(*socket_), 0, ZMQ_POLLIN, 0};
-    try {
-      zmq::poll(&item, 1, std::chrono::milliseconds(ready_.empty() ? kIdlePollMs : 0));
-    } catch (const zmq::error_t& e) {
-      // A signal (SIGTERM, SIGINT: stop) cut the wait short; the loop looks at its stop
-      // flag and says goodbye. Anything else is a real failure.
-      if (e.num() != EINTR) throw;
-    }
+    wire::WaitForInput(*socket_, std::chrono::milliseconds(ready_.empty() ? kIdlePollMs : 0));
     ReceiveAll();
     CollectBuiltScenes();
     if (!ready_.empty() && !coordinatorLeft_) TraceNext();
