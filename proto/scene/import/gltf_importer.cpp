@@ -15,6 +15,7 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <type_traits>
 #include <map>
 #include <memory>
 #include <set>
@@ -636,41 +637,27 @@ class GltfReader {
     }
   }
 
+  // One component of type T at `at` (glTF is little-endian, as every host this builds on),
+  // as its value or, normalized, as glTF maps integers into [-1, 1] or [0, 1].
+  template <typename T>
+  static double Load(const unsigned char* at, bool normalized) {
+    T v;
+    std::memcpy(&v, at, sizeof v);
+    if (!normalized || !std::is_integral_v<T>) return v;
+    const double scaled = v / static_cast<double>(std::numeric_limits<T>::max());
+    return std::is_signed_v<T> ? std::max(scaled, -1.0) : scaled;
+  }
+
   static double Component(const unsigned char* at, int componentType, bool normalized) {
-    // glTF is little-endian, as every host this builds on.
     switch (componentType) {
-      case TINYGLTF_COMPONENT_TYPE_BYTE: {
-        int8_t v;
-        std::memcpy(&v, at, 1);
-        return normalized ? std::max(v / 127.0, -1.0) : v;
-      }
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: {
-        uint8_t v;
-        std::memcpy(&v, at, 1);
-        return normalized ? v / 255.0 : v;
-      }
-      case TINYGLTF_COMPONENT_TYPE_SHORT: {
-        int16_t v;
-        std::memcpy(&v, at, 2);
-        return normalized ? std::max(v / 32767.0, -1.0) : v;
-      }
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: {
-        uint16_t v;
-        std::memcpy(&v, at, 2);
-        return normalized ? v / 65535.0 : v;
-      }
-      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: {
-        uint32_t v;
-        std::memcpy(&v, at, 4);
-        return v;
-      }
-      case TINYGLTF_COMPONENT_TYPE_FLOAT: {
-        float v;
-        std::memcpy(&v, at, 4);
-        return v;
-      }
-      default:
-        return 0;  // refused by the callers' componentTypes
+      case TINYGLTF_COMPONENT_TYPE_BYTE: return Load<int8_t>(at, normalized);
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return Load<uint8_t>(at, normalized);
+      case TINYGLTF_COMPONENT_TYPE_SHORT: return Load<int16_t>(at, normalized);
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return Load<uint16_t>(at, normalized);
+      // glTF never normalizes 32-bit integers or floats.
+      case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return Load<uint32_t>(at, false);
+      case TINYGLTF_COMPONENT_TYPE_FLOAT: return Load<float>(at, false);
+      default: return 0;  // refused by the callers' componentTypes
     }
   }
 
