@@ -84,6 +84,8 @@ def test_transformed_scenes_equal_the_reference(farm, tmp_path_factory, name, st
     error = compare(reference, farm.store / str(job["id"]))
     if strategy == "exact" or job["stats"]["strategy"]["name"] == "exact":
         assert error["differing_pixels"] == 0, (name, strategy, error)
+    print(f"{name} {strategy} ({job['stats']['strategy']['name']}): traced-pixel ratio "
+          f"{job['traced_pixel_ratio']:.3f}, {error['differing_pixels']} pixels differ")
     if name != "orbiting_camera_swinging_light" and strategy == "exact":
         # The floor far from the cube and ball keeps its pixels between their passes.
         assert job["traced_pixel_ratio"] < 0.6, job["traced_pixel_ratio"]
