@@ -27,6 +27,8 @@ struct ServeArguments {
   tcfarm::WorkerOptions worker;
   std::string metricsAddress;  // empty: no HTTP endpoint
   long coordinatorTimeoutMs = tcfarm::HeartbeatPolicy{}.timeout.count();
+  std::string assetCache;
+  uint64_t assetMaxMib = tcfarm::WorkerOptions{}.maxAssetBytes >> 20;
   CLI::Option* coordinatorTimeoutOption = nullptr;  // set when given
 };
 
@@ -54,6 +56,15 @@ void AddServeFlags(CLI::App& serve, ServeArguments& parsed) {
                    "Serve /metrics and /healthz over HTTP at this address (default: not at all)")
       ->type_name("HOST:PORT")
       ->envname("TCFARM_WORKER_METRICS");
+  serve.add_option("--asset-cache", parsed.assetCache,
+                   "Folder of assets (texture images) fetched from the coordinator, by hash; several workers "
+                   "may share one (default: tcfarm-assets-UID in the temp directory)")
+      ->type_name("DIR")
+      ->envname("TCFARM_ASSET_CACHE");
+  serve.add_option("--asset-max-mib", parsed.assetMaxMib, "Largest asset this worker fetches")
+      ->type_name("MIB")
+      ->check(IntegerFrom(1, 1 << 20))
+      ->capture_default_str();
   parsed.coordinatorTimeoutOption =
       serve.add_option("--coordinator-timeout", parsed.coordinatorTimeoutMs,
                        "Silence after which the coordinator is taken for gone and reconnected to")
@@ -64,6 +75,8 @@ void AddServeFlags(CLI::App& serve, ServeArguments& parsed) {
 
 int RunServe(ServeArguments parsed) {
   parsed.worker.capacity = std::min(parsed.worker.capacity, tcfarm::wire::kMaxCapacity);
+  parsed.worker.assetCache = parsed.assetCache;
+  parsed.worker.maxAssetBytes = parsed.assetMaxMib << 20;
   if (parsed.coordinatorTimeoutOption->count()) {
     parsed.worker.heartbeat.SetTimeout(tcfarm::Milliseconds(parsed.coordinatorTimeoutMs));
   }

@@ -20,13 +20,15 @@ double WeightOf(int priority) { return 1.0 + std::max(0, priority); }
 
 }  // namespace
 
-Dispatcher::Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy)
+Dispatcher::Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy,
+                       const AssetSource* assets)
     : clock_(clock),
       policy_(policy),
       socket_(context_, zmq::socket_type::router),
       registry_(policy),
       lastHeartbeat_(clock.Now()),
-      lastDrained_(clock.Now()) {
+      lastDrained_(clock.Now()),
+      assets_(assets) {
   socket_.set(zmq::sockopt::linger, 0);
   // Sending to a peer that is gone fails instead of silently vanishing, so the credit
   // it would have held is never taken.
@@ -100,6 +102,53 @@ void Dispatcher::Flush() {
   }
   SendHeartbeats(now);
   DispatchPending();
+  SendAssetPieces();
+}
+
+void Dispatcher::OnAssetGet(const std::string& identity, const wire::AssetGet& get) {
+  const std::optional<uint64_t> size = assets_ ? assets_->SizeOf(get.assetHash) : std::nullopt;
+  if (!size) {
+    Send(identity, wire::Error{0, "", "the farm has no asset " + get.assetHash, get.assetHash});
+    return;
+  }
+  for (const AssetSend& send : assetSends_) {
+    if (send.identity == identity && send.hash == get.assetHash) return;  // already on its way
+  }
+  assetSends_.push_back(AssetSend{identity, get.assetHash, 0, *size});
+}
+
+void Dispatcher::SendAssetPieces() {
+  // Per loop turn: enough to keep a fast link busy, little enough to keep the loop turning.
+  constexpr size_t kBytesPerTurn = 2 * wire::kMaxAssetPieceBytes;
+  size_t sentThisTurn = 0;
+  while (!assetSends_.empty() && sentThisTurn < kBytesPerTurn) {
+    AssetSend send = std::move(assetSends_.front());
+    assetSends_.pop_front();
+    if (!registry_.workers().count(send.identity)) continue;  // the worker is gone; so is its request
+    wire::AssetPiece piece{send.hash, send.offset, send.totalSize, {}};
+    try {
+      piece.bytes = assets_->ReadPiece(send.hash, send.offset, wire::kMaxAssetPieceBytes);
+    } catch (const std::runtime_error& error) {
+      Send(send.identity, wire::Error{0, "", std::string("the farm cannot read asset ") + error.what(), send.hash});
+      continue;
+    }
+    if (piece.bytes.empty() && send.offset < send.totalSize) {
+      Send(send.identity, wire::Error{0, "", "asset " + send.hash + " ends before its size", send.hash});
+      continue;
+    }
+    if (!Send(send.identity, piece)) {
+      assetSends_.push_front(std::move(send));  // its queue is full: try again next turn
+      return;
+    }
+    sentThisTurn += piece.bytes.size();
+    counters_.assetBytesSent += piece.bytes.size();
+    send.offset += piece.bytes.size();
+    if (piece.IsLast()) {
+      ++counters_.assetsSent;
+    } else {
+      assetSends_.push_back(std::move(send));
+    }
+  }
 }
 
 void Dispatcher::ReceiveAll(DispatchSink& sink) {
@@ -147,8 +196,10 @@ void Dispatcher::Handle(const std::string& identity, wire::Message message,
       Send(identity, wire::SceneData{get->sceneHash, scene->second});
       ++counters_.scenesSent;
     } else {
-      Send(identity, wire::Error{0, get->sceneHash, "no job uses this scene any more"});
+      Send(identity, wire::Error{0, get->sceneHash, "no job uses this scene any more", ""});
     }
+  } else if (auto* assetGet = std::get_if<wire::AssetGet>(&message)) {
+    OnAssetGet(identity, *assetGet);
   } else if (auto* error = std::get_if<wire::Error>(&message)) {
     OnError(identity, *error, sink);
   } else if (std::holds_alternative<wire::Disconnect>(message)) {

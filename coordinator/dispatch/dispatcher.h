@@ -14,6 +14,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <unordered_map>
 
@@ -44,6 +45,16 @@ class DispatchSink {
   virtual void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) = 0;
 };
 
+// Where the dispatcher reads the assets (texture images) workers ask for by hash: the
+// farm's asset store. Reads happen on the farm loop, one bounded piece at a time.
+class AssetSource {
+ public:
+  virtual ~AssetSource() = default;
+  virtual std::optional<uint64_t> SizeOf(const std::string& hash) const = 0;
+  // Up to maxBytes of the asset from offset. Throws std::runtime_error when it cannot.
+  virtual std::string ReadPiece(const std::string& hash, uint64_t offset, size_t maxBytes) const = 0;
+};
+
 struct DispatcherCounters {
   uint64_t malformed = 0;         // undecodable or invalid messages dropped
   uint64_t unexpected = 0;        // valid messages that made no sense (unknown worker, wrong sizes)
@@ -54,13 +65,17 @@ struct DispatcherCounters {
   uint64_t requeued = 0;
   uint64_t workersLost = 0;
   uint64_t scenesSent = 0;
+  uint64_t assetsSent = 0;  // whole assets sent to a worker
+  uint64_t assetBytesSent = 0;
 };
 
 class Dispatcher {
  public:
   // Binds a ROUTER socket at `endpoint` ("tcp://*:5555", "tcp://127.0.0.1:0" for any port,
   // "ipc:///path"). Throws zmq::error_t if the address cannot be bound.
-  Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy = {});
+  // assets: where ASSET_GET is answered from; none: every asset request is refused.
+  Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy = {},
+             const AssetSource* assets = nullptr);
   ~Dispatcher();
 
   std::string BoundEndpoint() const;
@@ -73,7 +88,8 @@ class Dispatcher {
 
   // Waits up to `timeout` for messages and handles all that arrived.
   void Receive(Milliseconds timeout, DispatchSink& sink);
-  // Expires silent workers, sends heartbeats, hands pending tasks to workers with credit.
+  // Expires silent workers, sends heartbeats, hands pending tasks to workers with credit,
+  // sends the next pieces of assets being fetched.
   void Flush();
   // Receive, then Flush.
   void Poll(Milliseconds timeout, DispatchSink& sink) {
@@ -110,6 +126,8 @@ class Dispatcher {
   void OnError(const std::string& identity, const wire::Error& error, DispatchSink& sink);
   void Requeue(const std::vector<uint64_t>& taskIds);
   void SendHeartbeats(SteadyTime now);
+  void OnAssetGet(const std::string& identity, const wire::AssetGet& get);
+  void SendAssetPieces();
   void DispatchPending();
   JobQueue* NextJob();
   // False when the peer is gone or its queue is full.
@@ -131,6 +149,16 @@ class Dispatcher {
   // wait in the socket, and its own deafness is not their silence.
   SteadyTime lastDrained_;
   DispatcherCounters counters_;
+  // Assets on their way to workers, sent a piece at a time, round robin, so that one large
+  // texture neither blocks the loop on one read nor holds back tasks and heartbeats.
+  struct AssetSend {
+    std::string identity;
+    std::string hash;
+    uint64_t offset = 0;
+    uint64_t totalSize = 0;
+  };
+  const AssetSource* assets_;
+  std::deque<AssetSend> assetSends_;
 };
 
 }  // namespace tcfarm

@@ -190,7 +190,7 @@ TEST_F(DispatcherTest, AWorkerErrorFailsTheTask) {
   EnqueueTasks(1, 1);
   Pump();
   wire::Task task = worker.Tasks().at(0);
-  worker.Send(wire::Error{task.taskId, kHash, "scene would not build"});
+  worker.Send(wire::Error{task.taskId, kHash, "scene would not build", ""});
   Pump();
   ASSERT_EQ(sink_.failures.size(), 1u);
   EXPECT_EQ(sink_.failures[0].why, "scene would not build");

@@ -23,7 +23,8 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       options_(std::move(options)),
       clock_(clock),
       frameStore_(options_.storeRoot),
-      dispatcher_(options_.endpoint, clock, options_.heartbeat) {
+      assets_(options_.storeRoot / "assets"),
+      dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_) {
   for (uint64_t id : store_.RequeueInterrupted()) {
     std::fprintf(stderr, "coordinator: job %llu was interrupted; requeued\n",
                  static_cast<unsigned long long>(id));

@@ -21,6 +21,7 @@
 #include "farm/farm_metrics.h"
 #include "farm/job_run.h"
 #include "jobs/job_store.h"
+#include "store/asset_store.h"
 
 namespace tcfarm {
 
@@ -78,6 +79,19 @@ class Farm : public FarmControl, private DispatchSink {
   FarmOptions options_;
   const Clock& clock_;
   FrameStore frameStore_;  // where options_.storeRoot holds each job's files
+  // The store's assets, which workers fetch by hash (dispatcher_ reads them).
+  class StoredAssets : public AssetSource {
+   public:
+    explicit StoredAssets(const std::filesystem::path& root) : store_(root) {}
+    std::optional<uint64_t> SizeOf(const std::string& hash) const override { return store_.SizeOf(hash); }
+    std::string ReadPiece(const std::string& hash, uint64_t offset, size_t maxBytes) const override {
+      return store_.ReadPiece(hash, offset, maxBytes);
+    }
+
+   private:
+    AssetStore store_;
+  };
+  StoredAssets assets_;
   FarmMetrics metrics_;
   Dispatcher dispatcher_;
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;

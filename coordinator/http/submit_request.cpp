@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <memory>
@@ -272,19 +274,55 @@ Scene ReadSceneFromFile(const json& sceneFile, const std::map<std::string, std::
   }
 }
 
-// Workers receive a scene as self-contained JSON: meshes travel inline, but texture images
-// stay files, which workers cannot fetch yet. Refused here, with the material's pointer,
-// rather than failing every task of the job later.
-void RefuseWhatWorkersCannotFetch(const Scene& scene, const std::string& scenePointer) {
-  for (const Material& material : scene.materials) {
+std::string TexturePointer(const Material& material, const std::string& scenePointer) {
+  return scenePointer == "/scene" ? "/scene/materials/" + EscapePointerToken(material.name) + "/diffuse_texture"
+                                  : scenePointer;
+}
+
+std::string ReadWholeFile(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw std::runtime_error("cannot read " + path.string());
+  return bytes;
+}
+
+// Names a texture read from a file or held in memory by its bytes' hash, and stores them.
+void StoreTextureImage(Texture& texture, AssetStore& store) {
+  const std::string bytes = texture.bytes ? *texture.bytes : ReadWholeFile(texture.file);
+  texture.asset = wire::Sha256Hex(bytes);
+  if (!store.Has(texture.asset) && store.Put(texture.asset, bytes) == AssetStore::CommitResult::kHashMismatch) {
+    throw std::runtime_error("its bytes changed while they were stored");
+  }
+}
+
+// Workers receive a scene as self-contained JSON: meshes travel inline, texture images by
+// hash (they fetch them from the store). So every texture is named by the hash of its
+// image's bytes here, and the store is made to hold them: an image file of the
+// submission's folder is there already, one embedded in a glTF file is stored now.
+void BindTexturesToAssets(Scene& scene, AssetStore* store, const std::string& scenePointer) {
+  for (Material& material : scene.materials) {
     if (!material.diffuseTexture) continue;
-    throw ApiError(400, error_code::kInvalidScene,
-                   "scene/materials/" + EscapePointerToken(material.name) + "/diffuse_texture: texture image " +
-                       ShowValue(material.diffuseTexture->image) +
-                       " cannot reach the farm's workers yet; expected a material without a texture (render "
-                       "textured scenes with tcfarm-worker render)",
-                   scenePointer == "/scene" ? "/scene/materials/" + EscapePointerToken(material.name) + "/diffuse_texture"
-                                            : scenePointer);
+    Texture& texture = *material.diffuseTexture;
+    const std::string pointer = TexturePointer(material, scenePointer);
+    if (!store) {
+      throw ApiError(400, error_code::kInvalidScene,
+                     pointer.substr(1) + ": texture " + ShowValue(texture.Describe()) +
+                         " cannot reach the workers of a farm without an asset store; expected a material without a texture",
+                     pointer);
+    }
+    if (!texture.asset.empty() && !texture.bytes) {  // named by hash in the scene itself
+      if (store->Has(texture.asset)) continue;
+      throw ApiError(400, error_code::kMissingAsset,
+                     pointer.substr(1) + "/asset: the farm has no asset " + texture.asset +
+                         "; expected the hash of an image uploaded first (PUT /api/v1/assets/{sha256})",
+                     scenePointer == "/scene" ? pointer + "/asset" : pointer);
+    }
+    try {
+      StoreTextureImage(texture, *store);
+    } catch (const std::runtime_error& error) {
+      throw ApiError(507, error_code::kInsufficientStorage,
+                     "the store could not keep texture " + texture.Describe() + ": " + error.what());
+    }
   }
 }
 
@@ -407,9 +445,9 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   }
   const std::optional<std::filesystem::path> base =
       folder ? std::optional<std::filesystem::path>(folder->path()) : std::nullopt;
-  const Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, base)
-                                                   : ReadSceneFromFile(*sceneFile, files, base, importOptions);
-  RefuseWhatWorkersCannotFetch(scene, inlineScene != request.end() ? "/scene" : "/scene_file");
+  Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, base)
+                                             : ReadSceneFromFile(*sceneFile, files, base, importOptions);
+  BindTexturesToAssets(scene, assets.store, inlineScene != request.end() ? "/scene" : "/scene_file");
   std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);
   // The canonical text, not the client's: equal scenes get equal hashes, whatever their
   // key order or spacing, so workers cache them once.

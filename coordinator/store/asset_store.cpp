@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <set>
 #include <stdexcept>
 #include <system_error>
@@ -26,13 +27,7 @@ std::string Template(const fs::path& folder, const char* stem) { return (folder 
 
 }  // namespace
 
-bool IsAssetHash(std::string_view text) {
-  if (text.size() != 64) return false;
-  for (char c : text) {
-    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
-  }
-  return true;
-}
+bool IsAssetHash(std::string_view text) { return wire::IsSha256Hex(text); }
 
 std::optional<std::string> AssetPathProblem(std::string_view path) {
   if (path.empty()) return "the path is empty";
@@ -77,6 +72,17 @@ std::optional<uint64_t> AssetStore::SizeOf(const std::string& hash) const {
   const uintmax_t size = fs::file_size(PathOf(hash), error);
   if (error) return std::nullopt;
   return static_cast<uint64_t>(size);
+}
+
+std::string AssetStore::ReadPiece(const std::string& hash, uint64_t offset, size_t maxBytes) const {
+  std::ifstream in(PathOf(hash), std::ios::binary);
+  if (!in) throw std::runtime_error(hash + ": cannot open it");
+  in.seekg(static_cast<std::streamoff>(offset));
+  std::string piece(maxBytes, '\0');
+  in.read(piece.data(), static_cast<std::streamsize>(maxBytes));
+  if (in.bad()) throw std::runtime_error(hash + ": read error");
+  piece.resize(static_cast<size_t>(in.gcount()));
+  return piece;
 }
 
 std::vector<std::string> AssetStore::Missing(const std::vector<std::string>& hashes) const {

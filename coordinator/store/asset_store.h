@@ -49,6 +49,9 @@ class AssetStore {
   bool Has(const std::string& hash) const;
   // The asset's size in bytes; nullopt when the store does not have it.
   std::optional<uint64_t> SizeOf(const std::string& hash) const;
+  // Up to maxBytes of the asset from offset (fewer at its end). Throws std::runtime_error
+  // naming the asset when it cannot be read.
+  std::string ReadPiece(const std::string& hash, uint64_t offset, size_t maxBytes) const;
   // The hashes of `hashes` the store does not have, in their order, each once.
   std::vector<std::string> Missing(const std::vector<std::string>& hashes) const;
 

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -72,13 +73,26 @@ struct Light {
 // An image that colours a surface through the mesh's texture coordinates (u to the right,
 // v down, as glTF has them), sampled without derivatives: a pixel's colour never depends
 // on its neighbours.
+//
+// The image comes from exactly one of two places: `image`, a file in the scene's folder
+// (a scene read from disk), or `asset`, the SHA-256 of the image file's bytes, which the
+// farm's workers fetch by hash (a scene submitted over the network names its images so,
+// and its own hash then covers them).
 struct Texture {
   enum class Wrap { kRepeat, kClampToEdge, kMirroredRepeat };
   enum class Filter { kLinear, kNearest };
   std::string image;  // as the scene names it, relative to its folder
-  std::filesystem::path file;  // resolved inside the scene's folder (not written out)
+  std::string asset;  // 64 lowercase hex
+  // Where the bytes are now (neither is written out): a file (inside the scene's folder, or
+  // in a worker's asset cache), or memory (an image embedded in a glTF file, whose hash
+  // `asset` then holds).
+  std::filesystem::path file;
+  std::shared_ptr<const std::string> bytes;
   Wrap wrapS = Wrap::kRepeat, wrapT = Wrap::kRepeat;
   Filter filter = Filter::kLinear;
+
+  // For messages: the file the scene names, or the asset's hash.
+  std::string Describe() const { return image.empty() ? "asset " + asset : image; }
 };
 
 struct Material {

@@ -20,6 +20,7 @@
 #include "json/strict_json.h"
 #include "scene/import/obj_reader.h"
 #include "scene/import/scene_files.h"
+#include "wire/content_hash.h"
 
 namespace tcfarm {
 namespace {
@@ -612,19 +613,22 @@ class SceneReader {
   }
 
   Texture ReadTexture(const Node& node) {
-    const std::string expected = "a texture {\"image\": file, \"wrap_s\", \"wrap_t\", \"filter\"}";
-    ExpectObject(node, {"image", "wrap_s", "wrap_t", "filter"}, expected);
-    Texture texture;
-    Node image = Required(node, "image", "a PNG or JPEG file inside the scene folder");
-    texture.image = ReadString(image, "a PNG or JPEG file inside the scene folder");
-    if (!baseDirectory_) {
-      Fail(image.pointer, "texture image " + Quote(texture.image) + " cannot be resolved: the scene was submitted without a folder",
-           "a scene read from a folder (tcfarm-worker render); textures do not travel to the farm's workers yet");
+    const std::string expected =
+        "a texture {\"image\": file or \"asset\": SHA-256, \"wrap_s\", \"wrap_t\", \"filter\"}";
+    ExpectObject(node, {"image", "asset", "wrap_s", "wrap_t", "filter"}, expected);
+    if (node.Has("image") == node.Has("asset")) {
+      Fail(node.pointer, node.Has("image") ? "both an image and an asset" : "neither an image nor an asset",
+           "exactly one of \"image\" (a file inside the scene folder) and \"asset\" (the SHA-256 of an image the farm holds)");
     }
-    texture.file = ResolveInsideFolder(*baseDirectory_, texture.image, image.pointer, "texture image");
-    std::error_code error;
-    if (!std::filesystem::is_regular_file(texture.file, error)) {
-      Fail(image.pointer, "cannot read texture image " + Quote(texture.image), "a readable image file inside the scene folder");
+    Texture texture;
+    if (node.Has("asset")) {
+      Node asset = node.Member("asset");
+      texture.asset = ReadString(asset, "the SHA-256 of an image file, 64 lowercase hex characters");
+      if (!wire::IsSha256Hex(texture.asset)) {
+        Fail(asset.pointer, Quote(texture.asset) + " is not a SHA-256", "64 lowercase hex characters");
+      }
+    } else {
+      ReadTextureFile(node.Member("image"), texture);
     }
     const std::string wrapExpected = "\"repeat\", \"clamp_to_edge\" or \"mirrored_repeat\"";
     for (const char* key : {"wrap_s", "wrap_t"}) {
@@ -645,6 +649,19 @@ class SceneReader {
       texture.filter = name == "nearest" ? Texture::Filter::kNearest : Texture::Filter::kLinear;
     }
     return texture;
+  }
+
+  void ReadTextureFile(const Node& image, Texture& texture) {
+    texture.image = ReadString(image, "a PNG or JPEG file inside the scene folder");
+    if (!baseDirectory_) {
+      Fail(image.pointer, "texture image " + Quote(texture.image) + " cannot be resolved: the scene was submitted without a folder",
+           "an image uploaded with the scene (tcfarm submit uploads the files a scene names), or {\"asset\": its SHA-256}");
+    }
+    texture.file = ResolveInsideFolder(*baseDirectory_, texture.image, image.pointer, "texture image");
+    std::error_code error;
+    if (!std::filesystem::is_regular_file(texture.file, error)) {
+      Fail(image.pointer, "cannot read texture image " + Quote(texture.image), "a readable image file inside the scene folder");
+    }
   }
 
   // camera ---------------------------------------------------------------------------
@@ -1118,7 +1135,7 @@ json LightJson(const Light& light) {
 
 json TextureJson(const Texture& texture) {
   static const char* const kWraps[] = {"repeat", "clamp_to_edge", "mirrored_repeat"};
-  return json{{"image", texture.image},
+  return json{{texture.asset.empty() ? "image" : "asset", texture.asset.empty() ? texture.image : texture.asset},
               {"wrap_s", kWraps[static_cast<int>(texture.wrapS)]},
               {"wrap_t", kWraps[static_cast<int>(texture.wrapT)]},
               {"filter", texture.filter == Texture::Filter::kNearest ? "nearest" : "linear"}};

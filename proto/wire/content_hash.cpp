@@ -29,6 +29,14 @@ std::string Sha256Hex(std::string_view bytes) {
   return DigestHex(digest);
 }
 
+bool IsSha256Hex(std::string_view text) {
+  if (text.size() != 2 * crypto_hash_sha256_BYTES) return false;
+  for (char c : text) {
+    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
+  }
+  return true;
+}
+
 struct Sha256Stream::State {
   crypto_hash_sha256_state sodium;
 };

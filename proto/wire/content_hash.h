@@ -12,6 +12,9 @@ namespace tcfarm::wire {
 // 64 lowercase hex characters.
 std::string Sha256Hex(std::string_view bytes);
 
+// True for 64 lowercase hex characters: the only form a scene's or an asset's name takes.
+bool IsSha256Hex(std::string_view text);
+
 // The same hash over bytes that arrive in pieces: an asset upload is hashed as it streams
 // to disk, never held in memory whole. Sha256Hex(a + b) == (Update(a), Update(b), Hex()).
 class Sha256Stream {

@@ -2,6 +2,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "wire/content_hash.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -178,7 +180,7 @@ class Header {
   }
 
   // Read with the header's own bound so that a hash of the wrong length gets the
-  // hash message rather than a length one.
+  // hash message rather than a length one. Scenes and assets are named alike.
   std::string SceneHash(const char* key) const {
     std::string hash = String(key, kMaxHeaderBytes);
     if (!IsSceneHash(hash)) FailHash(key, hash);
@@ -362,10 +364,18 @@ Body EncodeBody(const Heartbeat&) { return {Command::kHeartbeat, json::object(),
 
 Body EncodeBody(const Error& error) {
   json header = {{"task_id", error.taskId}, {"scene_hash", error.sceneHash}, {"message", error.message}};
+  if (!error.assetHash.empty()) header["asset_hash"] = error.assetHash;
   return {Command::kError, std::move(header), {}};
 }
 
 Body EncodeBody(const Disconnect&) { return {Command::kDisconnect, json::object(), {}}; }
+
+Body EncodeBody(const AssetGet& assetGet) { return {Command::kAssetGet, {{"asset_hash", assetGet.assetHash}}, {}}; }
+
+Body EncodeBody(const AssetPiece& piece) {
+  json header = {{"asset_hash", piece.assetHash}, {"offset", piece.offset}, {"total_size", piece.totalSize}};
+  return {Command::kAsset, std::move(header), piece.bytes};
+}
 
 // ---------------------------------------------------------------------------------
 // Decoding, one function per command
@@ -496,12 +506,44 @@ Error DecodeError(const Header& header, const std::string& payload) {
   error.taskId = header.U64("task_id");
   error.sceneHash = header.SceneHashOrEmpty("scene_hash");
   error.message = header.String("message", kMaxErrorMessageBytes);
+  if (header.Has("asset_hash")) error.assetHash = header.SceneHash("asset_hash");
   return error;
 }
 
 Disconnect DecodeDisconnect(const Header& header, const std::string& payload) {
   CheckEmptyPayload(header.command(), payload);
   return {};
+}
+
+AssetGet DecodeAssetGet(const Header& header, const std::string& payload) {
+  CheckEmptyPayload(header.command(), payload);
+  return AssetGet{header.SceneHash("asset_hash")};
+}
+
+// The bytes are not checked against the hash here: only the whole asset can be, and the
+// worker does that when the last piece has arrived.
+AssetPiece DecodeAssetPiece(const Header& header, const std::string& payload) {
+  AssetPiece piece;
+  piece.assetHash = header.SceneHash("asset_hash");
+  piece.offset = header.U64("offset");
+  piece.totalSize = header.U64("total_size");
+  if (piece.totalSize > kMaxAssetBytes) {
+    Fail(Command::kAsset, "total_size " + std::to_string(piece.totalSize) + " is more than the " +
+                              std::to_string(kMaxAssetBytes) + " bytes an asset may have");
+  }
+  if (payload.size() > kMaxAssetPieceBytes) {
+    Fail(Command::kAsset, "payload is " + std::to_string(payload.size()) + " bytes; expected at most " +
+                              std::to_string(kMaxAssetPieceBytes));
+  }
+  if (piece.offset > piece.totalSize || payload.size() > piece.totalSize - piece.offset) {
+    Fail(Command::kAsset, "bytes " + std::to_string(piece.offset) + ".." + std::to_string(piece.offset + payload.size()) +
+                              " lie past total_size " + std::to_string(piece.totalSize));
+  }
+  if (payload.empty() && piece.totalSize > 0) {
+    Fail(Command::kAsset, "payload is empty; expected a piece of a " + std::to_string(piece.totalSize) + "-byte asset");
+  }
+  piece.bytes = payload;
+  return piece;
 }
 
 // ---------------------------------------------------------------------------------
@@ -523,7 +565,7 @@ Command ParseCommand(const std::string& part) {
     throw WireError("command part is " + std::to_string(part.size()) + " bytes; expected 1");
   }
   const auto code = static_cast<uint8_t>(part[0]);
-  if (code < static_cast<uint8_t>(Command::kReady) || code > static_cast<uint8_t>(Command::kDisconnect)) {
+  if (code < static_cast<uint8_t>(Command::kReady) || code > static_cast<uint8_t>(Command::kAsset)) {
     throw WireError("unknown command " + std::to_string(code));
   }
   return static_cast<Command>(code);
@@ -539,6 +581,8 @@ Message DecodeBody(const Header& header, const std::string& payload) {
     case Command::kHeartbeat: return DecodeHeartbeat(header, payload);
     case Command::kError: return DecodeError(header, payload);
     case Command::kDisconnect: return DecodeDisconnect(header, payload);
+    case Command::kAssetGet: return DecodeAssetGet(header, payload);
+    case Command::kAsset: return DecodeAssetPiece(header, payload);
   }
   throw WireError("unknown command");  // unreachable: ParseCommand admits only the above
 }
@@ -569,6 +613,8 @@ std::vector<std::string> Encode(const SceneData& scene) { return Framed(EncodeBo
 std::vector<std::string> Encode(const Heartbeat& heartbeat) { return Framed(EncodeBody(heartbeat)); }
 std::vector<std::string> Encode(const Error& error) { return Framed(EncodeBody(error)); }
 std::vector<std::string> Encode(const Disconnect& disconnect) { return Framed(EncodeBody(disconnect)); }
+std::vector<std::string> Encode(const AssetGet& assetGet) { return Framed(EncodeBody(assetGet)); }
+std::vector<std::string> Encode(const AssetPiece& piece) { return Framed(EncodeBody(piece)); }
 
 Message Decode(const std::vector<std::string>& parts) {
   if (parts.size() != kPartCount) {
@@ -582,14 +628,16 @@ Message Decode(const std::vector<std::string>& parts) {
 
 Command CommandOf(const Message& message) {
   // The variant lists the messages in command order, READY = 1 first.
-  static_assert(std::variant_size_v<Message> == 8 && std::is_same_v<std::variant_alternative_t<0, Message>, Ready> &&
+  static_assert(std::variant_size_v<Message> == 10 && std::is_same_v<std::variant_alternative_t<0, Message>, Ready> &&
                 std::is_same_v<std::variant_alternative_t<1, Message>, Task> &&
                 std::is_same_v<std::variant_alternative_t<2, Message>, Result> &&
                 std::is_same_v<std::variant_alternative_t<3, Message>, SceneGet> &&
                 std::is_same_v<std::variant_alternative_t<4, Message>, SceneData> &&
                 std::is_same_v<std::variant_alternative_t<5, Message>, Heartbeat> &&
                 std::is_same_v<std::variant_alternative_t<6, Message>, Error> &&
-                std::is_same_v<std::variant_alternative_t<7, Message>, Disconnect>);
+                std::is_same_v<std::variant_alternative_t<7, Message>, Disconnect> &&
+                std::is_same_v<std::variant_alternative_t<8, Message>, AssetGet> &&
+                std::is_same_v<std::variant_alternative_t<9, Message>, AssetPiece>);
   return static_cast<Command>(message.index() + 1);
 }
 
@@ -603,16 +651,12 @@ std::string CommandName(Command command) {
     case Command::kHeartbeat: return "HEARTBEAT";
     case Command::kError: return "ERROR";
     case Command::kDisconnect: return "DISCONNECT";
+    case Command::kAssetGet: return "ASSET_GET";
+    case Command::kAsset: return "ASSET";
   }
   return "UNKNOWN";
 }
 
-bool IsSceneHash(std::string_view text) {
-  if (text.size() != kSceneHashChars) return false;
-  for (char c : text) {
-    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
-  }
-  return true;
-}
+bool IsSceneHash(std::string_view text) { return IsSha256Hex(text); }
 
 }  // namespace tcfarm::wire

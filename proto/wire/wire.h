@@ -22,7 +22,7 @@
 namespace tcfarm::wire {
 
 // Bumped on any change an old receiver could misread; see proto/wire.md, "Versioning".
-inline constexpr uint8_t kWireVersion = 1;
+inline constexpr uint8_t kWireVersion = 2;
 inline constexpr size_t kPartCount = 4;
 
 enum class Command : uint8_t {
@@ -34,6 +34,8 @@ enum class Command : uint8_t {
   kHeartbeat = 6,
   kError = 7,
   kDisconnect = 8,
+  kAssetGet = 9,
+  kAsset = 10,
 };
 
 // Limits on what a receiver accepts. Each is far above any honest message and low
@@ -46,6 +48,10 @@ inline constexpr size_t kMaxHeaderBytes = 16 * 1024;            // the largest h
 inline constexpr int kMaxHeaderNesting = 8;                     // the decoder recurses per level
 inline constexpr uint32_t kMaxCapacity = 4096;                  // tasks in flight per worker
 inline constexpr size_t kSceneHashChars = 64;                   // SHA-256 in lowercase hex
+// An asset travels in pieces of at most this much, so that no one ZeroMQ message holds a
+// whole 512 MiB texture and the coordinator's loop reads a bounded amount per turn.
+inline constexpr size_t kMaxAssetPieceBytes = size_t{16} << 20;
+inline constexpr uint64_t kMaxAssetBytes = uint64_t{64} << 30;  // any one asset; daemons set lower limits
 
 // worker -> coordinator, on every (re)connect: "I accept up to `capacity` tasks in flight".
 struct Ready {
@@ -103,12 +109,31 @@ struct Error {
   uint64_t taskId = 0;    // 0 when the error is not about one task
   std::string sceneHash;  // empty, or the scene at fault
   std::string message;
+  std::string assetHash;  // empty, or the asset the coordinator cannot serve (optional on the wire)
 };
 
 // either side: "I am going away", so the other need not wait out the liveness timeout.
 struct Disconnect {};
 
-using Message = std::variant<Ready, Task, Result, SceneGet, SceneData, Heartbeat, Error, Disconnect>;
+// worker -> coordinator: "send me the file whose SHA-256 is assetHash" (a texture a scene
+// names by hash).
+struct AssetGet {
+  std::string assetHash;
+};
+
+// coordinator -> worker: bytes [offset, offset + bytes.size()) of the asset, which is
+// totalSize bytes long. Pieces arrive in order of offset.
+struct AssetPiece {
+  std::string assetHash;
+  uint64_t offset = 0;
+  uint64_t totalSize = 0;
+  std::string bytes;
+
+  bool IsLast() const { return offset + bytes.size() == totalSize; }
+};
+
+using Message =
+    std::variant<Ready, Task, Result, SceneGet, SceneData, Heartbeat, Error, Disconnect, AssetGet, AssetPiece>;
 
 // Everything Decode rejects. what() names the command (when known) and the problem.
 class WireError : public std::runtime_error {
@@ -130,6 +155,8 @@ std::vector<std::string> Encode(const SceneData& scene);
 std::vector<std::string> Encode(const Heartbeat& heartbeat);
 std::vector<std::string> Encode(const Error& error);
 std::vector<std::string> Encode(const Disconnect& disconnect);
+std::vector<std::string> Encode(const AssetGet& assetGet);
+std::vector<std::string> Encode(const AssetPiece& piece);
 
 // Checks everything listed in proto/wire.md, "Receiving"; throws WireError otherwise.
 Message Decode(const std::vector<std::string>& parts);
@@ -137,7 +164,7 @@ Message Decode(const std::vector<std::string>& parts);
 Command CommandOf(const Message& message);
 std::string CommandName(Command command);  // "READY", "SCENE_GET", ...; for logs and metric labels
 
-// True for 64 lowercase hex characters: the only form a scene hash takes.
+// True for 64 lowercase hex characters: the only form a scene (or asset) hash takes.
 bool IsSceneHash(std::string_view text);
 
 }  // namespace tcfarm::wire

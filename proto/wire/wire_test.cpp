@@ -42,9 +42,13 @@ bool operator==(const SceneData& a, const SceneData& b) {
 }
 bool operator==(const Heartbeat&, const Heartbeat&) { return true; }
 bool operator==(const Error& a, const Error& b) {
-  return a.taskId == b.taskId && a.sceneHash == b.sceneHash && a.message == b.message;
+  return a.taskId == b.taskId && a.sceneHash == b.sceneHash && a.message == b.message && a.assetHash == b.assetHash;
 }
 bool operator==(const Disconnect&, const Disconnect&) { return true; }
+bool operator==(const AssetGet& a, const AssetGet& b) { return a.assetHash == b.assetHash; }
+bool operator==(const AssetPiece& a, const AssetPiece& b) {
+  return a.assetHash == b.assetHash && a.offset == b.offset && a.totalSize == b.totalSize && a.bytes == b.bytes;
+}
 
 namespace {
 
@@ -86,12 +90,15 @@ Result SampleResult(bool withHorizons) {
   return result;
 }
 
-Error SampleError() { return Error{42, kHash, "scene failed to build: mesh 3 has no triangles"}; }
+Error SampleError() { return Error{42, kHash, "scene failed to build: mesh 3 has no triangles", ""}; }
+
+AssetPiece SamplePiece() { return AssetPiece{kHash, 16, 40, std::string("\x89PNG\0\xff", 6)}; }
 
 // One valid message of every command, for the tests that go over them all.
 std::vector<Message> SampleMessages() {
   return {Ready{8, 16, "worker-3:4242"}, SampleTask(),          SampleResult(true), SceneGet{kHash},
-          SceneData{kHash, kSceneJson},  Heartbeat{},           SampleError(),      Disconnect{}};
+          SceneData{kHash, kSceneJson},  Heartbeat{},           SampleError(),      Disconnect{},
+          AssetGet{kHash},               SamplePiece()};
 }
 
 Message RoundTrip(const Message& message) { return Decode(Encode(message)); }
@@ -263,11 +270,18 @@ TEST(WireRoundTrip, SceneGet) { ExpectRoundTrip(SceneGet{kHash}); }
 TEST(WireRoundTrip, Scene) { ExpectRoundTrip(SceneData{kHash, kSceneJson}); }
 TEST(WireRoundTrip, Heartbeat) { ExpectRoundTrip(Heartbeat{}); }
 TEST(WireRoundTrip, Error) { ExpectRoundTrip(SampleError()); }
-TEST(WireRoundTrip, ErrorAboutNoTaskOrScene) { ExpectRoundTrip(Error{0, "", "out of memory"}); }
+TEST(WireRoundTrip, ErrorAboutNoTaskOrScene) { ExpectRoundTrip(Error{0, "", "out of memory", ""}); }
 TEST(WireRoundTrip, ErrorWithLongestMessage) {
-  ExpectRoundTrip(Error{1, kHash, std::string(kMaxErrorMessageBytes, 'm')});
+  ExpectRoundTrip(Error{1, kHash, std::string(kMaxErrorMessageBytes, 'm'), ""});
 }
 TEST(WireRoundTrip, Disconnect) { ExpectRoundTrip(Disconnect{}); }
+TEST(WireRoundTrip, ErrorAboutAnAsset) { ExpectRoundTrip(Error{0, "", "no asset", kHash}); }
+TEST(WireRoundTrip, AssetGet) { ExpectRoundTrip(AssetGet{kHash}); }
+TEST(WireRoundTrip, AssetPiece) {
+  ExpectRoundTrip(SamplePiece());
+  ExpectRoundTrip(AssetPiece{kHash, 0, 0, ""});  // an empty file is one empty piece
+  ExpectRoundTrip(AssetPiece{kHash, 0, kMaxAssetPieceBytes, std::string(kMaxAssetPieceBytes, 'x')});
+}
 
 TEST(WireRoundTrip, AdjacentSpansArriveMerged) {
   const Message decoded = Decode(TaskWithSpans({0, 4, 4, 9, 20, 30}));
@@ -309,7 +323,8 @@ TEST(WireFraming, CommandCodesAndNames) {
   const std::vector<std::pair<Command, std::string>> expected = {
       {Command::kReady, "READY"},         {Command::kTask, "TASK"},   {Command::kResult, "RESULT"},
       {Command::kSceneGet, "SCENE_GET"},  {Command::kScene, "SCENE"}, {Command::kHeartbeat, "HEARTBEAT"},
-      {Command::kError, "ERROR"},         {Command::kDisconnect, "DISCONNECT"}};
+      {Command::kError, "ERROR"},         {Command::kDisconnect, "DISCONNECT"},
+      {Command::kAssetGet, "ASSET_GET"},  {Command::kAsset, "ASSET"}};
   const std::vector<Message> messages = SampleMessages();
   for (size_t i = 0; i < expected.size(); ++i) {
     EXPECT_EQ(static_cast<int>(expected[i].first), static_cast<int>(i + 1));
@@ -392,8 +407,15 @@ TEST(WireLayout, ReadyHeaderBytes) {
 }
 
 TEST(WireLayout, EmptyMessagesCarryAnEmptyMap) {
-  EXPECT_EQ(Encode(Heartbeat{}), (Parts{"\x01", "\x06", "\x80", ""}));
-  EXPECT_EQ(Encode(Disconnect{}), (Parts{"\x01", "\x08", "\x80", ""}));
+  EXPECT_EQ(Encode(Heartbeat{}), (Parts{"\x02", "\x06", "\x80", ""}));
+  EXPECT_EQ(Encode(Disconnect{}), (Parts{"\x02", "\x08", "\x80", ""}));
+}
+
+TEST(WireLayout, AssetPieceHeaderAndPayload) {
+  const Parts parts = Encode(SamplePiece());
+  EXPECT_EQ(HeaderOf(parts), (json{{"asset_hash", kHash}, {"offset", 16}, {"total_size", 40}}));
+  EXPECT_EQ(parts[3], SamplePiece().bytes);
+  EXPECT_EQ(HeaderOf(Encode(AssetGet{kHash})), (json{{"asset_hash", kHash}}));
 }
 
 TEST(WireLayout, ScenePayloadIsTheJsonBytes) { EXPECT_EQ(Encode(SceneData{kHash, kSceneJson})[3], kSceneJson); }
@@ -413,8 +435,10 @@ TEST(WireHostile, WrongPartCount) {
 
 TEST(WireHostile, WrongVersion) {
   Parts parts = Encode(Heartbeat{});
-  parts[0] = "\x02";
-  EXPECT_WIRE_ERROR(parts, "wire version 2 is not supported");
+  parts[0] = "\x01";  // the version before assets travelled
+  EXPECT_WIRE_ERROR(parts, "wire version 1 is not supported");
+  parts[0] = "\x03";
+  EXPECT_WIRE_ERROR(parts, "wire version 3 is not supported");
   parts[0] = std::string(1, '\0');
   EXPECT_WIRE_ERROR(parts, "wire version 0 is not supported");
   parts[0] = "";
@@ -425,7 +449,7 @@ TEST(WireHostile, WrongVersion) {
 
 TEST(WireHostile, UnknownCommand) {
   Parts parts = Encode(Heartbeat{});
-  for (int code : {0, 9, 255}) {
+  for (int code : {0, 11, 255}) {
     parts[1] = std::string(1, static_cast<char>(code));
     EXPECT_WIRE_ERROR(parts, "unknown command " + std::to_string(code));
   }
@@ -565,10 +589,30 @@ TEST(WireHostile, StringsOverLimits) {
 
 TEST(WireHostile, PayloadWhereNoneBelongs) {
   for (const Message& message : {Message{Ready{1, 1, "w"}}, Message{SceneGet{kHash}}, Message{Heartbeat{}},
-                                 Message{SampleError()}, Message{Disconnect{}}}) {
+                                 Message{SampleError()}, Message{Disconnect{}}, Message{AssetGet{kHash}}}) {
     EXPECT_WIRE_ERROR(WithPayload(message, "x"),
                       CommandName(CommandOf(message)) + ": payload is 1 bytes; expected none");
   }
+}
+
+// A piece must lie inside its asset, be a bounded size, and an asset a bounded size.
+TEST(WireHostile, AssetPieceOutOfBounds) {
+  AssetPiece past = SamplePiece();
+  past.offset = 35;  // 35 + 6 > 40
+  EXPECT_WIRE_ERROR(Encode(past), "ASSET: bytes 35..41 lie past total_size 40");
+  AssetPiece wrapping = SamplePiece();
+  wrapping.offset = std::numeric_limits<uint64_t>::max() - 2;
+  wrapping.totalSize = 40;
+  EXPECT_WIRE_ERROR(Encode(wrapping), "lie past total_size");
+  AssetPiece huge = SamplePiece();
+  huge.totalSize = kMaxAssetBytes + 1;
+  EXPECT_WIRE_ERROR(Encode(huge), "more than the");
+  AssetPiece empty = SamplePiece();
+  empty.bytes.clear();
+  EXPECT_WIRE_ERROR(Encode(empty), "payload is empty");
+  AssetPiece big{kHash, 0, kMaxAssetPieceBytes + 1, std::string(kMaxAssetPieceBytes + 1, 'x')};
+  EXPECT_WIRE_ERROR(Encode(big), "expected at most");
+  EXPECT_WIRE_ERROR(WithField(AssetGet{kHash}, "asset_hash", "../../etc/passwd"), "expected 64 lowercase hex");
 }
 
 TEST(WireHostile, TaskWithEmptyPixelSet) {
@@ -777,8 +821,8 @@ TEST(WireFuzz, RandomPartsThrowWireError) {
       for (char& byte : part) byte = static_cast<char>(random());
     }
     if (i % 2 == 0 && parts.size() == kPartCount) {  // let half reach the header decoder
-      parts[0] = "\x01";
-      parts[1] = std::string(1, static_cast<char>(1 + random() % 8));
+      parts[0] = std::string(1, static_cast<char>(kWireVersion));
+      parts[1] = std::string(1, static_cast<char>(1 + random() % 10));
     }
     try {
       Decode(parts);

@@ -14,9 +14,23 @@ Tracer* SceneCache::Find(const std::string& hash) {
   return nullptr;
 }
 
-SceneCache::Built SceneCache::Build(const std::string& sceneJson) const {
+SceneCache::Built SceneCache::Build(const std::string& sceneJson, const AssetCache& assets) const {
+  return Finish(std::make_unique<Scene>(ParseScene(sceneJson)), assets);
+}
+
+SceneCache::Built SceneCache::Finish(std::unique_ptr<Scene> scene, const AssetCache& assets) const {
   Built built;
-  built.scene = std::make_unique<Scene>(ParseScene(sceneJson));
+  for (Material& material : scene->materials) {
+    if (!material.diffuseTexture || material.diffuseTexture->asset.empty()) continue;
+    Texture& texture = *material.diffuseTexture;
+    if (auto file = assets.Find(texture.asset)) {
+      texture.file = *file;
+    } else {
+      built.missingAssets.push_back(texture.asset);
+    }
+  }
+  built.scene = std::move(scene);
+  if (!built.missingAssets.empty()) return built;
   PrepareForTracing(*built.scene);  // as the reference renderer does: the same bits
   built.tracer = std::make_unique<Tracer>(device_, *built.scene, pool_);
   return built;

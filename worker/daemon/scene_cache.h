@@ -6,7 +6,9 @@
 #include <list>
 #include <memory>
 #include <string>
+#include <vector>
 
+#include "daemon/asset_cache.h"
 #include "embree/device.h"
 #include "scene/scene.h"
 #include "trace/tracer.h"
@@ -22,22 +24,24 @@ class SceneCache {
   SceneCache(const EmbreeDevice& device, TracingThreads& pool, size_t capacity = kDefaultCapacity)
       : device_(device), pool_(pool), capacity_(capacity) {}
 
-  // A scene parsed and built, not yet in the cache.
+  // A scene parsed and built, not yet in the cache; or parsed only, waiting for the
+  // assets it names (missingAssets) to arrive.
   struct Built {
     std::unique_ptr<Scene> scene;  // the tracer refers to it: keep it at a fixed address
     std::unique_ptr<Tracer> tracer;
+    std::vector<std::string> missingAssets;  // hashes; the tracer is built only when none
   };
 
   // The tracer of a cached scene, or nullptr; a hit makes it most recently used.
   Tracer* Find(const std::string& hash);
-  // Parses and builds a scene received from the coordinator. Throws SceneError (bad
-  // scene) or EmbreeError. Safe beside tracing and the cache's other calls: the worker
-  // builds scenes off its loop.
-  Built Build(const std::string& sceneJson) const;
+  // Parses a scene received from the coordinator and, when `assets` holds every texture
+  // it names, builds it. Throws SceneError (bad scene), TextureError or EmbreeError. Safe
+  // beside tracing and the cache's other calls: the worker builds scenes off its loop.
+  Built Build(const std::string& sceneJson, const AssetCache& assets) const;
+  // Builds a parsed scene whose assets have arrived since (or reports the ones still missing).
+  Built Finish(std::unique_ptr<Scene> scene, const AssetCache& assets) const;
   // Caches a built scene, evicting the least recently used beyond capacity.
   Tracer* Insert(const std::string& hash, Built built);
-  // Build, then Insert; the cache is unchanged when the build throws.
-  Tracer* Add(const std::string& hash, const std::string& sceneJson) { return Insert(hash, Build(sceneJson)); }
 
   uint64_t hits() const { return hits_; }
   uint64_t misses() const { return misses_; }

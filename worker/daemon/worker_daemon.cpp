@@ -44,6 +44,11 @@ std::string TaskMismatch(const wire::Task& task, const Scene& scene) {
   return "";
 }
 
+std::filesystem::path AssetCacheDir(const std::filesystem::path& chosen) {
+  if (!chosen.empty()) return chosen;
+  return std::filesystem::temp_directory_path() / ("tcfarm-assets-" + std::to_string(getuid()));
+}
+
 }  // namespace
 
 WorkerDaemon::WorkerDaemon(WorkerOptions options, const Clock& clock)
@@ -53,6 +58,7 @@ WorkerDaemon::WorkerDaemon(WorkerOptions options, const Clock& clock)
       scenes_(device_, pool_),
       coordinator_(options_.heartbeat, clock.Now()),
       backoff_(options_.heartbeat),
+      assets_(AssetCacheDir(options_.assetCache), options_.maxAssetBytes),
       lastLoopTurn_(clock.Now().time_since_epoch().count()) {
   if (options_.name.empty()) options_.name = DefaultName();
   metrics_.threads.Set(pool_.ThreadCount());
@@ -80,6 +86,8 @@ void WorkerDaemon::Reconnect(const std::atomic<bool>& stop) {
   metrics_.coordinatorUp.Set(0);
   ready_.clear();
   waitingForScene_.clear();
+  waitingForAssets_.clear();
+  assets_.AbandonDownloads();
   for (auto& [hash, build] : building_) build.tasks.clear();  // the scene itself is still worth having
   socket_.reset();
   Milliseconds delay = backoff_.Next();
@@ -139,9 +147,10 @@ void WorkerDaemon::Handle(wire::Message message) {
     OnTask(std::move(*task));
   } else if (auto* scene = std::get_if<wire::SceneData>(&message)) {
     OnScene(*scene);
+  } else if (auto* piece = std::get_if<wire::AssetPiece>(&message)) {
+    OnAssetPiece(*piece);
   } else if (auto* error = std::get_if<wire::Error>(&message)) {
-    // The coordinator cannot serve a scene we asked for (its job is gone): drop its tasks.
-    waitingForScene_.erase(error->sceneHash);
+    OnCoordinatorError(*error);
   } else if (std::holds_alternative<wire::Disconnect>(message)) {
     // The coordinator is going away: reconnect now rather than after its silence.
     coordinatorLeft_ = true;
@@ -159,6 +168,10 @@ void WorkerDaemon::OnTask(wire::Task task) {
     build->second.tasks.push_back(std::move(task));
     return;
   }
+  if (auto wait = waitingForAssets_.find(task.sceneHash); wait != waitingForAssets_.end()) {
+    wait->second.tasks.push_back(std::move(task));
+    return;
+  }
   auto& waiting = waitingForScene_[task.sceneHash];
   if (waiting.empty()) {
     metrics_.sceneCacheMisses.Increment();
@@ -173,15 +186,20 @@ void WorkerDaemon::OnScene(const wire::SceneData& scene) {
   std::vector<wire::Task> tasks = std::move(waiting->second);
   waitingForScene_.erase(waiting);
   if (wire::Sha256Hex(scene.sceneJson) != scene.sceneHash) {
-    metrics_.sceneErrors.Increment();
-    for (const auto& task : tasks) {
-      Send(wire::Error{task.taskId, scene.sceneHash, "scene bytes do not match hash " + scene.sceneHash});
-    }
+    FailTasks(tasks, scene.sceneHash, "scene bytes do not match hash " + scene.sceneHash);
     return;
   }
-  building_[scene.sceneHash] = SceneBuild{
-      std::async(std::launch::async, [this, json = scene.sceneJson] { return scenes_.Build(json); }),
-      std::move(tasks)};
+  StartBuild(scene.sceneHash, [this, json = scene.sceneJson] { return scenes_.Build(json, assets_); }, std::move(tasks));
+}
+
+void WorkerDaemon::StartBuild(const std::string& sceneHash, std::function<SceneCache::Built()> build,
+                              std::vector<wire::Task> tasks) {
+  building_[sceneHash] = SceneBuild{std::async(std::launch::async, std::move(build)), std::move(tasks)};
+}
+
+void WorkerDaemon::FailTasks(const std::vector<wire::Task>& tasks, const std::string& sceneHash, const std::string& why) {
+  metrics_.sceneErrors.Increment();
+  for (const auto& task : tasks) Send(wire::Error{task.taskId, sceneHash, why, ""});
 }
 
 void WorkerDaemon::CollectBuiltScenes() {
@@ -191,18 +209,82 @@ void WorkerDaemon::CollectBuiltScenes() {
       continue;
     }
     std::string problem;
+    SceneCache::Built built;
     try {
-      scenes_.Insert(build->first, build->second.built.get());
+      built = build->second.built.get();
     } catch (const std::exception& e) {
       problem = e.what();
     }
-    if (problem.empty()) {
-      for (auto& task : build->second.tasks) ready_.push_back(std::move(task));
+    if (!problem.empty()) {
+      FailTasks(build->second.tasks, build->first, problem);
+    } else if (!built.missingAssets.empty()) {
+      AwaitAssets(build->first, std::move(built), std::move(build->second.tasks));
     } else {
-      metrics_.sceneErrors.Increment();
-      for (const auto& task : build->second.tasks) Send(wire::Error{task.taskId, build->first, problem});
+      scenes_.Insert(build->first, std::move(built));
+      for (auto& task : build->second.tasks) ready_.push_back(std::move(task));
     }
     build = building_.erase(build);
+  }
+}
+
+void WorkerDaemon::AwaitAssets(const std::string& sceneHash, SceneCache::Built built, std::vector<wire::Task> tasks) {
+  AssetWait& wait = waitingForAssets_[sceneHash];
+  wait.scene = std::move(built.scene);
+  wait.missing.insert(built.missingAssets.begin(), built.missingAssets.end());
+  wait.tasks.insert(wait.tasks.end(), std::make_move_iterator(tasks.begin()), std::make_move_iterator(tasks.end()));
+  for (const std::string& asset : wait.missing) {
+    if (assets_.IsExpected(asset)) continue;
+    assets_.Expect(asset);
+    metrics_.assetsFetched.Increment();
+    Send(wire::AssetGet{asset});
+  }
+}
+
+void WorkerDaemon::OnAssetPiece(const wire::AssetPiece& piece) {
+  std::string problem;
+  const AssetCache::Outcome outcome = assets_.Accept(piece, &problem);
+  if (outcome == AssetCache::Outcome::kIgnored) return;  // not asked for (or asked by an old connection)
+  metrics_.assetBytes.Increment(static_cast<double>(piece.bytes.size()));
+  if (outcome == AssetCache::Outcome::kIncomplete) return;
+  for (auto wait = waitingForAssets_.begin(); wait != waitingForAssets_.end();) {
+    if (!wait->second.missing.count(piece.assetHash)) {
+      ++wait;
+      continue;
+    }
+    if (outcome == AssetCache::Outcome::kFailed) {
+      FailTasks(wait->second.tasks, wait->first, problem);
+      wait = waitingForAssets_.erase(wait);
+      continue;
+    }
+    wait->second.missing.erase(piece.assetHash);
+    if (wait->second.missing.empty()) {
+      auto scene = std::make_shared<std::unique_ptr<Scene>>(std::move(wait->second.scene));
+      StartBuild(wait->first, [this, scene] { return scenes_.Finish(std::move(*scene), assets_); },
+                 std::move(wait->second.tasks));
+      wait = waitingForAssets_.erase(wait);
+    } else {
+      ++wait;
+    }
+  }
+  if (outcome == AssetCache::Outcome::kFailed) {
+    std::fprintf(stderr, "worker %s: %s\n", options_.name.c_str(), problem.c_str());
+  }
+}
+
+// The coordinator cannot serve a scene or an asset we asked for (its job is gone): the
+// tasks that wait on it are dropped, or failed with its reason.
+void WorkerDaemon::OnCoordinatorError(const wire::Error& error) {
+  if (!error.sceneHash.empty()) waitingForScene_.erase(error.sceneHash);
+  if (error.assetHash.empty()) return;
+  if (!assets_.IsExpected(error.assetHash)) return;
+  assets_.AbandonDownload(error.assetHash);
+  for (auto wait = waitingForAssets_.begin(); wait != waitingForAssets_.end();) {
+    if (wait->second.missing.count(error.assetHash)) {
+      FailTasks(wait->second.tasks, wait->first, error.message);
+      wait = waitingForAssets_.erase(wait);
+    } else {
+      ++wait;
+    }
   }
 }
 
@@ -216,7 +298,7 @@ void WorkerDaemon::TraceNext() {
   }
   std::string mismatch = TaskMismatch(task, tracer->scene());
   if (!mismatch.empty()) {
-    Send(wire::Error{task.taskId, task.sceneHash, mismatch});
+    Send(wire::Error{task.taskId, task.sceneHash, mismatch, ""});
     return;
   }
   std::vector<uint32_t> indices = PixelIndices(task.pixels);

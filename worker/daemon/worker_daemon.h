@@ -10,14 +10,18 @@
 
 #include <atomic>
 #include <deque>
+#include <filesystem>
+#include <functional>
 #include <future>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
 #include <zmq.hpp>
 
+#include "daemon/asset_cache.h"
 #include "daemon/metrics_endpoint.h"
 #include "daemon/scene_cache.h"
 #include "daemon/worker_metrics.h"
@@ -34,6 +38,10 @@ struct WorkerOptions {
   uint32_t capacity = 3;
   std::string name;  // shown in the coordinator's worker list; default host:pid
   HeartbeatPolicy heartbeat;
+  // Where fetched assets (texture images) are kept by hash; empty: a folder per user under
+  // the system's temp directory, shared by the workers of one machine.
+  std::filesystem::path assetCache;
+  uint64_t maxAssetBytes = uint64_t{4} << 30;
 };
 
 class WorkerDaemon {
@@ -56,6 +64,12 @@ class WorkerDaemon {
   void Handle(wire::Message message);
   void OnTask(wire::Task task);
   void OnScene(const wire::SceneData& scene);
+  void OnAssetPiece(const wire::AssetPiece& piece);
+  void OnCoordinatorError(const wire::Error& error);
+  // A parsed scene that names assets this worker lacks: ask for each (once), build later.
+  void AwaitAssets(const std::string& sceneHash, SceneCache::Built built, std::vector<wire::Task> tasks);
+  void StartBuild(const std::string& sceneHash, std::function<SceneCache::Built()> build, std::vector<wire::Task> tasks);
+  void FailTasks(const std::vector<wire::Task>& tasks, const std::string& sceneHash, const std::string& why);
   // Scenes whose build has finished: cached, and their tasks made ready (or failed).
   void CollectBuiltScenes();
   void TraceNext();
@@ -80,6 +94,14 @@ class WorkerDaemon {
     std::vector<wire::Task> tasks;
   };
   std::map<std::string, SceneBuild> building_;
+  AssetCache assets_;
+  // Scenes parsed but waiting for assets, by scene hash.
+  struct AssetWait {
+    std::unique_ptr<Scene> scene;
+    std::set<std::string> missing;
+    std::vector<wire::Task> tasks;
+  };
+  std::map<std::string, AssetWait> waitingForAssets_;
   WorkerMetrics metrics_;
   std::atomic<SteadyTime::rep> lastLoopTurn_;
   std::atomic<bool> coordinatorAnswers_{false};

@@ -32,6 +32,8 @@ struct WorkerMetrics {
   prometheus::Counter& sceneCacheHits;    // tasks whose scene was already built
   prometheus::Counter& sceneCacheMisses;  // scenes fetched from the coordinator
   prometheus::Counter& sceneErrors;       // scenes that failed to build
+  prometheus::Counter& assetsFetched;     // assets asked of the coordinator (not in the cache)
+  prometheus::Counter& assetBytes;        // bytes of assets received
   prometheus::Counter& messagesMalformed;
   prometheus::Counter& reconnects;
   prometheus::Gauge& raysPerSecond;  // rays / tracing second of the last task

@@ -8,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -122,6 +124,33 @@ TEST_F(TextureTest, BadTexturesAreRefusedWithTheirPointer) {
   failsAt(R"({"image": "checker.png"})", std::nullopt, "/materials/printed/diffuse_texture/image");
   failsAt(R"({"image": "checker.png", "wrap_s": "tile"})", folder_, "/materials/printed/diffuse_texture/wrap_s");
   failsAt(R"({"image": "checker.png", "filter": "cubic"})", folder_, "/materials/printed/diffuse_texture/filter");
+  failsAt(R"({"asset": "ABC"})", folder_, "/materials/printed/diffuse_texture/asset");
+  failsAt(R"({"asset": ")" + std::string(64, 'a') + R"(", "image": "checker.png"})", folder_,
+          "/materials/printed/diffuse_texture");
+  failsAt(R"({"filter": "nearest"})", folder_, "/materials/printed/diffuse_texture");
+}
+
+std::string ReadBytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// A texture named by hash renders the same as the file it names, whether a worker's cache
+// holds the image under its hash (no extension) or an imported glTF holds it in memory.
+TEST_F(TextureTest, AnAssetRendersLikeItsFileFromDiskOrMemory) {
+  const std::string texture = R"({"image": "checker.png", "filter": "nearest"})";
+  const std::vector<float> expected = Render(TexturedSquare(texture));
+  const std::string hash(64, 'a');
+  Scene cached = TexturedSquare(R"({"asset": ")" + hash + R"(", "filter": "nearest"})");
+  EXPECT_THROW(Render(cached), TextureError);  // not fetched yet
+  fs::copy_file(folder_ / "checker.png", folder_ / hash);
+  cached.materials[1].diffuseTexture->file = folder_ / hash;
+  EXPECT_EQ(Render(cached), expected);
+  Scene inMemory = TexturedSquare(R"({"asset": ")" + hash + R"(", "filter": "nearest"})");
+  inMemory.materials[1].diffuseTexture->bytes = std::make_shared<const std::string>(ReadBytes(folder_ / "checker.png"));
+  EXPECT_EQ(Render(inMemory), expected);
+  EXPECT_EQ(SerializeScene(inMemory).find("checker"), std::string::npos);
+  EXPECT_NE(SerializeScene(inMemory).find(R"("asset":")" + hash), std::string::npos);
 }
 
 TEST_F(TextureTest, AFileThatIsNoImageIsAClearError) {

@@ -1,9 +1,12 @@
 #include "trace/textures.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <string>
 
 namespace tcfarm {
 namespace {
@@ -30,19 +33,33 @@ int WrapIndex(int index, int size, Texture::Wrap wrap) {
   return 0;
 }
 
+// OpenImageIO picks a reader by the file name's extension; an image held in memory has
+// none, so its first bytes name the format.
+std::string FormatNameFor(const std::string& bytes) {
+  if (bytes.rfind("\x89PNG", 0) == 0) return "embedded.png";
+  if (bytes.rfind("\xff\xd8", 0) == 0) return "embedded.jpg";
+  return "embedded";
+}
+
 }  // namespace
 
 TextureImage::TextureImage(const Texture& texture)
     : wrapS_(texture.wrapS), wrapT_(texture.wrapT), filter_(texture.filter) {
-  OIIO::ImageBuf image(texture.file.string());
+  const std::string name = texture.Describe();
+  if (!texture.bytes && texture.file.empty()) throw TextureError("texture " + name + " has not been fetched");
+  // The reader of an image in memory must outlive the read below, which is forced whole.
+  std::unique_ptr<OIIO::Filesystem::IOMemReader> memory;
+  if (texture.bytes) memory = std::make_unique<OIIO::Filesystem::IOMemReader>(texture.bytes->data(), texture.bytes->size());
+  OIIO::ImageBuf image(texture.bytes ? FormatNameFor(*texture.bytes) : texture.file.string(), 0, 0, nullptr, nullptr,
+                       memory.get());
   if (!image.read(0, 0, true, OIIO::TypeDesc::FLOAT)) {
-    throw TextureError("cannot read texture image " + texture.image + ": " + image.geterror());
+    throw TextureError("cannot read texture image " + name + ": " + image.geterror());
   }
   const OIIO::ROI roi = image.roi();
   width_ = roi.width();
   height_ = roi.height();
   const int channels = image.nchannels();
-  if (width_ <= 0 || height_ <= 0 || channels <= 0) throw TextureError("texture image " + texture.image + " is empty");
+  if (width_ <= 0 || height_ <= 0 || channels <= 0) throw TextureError("texture image " + name + " is empty");
   std::vector<float> pixels(static_cast<size_t>(width_) * height_ * channels);
   image.get_pixels(roi, OIIO::TypeDesc::FLOAT, pixels.data());
   texels_.reserve(static_cast<size_t>(width_) * height_);

@@ -27,6 +27,7 @@
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
+#include "wire/content_hash.h"
 #include "scene/import/mesh_geometry.h"
 #include "scene/import/importers.h"
 #include "scene/import/messages.h"
@@ -133,10 +134,12 @@ bool WriteNothing(std::string* error, const std::string&, const std::vector<unsi
   return false;
 }
 
-// Textures are not rendered yet: images are read (so a missing one is noticed) but never
-// decoded.
-bool KeepImageUndecoded(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
-                        void*) {
+// Images are kept as their file's bytes (PNG, JPEG): workers decode them when a scene is
+// built, and the bytes' hash names the image wherever the scene travels.
+bool KeepImageEncoded(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
+                      const unsigned char* bytes, int size, void*) {
+  image->image.assign(bytes, bytes + size);
+  image->as_is = true;
   return true;
 }
 
@@ -479,7 +482,7 @@ class GltfReader {
       access.prefix = base + "/";
     }
     loader.SetFsCallbacks({&FileExistsInside, &ExpandNothing, &ReadFileInside, &WriteNothing, &access});
-    loader.SetImageLoader(&KeepImageUndecoded, nullptr);
+    loader.SetImageLoader(&KeepImageEncoded, nullptr);
     std::string error, warning;
     bool loaded = false;
     const auto* data = reinterpret_cast<const unsigned char*>(input_.bytes.data());
@@ -719,7 +722,7 @@ class GltfReader {
     material.shininess = r4 > 0 ? std::clamp(2 / r4 - 2, kMinShininess, kMaxShininess) : kMaxShininess;
     material.indexOfRefraction = std::clamp(ior, kMinIor, kMaxIor);
     if (pbr.baseColorTexture.index >= 0) {
-      Warn(pointer, "baseColorTexture is not rendered yet (its UVs are kept); the base colour factor is used");
+      material.diffuseTexture = MapTexture(pbr.baseColorTexture, pointer + "/pbrMetallicRoughness/baseColorTexture");
     }
     if (source.emissiveFactor.size() == 3) {
       for (int c = 0; c < 3; ++c) {
@@ -731,6 +734,48 @@ class GltfReader {
       }
     }
     return material;
+  }
+
+  // glTF's sampler codes (WebGL's enums); a sampler that leaves one out means repeat and
+  // the renderer's choice of filter, here bilinear.
+  static Texture::Wrap WrapOf(int code) {
+    if (code == TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE) return Texture::Wrap::kClampToEdge;
+    if (code == TINYGLTF_TEXTURE_WRAP_MIRRORED_REPEAT) return Texture::Wrap::kMirroredRepeat;
+    return Texture::Wrap::kRepeat;
+  }
+
+  Texture MapTexture(const tinygltf::TextureInfo& info, const std::string& pointer) const {
+    if (static_cast<size_t>(info.index) >= model_.textures.size()) {
+      Fail(pointer + "/index", "texture " + std::to_string(info.index) + " does not exist",
+           "an index below the file's " + std::to_string(model_.textures.size()) + " textures");
+    }
+    if (info.texCoord != 0) Warn(pointer + "/texCoord", "only TEXCOORD_0 is kept; the texture is sampled with it");
+    const tinygltf::Texture& source = model_.textures[static_cast<size_t>(info.index)];
+    const std::string texturePointer = Pointer("textures", static_cast<size_t>(info.index));
+    if (source.source < 0 || static_cast<size_t>(source.source) >= model_.images.size()) {
+      Fail(texturePointer + "/source", "image " + std::to_string(source.source) + " does not exist",
+           "an index below the file's " + std::to_string(model_.images.size()) + " images");
+    }
+    const tinygltf::Image& image = model_.images[static_cast<size_t>(source.source)];
+    if (image.image.empty()) {
+      Fail(Pointer("images", static_cast<size_t>(source.source)), "the image holds no bytes",
+           "a PNG or JPEG image in a file, a data URI or a buffer view");
+    }
+    Texture texture;
+    texture.bytes = std::make_shared<const std::string>(image.image.begin(), image.image.end());
+    texture.asset = wire::Sha256Hex(*texture.bytes);
+    if (!image.uri.empty() && image.uri.compare(0, 5, "data:") != 0) texture.image = UrlDecode(image.uri);
+    if (source.sampler >= 0) {
+      if (static_cast<size_t>(source.sampler) >= model_.samplers.size()) {
+        Fail(texturePointer + "/sampler", "sampler " + std::to_string(source.sampler) + " does not exist",
+             "an index below the file's " + std::to_string(model_.samplers.size()) + " samplers");
+      }
+      const tinygltf::Sampler& sampler = model_.samplers[static_cast<size_t>(source.sampler)];
+      texture.wrapS = WrapOf(sampler.wrapS);
+      texture.wrapT = WrapOf(sampler.wrapT);
+      if (sampler.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST) texture.filter = Texture::Filter::kNearest;
+    }
+    return texture;
   }
 
   // Materials as the scene parser orders them ("default" first, then by name), so the
