@@ -4,6 +4,7 @@ the standalone renderer renders the same scene from disk."""
 import hashlib
 import json
 import os
+import pathlib
 import re
 import shutil
 import subprocess
@@ -13,6 +14,8 @@ import urllib.request
 
 import pytest
 
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "gltf"))
+import make_gltf  # noqa: E402  (its PNG writer)
 from farm_harness import ROOT, WORKER, LocalFarm, compare
 from tcfarm.client import ApiError
 
@@ -113,23 +116,53 @@ def test_a_missing_asset_is_named(farm):
     assert lacking in str(error.value)
 
 
-def test_a_textured_scene_is_refused_until_workers_fetch_images(farm, tmp_path):
-    # A real PNG (1x1, red) uploaded as an asset: the scene parses, but its image could not
-    # reach the workers, so the submission is refused before any job exists.
-    png = bytes.fromhex("89504e470d0a1a0a0000000d4948445200000001000000010802000000907753de"
-                        "0000000c4944415408d763f8cfc000000301010018dd8db00000000049454e44ae426082")
-    image = tmp_path / "red.png"
-    image.write_bytes(png)
-    hash_ = farm.client.upload_assets([str(image)]).hashes[str(image)]
-    scene = scene_with_mesh_file("unused.obj")
-    scene["shapes"] = []
-    scene["materials"] = {"printed": {"diffuse_texture": {"image": "red.png"}}}
+def textured_scene(texture):
+    """A printed quad facing the camera, a sphere rolling in front of it."""
+    scene = scene_with_mesh_file("unused.obj", frames=6)
+    scene["materials"]["printed"] = {"diffuse": [1, 1, 1], "diffuse_texture": texture}
+    scene["shapes"][0] = {"type": "mesh", "material": "printed",
+                          "vertices": [[-3, -1, -1], [3, -1, -1], [3, 3, -1], [-3, 3, -1]],
+                          "uvs": [[0, 2], [3, 2], [3, 0], [0, 0]], "triangles": [[0, 1, 2], [0, 2, 3]]}
+    return scene
+
+
+def test_a_textured_scene_renders_on_workers_as_from_disk(farm, tmp_path):
+    """`tcfarm submit scene.json` uploads the image the scene names; workers fetch it by
+    hash and trace what tcfarm-worker render traces from the folder, bit for bit."""
+    folder = tmp_path / "textured"
+    folder.mkdir()
+    (folder / "bricks.png").write_bytes(make_gltf.png_bytes(make_gltf.checker(6, (180, 60, 40), (220, 210, 190))))
+    (folder / "scene.json").write_text(json.dumps(textured_scene({"image": "bricks.png", "filter": "nearest"})))
+    reference = tmp_path / "reference"
+    rendered = subprocess.run([str(WORKER), "render", str(folder / "scene.json"), "--out", str(reference),
+                               "--no-png"], capture_output=True, text=True, timeout=300)
+    assert rendered.returncode == 0, rendered.stderr
+    result = tcfarm(farm, "--json", "submit", folder / "scene.json", "--strategy", "exact", "--wait")
+    assert result.returncode == 0, result.stderr
+    job = json.loads(result.stdout.strip().splitlines()[-1])
+    assert job["state"] == "completed", job
+    error = compare(reference, farm.store / str(job["id"]))
+    print(f"textured scene exact: traced-pixel ratio {job['traced_pixel_ratio']:.3f}, "
+          f"{error['differing_pixels']} pixels differ")
+    assert error["differing_pixels"] == 0 and error["frames"] == 6, error
+    # The same image named by its hash, uploaded by the submission: the same frames.
+    hash_ = sha256((folder / "bricks.png").read_bytes())
+    assert (farm.store / "assets" / hash_).exists()
+    by_hash = farm.run_job(textured_scene({"asset": hash_, "filter": "nearest"}), strategy="brute")
+    assert compare(reference, farm.store / str(by_hash["id"]))["differing_pixels"] == 0
+
+
+def test_a_texture_the_farm_lacks_is_named_and_no_job_is_made(farm):
+    lacking = sha256(b"an image never uploaded")
     jobs_before = len(farm.client.jobs())
     with pytest.raises(ApiError) as error:
-        farm.client.submit(scene, assets={"red.png": hash_})
+        farm.client.submit(textured_scene({"asset": lacking}))
+    assert (error.value.status, error.value.code) == (400, "missing_asset")
+    assert error.value.pointer == "/scene/materials/printed/diffuse_texture/asset"
+    assert lacking in str(error.value) and "PUT /api/v1/assets" in str(error.value)
+    with pytest.raises(ApiError) as error:
+        farm.client.submit(textured_scene({"asset": "not-a-hash"}))
     assert (error.value.status, error.value.code) == (400, "invalid_scene")
-    assert error.value.pointer == "/scene/materials/printed/diffuse_texture"
-    assert "tcfarm-worker render" in str(error.value)
     assert len(farm.client.jobs()) == jobs_before
 
 

@@ -11,11 +11,27 @@ import math
 import pathlib
 import struct
 import sys
+import zlib
 
 FLOAT, UNSIGNED_BYTE, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5121, 5123, 5125
 TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN = 4, 5, 6
 _FORMATS = {FLOAT: "f", UNSIGNED_BYTE: "B", UNSIGNED_SHORT: "H", UNSIGNED_INT: "I"}
 _COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+
+
+def png_bytes(rows):
+    """An 8-bit RGB PNG of rows of (r, g, b) codes, top row first."""
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    height, width = len(rows), len(rows[0])
+    raw = b"".join(b"\0" + bytes(c for texel in row for c in texel) for row in rows)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+            chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+
+
+def checker(size, a, b):
+    """size x size texels alternating colours a and b."""
+    return [[a if (x + y) % 2 == 0 else b for x in range(size)] for y in range(size)]
 
 
 def axis_angle(axis, degrees):
@@ -59,10 +75,36 @@ class Gltf:
             accessor["max"] = [max(stored[i::n]) for i in range(n)]
         return self._add("accessors", accessor)
 
-    def material(self, name, base_color, metallic=0.0, roughness=1.0, transmission=None, ior=None):
+    def texture(self, png, how="data", uri=None, wrap=None, mag_filter=None):
+        """A texture of PNG bytes stored `how`: "data" (a data URI), "view" (a buffer view,
+        as a GLB holds images) or "file" (uri, a file the caller writes beside the glTF);
+        wrap: (wrapS, wrapT) codes; mag_filter: 9728 nearest, 9729 linear."""
+        if how == "data":
+            image = {"uri": "data:image/png;base64," + base64.b64encode(png).decode()}
+        elif how == "view":
+            while len(self.buffer) % 4:
+                self.buffer.append(0)
+            view = self._add("bufferViews", {"buffer": 0, "byteOffset": len(self.buffer), "byteLength": len(png)})
+            self.buffer += png
+            image = {"bufferView": view, "mimeType": "image/png"}
+        else:
+            image = {"uri": uri}
+        texture = {"source": self._add("images", image)}
+        if wrap or mag_filter:
+            sampler = {}
+            if wrap:
+                sampler["wrapS"], sampler["wrapT"] = wrap
+            if mag_filter:
+                sampler["magFilter"] = mag_filter
+            texture["sampler"] = self._add("samplers", sampler)
+        return self._add("textures", texture)
+
+    def material(self, name, base_color, metallic=0.0, roughness=1.0, transmission=None, ior=None, texture=None):
         material = {"name": name, "pbrMetallicRoughness": {
             "baseColorFactor": list(base_color) + [1.0], "metallicFactor": metallic,
             "roughnessFactor": roughness}}
+        if texture is not None:
+            material["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
         if transmission is not None or ior is not None:
             material["extensions"] = {}
         if transmission is not None:
@@ -191,6 +233,24 @@ def red_quad():
     return g
 
 
+# The red quad's 2x2 texture: top row red and green, bottom row blue and white.
+QUAD_TEXELS = [[(255, 0, 0), (0, 255, 0)], [(0, 0, 255), (255, 255, 255)]]
+
+
+def textured_quad(how="data"):
+    """The red quad, white, printed with QUAD_TEXELS (nearest filter): each quarter of the
+    quad shows one texel, head-on, so pixel = 1.05 x texel + the grey glint."""
+    g = Gltf()
+    printed = g.material("printed", (1.0, 1.0, 1.0), texture=g.texture(
+        png_bytes(QUAD_TEXELS), how, uri="quad.png", mag_filter=9728))
+    g.node(name="quad", mesh=g.mesh([{"positions": quad(1.0), "indices": [0, 1, 2, 0, 2, 3],
+                                      "material": printed, "normals": [0, 0, 1] * 4,
+                                      "uvs": [0, 1, 1, 1, 1, 0, 0, 0]}]))
+    g.node(name="eye", camera=g.camera(0.8), translation=[0, 0, 3])
+    g.node(name="sun", light=g.light("directional", 1.0))
+    return g
+
+
 def cube(size):
     """A cube of side 2 * size about the origin: 8 positions, 12 triangles."""
     s = size
@@ -253,8 +313,39 @@ def animated_hierarchy():
     return g
 
 
+def textured_turntable(how="data"):
+    """The animated hierarchy, textured: a checkered floor (its image stored `how`), a
+    striped box on the turntable (a data URI, repeating twice across each face), and a spot
+    light whose cone edge sweeps the floor as it turns. Still camera."""
+    g = animated_hierarchy()
+    floor_texture = g.texture(png_bytes(checker(8, (230, 230, 230), (40, 90, 160))), how, uri="floor.png")
+    stripes = g.texture(png_bytes([[(250, 200, 40), (200, 30, 30)] * 4] * 2), "data", wrap=(10497, 33648),
+                        mag_filter=9728)
+    floor = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "floor")
+    red = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "red")
+    g.doc["materials"][floor]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": floor_texture}
+    g.doc["materials"][red]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": stripes}
+    # Texture coordinates for the floor strip (tiled 3 times) and the box (twice per vertex span).
+    floor_node = next(n for n in g.doc["nodes"] if n.get("name") == "floor")
+    floor_primitive = g.doc["meshes"][floor_node["mesh"]]["primitives"][0]
+    floor_primitive["attributes"]["TEXCOORD_0"] = g.accessor([0, 0, 0, 3, 3, 0, 3, 3], "VEC2", target=34962)
+    box = next(i for i, m in enumerate(g.doc["meshes"]) if m.get("name") == "box")
+    uvs = [0, 0, 2, 0, 2, 2, 0, 2, 0, 2, 2, 2, 2, 0, 0, 0]
+    g.doc["meshes"][box]["primitives"][0]["attributes"]["TEXCOORD_0"] = g.accessor(uvs, "VEC2", target=34962)
+    # A spot light on the turntable's arm, pointing down and out: its cone sweeps the floor.
+    turntable = next(i for i, n in enumerate(g.doc["nodes"]) if n.get("name") == "turntable")
+    spot = g.light("spot", 40.0, (0.9, 0.9, 1.0))
+    g.doc["extensions"]["KHR_lights_punctual"]["lights"][spot]["spot"] = {"innerConeAngle": 0.2,
+                                                                         "outerConeAngle": 0.35}
+    g.node(turntable, name="spot", light=spot, translation=[0, 3, 2], rotation=axis_angle([1, 0, 0], -70))
+    return g
+
+
 EXAMPLES = {"red_quad.gltf": red_quad, "red_quad.glb": red_quad,
-            "animated_hierarchy.gltf": animated_hierarchy}
+            "animated_hierarchy.gltf": animated_hierarchy,
+            "textured_quad.gltf": textured_quad, "textured_quad.glb": lambda: textured_quad("view"),
+            "textured_turntable.gltf": textured_turntable,
+            "textured_turntable.glb": lambda: textured_turntable("view")}
 
 
 def main(argv):

@@ -42,11 +42,16 @@ def _add(assets, folder, name, scene_path, what):
 
 
 def _json_references(scene):
-    """The mesh files a tcfarm JSON scene names (and, once there, glTF uris)."""
+    """The mesh files and texture images a tcfarm JSON scene names."""
     shapes = scene.get("shapes") if isinstance(scene, dict) else None
     for shape in shapes if isinstance(shapes, list) else []:
         if isinstance(shape, dict) and isinstance(shape.get("file"), str):
             yield shape["file"], "mesh file"
+    materials = scene.get("materials") if isinstance(scene, dict) else None
+    for material in materials.values() if isinstance(materials, dict) else []:
+        texture = material.get("diffuse_texture") if isinstance(material, dict) else None
+        if isinstance(texture, dict) and isinstance(texture.get("image"), str):
+            yield texture["image"], "texture image"
 
 
 def _obj_libraries(text):
