@@ -81,7 +81,7 @@ void TraceMovingMeshes(benchmark::State& state) {
     frame = (frame + 1) % scene.render.frameCount;
   }
   size_t triangles = 0;
-  for (const Shape& shape : scene.shapes) triangles += shape.mesh.triangles.size();
+  for (const Shape& shape : scene.shapes) triangles += shape.Mesh().triangles.size();
   state.counters["triangles"] = static_cast<double>(triangles);
   state.counters["frames/s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
 }
@@ -95,7 +95,7 @@ class BareEmbreeFrames {
       RTCScene own = rtcNewScene(device);
       RTCGeometry geometry = rtcNewGeometry(device, shape.type == Shape::Type::kQuad ? RTC_GEOMETRY_TYPE_QUAD
                                                                                     : RTC_GEOMETRY_TYPE_TRIANGLE);
-      std::vector<Vec3> points = shape.mesh.vertices;
+      std::vector<Vec3> points = shape.Mesh().vertices;
       std::vector<unsigned> indices;
       if (shape.type == Shape::Type::kQuad) {
         const Vec3 &c = shape.corner, &u = shape.edgeU, &v = shape.edgeV;
@@ -103,7 +103,7 @@ class BareEmbreeFrames {
                   {c.x + v.x, c.y + v.y, c.z + v.z}};
         indices = {0, 1, 2, 3};
       } else {
-        for (const auto& t : shape.mesh.triangles) indices.insert(indices.end(), t.begin(), t.end());
+        for (const auto& t : shape.Mesh().triangles) indices.insert(indices.end(), t.begin(), t.end());
       }
       auto* vertex = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                                                  3 * sizeof(float), points.size()));
