@@ -93,6 +93,24 @@ void OffsetPivot(Motion& motion, const Vec3& offset) {
 
 }  // namespace
 
+namespace {
+
+// Shared meshes move once, by the same offset an inline copy would: every shape placing
+// one sees the bits its inline twin would. The moved meshes are new (the old ones may be
+// shared with other copies of the scene).
+void OffsetSharedMeshes(Scene& scene, const Vec3& offset) {
+  for (auto& [name, shared] : scene.meshes) {
+    auto moved = std::make_shared<TriangleMesh>(*shared);
+    for (Vec3& v : moved->vertices) v = Plus(v, offset);
+    shared = std::move(moved);
+  }
+  for (Shape& shape : scene.shapes) {
+    if (shape.SharesMesh()) shape.sharedMesh = scene.meshes.at(shape.meshRef);
+  }
+}
+
+}  // namespace
+
 void TranslateScene(Scene& scene, const Vec3& offset) {
   scene.camera.position = Offset(scene.camera.position, offset);
   scene.camera.lookAt = Offset(scene.camera.lookAt, offset);
@@ -108,6 +126,7 @@ void TranslateScene(Scene& scene, const Vec3& offset) {
     shape.terrain.origin = Plus(shape.terrain.origin, offset);
     for (Vec3& v : shape.mesh.vertices) v = Plus(v, offset);
   }
+  OffsetSharedMeshes(scene, offset);
 }
 
 namespace {
@@ -140,6 +159,13 @@ bool PlaceStillShape(Shape& shape, const Affine& placement) {
       return true;
     case Shape::Type::kMesh:
     case Shape::Type::kTerrain:
+      if (shape.SharesMesh()) {
+        // A still placement is built into world-space triangles of its own, as an inline
+        // copy would be (see PlaceStillShapes in scene.h).
+        shape.mesh = *shape.sharedMesh;
+        shape.sharedMesh.reset();
+        shape.meshRef.clear();
+      }
       for (Vec3& v : shape.mesh.vertices) v = placement.Apply(v);
       return true;
   }

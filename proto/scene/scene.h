@@ -3,7 +3,7 @@
 // A scene file is JSON (proto/scene.schema.json describes it). ParseScene turns it into
 // the plain structs below or throws SceneError naming the JSON pointer of the bad value.
 // Everything downstream (worker, coordinator) trusts a Scene: all numbers are finite,
-// all references resolved, all meshes inline.
+// all references resolved, every mesh either inline or a shared mesh of Scene::meshes.
 #pragma once
 
 #include <array>
@@ -139,8 +139,13 @@ struct Shape {
   double radius = 1;
   // kQuad: corner, corner + edgeU, corner + edgeU + edgeV, corner + edgeV
   Vec3 corner, edgeU, edgeV;
-  // kMesh, and kTerrain after generation (the parser generates terrain meshes)
+  // kMesh, and kTerrain after generation (the parser generates terrain meshes): the
+  // shape's own triangles, empty when it places a shared mesh instead.
   TriangleMesh mesh;
+  // kMesh placing a mesh of Scene::meshes (one mesh, many placements: a forest of one
+  // tree): its name there, and the mesh itself, held by the scene's table as well.
+  std::string meshRef;
+  std::shared_ptr<const TriangleMesh> sharedMesh;
   // kTerrain parameters, kept so the scene can be written back
   struct Terrain {
     Vec3 origin;               // the minimum x/z corner at height 0
@@ -151,6 +156,9 @@ struct Shape {
   } terrain;
 
   bool Moves() const { return motion.IsAnimated(); }
+  bool SharesMesh() const { return sharedMesh != nullptr; }
+  // The triangles the shape places, its own or the shared ones: what every consumer reads.
+  const TriangleMesh& Mesh() const { return sharedMesh ? *sharedMesh : mesh; }
 };
 
 struct RenderSettings {
@@ -168,6 +176,9 @@ struct Scene {
   std::vector<Light> lights;
   std::vector<Material> materials;
   std::vector<Shape> shapes;
+  // Meshes placed by several shapes (Shape::meshRef), by name: written and sent once.
+  // Immutable once parsed, so copies of a scene share them.
+  std::map<std::string, std::shared_ptr<const TriangleMesh>> meshes;
   Vec3 background{0, 0, 0};
   RenderSettings render;
 
@@ -191,7 +202,9 @@ void RebaseOnCamera(Scene& scene);
 // Builds every shape that never moves where its constant transform puts it (vertices,
 // quad corner and edges, sphere centre and radius under a uniform scale), leaving it
 // with no motion, so a tracer holds it in its still geometry. A sphere scaled unevenly
-// keeps its transform. Images are the same up to rounding.
+// keeps its transform. A still shape placing a shared mesh gets its own placed copy: the
+// static geometry holds world-space triangles, and an instance would trace other bits
+// than the same mesh written inline. Images are the same up to rounding.
 void PlaceStillShapes(Scene& scene);
 
 // What a tracer is given, here as on every worker, so all trace the same bits:
@@ -222,7 +235,8 @@ Scene ParseScene(const std::string& jsonText,
 // ImportScene (scene/import/scene_import.h) reads a scene file of any supported format.
 Scene LoadSceneFile(const std::filesystem::path& path);
 
-// Writes a scene back to self-contained JSON (meshes inline, terrain as parameters).
+// Writes a scene back to self-contained JSON (meshes inline or in the shared table, once,
+// terrain as parameters); a scene without shared meshes writes no "meshes" key.
 // ParseScene(SerializeScene(s)) == s. Stable output: the same scene gives the same bytes,
 // so a hash of it identifies the scene.
 std::string SerializeScene(const Scene& scene);

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
+#include <set>
 #include <sstream>
 #include <system_error>
 #include <utility>
@@ -523,13 +525,15 @@ class SceneReader {
 
   Scene Read(const json& document) {
     Node root{document, ""};
-    ExpectObject(root, {"camera", "lights", "materials", "shapes", "background", "render"}, "a scene object");
+    ExpectObject(root, {"camera", "lights", "materials", "meshes", "shapes", "background", "render"},
+                 "a scene object");
     Scene scene;
     scene.render = ReadRender(Required(root, "render", "render settings {\"width\", \"height\", ...}"));
     range_ = FrameRange{scene.render.firstFrame, scene.render.LastFrame()};
     scene.materials = ReadMaterials(root);
     scene.camera = ReadCamera(Required(root, "camera", "a camera {\"position\", \"look_at\", ...}"));
     if (root.Has("lights")) scene.lights = ReadLights(root.Member("lights"));
+    if (root.Has("meshes")) scene.meshes = ReadSharedMeshes(root.Member("meshes"));
     if (root.Has("shapes")) scene.shapes = ReadShapes(root.Member("shapes"));
     if (root.Has("background")) scene.background = ReadColour(root.Member("background"));
     // Terrain meshes are generated only once the whole scene is known to be valid: a
@@ -869,25 +873,72 @@ class SceneReader {
   }
 
   void ReadMesh(const Node& node, Shape& shape) {
-    ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "file"}), "a mesh");
+    ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "file", "mesh_ref"}), "a mesh");
     shape.type = Shape::Type::kMesh;
+    if (node.Has("mesh_ref")) {
+      ReadMeshRef(node, shape);
+      return;
+    }
+    shape.mesh = ReadMeshGeometry(node);
+  }
+
+  // A mesh's own triangles, inline or from an OBJ file: a mesh shape's, or a shared one's.
+  TriangleMesh ReadMeshGeometry(const Node& node) {
+    TriangleMesh mesh;
     if (node.Has("file")) {
       if (node.Has("vertices") || node.Has("triangles") || node.Has("normals") || node.Has("uvs")) {
         Fail(node.MemberPointer("file"), "both a file and inline geometry",
              "either \"file\" or inline \"vertices\" and \"triangles\"");
       }
-      shape.mesh = LoadMeshFile(node.Member("file"));
-      CheckMesh(shape.mesh, node.Member("file"), node.Member("file"));
-      return;
+      mesh = LoadMeshFile(node.Member("file"));
+      CheckMesh(mesh, node.Member("file"), node.Member("file"));
+      return mesh;
     }
     const std::string expected = "inline \"vertices\" and \"triangles\", or a \"file\"";
     Node vertices = Required(node, "vertices", expected);
     Node triangles = Required(node, "triangles", expected);
-    shape.mesh.vertices = ReadVertices(vertices);
-    shape.mesh.triangles = ReadTriangles(triangles, shape.mesh.vertices.size());
-    if (node.Has("normals")) shape.mesh.normals = ReadNormals(node.Member("normals"), shape.mesh.vertices.size());
-    if (node.Has("uvs")) shape.mesh.uvs = ReadUvs(node.Member("uvs"), shape.mesh.vertices.size());
-    CheckMesh(shape.mesh, vertices, triangles);
+    mesh.vertices = ReadVertices(vertices);
+    mesh.triangles = ReadTriangles(triangles, mesh.vertices.size());
+    if (node.Has("normals")) mesh.normals = ReadNormals(node.Member("normals"), mesh.vertices.size());
+    if (node.Has("uvs")) mesh.uvs = ReadUvs(node.Member("uvs"), mesh.vertices.size());
+    CheckMesh(mesh, vertices, triangles);
+    return mesh;
+  }
+
+  // Every shared mesh is read and checked, used or not: a scene holds no invalid geometry.
+  std::map<std::string, std::shared_ptr<const TriangleMesh>> ReadSharedMeshes(const Node& node) {
+    if (!node.value.is_object()) FailType(node, "an object mapping mesh names to meshes");
+    for (const auto& entry : node.value.items()) {
+      Node mesh = node.Member(entry.key());
+      ExpectObject(mesh, {"vertices", "triangles", "normals", "uvs", "file"}, "a shared mesh");
+      sharedMeshes_[entry.key()] = std::make_shared<const TriangleMesh>(ReadMeshGeometry(mesh));
+      unplacedMeshes_.insert(entry.key());
+    }
+    return sharedMeshes_;
+  }
+
+  void ReadMeshRef(const Node& node, Shape& shape) {
+    Node ref = node.Member("mesh_ref");
+    if (node.Has("vertices") || node.Has("triangles") || node.Has("normals") || node.Has("uvs") || node.Has("file")) {
+      Fail(ref.pointer, "both a shared mesh and geometry of its own",
+           "either \"mesh_ref\" or inline \"vertices\" and \"triangles\" or a \"file\"");
+    }
+    shape.meshRef = ReadString(ref, "the name of a shared mesh");
+    auto found = sharedMeshes_.find(shape.meshRef);
+    if (found == sharedMeshes_.end()) {
+      Fail(ref.pointer, "unknown mesh " + Quote(shape.meshRef), SharedMeshChoices());
+    }
+    shape.sharedMesh = found->second;
+    // The table charged the mesh once; every further placement costs a worker its
+    // triangles again (a still one is built in place, as an inline copy).
+    if (unplacedMeshes_.erase(shape.meshRef) == 0) ChargeTriangles(shape.sharedMesh->triangles.size(), ref);
+  }
+
+  std::string SharedMeshChoices() const {
+    if (sharedMeshes_.empty()) return "the name of a mesh in the scene's \"meshes\" (it has none)";
+    std::vector<std::string> names;
+    for (const auto& entry : sharedMeshes_) names.push_back(Quote(entry.first));
+    return "one of the shared meshes " + JoinNames(names);
   }
 
   static void ExpectOnePerVertex(const Node& node, size_t vertexCount, const std::string& what) {
@@ -1033,6 +1084,8 @@ class SceneReader {
   std::optional<std::filesystem::path> baseDirectory_;
   FrameRange range_{0, 0};
   std::map<std::string, int> materialIndex_;
+  std::map<std::string, std::shared_ptr<const TriangleMesh>> sharedMeshes_;
+  std::set<std::string> unplacedMeshes_;  // shared meshes no shape has placed yet
   size_t triangleCount_ = 0;
 };
 
@@ -1180,6 +1233,7 @@ json ShapeGeometryJson(const Shape& shape) {
                   {"edge_u", Vec3Json(shape.edgeU)},
                   {"edge_v", Vec3Json(shape.edgeV)}};
     case Shape::Type::kMesh:
+      if (shape.SharesMesh()) return json{{"type", "mesh"}, {"mesh_ref", shape.meshRef}};
       return MeshJson(shape.mesh, json{{"type", "mesh"}});
     case Shape::Type::kTerrain: {
       const Shape::Terrain& t = shape.terrain;
@@ -1196,6 +1250,12 @@ json ShapeJson(const Shape& shape, const std::vector<Material>& materials) {
   if (!shape.name.empty()) result["name"] = shape.name;
   result["material"] = materials.at(static_cast<size_t>(shape.material)).name;
   result["motion"] = MotionJson(shape.motion);
+  return result;
+}
+
+json SharedMeshesJson(const std::map<std::string, std::shared_ptr<const TriangleMesh>>& meshes) {
+  json result = json::object();
+  for (const auto& [name, mesh] : meshes) result[name] = MeshJson(*mesh, json::object());
   return result;
 }
 
@@ -1235,6 +1295,8 @@ std::string SerializeScene(const Scene& scene) {
   json document{{"camera", CameraJson(scene.camera)}, {"lights", lights},
                 {"materials", materials},             {"shapes", shapes},
                 {"background", Vec3Json(scene.background)}, {"render", RenderJson(scene.render)}};
+  // Only scenes with shared meshes have the key: every other scene keeps its bytes (and hash).
+  if (!scene.meshes.empty()) document["meshes"] = SharedMeshesJson(scene.meshes);
   return document.dump();
 }
 

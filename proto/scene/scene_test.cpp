@@ -626,5 +626,98 @@ TEST(SceneRebaseTest, CameraStandsAtTheOriginAndMotionsStay) {
   EXPECT_EQ(scene.AnyLightChanges(), before.AnyLightChanges());
 }
 
+// --- shared meshes ------------------------------------------------------------------
+
+json SharedTriangleScene() {
+  json scene = MinimalScene();
+  json triangle = Triangle();
+  triangle.erase("type");
+  triangle["uvs"] = {{0, 0}, {1, 0}, {0, 1}};
+  scene["meshes"] = {{"leaf", triangle}};
+  scene["shapes"] = {{{"type", "mesh"}, {"mesh_ref", "leaf"}},
+                     {{"type", "mesh"}, {"mesh_ref", "leaf"}, {"motion", {1, 0, 0}}}};
+  return scene;
+}
+
+TEST(SharedMeshTest, PlacementsShareOneMesh) {
+  Scene scene = ParseScene(SharedTriangleScene().dump());
+  ASSERT_EQ(1u, scene.meshes.size());
+  ASSERT_EQ(2u, scene.shapes.size());
+  EXPECT_EQ("leaf", scene.shapes[1].meshRef);
+  EXPECT_EQ(scene.shapes[0].sharedMesh, scene.shapes[1].sharedMesh);
+  EXPECT_EQ(scene.meshes.at("leaf"), scene.shapes[0].sharedMesh);
+  EXPECT_EQ(3u, scene.shapes[1].Mesh().vertices.size());
+  EXPECT_TRUE(scene.shapes[1].mesh.vertices.empty());
+}
+
+TEST(SharedMeshTest, RoundTripWritesTheMeshOnce) {
+  const std::string written = SerializeScene(ParseScene(SharedTriangleScene().dump()));
+  EXPECT_EQ(written, SerializeScene(ParseScene(written)));
+  json document = json::parse(written);
+  EXPECT_EQ(3u, document["meshes"]["leaf"]["vertices"].size());
+  EXPECT_EQ(json({{"type", "mesh"}, {"mesh_ref", "leaf"}, {"material", "default"}, {"motion", {1, 0, 0}}}),
+            document["shapes"][1]);
+  // The vertices appear once in the text, however many shapes place them.
+  EXPECT_EQ(written.find("\"vertices\""), written.rfind("\"vertices\""));
+}
+
+TEST(SharedMeshTest, SceneWithoutSharedMeshesWritesNoTable) {
+  const std::string written = SerializeScene(ParseScene(WithShape(Triangle()).dump()));
+  EXPECT_EQ(std::string::npos, written.find("\"meshes\""));
+  EXPECT_EQ(std::string::npos, written.find("mesh_ref"));
+}
+
+TEST(SharedMeshTest, BadReferencesNameTheirPointer) {
+  json unknown = SharedTriangleScene();
+  unknown["shapes"][1]["mesh_ref"] = "twig";
+  EXPECT_TRUE(FailsAt(unknown, "/shapes/1/mesh_ref", "unknown mesh \"twig\""));
+  json noTable = WithShape({{"type", "mesh"}, {"mesh_ref", "leaf"}});
+  EXPECT_TRUE(FailsAt(noTable, "/shapes/0/mesh_ref", "unknown mesh"));
+  json both = SharedTriangleScene();
+  both["shapes"][0]["vertices"] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  EXPECT_TRUE(FailsAt(both, "/shapes/0/mesh_ref", "both a shared mesh and geometry"));
+  json notText = SharedTriangleScene();
+  notText["shapes"][0]["mesh_ref"] = 3;
+  EXPECT_TRUE(FailsAt(notText, "/shapes/0/mesh_ref", "3"));
+}
+
+TEST(SharedMeshTest, EveryTableMeshIsCheckedUsedOrNot) {
+  json unused = SharedTriangleScene();
+  unused["meshes"]["twig"] = {{"vertices", {{0, 0, 0}, {1, 0, 0}}}, {"triangles", {{0, 1, 2}}}};
+  EXPECT_TRUE(FailsAt(unused, "/meshes/twig/triangles/0/2", "out of range"));
+  json flat = SharedTriangleScene();
+  flat["meshes"]["twig"] = {{"vertices", {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}}}, {"triangles", {{0, 1, 2}}}};
+  EXPECT_TRUE(FailsAt(flat, "/meshes/twig/triangles", "zero area"));
+  json extra = SharedTriangleScene();
+  extra["meshes"]["leaf"]["material"] = "default";
+  EXPECT_TRUE(FailsAt(extra, "/meshes/leaf/material", "unknown"));
+  json notObject = SharedTriangleScene();
+  notObject["meshes"] = json::array();
+  EXPECT_TRUE(FailsAt(notObject, "/meshes", "an object mapping mesh names"));
+}
+
+TEST(SharedMeshTest, RebasingAndPlacingMatchInlineCopies) {
+  json shared = SharedTriangleScene();
+  shared["camera"]["position"] = {3, 4, 5};
+  shared["shapes"][0]["motion"] = {{"translation", {2, 0, 0}}, {"scale", {2, 1, 1}}};
+  shared["shapes"][1]["motion"] = {{"polynomial", {{1, 0.5}, {0}, {0}}}};
+  shared["render"]["frames"] = {{"start", 0}, {"count", 3}};
+  json inlined = shared;
+  for (json& shape : inlined["shapes"]) {
+    shape.erase("mesh_ref");
+    shape.update(shared["meshes"]["leaf"]);
+  }
+  inlined.erase("meshes");
+  Scene a = ParseScene(shared.dump()), b = ParseScene(inlined.dump());
+  PrepareForTracing(a);
+  PrepareForTracing(b);
+  for (size_t i = 0; i < a.shapes.size(); ++i) {
+    EXPECT_EQ(b.shapes[i].Mesh().vertices, a.shapes[i].Mesh().vertices) << i;
+  }
+  // The still placement is built in place; the moving one still shares the moved mesh.
+  EXPECT_FALSE(a.shapes[0].SharesMesh());
+  EXPECT_EQ(a.meshes.at("leaf"), a.shapes[1].sharedMesh);
+}
+
 }  // namespace
 }  // namespace tcfarm

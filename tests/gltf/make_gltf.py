@@ -341,11 +341,48 @@ def textured_turntable(how="data"):
     return g
 
 
+def forest(flattened=False, trees=50):
+    """One smooth, texture-mapped tree (a cube with normals leaning out and UVs) placed by
+    `trees` nodes on a 10 x 5 grid over a floor: every fifth turns and every seventh hops
+    (the first second, 13 frames at 12 per second), the rest stand still, some turned and
+    scaled. flattened: the same scene with one glTF mesh per node, each naming the same
+    accessors, so nothing is shared."""
+    g = Gltf()
+    bark = g.material("bark", (0.2, 0.6, 0.2), roughness=0.5)
+    floor = g.material("floor", (0.6, 0.6, 0.6), roughness=0.9)
+    g.node(name="floor", mesh=g.mesh([{"positions": [-8, 0, -8, -8, 0, 8, 8, 0, -8, 8, 0, 8],
+                                       "mode": TRIANGLE_STRIP, "material": floor}]))
+    positions, indices = cube(0.3)
+    primitive = {"positions": positions, "indices": indices, "material": bark,
+                 "normals": [c / (0.3 * math.sqrt(3)) for c in positions],
+                 "uvs": [0, 0, 1, 0, 1, 1, 0, 1, 0, 1, 1, 1, 1, 0, 0, 0]}
+    tree = g.mesh([primitive], name="tree")
+    for i in range(trees):
+        mesh = tree
+        if flattened and i > 0:  # another glTF mesh over the very same accessors
+            g.doc["meshes"].append(json.loads(json.dumps(g.doc["meshes"][tree])))
+            mesh = len(g.doc["meshes"]) - 1
+        x, z = -6 + (i % 10) * 1.3, -4 + (i // 10) * 1.6
+        node = g.node(name="tree%d" % i, mesh=mesh, translation=[x, 0.3 + 0.1 * (i % 3), z],
+                      rotation=axis_angle([0, 1, 0], 7 * i), scale=[1, 1 + 0.2 * (i % 4), 1])
+        if i % 5 == 0:
+            g.animate(node, "rotation", [0.0, 1.0], axis_angle([0, 1, 0], 7 * i) + axis_angle([0, 1, 0], 7 * i + 90))
+        if i % 7 == 0:
+            g.animate(node, "translation", [0.0, 0.5, 1.0],
+                      [x, 0.3, z, x, 1.2, z, x, 0.3, z])
+    g.node(name="eye", camera=g.camera(0.9, name="main"), translation=[0, 5, 8],
+           rotation=axis_angle([1, 0, 0], -32))
+    g.node(name="bulb", light=g.light("point", 40.0, (1.0, 0.9, 0.8)), translation=[2, 6, 4])
+    g.node(name="sun", light=g.light("directional", 0.3), rotation=axis_angle([1, -0.3, 0], -60))
+    return g
+
+
 EXAMPLES = {"red_quad.gltf": red_quad, "red_quad.glb": red_quad,
             "animated_hierarchy.gltf": animated_hierarchy,
             "textured_quad.gltf": textured_quad, "textured_quad.glb": lambda: textured_quad("view"),
             "textured_turntable.gltf": textured_turntable,
-            "textured_turntable.glb": lambda: textured_turntable("view")}
+            "textured_turntable.glb": lambda: textured_turntable("view"),
+            "forest.gltf": forest, "forest_flattened.gltf": lambda: forest(flattened=True)}
 
 
 def main(argv):

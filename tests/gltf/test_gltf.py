@@ -143,6 +143,58 @@ def test_farm_exact_equals_brute_force_on_an_animated_hierarchy(worker_binary, f
     assert job["traced_pixel_ratio"] < 0.6, job["traced_pixel_ratio"]  # 0.29 when written
 
 
+def inlined(scene):
+    """The scene with each shared mesh written into every shape that places it."""
+    scene = json.loads(json.dumps(scene))
+    meshes = scene.pop("meshes", {})
+    for shape in scene["shapes"]:
+        if "mesh_ref" in shape:
+            shape.update(meshes[shape.pop("mesh_ref")])
+    return scene
+
+
+FOREST_FLAGS = ("--fps", "12", "--size", "64x48")
+
+
+def test_a_mesh_placed_by_many_nodes_is_written_once(worker_binary, files):
+    shared = printed_scene(worker_binary, files["forest.gltf"], *FOREST_FLAGS)
+    flattened = printed_scene(worker_binary, files["forest_flattened.gltf"], *FOREST_FLAGS)
+    assert list(shared["meshes"]) == ["tree"]
+    placements = [shape for shape in shared["shapes"] if shape.get("mesh_ref") == "tree"]
+    assert len(placements) == 50
+    assert sum(shape["motion"] != [0, 0, 0] for shape in placements) == 50
+    # The tree's triangles once, the floor's inline: each glTF mesh of the flattened file
+    # is placed once, so stays inline.
+    assert sum("triangles" in shape for shape in shared["shapes"]) == 1
+    assert "meshes" not in flattened
+    assert inlined(shared) == flattened
+    assert len(json.dumps(shared)) * 3 < len(json.dumps(flattened))
+
+
+def test_shared_mesh_renders_the_bits_of_its_flattened_twin(worker_binary, files, tmp_path):
+    frames = {}
+    for name in ("forest.gltf", "forest_flattened.gltf"):
+        out = tmp_path / name
+        result = run(worker_binary, "render", files[name], *FOREST_FLAGS, "--out", out, "--no-png")
+        assert result.returncode == 0, result.stderr
+        assert "rendered 13 frames of 64x48" in result.stdout
+        frames[name] = out
+    error = compare(frames["forest_flattened.gltf"], frames["forest.gltf"])
+    assert error["differing_pixels"] == 0, error
+
+
+def test_farm_exact_equals_brute_force_on_instanced_animation(worker_binary, files, tmp_path):
+    scene = printed_scene(worker_binary, files["forest.gltf"], *FOREST_FLAGS)
+    reference = render_reference(inlined(scene), tmp_path / "reference")
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=2) as farm:
+        farm.wait_for_workers(2)
+        job = farm.run_job(scene, strategy="exact", bin_width=8)
+        error = compare(reference, farm.store / str(job["id"]))
+    assert error["differing_pixels"] == 0, error
+    print("instanced forest: traced pixel ratio %.3f" % job["traced_pixel_ratio"])
+
+
 VALIDATOR = pathlib.Path(__file__).resolve().parent / "node_modules" / "gltf-validator"
 
 

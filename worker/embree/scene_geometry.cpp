@@ -101,10 +101,7 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     // when it moves, or held at one place when it never does (PrepareForTracing builds
     // the latter in place where it can, sparing the per-frame placement).
     if (!shape.motion.IsNone()) {
-      SceneHandle own(NewStaticScene(device.get()));
-      AttachShape(device.get(), own.get(), shape, settlesTies_);
-      rtcCommitScene(own.get());
-      movers_.push_back({static_cast<int>(i), std::move(own)});
+      movers_.push_back({static_cast<int>(i), ObjectScene(shape)});
     } else {
       unsigned id = AttachShape(device.get(), staticScene_.get(), shape, settlesTies_);
       if (staticShapeOfGeometry_.size() <= id) staticShapeOfGeometry_.resize(id + 1, -1);
@@ -121,6 +118,23 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     staticFrame_->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
     staticFrame_->settlesTies_ = settlesTies_;
   }
+}
+
+SceneHandle SceneGeometry::ObjectScene(const Shape& shape) {
+  if (!shape.SharesMesh()) return NewObjectScene(shape);
+  // One tree per shared mesh, whichever shape placed it first: its geometry and tie rule
+  // are those of every placement (the rule keys hits by instance, i.e. by shape).
+  auto [entry, isNew] = sharedMeshScenes_.try_emplace(shape.sharedMesh.get());
+  if (isNew) entry->second = NewObjectScene(shape);
+  rtcRetainScene(entry->second.get());
+  return SceneHandle(entry->second.get());
+}
+
+SceneHandle SceneGeometry::NewObjectScene(const Shape& shape) const {
+  SceneHandle scene(NewStaticScene(device_.get()));
+  AttachShape(device_.get(), scene.get(), shape, settlesTies_);
+  rtcCommitScene(scene.get());
+  return scene;
 }
 
 std::shared_ptr<FrameGeometry> SceneGeometry::BuildFrame(int frame) const {

@@ -2,12 +2,16 @@
 //
 // Shapes that never move go into one static scene, built once with a high-quality BVH.
 // Each moving shape gets its own small scene, instanced into a per-frame top level with
-// its transform (translation, rotation, scale) at that frame. When nothing moves, every frame shares the static scene
+// its transform (translation, rotation, scale) at that frame; moving shapes placing one
+// shared mesh (Scene::meshes) instance one scene between them. A still placement of a
+// shared mesh is built in place (PlaceStillShapes) like any still shape: an instance
+// would trace other bits than the same mesh written inline. When nothing moves, every frame shares the static scene
 // and no per-frame work happens at all (FrameBuilds() stays 0).
 #pragma once
 
 #include <cstdint>
 #include <list>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -60,6 +64,10 @@ class SceneGeometry {
     SceneHandle scene;
   };
   std::shared_ptr<FrameGeometry> BuildFrame(int frame) const;
+  // The shape in its rest pose, as a scene of its own to instance: shapes placing one
+  // shared mesh get one scene between them.
+  SceneHandle ObjectScene(const Shape& shape);
+  SceneHandle NewObjectScene(const Shape& shape) const;
 
   const EmbreeDevice& device_;
   const Scene& scene_;
@@ -68,6 +76,7 @@ class SceneGeometry {
   std::vector<int> staticShapeOfGeometry_;
   bool settlesTies_ = false;
   std::vector<Mover> movers_;
+  std::map<const TriangleMesh*, SceneHandle> sharedMeshScenes_;
   std::shared_ptr<FrameGeometry> staticFrame_;  // used for every frame when nothing moves
 
   mutable std::mutex cacheMutex_;

@@ -47,8 +47,8 @@ void ForEachPlane(const Shape& shape, int firstFrame, Visit visit) {
     if (PlaneOf(placement.Apply(c), placement.Apply(u), placement.Apply(v), &plane)) visit(plane);
     return;
   }
-  const auto& vertices = shape.mesh.vertices;
-  for (const auto& t : shape.mesh.triangles) {
+  const auto& vertices = shape.Mesh().vertices;
+  for (const auto& t : shape.Mesh().triangles) {
     if (PlaneOf(placement.Apply(vertices[t[0]]), placement.Apply(vertices[t[1]]),
                 placement.Apply(vertices[t[2]]), &plane)) {
       visit(plane);
@@ -79,7 +79,7 @@ bool StillPlanesCoincide(const Scene& scene) {
   std::vector<Plane> planes;
   for (const Shape& shape : scene.shapes) {
     if (!IsPlanar(shape) || shape.Moves()) continue;
-    if (shape.mesh.triangles.size() > kMaxHashedTriangles) return true;
+    if (shape.Mesh().triangles.size() > kMaxHashedTriangles) return true;
     ForEachPlane(shape, scene.render.firstFrame, [&](const Plane& plane) { planes.push_back(plane); });
   }
   double size = 1;

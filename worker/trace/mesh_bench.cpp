@@ -6,6 +6,8 @@
 //   build/worker/mesh_bench [--benchmark_min_time=2]
 #include <benchmark/benchmark.h>
 
+#include <malloc.h>
+
 #include <cmath>
 #include <string>
 #include <vector>
@@ -21,13 +23,15 @@ namespace {
 constexpr int kMeshes = 8;
 constexpr int kRings = 80, kSegments = 80;  // 2 * 80 * 80 = 12,800 triangles a mesh
 
-// A UV sphere of `radius` at `center`, smooth (vertex normals), as a scene mesh.
-std::string SphereMesh(double cx, double cy, double cz, double radius, int index) {
+// The geometry of a UV sphere of `radius` at `center`, smooth (vertex normals): the
+// members "vertices", "normals" and "triangles" of a scene mesh, 2 * rings * segments triangles.
+std::string SphereGeometry(double cx, double cy, double cz, double radius, int rings = kRings,
+                           int segments = kSegments) {
   std::string vertices, normals, triangles;
-  for (int ring = 0; ring <= kRings; ++ring) {
-    const double theta = M_PI * ring / kRings;
-    for (int segment = 0; segment <= kSegments; ++segment) {
-      const double phi = 2 * M_PI * segment / kSegments;
+  for (int ring = 0; ring <= rings; ++ring) {
+    const double theta = M_PI * ring / rings;
+    for (int segment = 0; segment <= segments; ++segment) {
+      const double phi = 2 * M_PI * segment / segments;
       const double nx = std::sin(theta) * std::cos(phi), ny = std::cos(theta), nz = std::sin(theta) * std::sin(phi);
       vertices += (vertices.empty() ? "" : ",") + std::string("[") + std::to_string(cx + radius * nx) + "," +
                   std::to_string(cy + radius * ny) + "," + std::to_string(cz + radius * nz) + "]";
@@ -35,17 +39,21 @@ std::string SphereMesh(double cx, double cy, double cz, double radius, int index
                  std::to_string(nz) + "]";
     }
   }
-  auto at = [](int ring, int segment) { return ring * (kSegments + 1) + segment; };
-  for (int ring = 0; ring < kRings; ++ring) {
-    for (int segment = 0; segment < kSegments; ++segment) {
+  auto at = [&](int ring, int segment) { return ring * (segments + 1) + segment; };
+  for (int ring = 0; ring < rings; ++ring) {
+    for (int segment = 0; segment < segments; ++segment) {
       const int a = at(ring, segment), b = at(ring + 1, segment), c = at(ring + 1, segment + 1), d = at(ring, segment + 1);
       triangles += (triangles.empty() ? "" : ",") + std::string("[") + std::to_string(a) + "," + std::to_string(b) + "," +
                    std::to_string(c) + "],[" + std::to_string(a) + "," + std::to_string(c) + "," + std::to_string(d) + "]";
     }
   }
+  return R"("vertices": [)" + vertices + R"(], "normals": [)" + normals + R"(], "triangles": [)" + triangles + "]";
+}
+
+std::string SphereMesh(double cx, double cy, double cz, double radius, int index) {
   const std::string spin = std::to_string(3 + index);
-  return R"({"type": "mesh", "material": "clay", "vertices": [)" + vertices + R"(], "normals": [)" + normals +
-         R"(], "triangles": [)" + triangles + R"(], "motion": {"translation": {"polynomial": [[0, 0.02], [0], [0]]},
+  return R"({"type": "mesh", "material": "clay", )" + SphereGeometry(cx, cy, cz, radius) +
+         R"(, "motion": {"translation": {"polynomial": [[0, 0.02], [0], [0]]},
          "rotation": {"axis": [0.2, 1, 0.1], "degrees_per_frame": )" + spin + R"(}, "pivot": [)" + std::to_string(cx) +
          "," + std::to_string(cy) + "," + std::to_string(cz) + "]}}";
 }
@@ -81,7 +89,7 @@ void TraceMovingMeshes(benchmark::State& state) {
     frame = (frame + 1) % scene.render.frameCount;
   }
   size_t triangles = 0;
-  for (const Shape& shape : scene.shapes) triangles += shape.mesh.triangles.size();
+  for (const Shape& shape : scene.shapes) triangles += shape.Mesh().triangles.size();
   state.counters["triangles"] = static_cast<double>(triangles);
   state.counters["frames/s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
 }
@@ -95,7 +103,7 @@ class BareEmbreeFrames {
       RTCScene own = rtcNewScene(device);
       RTCGeometry geometry = rtcNewGeometry(device, shape.type == Shape::Type::kQuad ? RTC_GEOMETRY_TYPE_QUAD
                                                                                     : RTC_GEOMETRY_TYPE_TRIANGLE);
-      std::vector<Vec3> points = shape.mesh.vertices;
+      std::vector<Vec3> points = shape.Mesh().vertices;
       std::vector<unsigned> indices;
       if (shape.type == Shape::Type::kQuad) {
         const Vec3 &c = shape.corner, &u = shape.edgeU, &v = shape.edgeV;
@@ -103,7 +111,7 @@ class BareEmbreeFrames {
                   {c.x + v.x, c.y + v.y, c.z + v.z}};
         indices = {0, 1, 2, 3};
       } else {
-        for (const auto& t : shape.mesh.triangles) indices.insert(indices.end(), t.begin(), t.end());
+        for (const auto& t : shape.Mesh().triangles) indices.insert(indices.end(), t.begin(), t.end());
       }
       auto* vertex = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                                                  3 * sizeof(float), points.size()));
@@ -227,6 +235,63 @@ void BareEmbreeLoop(benchmark::State& state) {
   }
   state.counters["frames/s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
 }
+
+// --- shared meshes -------------------------------------------------------------------
+// N placements of one 10,082-triangle mesh (a UV sphere of 71 x 71), written inline in
+// every shape or once in the scene's "meshes": the scene JSON a worker receives, and what
+// it takes to parse, prepare and build the tracer's geometry (time, and heap bytes still
+// held once built). Moving placements turn; still ones stand on a grid.
+//   build/worker/mesh_bench --benchmark_filter=Placements
+
+constexpr int kPlacementRings = 71, kPlacementSegments = 71;
+
+std::string PlacementsScene(int placements, bool shared, bool moving) {
+  const std::string geometry = SphereGeometry(0, 0, 0, 0.4, kPlacementRings, kPlacementSegments);
+  std::string shapes;
+  for (int i = 0; i < placements; ++i) {
+    const std::string at = "[" + std::to_string(i % 25 - 12) + ", 0.5, " + std::to_string(-i / 25) + "]";
+    const std::string motion = moving ? R"({"translation": )" + at +
+                                            R"(, "rotation": {"axis": [0, 1, 0], "degrees_per_frame": 5}})"
+                                      : at;
+    shapes += std::string(i ? "," : "") + R"({"type": "mesh", )" +
+              (shared ? R"("mesh_ref": "ball")" : geometry) + R"(, "motion": )" + motion + "}";
+  }
+  const std::string meshes = shared ? R"("meshes": {"ball": {)" + geometry + "}}," : "";
+  return R"({"camera": {"position": [0, 6, 12], "look_at": [0, 0, -5]}, )" + meshes + R"( "shapes": [)" + shapes +
+         R"(], "render": {"width": 64, "height": 48, "frames": {"start": 0, "count": 8}}})";
+}
+
+size_t HeapBytesInUse() {
+  const struct mallinfo2 info = mallinfo2();
+  return info.uordblks + info.hblkhd;
+}
+
+// Arguments: placements, shared (0 inline, 1 shared), moving (0 still, 1 moving).
+void BuildPlacements(benchmark::State& state) {
+  const int placements = static_cast<int>(state.range(0));
+  const bool shared = state.range(1) != 0, moving = state.range(2) != 0;
+  const std::string text = PlacementsScene(placements, shared, moving);
+  EmbreeDevice device;
+  TracingThreads threads;
+  double heldBytes = 0;
+  for (auto _ : state) {
+    const size_t before = HeapBytesInUse();
+    Scene scene = ParseScene(text);
+    PrepareForTracing(scene);
+    Tracer tracer(device, scene, threads);
+    heldBytes = static_cast<double>(HeapBytesInUse() - before);
+    benchmark::DoNotOptimize(&tracer);
+  }
+  state.counters["scene_json_MB"] = static_cast<double>(text.size()) / 1e6;
+  state.counters["held_MB"] = heldBytes / 1e6;
+}
+
+BENCHMARK(BuildPlacements)
+    ->ArgsProduct({{10, 100}, {0, 1}, {0, 1}})
+    ->Args({500, 1, 1})  // a forest only sharing can afford (inline: ~240 MB of JSON)
+    ->ArgNames({"placements", "shared", "moving"})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 BENCHMARK(TraceMovingMeshes)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK(BareEmbreeLoop)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();

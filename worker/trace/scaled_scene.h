@@ -49,6 +49,14 @@ inline Scene ScaleScene(Scene scene, double s) {
     shape.edgeV = Scale(shape.edgeV, s);
     for (Vec3& v : shape.mesh.vertices) v = Scale(v, s);
   }
+  for (auto& [name, shared] : scene.meshes) {
+    auto scaled = std::make_shared<TriangleMesh>(*shared);
+    for (Vec3& v : scaled->vertices) v = Scale(v, s);
+    shared = std::move(scaled);
+  }
+  for (Shape& shape : scene.shapes) {
+    if (shape.SharesMesh()) shape.sharedMesh = scene.meshes.at(shape.meshRef);
+  }
   return scene;
 }
 

@@ -53,9 +53,9 @@ struct Tracer::FrameContext {
   PerspectiveCamera camera;
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
-  const std::vector<ShapeNormals>* normals;
-  const std::vector<std::unique_ptr<TextureImage>>* textures;      // by material
-  const std::vector<std::vector<std::array<float, 2>>>* uvs;       // by shape
+  const std::vector<std::shared_ptr<const ShapeNormals>>* normals;  // by shape
+  const std::vector<std::unique_ptr<TextureImage>>* textures;        // by material
+  const std::vector<std::shared_ptr<const ShapeUvs>>* uvs;           // by shape
   const std::vector<uint8_t>* shapeMoves;  // per shape, precomputed: asked at every hit
   Float3 background;
   int maxDepth;
@@ -151,7 +151,7 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
   int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
   hit.shape = shape;
   hit.material = scene_.shapes[shape].material;
-  const std::vector<Float3>& faces = (*frame_.normals)[shape].faces;
+  const std::vector<Float3>& faces = (*frame_.normals)[shape]->faces;
   // The face's normal (unit, computed in double from the scene), or Embree's for shapes
   // without faces; in object space for a shape that turns or scales.
   Float3 face = faces.empty() ? ToWorld(shape, raw.geometricNormal) : ToWorld(shape, faces[raw.primitiveId], true);
@@ -170,18 +170,18 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
 Float3 Tracer::PixelTracer::SurfaceDiffuse(int shape, int material, const RawHit& raw) const {
   const Float3 diffuse = (*frame_.materials)[material].diffuse;
   const TextureImage* texture = (*frame_.textures)[material].get();
-  const auto& uvs = (*frame_.uvs)[shape];
+  const ShapeUvs& uvs = *(*frame_.uvs)[shape];
   if (!texture || uvs.empty()) return diffuse;
-  const auto& corner = scene_.shapes[shape].mesh.triangles[raw.primitiveId];
+  const auto& corner = scene_.shapes[shape].Mesh().triangles[raw.primitiveId];
   const auto &a = uvs[corner[0]], &b = uvs[corner[1]], &c = uvs[corner[2]];
   const float w = 1.0f - raw.u - raw.v;
   return diffuse * texture->Sample(a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v);
 }
 
 Float3 Tracer::PixelTracer::SmoothNormal(int shape, const RawHit& raw) const {
-  const std::vector<Float3>& vertices = (*frame_.normals)[shape].vertices;
+  const std::vector<Float3>& vertices = (*frame_.normals)[shape]->vertices;
   if (vertices.empty()) return {};
-  const auto& corner = scene_.shapes[shape].mesh.triangles[raw.primitiveId];
+  const auto& corner = scene_.shapes[shape].Mesh().triangles[raw.primitiveId];
   const Float3 &a = vertices[corner[0]], &b = vertices[corner[1]], &c = vertices[corner[2]];
   // A corner without a normal leaves the face flat.
   for (const Float3* n : {&a, &b, &c}) {
@@ -450,11 +450,9 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
 
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads)
     : device_(device), scene_(scene), geometry_(device, scene), threads_(threads) {
+  std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
   for (const Shape& shape : scene.shapes) {
-    normals_.push_back({KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)});
-    std::vector<std::array<float, 2>> uvs;
-    for (const auto& uv : shape.mesh.uvs) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
-    uvs_.push_back(std::move(uvs));
+    AddShapeSurfaces(shape, firstShapeOfMesh);
     shapeMoves_.push_back(shape.Moves());
   }
   // Materials never change over frames: converted for shading once, not per task.
@@ -463,6 +461,23 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
   for (const Material& material : scene.materials) {
     textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
   }
+}
+
+void Tracer::AddShapeSurfaces(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh) {
+  // Normals and uvs are in object space, so every placement of a shared mesh reads the same.
+  if (shape.SharesMesh()) {
+    auto [first, isNew] = firstShapeOfMesh.emplace(shape.sharedMesh.get(), normals_.size());
+    if (!isNew) {
+      normals_.push_back(normals_[first->second]);
+      uvs_.push_back(uvs_[first->second]);
+      return;
+    }
+  }
+  normals_.push_back(std::make_shared<const ShapeNormals>(
+      ShapeNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)}));
+  auto uvs = std::make_shared<ShapeUvs>();
+  for (const auto& uv : shape.Mesh().uvs) uvs->push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+  uvs_.push_back(std::move(uvs));
 }
 
 void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,

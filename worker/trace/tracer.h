@@ -8,6 +8,7 @@
 
 #include <array>
 #include <atomic>
+#include <map>
 #include <memory>
 #include <cstddef>
 #include <cstdint>
@@ -74,15 +75,18 @@ class Tracer {
   // with the ray origin; a still surface must shade to the same bits from any viewpoint;
   // empty for spheres, whose normal comes from the hit point), and the vertex normals a
   // smooth mesh is shaded with (empty for flat shapes).
+  // Shapes placing one shared mesh share them, computed once.
   struct ShapeNormals {
     std::vector<Float3> faces;
     std::vector<Float3> vertices;
   };
-  std::vector<ShapeNormals> normals_;
+  using ShapeUvs = std::vector<std::array<float, 2>>;
+  std::vector<std::shared_ptr<const ShapeNormals>> normals_;
   std::vector<ShadingMaterial> materials_;
   // Per material: its decoded texture, if it has one. Per shape: texture coordinates.
   std::vector<std::unique_ptr<TextureImage>> textures_;
-  std::vector<std::vector<std::array<float, 2>>> uvs_;
+  std::vector<std::shared_ptr<const ShapeUvs>> uvs_;
+  void AddShapeSurfaces(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh);
   std::vector<uint8_t> shapeMoves_;
   TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};

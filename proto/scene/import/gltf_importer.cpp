@@ -1273,8 +1273,51 @@ class GltfReader {
   }
 
  private:
+  // How many of the scene's nodes place each mesh.
+  std::vector<int> NodesPerMesh() const {
+    std::vector<int> count(model_.meshes.size(), 0);
+    for (int node : order_) {
+      const int mesh = model_.nodes[static_cast<size_t>(node)].mesh;
+      if (mesh >= 0 && static_cast<size_t>(mesh) < count.size()) ++count[static_cast<size_t>(mesh)];
+    }
+    return count;
+  }
+
+  // The name a shared primitive takes in Scene::meshes: its glTF mesh's name (else
+  // `mesh<i>`), `/p` after it when the mesh has several primitives, `#<i>` after a name
+  // another mesh has taken already.
+  static std::string SharedMeshName(const tinygltf::Mesh& mesh, size_t meshIndex, size_t primitive,
+                                    const Scene& scene) {
+    std::string name = mesh.name.empty() ? "mesh" + std::to_string(meshIndex) : mesh.name;
+    if (mesh.primitives.size() > 1) name += "/" + std::to_string(primitive);
+    if (scene.meshes.count(name)) name += "#" + std::to_string(meshIndex);
+    return name;
+  }
+
+  // Gives the shape the primitive's triangles: its own when one node places the mesh,
+  // else the scene's shared copy (read once, in the mesh's space; each node's Motion
+  // places it).
+  void SetPrimitiveMesh(Shape& shape, size_t meshIndex, size_t p, bool shared, const std::string& pointer,
+                        Scene& scene) {
+    if (!shared) {
+      shape.mesh = PrimitiveMesh(model_.meshes[meshIndex].primitives[p], pointer);
+      return;
+    }
+    auto [entry, isNew] = sharedPrimitives_.try_emplace({meshIndex, p});
+    if (isNew) {
+      auto mesh = std::make_shared<const TriangleMesh>(PrimitiveMesh(model_.meshes[meshIndex].primitives[p], pointer));
+      // A primitive without area is skipped at every node: it never enters the table.
+      entry->second.name = HasArea(*mesh) ? SharedMeshName(model_.meshes[meshIndex], meshIndex, p, scene) : "";
+      if (!entry->second.name.empty()) scene.meshes[entry->second.name] = mesh;
+      entry->second.mesh = std::move(mesh);
+    }
+    shape.sharedMesh = entry->second.mesh;
+    shape.meshRef = entry->second.name;
+  }
+
   void AddShapes(Scene& scene) {
     size_t triangles = 0;
+    const std::vector<int> nodesPerMesh = NodesPerMesh();
     for (int node : order_) {
       const auto& source = model_.nodes[static_cast<size_t>(node)];
       if (source.mesh < 0) continue;
@@ -1311,12 +1354,13 @@ class GltfReader {
           }
           shape.material = materialIndex_[static_cast<size_t>(primitive.material)];
         }
-        shape.mesh = PrimitiveMesh(primitive, pointer);
-        if (!HasArea(shape.mesh)) {
+        SetPrimitiveMesh(shape, static_cast<size_t>(source.mesh), p, nodesPerMesh[static_cast<size_t>(source.mesh)] > 1,
+                         pointer, scene);
+        if (!HasArea(shape.Mesh())) {
           Warn(pointer, "no triangle with area; the primitive is skipped");
           continue;
         }
-        triangles += shape.mesh.triangles.size();
+        triangles += shape.Mesh().triangles.size();
         if (triangles > kMaxSceneTriangles) {
           Fail(pointer, "more than " + std::to_string(kMaxSceneTriangles) + " triangles in all", "a smaller scene");
         }
@@ -1447,7 +1491,7 @@ class GltfReader {
     Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
     for (const Shape& shape : scene.shapes) {
       Affine worldFromObject = shape.motion.WorldFromObject(0);
-      for (const Vec3& vertex : shape.mesh.vertices) {
+      for (const Vec3& vertex : shape.Mesh().vertices) {
         Vec3 v = worldFromObject.Apply(vertex);
         for (int axis = 0; axis < 3; ++axis) {
           low[axis] = std::min(low[axis], v[axis]);
@@ -1477,6 +1521,11 @@ class GltfReader {
   const ImportOptions& options_;
   tinygltf::Model model_;
   std::vector<int> materialIndex_;  // per glTF material, its index in the scene
+  struct SharedPrimitive {
+    std::string name;  // in Scene::meshes; empty for a primitive without area
+    std::shared_ptr<const TriangleMesh> mesh;
+  };
+  std::map<std::pair<size_t, size_t>, SharedPrimitive> sharedPrimitives_;  // by (mesh, primitive)
   std::vector<int> parent_;         // per node, its parent or -1
   std::vector<bool> inScene_;
   std::vector<int> order_;  // the chosen scene's nodes, parents before children

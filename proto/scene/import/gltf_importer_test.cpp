@@ -197,6 +197,37 @@ TEST(GltfImporterTest, ChildIsCarriedByItsParents) {
   EXPECT_EQ(gltf.Import(options).render.frameCount, 31);
 }
 
+// A mesh several nodes place enters the scene's table once, in its own space; one placed
+// by a single node stays inline.
+TEST(GltfImporterTest, MeshOfSeveralNodesIsSharedOnce) {
+  GltfBuilder gltf;
+  int tree = gltf.Mesh(kTriangle);
+  int rock = gltf.Mesh(kTriangle);
+  int twin = gltf.Mesh({0, 0, 0, 2, 0, 0, 0, 2, 0});
+  gltf.doc()["meshes"][tree]["name"] = "tree";
+  gltf.doc()["meshes"][twin]["name"] = "tree";  // a repeated name takes its index
+  for (int i = 0; i < 3; ++i) gltf.Node({{"mesh", tree}, {"translation", {i, 0, 0}}}, true);
+  gltf.Node({{"mesh", rock}}, true);
+  gltf.Node({{"mesh", twin}}, true);
+  gltf.Node({{"mesh", twin}, {"scale", {1, 2, 1}}}, true);
+  Scene scene = gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 6u);
+  ASSERT_EQ(scene.meshes.size(), 2u);
+  ASSERT_TRUE(scene.meshes.count("tree") && scene.meshes.count("tree#2"));
+  for (int i = 0; i < 3; ++i) {
+    const Shape& shape = scene.shapes[static_cast<size_t>(i)];
+    EXPECT_EQ(shape.meshRef, "tree");
+    EXPECT_EQ(shape.sharedMesh, scene.meshes.at("tree"));
+    EXPECT_TRUE(shape.mesh.vertices.empty());
+    ExpectNear(shape.motion.WorldFromObject(0).Apply({0, 0, 0}), {static_cast<double>(i), 0, 0});
+  }
+  EXPECT_FALSE(scene.shapes[3].SharesMesh());
+  EXPECT_EQ(scene.shapes[3].mesh.vertices.size(), 3u);
+  EXPECT_EQ(scene.shapes[5].meshRef, "tree#2");
+  ExpectNear(scene.meshes.at("tree#2")->vertices[1], {2, 0, 0});  // the mesh's own space
+  ExpectRoundTrip(scene);
+}
+
 TEST(GltfImporterTest, KeyframedRotationStepAndCubicSpline) {
   GltfBuilder gltf;
   int mesh = gltf.Mesh(kTriangle);
