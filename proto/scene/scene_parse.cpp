@@ -5,6 +5,8 @@
 // trusted by every worker, so each value is checked where it is read, and each error names
 // the JSON pointer of the value and what would have been accepted there.
 #include <algorithm>
+#include <cctype>
+#include <iterator>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -22,6 +24,7 @@
 #include "json/strict_json.h"
 #include "scene/import/obj_reader.h"
 #include "scene/import/scene_files.h"
+#include "scene/import/scene_import.h"
 #include "wire/content_hash.h"
 
 namespace tcfarm {
@@ -525,16 +528,24 @@ class SceneReader {
 
   Scene Read(const json& document) {
     Node root{document, ""};
-    ExpectObject(root, {"camera", "lights", "materials", "meshes", "shapes", "background", "render"},
+    ExpectObject(root, {"import", "camera", "lights", "materials", "meshes", "shapes", "background", "render"},
                  "a scene object");
-    Scene scene;
-    scene.render = ReadRender(Required(root, "render", "render settings {\"width\", \"height\", ...}"));
+    // An imported file is the base the rest of the document adds to (proto/scene.md, "Importing").
+    Scene scene = root.Has("import") ? ReadImport(root) : Scene{};
+    const bool imported = root.Has("import");
+    sharedMeshes_ = scene.meshes;
+    if (!imported || root.Has("render")) {
+      scene.render = ReadRender(Required(root, "render", "render settings {\"width\", \"height\", ...}"),
+                                imported ? std::optional(scene.render) : std::nullopt);
+    }
     range_ = FrameRange{scene.render.firstFrame, scene.render.LastFrame()};
-    scene.materials = ReadMaterials(root);
-    scene.camera = ReadCamera(Required(root, "camera", "a camera {\"position\", \"look_at\", ...}"));
-    if (root.Has("lights")) scene.lights = ReadLights(root.Member("lights"));
-    if (root.Has("meshes")) scene.meshes = ReadSharedMeshes(root.Member("meshes"));
-    if (root.Has("shapes")) scene.shapes = ReadShapes(root.Member("shapes"));
+    scene.materials = ReadMaterials(root, std::move(scene.materials));
+    if (!imported || root.Has("camera")) {
+      scene.camera = ReadCamera(Required(root, "camera", "a camera {\"position\", \"look_at\", ...}"));
+    }
+    if (root.Has("lights")) Append(scene.lights, ReadLights(root.Member("lights")));
+    if (root.Has("meshes")) AddSharedMeshes(scene, root.Member("meshes"));
+    if (root.Has("shapes")) Append(scene.shapes, ReadShapes(root.Member("shapes")));
     if (root.Has("background")) scene.background = ReadColour(root.Member("background"));
     // Terrain meshes are generated only once the whole scene is known to be valid: a
     // rejected scene should cost no geometry.
@@ -545,13 +556,69 @@ class SceneReader {
   }
 
  private:
+  template <typename T>
+  static void Append(std::vector<T>& to, std::vector<T> more) {
+    to.insert(to.end(), std::make_move_iterator(more.begin()), std::make_move_iterator(more.end()));
+  }
+
+  // import ---------------------------------------------------------------------------
+
+  // {"import": {"file": "shot.glb", "animation", "camera", "fps"}}: the file's scene, read
+  // by its importer with the render size and samples the document asks for (a glTF
+  // camera's aspect follows the size).
+  Scene ReadImport(const Node& root) {
+    const Node node = root.Member("import");
+    const std::string expected = "{\"file\": a glTF or OBJ file in the scene's folder, \"animation\", \"camera\", \"fps\"}";
+    ExpectObject(node, {"file", "animation", "camera", "fps"}, expected);
+    const Node file = Required(node, "file", expected);
+    const std::string name = ReadString(file, "a glTF or OBJ file inside the scene folder");
+    if (!baseDirectory_) {
+      Fail(file.pointer, "file " + Quote(name) + " cannot be resolved: the scene was submitted without a folder",
+           "the file uploaded with the scene (tcfarm submit uploads the files a scene names)");
+    }
+    const std::filesystem::path path = ResolveInsideFolder(*baseDirectory_, name, file.pointer, "imported file");
+    std::string extension = path.extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+    // By extension only: a scene that sniffed as JSON could import itself.
+    if (extension != ".gltf" && extension != ".glb" && extension != ".obj") {
+      Fail(file.pointer, Quote(name) + " is not a glTF or OBJ file", "a .gltf, .glb or .obj file; tcfarm scenes do not nest");
+    }
+    const ImportOptions options = ReadImportOptions(root, node);
+    try {
+      return ImportScene(path, options);
+    } catch (const SceneError& error) {
+      throw SceneError(file.pointer, error.what());
+    }
+  }
+
+  ImportOptions ReadImportOptions(const Node& root, const Node& node) const {
+    ImportOptions options;
+    if (node.Has("fps")) options.framesPerSecond = ReadInRange(node.Member("fps"), 0.001, 100000, "frames per second");
+    for (const char* key : {"animation", "camera"}) {
+      if (!node.Has(key)) continue;
+      const Node choice = node.Member(key);
+      if (!choice.value.is_string() && !IsIntegral(choice.value)) FailType(choice, "a name or an index");
+      (std::string(key) == "animation" ? options.animation : options.camera) =
+          choice.value.is_string() ? choice.value.get<std::string>() : std::to_string(choice.value.get<int64_t>());
+    }
+    if (root.Has("render") && root.value["render"].is_object()) {
+      const Node render = root.Member("render");
+      if (render.Has("width")) options.width = ReadInt(render.Member("width"), 1, 16384);
+      if (render.Has("height")) options.height = ReadInt(render.Member("height"), 1, 16384);
+      if (render.Has("samples_per_pixel")) options.samplesPerPixel = ReadInt(render.Member("samples_per_pixel"), 1, 1024);
+    }
+    return options;
+  }
+
   // render ---------------------------------------------------------------------------
 
-  RenderSettings ReadRender(const Node& node) {
+  // base: an imported scene's settings, which the document's override field by field
+  // (width and height then optional).
+  RenderSettings ReadRender(const Node& node, const std::optional<RenderSettings>& base = std::nullopt) {
     ExpectObject(node, {"width", "height", "frames", "samples_per_pixel", "max_depth"}, "render settings");
-    RenderSettings render;
-    render.width = ReadInt(Required(node, "width", "an integer in [1, 16384]"), 1, 16384);
-    render.height = ReadInt(Required(node, "height", "an integer in [1, 16384]"), 1, 16384);
+    RenderSettings render = base.value_or(RenderSettings{});
+    if (!base || node.Has("width")) render.width = ReadInt(Required(node, "width", "an integer in [1, 16384]"), 1, 16384);
+    if (!base || node.Has("height")) render.height = ReadInt(Required(node, "height", "an integer in [1, 16384]"), 1, 16384);
     if (node.Has("frames")) {
       Node frames = node.Member("frames");
       ExpectObject(frames, {"start", "count"}, "{\"start\": first frame, \"count\": number of frames}");
@@ -565,19 +632,25 @@ class SceneReader {
 
   // materials ------------------------------------------------------------------------
 
-  std::vector<Material> ReadMaterials(const Node& root) {
-    std::vector<Material> materials{Material{}};
-    materials[0].name = kDefaultMaterial;
-    materialIndex_[kDefaultMaterial] = 0;
+  // base: an imported scene's materials, "default" first; the document's add to them, or
+  // replace one of the same name.
+  std::vector<Material> ReadMaterials(const Node& root, std::vector<Material> base) {
+    std::vector<Material> materials = std::move(base);
+    if (materials.empty()) {
+      materials.push_back(Material{});
+      materials[0].name = kDefaultMaterial;
+    }
+    for (size_t i = 0; i < materials.size(); ++i) materialIndex_[materials[i].name] = static_cast<int>(i);
     if (!root.Has("materials")) return materials;
     Node node = root.Member("materials");
     if (!node.value.is_object()) FailType(node, "an object mapping material names to materials");
     for (const auto& entry : node.value.items()) {
       Material material = ReadMaterial(node.Member(entry.key()));
       material.name = entry.key();
-      // A user "default" replaces the built-in one, so a written scene reads back the same.
-      if (material.name == kDefaultMaterial) {
-        materials[0] = material;
+      // A user "default" replaces the built-in one, so a written scene reads back the same;
+      // a material named like an imported one replaces it.
+      if (auto known = materialIndex_.find(material.name); known != materialIndex_.end()) {
+        materials[static_cast<size_t>(known->second)] = material;
       } else {
         materialIndex_[material.name] = static_cast<int>(materials.size());
         materials.push_back(material);
@@ -906,6 +979,20 @@ class SceneReader {
   }
 
   // Every shared mesh is read and checked, used or not: a scene holds no invalid geometry.
+  // The document's shared meshes, beside an imported scene's (which its shapes may place too).
+  void AddSharedMeshes(Scene& scene, const Node& node) {
+    if (!node.value.is_object()) FailType(node, "an object mapping mesh names to meshes");
+    for (const auto& entry : node.value.items()) {
+      if (scene.meshes.count(entry.key())) {
+        Fail(node.MemberPointer(entry.key()), "the imported file has a mesh named " + Quote(entry.key()),
+             "a name of its own");
+      }
+    }
+    std::map<std::string, std::shared_ptr<const TriangleMesh>> imported = std::move(scene.meshes);
+    scene.meshes = ReadSharedMeshes(node);
+    scene.meshes.insert(imported.begin(), imported.end());
+  }
+
   std::map<std::string, std::shared_ptr<const TriangleMesh>> ReadSharedMeshes(const Node& node) {
     if (!node.value.is_object()) FailType(node, "an object mapping mesh names to meshes");
     for (const auto& entry : node.value.items()) {

@@ -278,6 +278,36 @@ def test_a_textured_gltf_renders_through_the_farm_as_tcfarm_worker_render_does(w
     assert (farm.store / "assets" / floor).exists()
 
 
+def test_a_json_scene_adds_to_the_gltf_it_imports_on_the_farm_as_at_home(worker_binary, tmp_path):
+    """A tcfarm JSON scene imports a glTF (in a subfolder, its buffer and image beside it)
+    and adds a light, a sphere, a background, its own render size and frames, and picks
+    the glTF's side camera. tcfarm submit uploads the scene's files and the glTF's; the
+    farm's exact frames equal tcfarm-worker render's."""
+    shot = tmp_path / "shot"
+    (shot / "set").mkdir(parents=True)
+    gltf = make_gltf.textured_turntable("file")
+    document = json.loads(gltf.gltf_text())
+    (shot / "set" / "turntable.bin").write_bytes(base64.b64decode(document["buffers"][0]["uri"].split(",", 1)[1]))
+    document["buffers"][0]["uri"] = "turntable.bin"
+    (shot / "set" / "turntable.gltf").write_text(json.dumps(document))
+    (shot / "set" / "floor.png").write_bytes(make_gltf.png_bytes(make_gltf.checker(8, (230, 230, 230), (40, 90, 160))))
+    scene = {"import": {"file": "set/turntable.gltf", "fps": 12, "camera": "side"},
+             "render": {"width": 80, "height": 60, "frames": {"start": 0, "count": 13}},
+             "background": [0.1, 0.15, 0.3],
+             "materials": {"gold": {"diffuse": [0.8, 0.6, 0.1], "specular": [0.5, 0.4, 0.1], "reflectivity": 0.3}},
+             "lights": [{"type": "point", "position": [-3, 4, 2], "intensity": [20, 10, 10]}],
+             "shapes": [{"type": "sphere", "center": [-2, 1, 1], "radius": 0.7, "material": "gold"}]}
+    (shot / "scene.json").write_text(json.dumps(scene))
+    printed = printed_scene(worker_binary, shot / "scene.json")
+    assert len(printed["lights"]) == 4 and printed["background"] == [0.1, 0.15, 0.3]
+    assert printed["shapes"][-1]["type"] == "sphere" and printed["render"]["width"] == 80
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=2) as farm:
+        farm.wait_for_workers(2)
+        job = submit_and_compare(farm, worker_binary, shot / "scene.json", (), tmp_path / "reference")
+    assert job["width"] == 80
+
+
 def test_a_moving_glTF_camera_makes_auto_pick_guarded_and_say_why(tmp_path):
     """exact cannot copy a pixel when the camera moves, so auto picks guarded, and the job
     record says which and why."""

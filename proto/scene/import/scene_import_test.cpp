@@ -213,5 +213,80 @@ TEST(SceneImportTest, ObjSceneErrorsNameFileAndLine) {
   EXPECT_NE(what.find("too far to frame"), std::string::npos) << what;
 }
 
+// --- a JSON scene importing a file and adding to it ----------------------------------------
+
+const char* const kAddOn = R"({"import": {"file": "box.obj"},
+  "render": {"width": 8, "height": 6, "frames": {"count": 3}},
+  "materials": {"red": {"diffuse": [0, 1, 0]}, "gold": {"diffuse": [0.8, 0.6, 0.1]}},
+  "lights": [{"type": "point", "position": [0, 4, 0], "intensity": [5, 5, 5]}],
+  "shapes": [{"type": "sphere", "center": [2, 0, 0], "radius": 0.5, "material": "chrome"},
+             {"type": "sphere", "center": [-2, 0, 0], "radius": 0.5, "material": "gold"}],
+  "background": [0.1, 0.2, 0.3]})";
+
+TEST(SceneImportTest, AJsonSceneAddsToTheFileItImports) {
+  TempFolder folder;
+  folder.Write("box.obj", kBoxObj);
+  folder.Write("box.mtl", kBoxMtl);
+  const Scene base = ImportScene(folder.path() / "box.obj", ImportOptions{1, "", "", 8, 6, 0});
+  const Scene scene = LoadSceneFile(folder.Write("shot.json", kAddOn));
+  EXPECT_EQ(scene.render.width, 8);
+  EXPECT_EQ(scene.render.frameCount, 3);
+  EXPECT_EQ(scene.background, (Vec3{0.1, 0.2, 0.3}));
+  ASSERT_EQ(scene.lights.size(), base.lights.size() + 1);  // the file's own, then the scene's
+  ASSERT_EQ(scene.shapes.size(), base.shapes.size() + 2);
+  EXPECT_EQ(scene.camera.position.Evaluate(0), base.camera.position.Evaluate(0));  // no "camera": the file's framing
+  // "red" replaced where the file's shapes use it; "gold" added; "chrome" the file's.
+  const auto material = [&](const std::string& name) {
+    for (const Material& m : scene.materials) {
+      if (m.name == name) return m;
+    }
+    ADD_FAILURE() << "no material " << name;
+    return Material{};
+  };
+  EXPECT_EQ(material("red").diffuse, (Vec3{0, 1, 0}));
+  EXPECT_EQ(scene.materials[static_cast<size_t>(scene.shapes[0].material)].name, base.materials[static_cast<size_t>(base.shapes[0].material)].name);
+  EXPECT_EQ(scene.materials[static_cast<size_t>(scene.shapes.back().material)].name, "gold");
+  // Written out, the scene stands alone: nothing of the import remains to resolve.
+  const std::string written = SerializeScene(scene);
+  EXPECT_EQ(written.find("import"), std::string::npos);
+  EXPECT_EQ(SerializeScene(ParseScene(written)), written);
+}
+
+TEST(SceneImportTest, AJsonSceneMayChooseItsOwnCamera) {
+  TempFolder folder;
+  folder.Write("box.obj", kBoxObj);
+  folder.Write("box.mtl", kBoxMtl);
+  const Scene scene = LoadSceneFile(folder.Write("shot.json", R"({"import": {"file": "box.obj"},
+    "camera": {"position": [0, 9, 0], "look_at": [0, 0, 0], "up": [0, 0, -1]}})"));
+  EXPECT_EQ(scene.camera.position.Evaluate(0), (Vec3{0, 9, 0}));
+}
+
+TEST(SceneImportTest, BadImportsAreRefusedAtImportFile) {
+  TempFolder folder;
+  folder.Write("box.obj", kBoxObj);
+  folder.Write("box.mtl", kBoxMtl);
+  folder.Write("broken.obj", "usemtl nowhere\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  folder.Write("other.json", kJsonScene);
+  auto failsAt = [&](const std::string& json, const std::string& pointer, const std::string& mention) {
+    try {
+      LoadSceneFile(folder.Write("shot.json", json));
+    } catch (const SceneError& error) {
+      EXPECT_EQ(error.pointer(), pointer) << error.what();
+      EXPECT_NE(std::string(error.what()).find(mention), std::string::npos) << error.what();
+      return;
+    }
+    ADD_FAILURE() << json << " was accepted";
+  };
+  failsAt(R"({"import": {"file": "absent.obj"}})", "/import/file", "absent.obj");
+  failsAt(R"({"import": {"file": "../box.obj"}})", "/import/file", "inside");
+  failsAt(R"({"import": {"file": "other.json"}})", "/import/file", "do not nest");
+  failsAt(R"({"import": {"file": "broken.obj"}})", "/import/file", "nowhere");
+  failsAt(R"({"import": {"file": "box.obj", "speed": 2}})", "/import/speed", "unknown field");
+  failsAt(R"({"import": {}})", "/import/file", "missing");
+  failsAt(R"({"import": {"file": "box.obj"}, "render": {"width": 0}})", "/render/width", "");
+  const std::string what = ErrorOf([] { ParseScene(R"({"import": {"file": "box.obj"}})"); });
+  EXPECT_NE(what.find("without a folder"), std::string::npos) << what;
+}
+
 }  // namespace
 }  // namespace tcfarm

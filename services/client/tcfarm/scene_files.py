@@ -73,6 +73,33 @@ def _gltf_uris(document):
                 yield unquote(uri), what
 
 
+def _references_of_file(data, suffix, path):
+    """The files a glTF or OBJ file names, relative to its own folder."""
+    if suffix == ".gltf":
+        try:
+            document = json.loads(data)
+        except ValueError as e:
+            raise SceneFileError(f"{path} is not glTF JSON: {e}") from None
+        yield from _gltf_uris(document)
+    elif suffix == ".obj":
+        for name in _obj_libraries(data.decode("utf-8", errors="replace")):
+            yield name, "material library"
+
+
+def _add_imported(assets, folder, scene, scene_path):
+    """A JSON scene's imported file (its "import": {"file"}) and what that file names, each
+    relative to the scene's folder."""
+    imported = scene.get("import") if isinstance(scene, dict) else None
+    name = imported.get("file") if isinstance(imported, dict) else None
+    if not isinstance(name, str):
+        return
+    relative = _add(assets, folder, name, scene_path, "imported file")
+    local = assets[relative]
+    base = posixpath.dirname(relative)
+    for reference, what in _references_of_file(local.read_bytes(), local.suffix.lower(), local):
+        _add(assets, folder, posixpath.join(base, reference) if base else reference, local, what)
+
+
 def scene_files(path):
     """The scene at path and the files it references, ready for upload and submission."""
     path = pathlib.Path(path)
@@ -89,19 +116,10 @@ def scene_files(path):
         assets = {}
         for name, what in _json_references(scene):
             _add(assets, folder, name, path, what)
+        _add_imported(assets, folder, scene, path)
         return SceneFiles(scene, None, assets)
     # Any other file goes to the farm as it is, which imports it by its type.
     assets = {path.name: path}
-    if path.suffix.lower() == ".gltf":
-        try:
-            document = json.loads(data)
-        except ValueError as e:
-            raise SceneFileError(f"{path} is not glTF JSON: {e}") from None
-        for name, what in _gltf_uris(document):
-            _add(assets, folder, name, path, what)
-        return SceneFiles(None, path.name, assets)
-    if path.suffix.lower() == ".glb":
-        return SceneFiles(None, path.name, assets)
-    for name in _obj_libraries(data.decode("utf-8", errors="replace")):
-        _add(assets, folder, name, path, "material library")
+    for name, what in _references_of_file(data, path.suffix.lower(), path):
+        _add(assets, folder, name, path, what)
     return SceneFiles(None, path.name, assets)
