@@ -1,8 +1,9 @@
 """The main job: render example animations on a local farm with brute force, the paper's
 search and auto, and report what temporal coherence bought (traced-pixel ratio, time) and
 what it cost (error against brute force). The paper's 12-sphere animation, then a glTF 2.0
-animation (a hierarchy with every channel and interpolation) sent to the farm as a file
-with its assets, as `tcfarm submit shot.gltf` sends one.
+animation (a textured hierarchy with every channel and interpolation, point, spot and
+directional lights) sent to the farm as a file with its image, as `tcfarm submit
+shot.gltf` sends one.
 
   python scripts/demo_farm.py [--scene tests/scenes/paper_b_twelve_spheres.json] [--bin-width 10]
                               [--gltf FILE] [--gltf-fps 24] [--gltf-size 320x240]
@@ -41,6 +42,12 @@ def gltf_submission(farm, path, fps, size):
                 **{"import": {"fps": fps, "size": [width, height]}})
 
 
+def write_example_gltf(folder):
+    """The textured turntable, its floor image a file beside it."""
+    (folder / "floor.png").write_bytes(make_gltf.floor_png())
+    return make_gltf.textured_turntable("file").write(folder / "turntable.gltf")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default=str(ROOT / "tests/scenes/paper_b_twelve_spheres.json"))
@@ -55,7 +62,7 @@ def main():
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
     scene = json.loads(pathlib.Path(args.scene).read_text())
-    gltf = pathlib.Path(args.gltf) if args.gltf else make_gltf.animated_hierarchy().write(out / "hierarchy.gltf")
+    gltf = pathlib.Path(args.gltf) if args.gltf else write_example_gltf(out)
     with LocalFarm(out, workers=0, local_workers=1, worker_threads=0) as farm:
         farm.wait_for_workers(1)
         print(f"local farm: {farm.url} (workers on {farm.zmq}), frames in {farm.store}")

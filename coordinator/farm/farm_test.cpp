@@ -105,7 +105,9 @@ TEST_F(FarmTest, ASilentWorkersTasksAreRequeuedAfterTheTimeout) {
   size_t held = 0;
   ASSERT_TRUE(TurnUntil([&] {
     held += silent.Tasks().size();  // taken, never answered
-    return held > 0 && farm_->metrics().queueDepth.Value() == 0;
+    // Every task sent has arrived: one still in the socket would be requeued unseen.
+    return held > 0 && farm_->metrics().queueDepth.Value() == 0 &&
+           static_cast<double>(held) == farm_->metrics().tasksInFlight.Value();
   }));
   FakeWorker rescuer(context_, farm_->BoundEndpoint(), 4);
   ASSERT_TRUE(TurnUntil([&] { return farm_->metrics().liveWorkers.Value() == 2; }));

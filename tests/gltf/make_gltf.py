@@ -313,12 +313,17 @@ def animated_hierarchy():
     return g
 
 
+def floor_png():
+    """The turntable's floor image: 8 x 8 checkers, light grey and blue."""
+    return png_bytes(checker(8, (230, 230, 230), (40, 90, 160)))
+
+
 def textured_turntable(how="data"):
     """The animated hierarchy, textured: a checkered floor (its image stored `how`), a
     striped box on the turntable (a data URI, repeating twice across each face), and a spot
     light whose cone edge sweeps the floor as it turns. Still camera."""
     g = animated_hierarchy()
-    floor_texture = g.texture(png_bytes(checker(8, (230, 230, 230), (40, 90, 160))), how, uri="floor.png")
+    floor_texture = g.texture(floor_png(), how, uri="floor.png")
     stripes = g.texture(png_bytes([[(250, 200, 40), (200, 30, 30)] * 4] * 2), "data", wrap=(10497, 33648),
                         mag_filter=9728)
     floor = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "floor")

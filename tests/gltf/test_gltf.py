@@ -263,7 +263,7 @@ def test_a_textured_gltf_renders_through_the_farm_as_tcfarm_worker_render_does(w
     shot = tmp_path / "shot"
     shot.mkdir()
     make_gltf.textured_turntable("file").write(shot / "turntable.gltf")
-    (shot / "floor.png").write_bytes(make_gltf.png_bytes(make_gltf.checker(8, (230, 230, 230), (40, 90, 160))))
+    (shot / "floor.png").write_bytes(make_gltf.floor_png())
     glb = make_gltf.textured_turntable("view").write(tmp_path / "turntable.glb")
     flags = ("--fps", "12", "--size", "96x72")
     (tmp_path / "farm").mkdir()
@@ -290,7 +290,7 @@ def test_a_json_scene_adds_to_the_gltf_it_imports_on_the_farm_as_at_home(worker_
     (shot / "set" / "turntable.bin").write_bytes(base64.b64decode(document["buffers"][0]["uri"].split(",", 1)[1]))
     document["buffers"][0]["uri"] = "turntable.bin"
     (shot / "set" / "turntable.gltf").write_text(json.dumps(document))
-    (shot / "set" / "floor.png").write_bytes(make_gltf.png_bytes(make_gltf.checker(8, (230, 230, 230), (40, 90, 160))))
+    (shot / "set" / "floor.png").write_bytes(make_gltf.floor_png())
     scene = {"import": {"file": "set/turntable.gltf", "fps": 12, "camera": "side"},
              "render": {"width": 80, "height": 60, "frames": {"start": 0, "count": 13}},
              "background": [0.1, 0.15, 0.3],
