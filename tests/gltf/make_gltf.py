@@ -324,7 +324,8 @@ def textured_turntable(how="data"):
     light whose cone edge sweeps the floor as it turns. Still camera."""
     g = animated_hierarchy()
     floor_texture = g.texture(floor_png(), how, uri="floor.png")
-    stripes = g.texture(png_bytes([[(250, 200, 40), (200, 30, 30)] * 4] * 2), "data", wrap=(10497, 33648),
+    stripes = g.texture(png_bytes([[(250, 200, 40), (200, 30, 30)] * 4] * 2), "view" if how == "view" else "data",
+                        wrap=(10497, 33648),
                         mag_filter=9728)
     floor = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "floor")
     red = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "red")
@@ -337,6 +338,14 @@ def textured_turntable(how="data"):
     box = next(i for i, m in enumerate(g.doc["meshes"]) if m.get("name") == "box")
     uvs = [0, 0, 2, 0, 2, 2, 0, 2, 0, 2, 2, 2, 2, 0, 0, 0]
     g.doc["meshes"][box]["primitives"][0]["attributes"]["TEXCOORD_0"] = g.accessor(uvs, "VEC2", target=34962)
+    # The sign shares the box's material, so it needs coordinates too: its hexagon's own x, y.
+    sign = next(n for n in g.doc["nodes"] if n.get("name") == "sign")
+    sign_primitive = g.doc["meshes"][sign["mesh"]]["primitives"][0]
+    hexagon = g.doc["accessors"][sign_primitive["attributes"]["POSITION"]]
+    sign_primitive["attributes"]["TEXCOORD_0"] = g.accessor(
+        [0.5, 0.5] + [c for k in range(7) for c in (0.5 + 0.5 * math.cos(k * math.pi / 3),
+                                                      0.5 - 0.5 * math.sin(k * math.pi / 3))], "VEC2", target=34962)
+    assert hexagon["count"] == 8
     # A spot light on the turntable's arm, pointing down and out: its cone sweeps the floor.
     turntable = next(i for i, n in enumerate(g.doc["nodes"]) if n.get("name") == "turntable")
     spot = g.light("spot", 40.0, (0.9, 0.9, 1.0))
@@ -346,21 +355,51 @@ def textured_turntable(how="data"):
     return g
 
 
-def forest(flattened=False, trees=50):
-    """One smooth, texture-mapped tree (a cube with normals leaning out and UVs) placed by
-    `trees` nodes on a 10 x 5 grid over a floor: every fifth turns and every seventh hops
-    (the first second, 13 frames at 12 per second), the rest stand still, some turned and
-    scaled. flattened: the same scene with one glTF mesh per node, each naming the same
-    accessors, so nothing is shared."""
+def uv_sphere(radius, rings, segments):
+    """A smooth UV sphere about the origin: positions, normals, uvs, indices (flat lists);
+    2 * rings * segments triangles, some degenerate at the poles."""
+    positions, normals, uvs, indices = [], [], [], []
+    for ring in range(rings + 1):
+        theta = math.pi * ring / rings
+        for segment in range(segments + 1):
+            phi = 2 * math.pi * segment / segments
+            normal = (math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi))
+            normals += normal
+            positions += [radius * c for c in normal]
+            uvs += [segment / segments, ring / rings]
+    for ring in range(rings):
+        for segment in range(segments):
+            a = ring * (segments + 1) + segment
+            b = a + segments + 1
+            indices += [a, a + 1, b, a + 1, b + 1, b]
+    return positions, normals, uvs, indices
+
+
+def forest(flattened=False, trees=50, detail=0):
+    """One smooth, texture-mapped tree (a cube with normals leaning out and UVs; with
+    detail > 0 a UV sphere of about `detail` triangles) placed by `trees` nodes on a
+    10 x 5 grid over a floor: every fifth turns and every seventh hops (the first second,
+    13 frames at 12 per second), the rest stand still, some turned and scaled. flattened:
+    the same scene with one glTF mesh per node, each naming the same accessors, so nothing
+    is shared.
+
+        python3 -c "import make_gltf; make_gltf.forest(detail=2000).write('forest100k.gltf')"
+
+    writes a shot of 100,000 triangles (50 x 2,000) for benchmarks."""
     g = Gltf()
     bark = g.material("bark", (0.2, 0.6, 0.2), roughness=0.5)
     floor = g.material("floor", (0.6, 0.6, 0.6), roughness=0.9)
     g.node(name="floor", mesh=g.mesh([{"positions": [-8, 0, -8, -8, 0, 8, 8, 0, -8, 8, 0, 8],
                                        "mode": TRIANGLE_STRIP, "material": floor}]))
-    positions, indices = cube(0.3)
-    primitive = {"positions": positions, "indices": indices, "material": bark,
-                 "normals": [c / (0.3 * math.sqrt(3)) for c in positions],
-                 "uvs": [0, 0, 1, 0, 1, 1, 0, 1, 0, 1, 1, 1, 1, 0, 0, 0]}
+    if detail > 0:
+        segments = max(4, round(math.sqrt(detail)))
+        positions, normals, uvs, indices = uv_sphere(0.35, max(2, math.ceil(detail / (2 * segments))), segments)
+        primitive = {"positions": positions, "indices": indices, "material": bark, "normals": normals, "uvs": uvs}
+    else:
+        positions, indices = cube(0.3)
+        primitive = {"positions": positions, "indices": indices, "material": bark,
+                     "normals": [c / (0.3 * math.sqrt(3)) for c in positions],
+                     "uvs": [0, 0, 1, 0, 1, 1, 0, 1, 0, 1, 1, 1, 1, 0, 0, 0]}
     tree = g.mesh([primitive], name="tree")
     for i in range(trees):
         mesh = tree
