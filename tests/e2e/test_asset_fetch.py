@@ -379,6 +379,18 @@ def test_an_asset_over_the_workers_limit_fails_the_waiting_tasks(coordinator, st
     serve_after_failure(coordinator, worker, cache, texture, 3)
 
 
+def test_an_error_naming_the_asset_fails_the_waiting_tasks(coordinator, start_worker, cache):
+    texture = image(5)
+    worker = start_worker(cache)
+    asset = start_failing_download(coordinator, texture, [1, 2])
+    coordinator.asset_piece(asset, 0, len(texture), texture[:100])  # a download under way, too
+    coordinator.send(ERROR, {"task_id": 0, "scene_hash": "", "message": "unreadable on this farm",
+                             "asset_hash": asset})
+    assert_tasks_failed_naming(coordinator, asset, [1, 2], "unreadable on this farm")
+    assert cached_files(cache) == []
+    serve_after_failure(coordinator, worker, cache, texture, 3)
+
+
 def test_pieces_nobody_asked_for_are_ignored(coordinator, start_worker, cache):
     unasked = image(6)
     worker = start_worker(cache)
