@@ -111,8 +111,13 @@ void Dispatcher::OnAssetGet(const std::string& identity, const wire::AssetGet& g
     Send(identity, wire::Error{0, "", "the farm has no asset " + get.assetHash, get.assetHash});
     return;
   }
-  for (const AssetSend& send : assetSends_) {
-    if (send.identity == identity && send.hash == get.assetHash) return;  // already on its way
+  for (AssetSend& send : assetSends_) {
+    // A worker asks again only after it dropped what it had: pieces from where the old
+    // download stood would not fit, so the asset starts over.
+    if (send.identity == identity && send.hash == get.assetHash) {
+      send = AssetSend{identity, get.assetHash, 0, *size};
+      return;
+    }
   }
   assetSends_.push_back(AssetSend{identity, get.assetHash, 0, *size});
 }

@@ -404,6 +404,21 @@ TEST_F(DispatcherAssetTest, AWorkerThatSaysDisconnectMidDownloadIsSentNoMorePiec
   EXPECT_EQ(dispatcher_.counters().assetBytesSent, 32 * kMiB);
 }
 
+// A worker asks again only after it dropped what it had (its disk refused a piece, say):
+// the asset starts over, instead of going on where the dropped download was.
+TEST_F(DispatcherAssetTest, AnAssetAskedForAgainStartsOver) {
+  const std::string asset = Pattern(40 * kMiB);
+  const std::string hash = assets_.Add(asset);
+  auto worker = Connect();
+  Ask(*worker, hash);
+  ASSERT_EQ(Arrived(*worker, 2).size(), 2u);
+  Ask(*worker, hash);
+  std::vector<wire::AssetPiece> pieces = Collect(*worker);
+  ASSERT_FALSE(pieces.empty());
+  EXPECT_EQ(pieces.front().offset, 0u);
+  EXPECT_TRUE(Concatenated(pieces) == asset);
+}
+
 // A coordinator that stops closes its socket right after saying goodbye; the goodbye still
 // reaches the workers, which would otherwise wait out their whole coordinator timeout.
 TEST(DispatcherGoodbye, ReachesWorkersThoughTheSocketClosesAtOnce) {
