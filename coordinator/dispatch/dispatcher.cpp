@@ -126,7 +126,10 @@ void Dispatcher::SendAssetPieces() {
   // Per loop turn: enough to keep a fast link busy, little enough to keep the loop turning.
   constexpr size_t kBytesPerTurn = 2 * wire::kMaxAssetPieceBytes;
   size_t sentThisTurn = 0;
-  while (!assetSends_.empty() && sentThisTurn < kBytesPerTurn) {
+  // A peer that cannot take a piece (its queue is full, or it is gone and not yet expired)
+  // waits for the next turn at the back of the queue, so it holds up no one else's.
+  size_t refusedInARow = 0;
+  while (!assetSends_.empty() && sentThisTurn < kBytesPerTurn && refusedInARow < assetSends_.size()) {
     AssetSend send = std::move(assetSends_.front());
     assetSends_.pop_front();
     if (!registry_.workers().count(send.identity)) continue;  // the worker is gone; so is its request
@@ -142,9 +145,11 @@ void Dispatcher::SendAssetPieces() {
       continue;
     }
     if (!Send(send.identity, piece)) {
-      assetSends_.push_front(std::move(send));  // its queue is full: try again next turn
-      return;
+      assetSends_.push_back(std::move(send));
+      ++refusedInARow;
+      continue;
     }
+    refusedInARow = 0;
     sentThisTurn += piece.bytes.size();
     counters_.assetBytesSent += piece.bytes.size();
     send.offset += piece.bytes.size();

@@ -419,6 +419,23 @@ TEST_F(DispatcherAssetTest, AnAssetAskedForAgainStartsOver) {
   EXPECT_TRUE(Concatenated(pieces) == asset);
 }
 
+// A worker gone without a goodbye (killed) stays in the registry until it has been silent
+// long enough; sending to it fails meanwhile, and that must not hold up the others' pieces.
+TEST_F(DispatcherAssetTest, AWorkerGoneWithoutAGoodbyeHoldsUpNoOtherDownload) {
+  const std::string big = Pattern(100 * kMiB), small = Pattern(20 * kMiB) + "small";
+  const std::string bigHash = assets_.Add(big), smallHash = assets_.Add(small);
+  auto gone = Connect();
+  auto staying = Connect();
+  Ask(*gone, bigHash);
+  ASSERT_EQ(Arrived(*gone, 2).size(), 2u);
+  gone.reset();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the router sees the connection close
+  staying->Send(wire::AssetGet{smallHash});
+  std::vector<wire::AssetPiece> pieces = Collect(*staying);
+  EXPECT_TRUE(Concatenated(pieces) == small);
+  EXPECT_EQ(dispatcher_.registry().workers().size(), 2u);  // the fake clock never expires it
+}
+
 // A coordinator that stops closes its socket right after saying goodbye; the goodbye still
 // reaches the workers, which would otherwise wait out their whole coordinator timeout.
 TEST(DispatcherGoodbye, ReachesWorkersThoughTheSocketClosesAtOnce) {
