@@ -111,8 +111,13 @@ void Dispatcher::OnAssetGet(const std::string& identity, const wire::AssetGet& g
     Send(identity, wire::Error{0, "", "the farm has no asset " + get.assetHash, get.assetHash});
     return;
   }
-  for (const AssetSend& send : assetSends_) {
-    if (send.identity == identity && send.hash == get.assetHash) return;  // already on its way
+  for (AssetSend& send : assetSends_) {
+    // A worker asks again only after it dropped what it had: pieces from where the old
+    // download stood would not fit, so the asset starts over.
+    if (send.identity == identity && send.hash == get.assetHash) {
+      send = AssetSend{identity, get.assetHash, 0, *size};
+      return;
+    }
   }
   assetSends_.push_back(AssetSend{identity, get.assetHash, 0, *size});
 }
@@ -121,7 +126,10 @@ void Dispatcher::SendAssetPieces() {
   // Per loop turn: enough to keep a fast link busy, little enough to keep the loop turning.
   constexpr size_t kBytesPerTurn = 2 * wire::kMaxAssetPieceBytes;
   size_t sentThisTurn = 0;
-  while (!assetSends_.empty() && sentThisTurn < kBytesPerTurn) {
+  // A peer that cannot take a piece (its queue is full, or it is gone and not yet expired)
+  // waits for the next turn at the back of the queue, so it holds up no one else's.
+  size_t refusedInARow = 0;
+  while (!assetSends_.empty() && sentThisTurn < kBytesPerTurn && refusedInARow < assetSends_.size()) {
     AssetSend send = std::move(assetSends_.front());
     assetSends_.pop_front();
     if (!registry_.workers().count(send.identity)) continue;  // the worker is gone; so is its request
@@ -137,9 +145,11 @@ void Dispatcher::SendAssetPieces() {
       continue;
     }
     if (!Send(send.identity, piece)) {
-      assetSends_.push_front(std::move(send));  // its queue is full: try again next turn
-      return;
+      assetSends_.push_back(std::move(send));
+      ++refusedInARow;
+      continue;
     }
+    refusedInARow = 0;
     sentThisTurn += piece.bytes.size();
     counters_.assetBytesSent += piece.bytes.size();
     send.offset += piece.bytes.size();

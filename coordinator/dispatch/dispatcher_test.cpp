@@ -6,9 +6,13 @@
 
 #include <map>
 #include <memory>
+#include <optional>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "dispatch/fake_worker.h"
+#include "wire/content_hash.h"
 #include "wire/zmq_io.h"
 
 namespace tcfarm {
@@ -224,6 +228,212 @@ TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {
   Pump();
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.registry().workers().begin()->second.FreeCredit(), 1u);
+}
+
+// Assets held in memory, as the farm's store holds them on disk.
+class MemoryAssets : public AssetSource {
+ public:
+  std::string Add(std::string bytes) {
+    std::string hash = wire::Sha256Hex(bytes);
+    assets_[hash] = std::move(bytes);
+    return hash;
+  }
+  std::optional<uint64_t> SizeOf(const std::string& hash) const override {
+    auto found = assets_.find(hash);
+    if (found == assets_.end()) return std::nullopt;
+    return found->second.size();
+  }
+  std::string ReadPiece(const std::string& hash, uint64_t offset, size_t maxBytes) const override {
+    return assets_.at(hash).substr(offset, maxBytes);
+  }
+
+ private:
+  std::map<std::string, std::string> assets_;
+};
+
+constexpr size_t kMiB = size_t{1} << 20;
+
+// Bytes that differ from piece to piece, so that a piece out of place shows.
+std::string Pattern(size_t size) {
+  std::string bytes(size, '\0');
+  for (size_t i = 0; i < size; ++i) bytes[i] = static_cast<char>((i * 7 + i / 4093) % 251);
+  return bytes;
+}
+
+class DispatcherAssetTest : public ::testing::Test {
+ protected:
+  DispatcherAssetTest() : dispatcher_("tcp://127.0.0.1:*", clock_, HeartbeatPolicy{}, &assets_) {}
+
+  std::unique_ptr<FakeWorker> Connect() {
+    auto worker = std::make_unique<FakeWorker>(context_, dispatcher_.BoundEndpoint(), 1);
+    const size_t known = dispatcher_.registry().workers().size();
+    for (int i = 0; i < 1000 && dispatcher_.registry().workers().size() == known; ++i) {
+      dispatcher_.Poll(Milliseconds(5), sink_);
+    }
+    EXPECT_EQ(dispatcher_.registry().workers().size(), known + 1);
+    return worker;
+  }
+  // The worker's request read and one turn of pieces sent: nothing else is on its way in.
+  void Ask(FakeWorker& worker, const std::string& hash) {
+    worker.Send(wire::AssetGet{hash});
+    dispatcher_.Receive(Milliseconds(10000), sink_);
+    dispatcher_.Flush();
+  }
+  // Pumps until the worker has had the asset's last piece; returns every piece it got.
+  std::vector<wire::AssetPiece> Collect(FakeWorker& worker, std::vector<wire::AssetPiece> pieces = {}) {
+    for (int i = 0; i < 2000 && (pieces.empty() || !pieces.back().IsLast()); ++i) {
+      dispatcher_.Poll(Milliseconds(5), sink_);
+      for (auto& piece : worker.Pieces()) pieces.push_back(std::move(piece));
+    }
+    return pieces;
+  }
+  // Waits (bounded) for what the dispatcher has sent already.
+  std::vector<wire::AssetPiece> Arrived(FakeWorker& worker, size_t count) {
+    std::vector<wire::AssetPiece> pieces;
+    for (int i = 0; i < 2000 && pieces.size() < count; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      for (auto& piece : worker.Pieces()) pieces.push_back(std::move(piece));
+    }
+    return pieces;
+  }
+
+  MemoryAssets assets_;
+  FakeClock clock_;
+  zmq::context_t context_;
+  Dispatcher dispatcher_;
+  RecordingSink sink_;
+};
+
+std::string Concatenated(const std::vector<wire::AssetPiece>& pieces) {
+  std::string bytes;
+  for (const auto& piece : pieces) bytes += piece.bytes;
+  return bytes;
+}
+
+TEST_F(DispatcherAssetTest, AnAssetArrivesInPiecesInOrderOfOffset) {
+  const std::string asset = Pattern(40 * kMiB);
+  const std::string hash = assets_.Add(asset);
+  auto worker = Connect();
+  worker->Send(wire::AssetGet{hash});
+  std::vector<wire::AssetPiece> pieces = Collect(*worker);
+  ASSERT_EQ(pieces.size(), 3u);
+  const std::vector<uint64_t> offsets{0, 16 * kMiB, 32 * kMiB};
+  for (size_t i = 0; i < pieces.size(); ++i) {
+    EXPECT_EQ(pieces[i].assetHash, hash);
+    EXPECT_EQ(pieces[i].offset, offsets[i]);
+    EXPECT_EQ(pieces[i].totalSize, asset.size());
+    EXPECT_LE(pieces[i].bytes.size(), wire::kMaxAssetPieceBytes);
+  }
+  EXPECT_TRUE(Concatenated(pieces) == asset);
+  EXPECT_EQ(dispatcher_.counters().assetsSent, 1u);
+  EXPECT_EQ(dispatcher_.counters().assetBytesSent, asset.size());
+}
+
+TEST_F(DispatcherAssetTest, AnEmptyAssetIsOneEmptyPiece) {
+  const std::string hash = assets_.Add("");
+  auto worker = Connect();
+  worker->Send(wire::AssetGet{hash});
+  std::vector<wire::AssetPiece> pieces = Collect(*worker);
+  ASSERT_EQ(pieces.size(), 1u);
+  EXPECT_EQ(pieces[0].assetHash, hash);
+  EXPECT_EQ(pieces[0].offset, 0u);
+  EXPECT_EQ(pieces[0].totalSize, 0u);
+  EXPECT_TRUE(pieces[0].bytes.empty());
+  EXPECT_EQ(dispatcher_.counters().assetsSent, 1u);
+  EXPECT_EQ(dispatcher_.counters().assetBytesSent, 0u);
+}
+
+TEST_F(DispatcherAssetTest, AnUnknownAssetIsAnErrorNamingIt) {
+  const std::string unknown = wire::Sha256Hex("never stored");
+  auto worker = Connect();
+  worker->Send(wire::AssetGet{unknown});
+  std::vector<wire::Error> errors;
+  for (int i = 0; i < 2000 && errors.empty(); ++i) {
+    dispatcher_.Poll(Milliseconds(5), sink_);
+    for (auto& m : worker->Drain()) {
+      ASSERT_FALSE(std::holds_alternative<wire::AssetPiece>(m));
+      if (auto* e = std::get_if<wire::Error>(&m)) errors.push_back(*e);
+    }
+  }
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_EQ(errors[0].assetHash, unknown);
+  EXPECT_EQ(errors[0].taskId, 0u);
+  EXPECT_EQ(errors[0].sceneHash, "");
+  EXPECT_NE(errors[0].message.find(unknown), std::string::npos) << errors[0].message;
+  EXPECT_EQ(dispatcher_.counters().assetsSent, 0u);
+  EXPECT_EQ(dispatcher_.counters().assetBytesSent, 0u);
+}
+
+TEST_F(DispatcherAssetTest, TwoWorkersFetchingAtOnceBothGetTheWholeAsset) {
+  const std::string first = Pattern(40 * kMiB), second = Pattern(20 * kMiB) + "second";
+  const std::string firstHash = assets_.Add(first), secondHash = assets_.Add(second);
+  auto one = Connect();
+  auto two = Connect();
+  one->Send(wire::AssetGet{firstHash});
+  two->Send(wire::AssetGet{secondHash});
+  std::vector<wire::AssetPiece> ones, twos;
+  for (int i = 0; i < 2000 && !(!ones.empty() && ones.back().IsLast() && !twos.empty() && twos.back().IsLast());
+       ++i) {
+    dispatcher_.Poll(Milliseconds(5), sink_);
+    for (auto& piece : one->Pieces()) ones.push_back(std::move(piece));
+    for (auto& piece : two->Pieces()) twos.push_back(std::move(piece));
+  }
+  EXPECT_EQ(ones.size(), 3u);
+  EXPECT_EQ(twos.size(), 2u);
+  EXPECT_TRUE(Concatenated(ones) == first);
+  EXPECT_TRUE(Concatenated(twos) == second);
+  EXPECT_EQ(dispatcher_.counters().assetsSent, 2u);
+  EXPECT_EQ(dispatcher_.counters().assetBytesSent, first.size() + second.size());
+}
+
+TEST_F(DispatcherAssetTest, AWorkerThatSaysDisconnectMidDownloadIsSentNoMorePieces) {
+  const std::string asset = Pattern(40 * kMiB);
+  const std::string hash = assets_.Add(asset);
+  auto worker = Connect();
+  Ask(*worker, hash);  // one turn: two pieces of three
+  std::vector<wire::AssetPiece> pieces = Arrived(*worker, 2);
+  ASSERT_EQ(pieces.size(), 2u);
+  ASSERT_FALSE(pieces.back().IsLast());
+  worker->Send(wire::Disconnect{});
+  dispatcher_.Receive(Milliseconds(10000), sink_);  // the goodbye, nothing else
+  for (int i = 0; i < 5; ++i) dispatcher_.Poll(Milliseconds(5), sink_);
+  EXPECT_TRUE(dispatcher_.registry().workers().empty());
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_TRUE(worker->Pieces().empty());
+  EXPECT_EQ(dispatcher_.counters().assetsSent, 0u);
+  EXPECT_EQ(dispatcher_.counters().assetBytesSent, 32 * kMiB);
+}
+
+// A worker asks again only after it dropped what it had (its disk refused a piece, say):
+// the asset starts over, instead of going on where the dropped download was.
+TEST_F(DispatcherAssetTest, AnAssetAskedForAgainStartsOver) {
+  const std::string asset = Pattern(40 * kMiB);
+  const std::string hash = assets_.Add(asset);
+  auto worker = Connect();
+  Ask(*worker, hash);
+  ASSERT_EQ(Arrived(*worker, 2).size(), 2u);
+  Ask(*worker, hash);
+  std::vector<wire::AssetPiece> pieces = Collect(*worker);
+  ASSERT_FALSE(pieces.empty());
+  EXPECT_EQ(pieces.front().offset, 0u);
+  EXPECT_TRUE(Concatenated(pieces) == asset);
+}
+
+// A worker gone without a goodbye (killed) stays in the registry until it has been silent
+// long enough; sending to it fails meanwhile, and that must not hold up the others' pieces.
+TEST_F(DispatcherAssetTest, AWorkerGoneWithoutAGoodbyeHoldsUpNoOtherDownload) {
+  const std::string big = Pattern(100 * kMiB), small = Pattern(20 * kMiB) + "small";
+  const std::string bigHash = assets_.Add(big), smallHash = assets_.Add(small);
+  auto gone = Connect();
+  auto staying = Connect();
+  Ask(*gone, bigHash);
+  ASSERT_EQ(Arrived(*gone, 2).size(), 2u);
+  gone.reset();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // the router sees the connection close
+  staying->Send(wire::AssetGet{smallHash});
+  std::vector<wire::AssetPiece> pieces = Collect(*staying);
+  EXPECT_TRUE(Concatenated(pieces) == small);
+  EXPECT_EQ(dispatcher_.registry().workers().size(), 2u);  // the fake clock never expires it
 }
 
 // A coordinator that stops closes its socket right after saying goodbye; the goodbye still

@@ -42,6 +42,13 @@ class FakeWorker {
     }
     return tasks;
   }
+  std::vector<wire::AssetPiece> Pieces() {
+    std::vector<wire::AssetPiece> pieces;
+    for (auto& m : Drain()) {
+      if (auto* p = std::get_if<wire::AssetPiece>(&m)) pieces.push_back(std::move(*p));
+    }
+    return pieces;
+  }
   // Every pixel `value`, traced in no time.
   void Answer(const wire::Task& task, float value = 0.5f) {
     wire::Result result;

@@ -272,15 +272,17 @@ void WorkerDaemon::OnAssetPiece(const wire::AssetPiece& piece) {
 }
 
 // The coordinator cannot serve a scene or an asset we asked for (its job is gone): the
-// tasks that wait on it are dropped, or failed with its reason.
+// tasks that wait on it are dropped, or failed with its reason. The reason names the asset
+// as a download's own failures do: the coordinator's message need not.
 void WorkerDaemon::OnCoordinatorError(const wire::Error& error) {
   if (!error.sceneHash.empty()) waitingForScene_.erase(error.sceneHash);
   if (error.assetHash.empty()) return;
   if (!assets_.IsExpected(error.assetHash)) return;
   assets_.AbandonDownload(error.assetHash);
+  const std::string why = "asset " + error.assetHash + ": " + error.message;
   for (auto wait = waitingForAssets_.begin(); wait != waitingForAssets_.end();) {
     if (wait->second.missing.count(error.assetHash)) {
-      FailTasks(wait->second.tasks, wait->first, error.message);
+      FailTasks(wait->second.tasks, wait->first, why);
       wait = waitingForAssets_.erase(wait);
     } else {
       ++wait;
