@@ -53,6 +53,9 @@ AssetCache::Outcome AssetCache::Accept(const wire::AssetPiece& piece, std::strin
                     std::to_string(maxAssetBytes_) + " (tcfarm-worker serve --asset-max-mib)",
                 problem);
   }
+  // Pieces of a download this worker dropped and asked for again may still be on their
+  // way: until the new one's first piece (offset 0) they are not this download's.
+  if (!download.file && piece.offset != 0) return Outcome::kIgnored;
   if (piece.offset != download.received) {
     return Fail(piece.assetHash,
                 "a piece at byte " + std::to_string(piece.offset) + " where byte " +

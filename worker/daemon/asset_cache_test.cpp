@@ -80,6 +80,9 @@ TEST_F(AssetCacheTest, AGapWrongBytesOrTooLargeAnAssetIsDropped) {
 
   auto gap = Pieces("0123456789abcdef", 4);
   cache.Expect(gap[0].assetHash);
+  // The rest of an earlier, dropped download of the same asset: not this one's start.
+  EXPECT_EQ(cache.Accept(gap[1], &problem), AssetCache::Outcome::kIgnored);
+  EXPECT_TRUE(cache.IsExpected(gap[0].assetHash));
   EXPECT_EQ(cache.Accept(gap[0], &problem), AssetCache::Outcome::kIncomplete);
   EXPECT_EQ(cache.Accept(gap[2], &problem), AssetCache::Outcome::kFailed);
   EXPECT_NE(problem.find("a piece at byte 8 where byte 4 was due"), std::string::npos) << problem;
