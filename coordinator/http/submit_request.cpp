@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "frame/encoded_image.h"
 #include "http/api_error.h"
 #include "json/strict_json.h"
 #include "scene/import/scene_import.h"
@@ -286,19 +287,19 @@ std::string ReadWholeFile(const std::filesystem::path& path) {
   return bytes;
 }
 
-// Names a texture read from a file or held in memory by its bytes' hash, and stores them.
-void StoreTextureImage(Texture& texture, AssetStore& store) {
-  const std::string bytes = texture.bytes ? *texture.bytes : ReadWholeFile(texture.file);
-  texture.asset = wire::Sha256Hex(bytes);
-  if (!store.Has(texture.asset) && store.Put(texture.asset, bytes) == AssetStore::CommitResult::kHashMismatch) {
-    throw std::runtime_error("its bytes changed while they were stored");
-  }
+// A texture's image as its file's bytes: the file the scene names, the bytes a glTF file
+// embeds, or the asset the store holds under the hash the scene names.
+std::string TextureBytes(const Texture& texture, const AssetStore& store) {
+  if (texture.bytes) return *texture.bytes;
+  return ReadWholeFile(texture.asset.empty() ? texture.file : store.PathOf(texture.asset));
 }
 
 // Workers receive a scene as self-contained JSON: meshes travel inline, texture images by
 // hash (they fetch them from the store). So every texture is named by the hash of its
 // image's bytes here, and the store is made to hold them: an image file of the
-// submission's folder is there already, one embedded in a glTF file is stored now.
+// submission's folder is there already, one embedded in a glTF file is stored now. Each
+// image is decoded once here, so that one no worker could read fails the submission, not
+// every task of the job.
 void BindTexturesToAssets(Scene& scene, AssetStore* store, const std::string& scenePointer) {
   for (Material& material : scene.materials) {
     if (!material.diffuseTexture) continue;
@@ -310,15 +311,31 @@ void BindTexturesToAssets(Scene& scene, AssetStore* store, const std::string& sc
                          " cannot reach the workers of a farm without an asset store; expected a material without a texture",
                      pointer);
     }
-    if (!texture.asset.empty() && !texture.bytes) {  // named by hash in the scene itself
-      if (store->Has(texture.asset)) continue;
+    const bool namedByHash = !texture.asset.empty() && !texture.bytes;
+    if (namedByHash && !store->Has(texture.asset)) {
       throw ApiError(400, error_code::kMissingAsset,
                      pointer.substr(1) + "/asset: the farm has no asset " + texture.asset +
                          "; expected the hash of an image uploaded first (PUT /api/v1/assets/{sha256})",
                      scenePointer == "/scene" ? pointer + "/asset" : pointer);
     }
+    std::string bytes;
     try {
-      StoreTextureImage(texture, *store);
+      bytes = TextureBytes(texture, *store);
+    } catch (const std::runtime_error& error) {
+      throw ApiError(507, error_code::kInsufficientStorage, std::string("the store could not read a texture: ") + error.what());
+    }
+    if (const auto problem = EncodedImageProblem(bytes)) {
+      throw ApiError(400, error_code::kInvalidScene,
+                     pointer.substr(1) + ": texture image " + ShowValue(texture.Describe()) + " cannot be used: " +
+                         *problem + "; expected a PNG or JPEG image",
+                     pointer);
+    }
+    if (namedByHash) continue;
+    texture.asset = wire::Sha256Hex(bytes);
+    try {
+      if (!store->Has(texture.asset) && store->Put(texture.asset, bytes) == AssetStore::CommitResult::kHashMismatch) {
+        throw std::runtime_error("its bytes changed while they were stored");
+      }
     } catch (const std::runtime_error& error) {
       throw ApiError(507, error_code::kInsufficientStorage,
                      "the store could not keep texture " + texture.Describe() + ": " + error.what());

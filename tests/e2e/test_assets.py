@@ -166,6 +166,25 @@ def test_a_texture_the_farm_lacks_is_named_and_no_job_is_made(farm):
     assert len(farm.client.jobs()) == jobs_before
 
 
+@pytest.mark.parametrize("bytes_, problem", [
+    (b"GIF89a not really", "not an image"),
+    (make_gltf.png_bytes(make_gltf.checker(64, (200, 0, 0), (0, 0, 200)))[:120], "do not decode"),
+])
+def test_an_image_no_worker_could_read_is_refused_at_submit(farm, tmp_path, bytes_, problem):
+    """An image is decoded once at submit: one that is not an image, or whose pixel data
+    ends early, is a 400 naming the texture, and no job is made to fail on every worker."""
+    folder = tmp_path / "broken"
+    folder.mkdir()
+    (folder / "broken.png").write_bytes(bytes_)
+    (folder / "scene.json").write_text(json.dumps(textured_scene({"image": "broken.png"})))
+    jobs_before = len(farm.client.jobs())
+    result = tcfarm(farm, "submit", folder / "scene.json")
+    assert result.returncode == 1, result.stdout
+    assert 'scene/materials/printed/diffuse_texture: texture image "broken.png" cannot be used' in result.stderr
+    assert problem in result.stderr, result.stderr
+    assert len(farm.client.jobs()) == jobs_before
+
+
 def test_assets_past_the_job_limit_are_413_naming_it(farm, still_life):
     blobs = [bytes([i]) * (MAX_FILE_MIB * 2**20) for i in range(MAX_JOB_MIB + 1)]
     for blob in blobs:

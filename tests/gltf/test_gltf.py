@@ -308,6 +308,25 @@ def test_a_json_scene_adds_to_the_gltf_it_imports_on_the_farm_as_at_home(worker_
     assert job["width"] == 80
 
 
+def test_a_gltf_embedding_a_broken_image_is_refused_at_submit_naming_it(worker_binary, tmp_path):
+    """An embedded image whose bytes end inside its header: tcfarm-worker render says which
+    image, and the farm refuses the submission (400 at /scene_file) rather than fail a job."""
+    document = json.loads(make_gltf.textured_quad("data").gltf_text())
+    truncated = make_gltf.png_bytes(make_gltf.QUAD_TEXELS)[:40]
+    document["images"][0]["uri"] = "data:image/png;base64," + base64.b64encode(truncated).decode()
+    path = tmp_path / "broken.gltf"
+    path.write_text(json.dumps(document))
+    rendered = run(worker_binary, "render", path, "--out", tmp_path / "out")
+    assert rendered.returncode != 0 and "broken.gltf at /images/0" in rendered.stderr, rendered.stderr
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=1) as farm:
+        result = tcfarm_cli(farm, "submit", path)
+        assert result.returncode != 0
+        assert "invalid_scene (400) at /scene_file" in result.stderr, result.stderr
+        assert "broken.gltf at /images/0" in result.stderr and "cannot be used" in result.stderr
+        assert farm.client.jobs() == []
+
+
 def test_a_moving_glTF_camera_makes_auto_pick_guarded_and_say_why(tmp_path):
     """exact cannot copy a pixel when the camera moves, so auto picks guarded, and the job
     record says which and why."""

@@ -8,6 +8,8 @@
 #include <memory>
 #include <string>
 
+#include "frame/encoded_image.h"
+
 namespace tcfarm {
 namespace {
 
@@ -33,14 +35,6 @@ int WrapIndex(int index, int size, Texture::Wrap wrap) {
   return 0;
 }
 
-// OpenImageIO picks a reader by the file name's extension; an image held in memory has
-// none, so its first bytes name the format.
-std::string FormatNameFor(const std::string& bytes) {
-  if (bytes.rfind("\x89PNG", 0) == 0) return "embedded.png";
-  if (bytes.rfind("\xff\xd8", 0) == 0) return "embedded.jpg";
-  return "embedded";
-}
-
 }  // namespace
 
 TextureImage::TextureImage(const Texture& texture)
@@ -50,7 +44,7 @@ TextureImage::TextureImage(const Texture& texture)
   // The reader of an image in memory must outlive the read below, which is forced whole.
   std::unique_ptr<OIIO::Filesystem::IOMemReader> memory;
   if (texture.bytes) memory = std::make_unique<OIIO::Filesystem::IOMemReader>(texture.bytes->data(), texture.bytes->size());
-  OIIO::ImageBuf image(texture.bytes ? FormatNameFor(*texture.bytes) : texture.file.string(), 0, 0, nullptr, nullptr,
+  OIIO::ImageBuf image(texture.bytes ? ReaderNameFor(*texture.bytes) : texture.file.string(), 0, 0, nullptr, nullptr,
                        memory.get());
   if (!image.read(0, 0, true, OIIO::TypeDesc::FLOAT)) {
     throw TextureError("cannot read texture image " + name + ": " + image.geterror());

@@ -764,7 +764,10 @@ class GltfReader {
     Texture texture;
     texture.bytes = std::make_shared<const std::string>(image.image.begin(), image.image.end());
     texture.asset = wire::Sha256Hex(*texture.bytes);
-    if (!image.uri.empty() && image.uri.compare(0, 5, "data:") != 0) texture.image = UrlDecode(image.uri);
+    // For messages: the file beside the glTF, or where in it an embedded image lies.
+    const bool external = !image.uri.empty() && image.uri.compare(0, 5, "data:") != 0;
+    texture.image = external ? UrlDecode(image.uri)
+                             : input_.displayName + " at " + Pointer("images", static_cast<size_t>(source.source));
     if (source.sampler >= 0) {
       if (static_cast<size_t>(source.sampler) >= model_.samplers.size()) {
         Fail(texturePointer + "/sampler", "sampler " + std::to_string(source.sampler) + " does not exist",
