@@ -128,3 +128,27 @@ def compare(reference_dir, test_dir):
                              "--json"], capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout)
+
+
+def tcfarm_cli(farm, *args):
+    """The tcfarm command line against this farm, as a user runs it."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "services" / "client"))
+    return subprocess.run([sys.executable, "-m", "tcfarm.cli", "--url", farm.url, *map(str, args)],
+                          capture_output=True, text=True, env=env, timeout=600)
+
+
+def submit_file_and_compare(farm, path, flags, reference, strategy="exact"):
+    """`tcfarm submit PATH FLAGS --wait` against `tcfarm-worker render PATH FLAGS` (written
+    to `reference`). Returns the job record and the comparison; prints the job's
+    traced-pixel ratio and the differing pixels."""
+    rendered = subprocess.run([str(WORKER), "render", str(path), *map(str, flags), "--out", str(reference),
+                               "--no-png"], capture_output=True, text=True, timeout=600)
+    assert rendered.returncode == 0, rendered.stderr
+    result = tcfarm_cli(farm, "--json", "submit", path, *flags, "--strategy", strategy, "--wait")
+    assert result.returncode == 0, result.stderr
+    job = json.loads(result.stdout.strip().splitlines()[-1])
+    assert job["state"] == "completed", job
+    error = compare(reference, farm.store / str(job["id"]))
+    print(f"{pathlib.Path(path).name} {strategy}: traced-pixel ratio {job['traced_pixel_ratio']:.3f}, "
+          f"{error['differing_pixels']} pixels differ in {error['frames']} frames")
+    return job, error

@@ -3,7 +3,6 @@ coordinator, laid out for its scene parser, and the job renders on real workers 
 the standalone renderer renders the same scene from disk."""
 import hashlib
 import json
-import os
 import pathlib
 import re
 import shutil
@@ -16,7 +15,7 @@ import pytest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "gltf"))
 import make_gltf  # noqa: E402  (its PNG writer)
-from farm_harness import ROOT, WORKER, LocalFarm, compare
+from farm_harness import WORKER, LocalFarm, compare, submit_file_and_compare, tcfarm_cli
 from tcfarm.client import ApiError
 
 MAX_FILE_MIB = 1
@@ -134,16 +133,7 @@ def test_a_textured_scene_renders_on_workers_as_from_disk(farm, tmp_path):
     (folder / "bricks.png").write_bytes(make_gltf.png_bytes(make_gltf.checker(6, (180, 60, 40), (220, 210, 190))))
     (folder / "scene.json").write_text(json.dumps(textured_scene({"image": "bricks.png", "filter": "nearest"})))
     reference = tmp_path / "reference"
-    rendered = subprocess.run([str(WORKER), "render", str(folder / "scene.json"), "--out", str(reference),
-                               "--no-png"], capture_output=True, text=True, timeout=300)
-    assert rendered.returncode == 0, rendered.stderr
-    result = tcfarm(farm, "--json", "submit", folder / "scene.json", "--strategy", "exact", "--wait")
-    assert result.returncode == 0, result.stderr
-    job = json.loads(result.stdout.strip().splitlines()[-1])
-    assert job["state"] == "completed", job
-    error = compare(reference, farm.store / str(job["id"]))
-    print(f"textured scene exact: traced-pixel ratio {job['traced_pixel_ratio']:.3f}, "
-          f"{error['differing_pixels']} pixels differ")
+    job, error = submit_file_and_compare(farm, folder / "scene.json", (), reference)
     assert error["differing_pixels"] == 0 and error["frames"] == 6, error
     # The same image named by its hash, uploaded by the submission: the same frames.
     hash_ = sha256((folder / "bricks.png").read_bytes())
@@ -178,7 +168,7 @@ def test_an_image_no_worker_could_read_is_refused_at_submit(farm, tmp_path, byte
     (folder / "broken.png").write_bytes(bytes_)
     (folder / "scene.json").write_text(json.dumps(textured_scene({"image": "broken.png"})))
     jobs_before = len(farm.client.jobs())
-    result = tcfarm(farm, "submit", folder / "scene.json")
+    result = tcfarm_cli(farm, "submit", folder / "scene.json")
     assert result.returncode == 1, result.stdout
     assert 'scene/materials/printed/diffuse_texture: texture image "broken.png" cannot be used' in result.stderr
     assert problem in result.stderr, result.stderr
@@ -227,12 +217,6 @@ def test_a_second_upload_of_the_same_asset_sends_nothing(farm, tmp_path):
     assert uploads(farm) == before + 1
 
 
-def tcfarm(farm, *args):
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "services" / "client"))
-    return subprocess.run([sys.executable, "-m", "tcfarm.cli", "--url", farm.url, *map(str, args)],
-                          capture_output=True, text=True, env=env, timeout=300)
-
-
 def test_the_cli_uploads_the_obj_a_json_scene_names_once(farm, still_life, tmp_path):
     (tmp_path / "meshes").mkdir()
     # Bytes of its own, so that no other test has uploaded them.
@@ -240,24 +224,24 @@ def test_the_cli_uploads_the_obj_a_json_scene_names_once(farm, still_life, tmp_p
     scene = scene_with_mesh_file("./meshes/life.obj", 32, 24, 3)
     (tmp_path / "scene.json").write_text(json.dumps(scene))
     before = uploads(farm)
-    result = tcfarm(farm, "submit", tmp_path / "scene.json", "--strategy", "exact", "--wait")
+    result = tcfarm_cli(farm, "submit", tmp_path / "scene.json", "--strategy", "exact", "--wait")
     assert result.returncode == 0, result.stderr
     assert "assets: 1 files, 1 uploaded" in result.stderr and "completed" in result.stdout
-    again = tcfarm(farm, "submit", tmp_path / "scene.json", "--wait")
+    again = tcfarm_cli(farm, "submit", tmp_path / "scene.json", "--wait")
     assert again.returncode == 0, again.stderr
     assert "assets: 1 files, 0 uploaded" in again.stderr
     assert uploads(farm) == before + 1
 
 
 def test_the_cli_submits_an_obj_with_its_material_library(farm, still_life, tmp_path):
-    result = tcfarm(farm, "--json", "submit", still_life, "--wait")
+    result = tcfarm_cli(farm, "--json", "submit", still_life, "--wait")
     assert result.returncode == 0, result.stderr
     job = json.loads(result.stdout)
     assert job["state"] == "completed" and job["frames"]["count"] == 1
     # Without its library, the OBJ is refused naming the library.
     lonely = tmp_path / "lonely.obj"
     lonely.write_bytes(still_life.read_bytes())
-    missing = tcfarm(farm, "submit", lonely)
+    missing = tcfarm_cli(farm, "submit", lonely)
     assert missing.returncode == 1 and "still_life.mtl" in missing.stderr
 
 
@@ -265,9 +249,9 @@ def test_the_cli_refuses_a_scene_naming_a_file_outside_its_folder(farm, tmp_path
     (tmp_path / "scenes").mkdir()
     (tmp_path / "outside.obj").write_bytes(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     (tmp_path / "scenes" / "scene.json").write_text(json.dumps(scene_with_mesh_file("../outside.obj")))
-    result = tcfarm(farm, "submit", tmp_path / "scenes" / "scene.json")
+    result = tcfarm_cli(farm, "submit", tmp_path / "scenes" / "scene.json")
     assert result.returncode == 1
     assert "mesh file '../outside.obj' is not a relative path inside the scene's folder" in result.stderr
     (tmp_path / "scenes" / "scene.json").write_text(json.dumps(scene_with_mesh_file("absent.obj")))
-    absent = tcfarm(farm, "submit", tmp_path / "scenes" / "scene.json")
+    absent = tcfarm_cli(farm, "submit", tmp_path / "scenes" / "scene.json")
     assert absent.returncode == 1 and "cannot read mesh file 'absent.obj'" in absent.stderr

@@ -4,7 +4,6 @@ naming where, and exact equals brute force on an animated hierarchy."""
 import base64
 import hashlib
 import json
-import os
 import pathlib
 import re
 import subprocess
@@ -15,7 +14,7 @@ import pytest
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
 import make_gltf  # noqa: E402
-from farm_harness import ROOT, LocalFarm, compare, render_reference  # noqa: E402
+from farm_harness import LocalFarm, compare, render_reference, submit_file_and_compare, tcfarm_cli  # noqa: E402
 
 # Debian's assimp-testmodels (scripts/bootstrap installs it), read where it lies.
 TEST_MODELS = pathlib.Path("/usr/share/assimp/models/glTF2")
@@ -129,16 +128,23 @@ def test_good_models_render(worker_binary, tmp_path):
     assert "morph target weights are not supported" in result.stderr
 
 
-def test_farm_exact_equals_brute_force_on_an_animated_hierarchy(worker_binary, files, tmp_path):
-    scene = printed_scene(worker_binary, files["animated_hierarchy.gltf"], "--fps", "12", "--size", "96x72")
-    assert scene["render"]["frames"]["count"] == 13
-    reference = render_reference(scene, tmp_path / "reference")
+def farm_exact_equals_reference(scene, reference_scene, tmp_path):
+    """scene through the farm with exact on two workers against reference_scene through
+    tcfarm-worker render: no pixel differs. Returns the job record."""
+    reference = render_reference(reference_scene, tmp_path / "reference")
     (tmp_path / "farm").mkdir()
     with LocalFarm(tmp_path / "farm", workers=2) as farm:
         farm.wait_for_workers(2)
         job = farm.run_job(scene, strategy="exact", bin_width=8)
         error = compare(reference, farm.store / str(job["id"]))
     assert error["differing_pixels"] == 0, error
+    return job
+
+
+def test_farm_exact_equals_brute_force_on_an_animated_hierarchy(worker_binary, files, tmp_path):
+    scene = printed_scene(worker_binary, files["animated_hierarchy.gltf"], "--fps", "12", "--size", "96x72")
+    assert scene["render"]["frames"]["count"] == 13
+    job = farm_exact_equals_reference(scene, scene, tmp_path)
     # The still floor and sign keep their pixels between the movers' passes.
     assert job["traced_pixel_ratio"] < 0.6, job["traced_pixel_ratio"]  # 0.29 when written
 
@@ -185,13 +191,7 @@ def test_shared_mesh_renders_the_bits_of_its_flattened_twin(worker_binary, files
 
 def test_farm_exact_equals_brute_force_on_instanced_animation(worker_binary, files, tmp_path):
     scene = printed_scene(worker_binary, files["forest.gltf"], *FOREST_FLAGS)
-    reference = render_reference(inlined(scene), tmp_path / "reference")
-    (tmp_path / "farm").mkdir()
-    with LocalFarm(tmp_path / "farm", workers=2) as farm:
-        farm.wait_for_workers(2)
-        job = farm.run_job(scene, strategy="exact", bin_width=8)
-        error = compare(reference, farm.store / str(job["id"]))
-    assert error["differing_pixels"] == 0, error
+    job = farm_exact_equals_reference(scene, inlined(scene), tmp_path)
     print("instanced forest: traced pixel ratio %.3f" % job["traced_pixel_ratio"])
 
 
@@ -208,26 +208,10 @@ def test_generated_files_pass_the_khronos_validator(files):
         assert (issues["numErrors"], issues["numWarnings"]) == (0, 0), (report["uri"], issues["messages"])
 
 
-def tcfarm_cli(farm, *args):
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "services" / "client"))
-    return subprocess.run([sys.executable, "-m", "tcfarm.cli", "--url", farm.url, "--json", *map(str, args)],
-                          capture_output=True, text=True, env=env, timeout=600)
-
-
-def submit_and_compare(farm, worker_binary, path, flags, reference, strategy="exact"):
-    """`tcfarm submit path flags --wait` against `tcfarm-worker render path flags`: every
-    pixel of every frame equal. Returns the job record."""
-    result = run(worker_binary, "render", path, *flags, "--out", reference, "--no-png")
-    assert result.returncode == 0, result.stderr
-    result = tcfarm_cli(farm, "submit", path, *flags, "--strategy", strategy, "--wait")
-    assert result.returncode == 0, result.stderr
-    job = json.loads(result.stdout.strip().splitlines()[-1])
-    assert job["state"] == "completed", job
-    error = compare(reference, farm.store / str(job["id"]))
-    print(f"{path.name} {strategy}: traced-pixel ratio {job['traced_pixel_ratio']:.3f}, "
-          f"{error['differing_pixels']} pixels differ in {error['frames']} frames")
-    assert error["differing_pixels"] == 0, (path.name, error)
-    assert error["frames"] == 13
+def submit_and_compare(farm, path, flags, reference):
+    """exact through the farm against tcfarm-worker render: every pixel of 13 frames."""
+    job, error = submit_file_and_compare(farm, path, flags, reference)
+    assert error["differing_pixels"] == 0 and error["frames"] == 13, (path.name, error)
     return job
 
 
@@ -248,7 +232,7 @@ def test_tcfarm_submit_renders_a_gltf_as_tcfarm_worker_render_does(worker_binary
     with LocalFarm(tmp_path / "farm", workers=2) as farm:
         farm.wait_for_workers(2)
         for path in (external / "shot.gltf", glb):
-            submit_and_compare(farm, worker_binary, path, flags, tmp_path / f"reference-{path.suffix[1:]}")
+            submit_and_compare(farm, path, flags, tmp_path / f"reference-{path.suffix[1:]}")
         # Import options belong to a scene file: with a JSON scene they are refused.
         scene = tmp_path / "scene.json"
         scene.write_text(json.dumps(printed_scene(worker_binary, glb, *flags)))
@@ -270,7 +254,7 @@ def test_a_textured_gltf_renders_through_the_farm_as_tcfarm_worker_render_does(w
     with LocalFarm(tmp_path / "farm", workers=2) as farm:
         farm.wait_for_workers(2)
         for path in (shot / "turntable.gltf", glb):
-            job = submit_and_compare(farm, worker_binary, path, flags, tmp_path / f"reference-{path.suffix[1:]}")
+            job = submit_and_compare(farm, path, flags, tmp_path / f"reference-{path.suffix[1:]}")
             assert job["traced_pixel_ratio"] < 0.8, job["traced_pixel_ratio"]
     # The images are in the store under their hashes: the file uploaded, the embedded ones
     # stored when the coordinator imported the file.
@@ -304,7 +288,7 @@ def test_a_json_scene_adds_to_the_gltf_it_imports_on_the_farm_as_at_home(worker_
     (tmp_path / "farm").mkdir()
     with LocalFarm(tmp_path / "farm", workers=2) as farm:
         farm.wait_for_workers(2)
-        job = submit_and_compare(farm, worker_binary, shot / "scene.json", (), tmp_path / "reference")
+        job = submit_and_compare(farm, shot / "scene.json", (), tmp_path / "reference")
     assert job["width"] == 80
 
 
@@ -337,7 +321,7 @@ def test_a_moving_glTF_camera_makes_auto_pick_guarded_and_say_why(tmp_path):
     (tmp_path / "farm").mkdir()
     with LocalFarm(tmp_path / "farm", workers=2) as farm:
         farm.wait_for_workers(2)
-        result = tcfarm_cli(farm, "submit", path, "--fps", "8", "--size", "64x48", "--strategy", "auto", "--wait")
+        result = tcfarm_cli(farm, "--json", "submit", path, "--fps", "8", "--size", "64x48", "--strategy", "auto", "--wait")
         assert result.returncode == 0, result.stderr
         job = json.loads(result.stdout.strip().splitlines()[-1])
     strategy = job["stats"]["strategy"]

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "trace/checker_png_for_tests.h"
 #include "trace/tracer.h"
 
 namespace tcfarm {
@@ -107,13 +108,7 @@ class SharedMeshTracingTest : public testing::Test {
   void SetUp() override {
     folder_ = fs::temp_directory_path() / ("tcfarm_shared_mesh_test_" + std::to_string(::getpid()));
     fs::create_directories(folder_);
-    const unsigned char texels[] = {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255};
-    auto out = OIIO::ImageOutput::create("checker.png");
-    ASSERT_TRUE(out);
-    OIIO::ImageSpec spec(2, 2, 3, OIIO::TypeDesc::UINT8);
-    ASSERT_TRUE(out->open((folder_ / "checker.png").string(), spec));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, texels));
-    out->close();
+    WriteCheckerPng(folder_ / "checker.png");
   }
   void TearDown() override { fs::remove_all(folder_); }
   fs::path folder_;
