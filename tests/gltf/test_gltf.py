@@ -195,6 +195,18 @@ def test_farm_exact_equals_brute_force_on_instanced_animation(worker_binary, fil
     print("instanced forest: traced pixel ratio %.3f" % job["traced_pixel_ratio"])
 
 
+def test_farm_exact_equals_brute_force_on_a_cube_seen_only_in_a_mirror(worker_binary, files, tmp_path):
+    """The cube is behind the camera: only the mirror's reflected rays find it, so exact
+    must re-trace the mirror's pixels as it moves and keep the rest."""
+    scene = printed_scene(worker_binary, files["seen_in_a_mirror.gltf"], "--fps", "12", "--size", "96x72")
+    direct = subprocess.run([str(worker_binary), "render", files["seen_in_a_mirror.gltf"], "--fps", "12",
+                             "--size", "96x72", "--out", tmp_path / "direct"], capture_output=True, text=True)
+    assert direct.returncode == 0 and "reflection 0," not in direct.stdout, direct.stdout
+    job = farm_exact_equals_reference(scene, scene, tmp_path)
+    print("cube seen in a mirror: traced pixel ratio %.3f" % job["traced_pixel_ratio"])
+    assert job["traced_pixel_ratio"] < 0.9
+
+
 VALIDATOR = pathlib.Path(__file__).resolve().parent / "node_modules" / "gltf-validator"
 
 
