@@ -25,9 +25,16 @@ namespace {
 // 1e-5 is ~170 float ulps: well above Embree's intersection error, well below any
 // feature a scene can usefully resolve.
 constexpr float kRelativeRayOffset = 1e-5f;
-// Pixels handed to a thread at a time: large enough to fill 8-wide packets many times,
-// small enough that two threads stay balanced on a few thousand pixels.
-constexpr size_t kPixelsPerChunk = 128;
+// Pixels handed to a thread at a time: at least enough to fill 8-wide packets many times,
+// and about kChunksPerThread chunks a thread, so that threads stay balanced while the
+// fixed cost of a chunk (its thread's CPU clock, read twice through a system call, and
+// its tracer) stays small against a large task's tracing.
+constexpr size_t kMinPixelsPerChunk = 128;
+constexpr size_t kChunksPerThread = 16;
+
+size_t PixelsPerChunk(size_t pixelCount, unsigned threads) {
+  return std::max(kMinPixelsPerChunk, pixelCount / (size_t{threads} * kChunksPerThread));
+}
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
 // A frame holds finite values only. Light beyond float range (a huge intensity at a tiny
@@ -506,7 +513,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        scene_.render.samplesPerPixel,
                        scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts()};
   const int spp = context.samplesPerPixel;
-  threads_.ParallelFor(pixelCount, kPixelsPerChunk, [&](size_t begin, size_t end) {
+  threads_.ParallelFor(pixelCount, PixelsPerChunk(pixelCount, threads_.ThreadCount()), [&](size_t begin, size_t end) {
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
     // Every (pixel, sample) of the chunk, in order, then packets of 8 over them. The
