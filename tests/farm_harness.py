@@ -21,8 +21,15 @@ class LocalFarm:
     """A coordinator on ephemeral loopback ports plus worker processes we control."""
 
     def __init__(self, directory, workers=2, worker_threads=1, local_workers=0,
-                 coordinator_args=()):
+                 coordinator_args=(), api_tokens=None):
+        """api_tokens: {token: role} to start the coordinator with --api-tokens (self.client
+        then uses the first admin token, self.tokens holds them all); None: no tokens."""
         self.directory = pathlib.Path(directory)
+        self.tokens = dict(api_tokens or {})
+        if api_tokens:
+            tokens_file = self.directory / "api-tokens.txt"
+            tokens_file.write_text("".join(f"{role} {token}\n" for token, role in self.tokens.items()))
+            coordinator_args = (*coordinator_args, "--api-tokens", str(tokens_file))
         self.store = self.directory / "store"
         self.worker_threads = worker_threads
         self.workers = []
@@ -38,7 +45,8 @@ class LocalFarm:
             self.close()
             raise RuntimeError(f"coordinator did not start: {line!r}; see {self.directory}")
         self.url, self.zmq = match.group(1), match.group(2)
-        self.client = Client(self.url)
+        self.token = next((t for t, role in self.tokens.items() if role == "admin"), None)
+        self.client = Client(self.url, token=self.token)
         for _ in range(workers):
             self.add_worker()
 
@@ -85,7 +93,9 @@ class LocalFarm:
 
     def metrics(self):
         import urllib.request
-        with urllib.request.urlopen(self.url + "/metrics", timeout=10) as response:
+        headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
+        request = urllib.request.Request(self.url + "/metrics", headers=headers)
+        with urllib.request.urlopen(request, timeout=10) as response:
             return response.read().decode()
 
     def close(self):
@@ -130,9 +140,13 @@ def compare(reference_dir, test_dir):
     return json.loads(result.stdout)
 
 
-def tcfarm_cli(farm, *args):
-    """The tcfarm command line against this farm, as a user runs it."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "services" / "client"))
+def tcfarm_cli(farm, *args, env=None):
+    """The tcfarm command line against this farm, as a user runs it (with the farm's admin
+    token in TCFARM_TOKEN when it has tokens, unless env says otherwise)."""
+    given = dict(env or {})
+    if farm.token and "TCFARM_TOKEN" not in given:
+        given["TCFARM_TOKEN"] = farm.token
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "services" / "client"), **given)
     return subprocess.run([sys.executable, "-m", "tcfarm.cli", "--url", farm.url, *map(str, args)],
                           capture_output=True, text=True, env=env, timeout=600)
 

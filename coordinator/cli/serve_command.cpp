@@ -6,7 +6,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <fstream>
 #include <stdexcept>
+
+#include <arpa/inet.h>
 
 #include "farm/farm.h"
 #include "farm/job_run.h"
@@ -30,6 +33,10 @@ struct ServeOptions {
   std::filesystem::path dashboard;  // static files served at /; empty: none
   uint64_t assetMaxFileBytes = ApiOptions{}.assetMaxFileBytes;
   uint64_t assetMaxJobBytes = ApiOptions{}.assetMaxJobBytes;
+  std::shared_ptr<const http::ApiTokens> tokens;  // null: no authentication
+  bool insecureNoAuth = false;
+  std::filesystem::path tlsCertFile;
+  std::filesystem::path tlsKeyFile;
 };
 
 // The dashboard beside a build tree (build/coordinator -> ../../services/dashboard) or
@@ -94,6 +101,10 @@ struct ServeFlags {
   size_t pendingFrameMib = JobRun::kDefaultPendingFrameBytes >> 20;
   uint64_t assetMaxFileMib = ApiOptions{}.assetMaxFileBytes >> 20;
   uint64_t assetMaxJobMib = ApiOptions{}.assetMaxJobBytes >> 20;
+  std::string apiTokens;
+  bool insecureNoAuth = false;
+  std::string tlsCert;
+  std::string tlsKey;
   // Set when given: their defaults are worked out, not fixed.
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
@@ -171,6 +182,63 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
       ->type_name("MIB")
       ->check(IntegerFrom(1, 1 << 24))
       ->capture_default_str();
+  serve.add_option("--api-tokens", flags.apiTokens,
+                   "API tokens, one a line with its role: 'read TOKEN', 'submit TOKEN' or 'admin TOKEN' "
+                   "(also TOKEN ROLE, ROLE:TOKEN); requests then need 'Authorization: Bearer TOKEN'. "
+                   "Required when --http is beyond loopback")
+      ->type_name("FILE");
+  serve.add_flag("--insecure-no-auth", flags.insecureNoAuth,
+                 "Serve the HTTP API beyond loopback without tokens: anyone who reaches it may submit, "
+                 "cancel and download");
+  serve.add_option("--tls-cert", flags.tlsCert, "Serve HTTPS with this PEM certificate (chain); needs --tls-key")
+      ->type_name("FILE");
+  serve.add_option("--tls-key", flags.tlsKey, "The PEM private key of --tls-cert")->type_name("FILE");
+}
+
+// 127.0.0.0/8, ::1 and localhost: only this machine reaches them. Anything else (0.0.0.0,
+// ::, a host name, an interface's address) may be reached from the network.
+bool IsLoopbackHost(const std::string& host) {
+  if (host == "localhost" || host == "::1" || host == "[::1]") return true;
+  in_addr address{};
+  return inet_pton(AF_INET, host.c_str(), &address) == 1 && (ntohl(address.s_addr) >> 24) == 127;
+}
+
+void RequireReadable(const std::string& flag, const std::filesystem::path& file) {
+  std::error_code error;
+  if (!std::ifstream(file) || std::filesystem::is_directory(file, error)) {
+    throw std::invalid_argument(flag + " " + file.string() + ": cannot read it; expected a readable PEM file");
+  }
+}
+
+// Tokens, TLS, and the rule that a coordinator reachable beyond loopback has tokens.
+void ResolveSecurity(const ServeFlags& flags, ServeOptions* options) {
+  if (!flags.apiTokens.empty()) {
+    if (flags.insecureNoAuth) {
+      throw std::invalid_argument("--insecure-no-auth and --api-tokens contradict each other; expected one of them");
+    }
+    try {
+      options->tokens = std::make_shared<const http::ApiTokens>(http::ApiTokens::Load(flags.apiTokens));
+    } catch (const std::invalid_argument& error) {
+      throw std::invalid_argument(std::string("--api-tokens ") + error.what());
+    }
+  }
+  options->insecureNoAuth = flags.insecureNoAuth;
+  if (!options->tokens && !flags.insecureNoAuth && !IsLoopbackHost(options->httpHost)) {
+    throw std::invalid_argument(
+        "--http " + flags.http + " is reachable beyond loopback, and without --api-tokens anyone who reaches "
+        "it could submit, cancel and download jobs; expected --api-tokens FILE (README, 'API tokens'), an "
+        "address on loopback (127.0.0.1:PORT), or --insecure-no-auth to serve without tokens on purpose");
+  }
+  if (flags.tlsCert.empty() != flags.tlsKey.empty()) {
+    throw std::invalid_argument(std::string(flags.tlsCert.empty() ? "--tls-key" : "--tls-cert") +
+                                " is given alone; expected both --tls-cert FILE and --tls-key FILE, or neither");
+  }
+  if (!flags.tlsCert.empty()) {
+    RequireReadable("--tls-cert", flags.tlsCert);
+    RequireReadable("--tls-key", flags.tlsKey);
+    options->tlsCertFile = flags.tlsCert;
+    options->tlsKeyFile = flags.tlsKey;
+  }
 }
 
 // Throws std::invalid_argument naming the flag whose value cannot be used.
@@ -195,6 +263,7 @@ ServeOptions Resolve(const ServeFlags& flags) {
   options.farm.pendingFrameBytes = flags.pendingFrameMib << 20;
   options.assetMaxFileBytes = flags.assetMaxFileMib << 20;
   options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
+  ResolveSecurity(flags, &options);
   if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
@@ -214,6 +283,19 @@ std::string LoopbackEndpoint(std::string bound) {
     if (at != std::string::npos) bound.replace(at, std::string(any).size(), "127.0.0.1");
   }
   return bound;
+}
+
+// Says who may use the API; tokens themselves are never printed.
+void ReportAccess(const ServeOptions& options, const char* scheme, int port) {
+  if (options.tokens) {
+    std::fprintf(stderr, "tcfarm-coordinator: API requests need one of %zu tokens (--api-tokens)\n",
+                 options.tokens->size());
+  } else if (options.insecureNoAuth) {
+    std::fprintf(stderr,
+                 "tcfarm-coordinator: WARNING: --insecure-no-auth: the HTTP API at %s://%s:%d takes requests "
+                 "from ANYONE who can reach it, without a token: they may submit, cancel and download jobs\n",
+                 scheme, options.httpHost.c_str(), port);
+  }
 }
 
 int RunServe(const ServeOptions& options) {
@@ -237,6 +319,9 @@ int RunServe(const ServeOptions& options) {
   api.jobMemoryBytes = options.farm.jobMemoryBytes;
   api.assetMaxFileBytes = options.assetMaxFileBytes;
   api.assetMaxJobBytes = options.assetMaxJobBytes;
+  api.tokens = options.tokens;
+  api.tlsCertFile = options.tlsCertFile;
+  api.tlsKeyFile = options.tlsKeyFile;
   // One coordinator per store: what a crashed one left half-written is nobody's.
   AssetStore(api.storeRoot / "assets").RemoveLeftovers();
   ApiServer server(store, farm, farm.metrics().registry, api);
@@ -247,14 +332,16 @@ int RunServe(const ServeOptions& options) {
                             workerEndpoint, options.workerThreads);
   localWorkers.Start(options.localWorkers);
 
-  std::printf("tcfarm-coordinator: listening http=http://%s:%d zmq=%s workers=%u store=%s\n",
+  const char* scheme = options.tlsCertFile.empty() ? "http" : "https";
+  std::printf("tcfarm-coordinator: listening http=%s://%s:%d zmq=%s workers=%u store=%s\n", scheme,
               options.httpHost.c_str(), port, workerEndpoint.c_str(), options.localWorkers,
               options.farm.storeRoot.c_str());
   std::fflush(stdout);
   if (!options.dashboard.empty()) {
-    std::fprintf(stderr, "tcfarm-coordinator: dashboard at http://%s:%d/ from %s\n",
+    std::fprintf(stderr, "tcfarm-coordinator: dashboard at %s://%s:%d/ from %s\n", scheme,
                  options.httpHost.c_str(), port, options.dashboard.c_str());
   }
+  ReportAccess(options, scheme, port);
 
   // Run the farm; look after the local workers a few times a second. On SIGINT or SIGTERM
   // it tells its workers goodbye before it returns.

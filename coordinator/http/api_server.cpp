@@ -90,6 +90,28 @@ std::optional<std::string> ReadLimitedBody(const httplib::ContentReader& reader,
   return body;
 }
 
+// A refused request's body is read and dropped as it comes, never kept: the connection
+// stays in step for its next request, and an anonymous client cannot fill memory or disk.
+void DiscardBody(const httplib::Request& request, const httplib::ContentReader& reader) {
+  if (!request.has_header("Content-Length") && !request.has_header("Transfer-Encoding")) return;
+  reader([](const char*, size_t) { return true; });
+}
+
+// The token of "Authorization: Bearer TOKEN" (scheme case-insensitive, RFC 6750);
+// nullopt when the header is missing or another scheme.
+std::optional<std::string> BearerToken(const httplib::Request& request) {
+  const std::string header = request.get_header_value("Authorization");
+  constexpr size_t kSchemeLength = 6;  // "Bearer"
+  if (header.size() <= kSchemeLength || header[kSchemeLength] != ' ') return std::nullopt;
+  std::string scheme = header.substr(0, kSchemeLength);
+  std::transform(scheme.begin(), scheme.end(), scheme.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (scheme != "bearer") return std::nullopt;
+  const size_t begin = header.find_first_not_of(' ', kSchemeLength);
+  const size_t end = header.find_last_not_of(" \t");
+  if (begin == std::string::npos) return std::nullopt;
+  return header.substr(begin, end - begin + 1);
+}
+
 bool AllDigits(const std::string& text) {
   return !text.empty() &&
          std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
@@ -215,6 +237,11 @@ ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometh
                                 "Asset uploads accepted (hash verified), whether the store had the asset or not.");
     assetUploadBytes_ = &NewCounter(*metrics_, "tcfarm_asset_upload_bytes_total",
                                     "Bytes of the asset uploads accepted.");
+    auto& refused = NewCounterFamily(*metrics_, "tcfarm_http_requests_refused_total",
+                                     "API requests refused before they ran: no known token (401, "
+                                     "reason unauthorized) or a token whose role is too low (403, forbidden).");
+    unauthorized_ = &refused.Add({{"reason", "unauthorized"}});
+    forbidden_ = &refused.Add({{"reason", "forbidden"}});
   }
 }
 
@@ -222,23 +249,36 @@ ApiServer::~ApiServer() { Stop(); }
 
 const std::vector<ApiServer::Route>& ApiServer::Routes() {
   static const std::vector<Route> routes{
-      {"POST", "/api/v1/jobs", &ApiServer::SubmitJob},
-      {"GET", "/api/v1/jobs", &ApiServer::ListJobs},
-      {"GET", "/api/v1/jobs/([^/]+)", &ApiServer::GetJob},
-      {"POST", "/api/v1/jobs/([^/]+)/cancel", &ApiServer::CancelJob},
-      {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)", &ApiServer::GetFrame},
-      {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)/(mask|change)\\.png", &ApiServer::GetFrameMask},
-      {"PUT", "/api/v1/assets/([^/]+)", nullptr, &ApiServer::PutAsset},
-      {"POST", "/api/v1/assets/missing", &ApiServer::FindMissingAssets},
-      {"GET", "/api/v1/workers", &ApiServer::ListWorkers},
-      {"GET", "/healthz", &ApiServer::Health},
-      {"GET", "/metrics", &ApiServer::Metrics},
+      {"POST", "/api/v1/jobs", Access::kSubmit, &ApiServer::SubmitJob},
+      {"GET", "/api/v1/jobs", Access::kRead, &ApiServer::ListJobs},
+      {"GET", "/api/v1/jobs/([^/]+)", Access::kRead, &ApiServer::GetJob},
+      // A submit token may cancel its own jobs only: CancelJob checks whose the job is.
+      {"POST", "/api/v1/jobs/([^/]+)/cancel", Access::kSubmit, &ApiServer::CancelJob},
+      {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)", Access::kRead, &ApiServer::GetFrame},
+      {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)/(mask|change)\\.png", Access::kRead, &ApiServer::GetFrameMask},
+      {"PUT", "/api/v1/assets/([^/]+)", Access::kSubmit, nullptr, &ApiServer::PutAsset},
+      {"POST", "/api/v1/assets/missing", Access::kSubmit, &ApiServer::FindMissingAssets},
+      {"GET", "/api/v1/workers", Access::kRead, &ApiServer::ListWorkers},
+      // Liveness probes (Kubernetes, compose) carry no token; the answer holds no data.
+      {"GET", "/healthz", Access::kOpen, &ApiServer::Health},
+      {"GET", "/metrics", Access::kRead, &ApiServer::Metrics},
   };
   return routes;
 }
 
 int ApiServer::Start() {
-  auto server = std::make_unique<httplib::Server>();
+  std::unique_ptr<httplib::Server> server;
+  if (options_.tlsCertFile.empty()) {
+    server = std::make_unique<httplib::Server>();
+  } else {
+    auto tls = std::make_unique<httplib::SSLServer>(options_.tlsCertFile.c_str(), options_.tlsKeyFile.c_str());
+    if (!tls->is_valid()) {
+      throw std::runtime_error("TLS: --tls-cert " + options_.tlsCertFile.string() + " and --tls-key " +
+                               options_.tlsKeyFile.string() +
+                               " are not a PEM certificate and its matching private key");
+    }
+    server = std::move(tls);
+  }
   Configure(*server);
   return listener_.Start(std::move(server), options_.host, options_.port);
 }
@@ -252,14 +292,16 @@ void ApiServer::Configure(httplib::Server& server) {
       static_cast<size_t>(std::max<uint64_t>(options_.maxBodyBytes, options_.assetMaxFileBytes)));
   for (const Route& route : Routes()) {
     if (route.stream != nullptr) {
-      RegisterStream(server, route.pattern, route.stream);
+      RegisterStream(server, route.pattern, route.access, route.stream);
     } else {
-      Register(server, route.method, route.pattern, route.handle);
+      Register(server, route.method, route.pattern, route.access, route.handle);
     }
   }
   // Registered last, so they only see what no route matched: answers 405 or 404 in the
   // error shape instead of the library's empty 404.
-  for (const char* method : kMethodsWithCatchAll) Register(server, method, ".*", &ApiServer::RouteMiss);
+  for (const char* method : kMethodsWithCatchAll) {
+    Register(server, method, ".*", Access::kOpen, &ApiServer::RouteMiss);
+  }
   // The library runs this for every status >= 400; a body already there came from a
   // handler and is kept.
   server.set_error_handler(httplib::Server::HandlerWithResponse(
@@ -276,10 +318,10 @@ void ApiServer::Configure(httplib::Server& server) {
 }
 
 void ApiServer::Register(httplib::Server& server, const std::string& method, const std::string& pattern,
-                         Handler handle) {
-  const httplib::Server::Handler withoutBody = [this, handle](const httplib::Request& request,
-                                                              httplib::Response& response) {
-    Dispatch(handle, request, request.body, response);
+                         Access access, Handler handle) {
+  const httplib::Server::Handler withoutBody = [this, access, handle](const httplib::Request& request,
+                                                                      httplib::Response& response) {
+    if (Admit(request, access, response)) Dispatch(handle, request, request.body, response);
   };
   if (method == "GET") {
     server.Get(pattern, withoutBody);
@@ -288,8 +330,12 @@ void ApiServer::Register(httplib::Server& server, const std::string& method, con
   } else if (TakesBody(method)) {
     // httplib picks the body-reading handler whenever a body comes, the other otherwise.
     const httplib::Server::HandlerWithContentReader withBody =
-        [this, handle](const httplib::Request& request, httplib::Response& response,
-                       const httplib::ContentReader& reader) {
+        [this, access, handle](const httplib::Request& request, httplib::Response& response,
+                               const httplib::ContentReader& reader) {
+          if (!Admit(request, access, response)) {
+            DiscardBody(request, reader);
+            return;
+          }
           // httplib 0.11.4 reads a POST with neither header until the client closes (or its
           // read timeout), then answers 400; RFC 9112 says such a request has no body.
           if (!request.has_header("Content-Length") && !request.has_header("Transfer-Encoding")) {
@@ -314,12 +360,18 @@ void ApiServer::Register(httplib::Server& server, const std::string& method, con
 }
 
 // Only PUT streams today (asset uploads).
-void ApiServer::RegisterStream(httplib::Server& server, const std::string& pattern, StreamHandler stream) {
-  server.Put(pattern, [this, stream](const httplib::Request& request, httplib::Response& response) {
+void ApiServer::RegisterStream(httplib::Server& server, const std::string& pattern, Access access,
+                               StreamHandler stream) {
+  server.Put(pattern, [this, access, stream](const httplib::Request& request, httplib::Response& response) {
+    if (!Admit(request, access, response)) return;
     Guard(request, response, [&] { (this->*stream)(request, BodyPieces(), response); });
   });
-  server.Put(pattern, [this, stream](const httplib::Request& request, httplib::Response& response,
-                                     const httplib::ContentReader& reader) {
+  server.Put(pattern, [this, access, stream](const httplib::Request& request, httplib::Response& response,
+                                             const httplib::ContentReader& reader) {
+    if (!Admit(request, access, response)) {
+      DiscardBody(request, reader);
+      return;
+    }
     BodyPieces read;
     // As in Register: neither length header means no body (RFC 9112).
     if (request.has_header("Content-Length") || request.has_header("Transfer-Encoding")) {
@@ -344,12 +396,66 @@ void ApiServer::Guard(const httplib::Request& request, httplib::Response& respon
   try {
     handle();
   } catch (const ApiError& error) {
+    // RFC 6750: a 401 names the scheme that would get in.
+    if (error.status() == 401) response.set_header("WWW-Authenticate", "Bearer realm=\"tcfarm\"");
     WriteError(response, error);
   } catch (const std::exception& error) {
     // A store failure or a bug: the client gets a 500 in the usual shape, the server goes on.
     std::fprintf(stderr, "coordinator http: %s %s failed: %s\n", request.method.c_str(),
                  request.path.c_str(), error.what());
     WriteError(response, ApiError(500, error_code::kInternal, error.what()));
+  }
+}
+
+std::optional<http::Caller> ApiServer::CallerOf(const httplib::Request& request) const {
+  if (!options_.tokens) return std::nullopt;
+  const std::optional<std::string> token = BearerToken(request);
+  if (!token) return std::nullopt;
+  return options_.tokens->Find(*token);
+}
+
+void ApiServer::Authorize(const httplib::Request& request, Access access) const {
+  if (!options_.tokens || access == Access::kOpen) return;
+  const std::optional<http::Caller> caller = CallerOf(request);
+  if (!caller) {
+    if (unauthorized_ != nullptr) unauthorized_->Increment();
+    const bool sent = request.has_header("Authorization");
+    throw ApiError(401, error_code::kUnauthorized,
+                   std::string(sent ? "the Authorization header holds no token this coordinator knows"
+                                    : "this coordinator needs an API token") +
+                       "; expected the header Authorization: Bearer TOKEN with a token of its --api-tokens file");
+  }
+  const http::Role needed = access == Access::kRead     ? http::Role::kRead
+                            : access == Access::kSubmit ? http::Role::kSubmit
+                                                        : http::Role::kAdmin;
+  if (caller->role < needed) {
+    if (forbidden_ != nullptr) forbidden_->Increment();
+    throw ApiError(403, error_code::kForbidden,
+                   request.method + " " + request.path + " needs a token of role " + http::RoleName(needed) +
+                       " or above; this one (id " + caller->tokenId + ") has role " + http::RoleName(caller->role));
+  }
+}
+
+bool ApiServer::Admit(const httplib::Request& request, Access access, httplib::Response& response) {
+  bool admitted = false;
+  Guard(request, response, [&] {
+    Authorize(request, access);
+    admitted = true;
+  });
+  return admitted;
+}
+
+void ApiServer::CheckMayCancel(const httplib::Request& request, uint64_t id) const {
+  const std::optional<http::Caller> caller = CallerOf(request);
+  if (!caller || caller->role >= http::Role::kAdmin) return;
+  const JobRecord record = LoadJob(id);
+  const std::string owner = record.spec.options.is_object() ? record.spec.options.value("submitted_by", "") : "";
+  if (owner != caller->tokenId) {
+    if (forbidden_ != nullptr) forbidden_->Increment();
+    throw ApiError(403, error_code::kForbidden,
+                   "job " + std::to_string(id) + " was submitted " +
+                       (owner.empty() ? std::string("without a token") : "by token " + owner) + ", not by this one (id " +
+                       caller->tokenId + "); a submit token cancels only its own jobs, an admin token any");
   }
 }
 
@@ -392,10 +498,13 @@ void ApiServer::CheckJobFitsInMemory(const JobSpec& spec) const {
   }
 }
 
-void ApiServer::SubmitJob(const httplib::Request&, const std::string& body, httplib::Response& response) {
-  const JobSpec spec = http::ParseSubmission(
+void ApiServer::SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response) {
+  JobSpec spec = http::ParseSubmission(
       body, http::SubmissionAssets{&assetStore_, options_.assetMaxJobBytes, "--asset-max-job-mib"});
   CheckJobFitsInMemory(spec);
+  // Which token submitted the job, by its id (never the token): a submit token may cancel
+  // only its own jobs.
+  if (const std::optional<http::Caller> caller = CallerOf(request)) spec.options["submitted_by"] = caller->tokenId;
   const uint64_t id = store_.Submit(spec);
   {
     std::lock_guard<std::mutex> lock(frameRangesMutex_);
@@ -427,6 +536,7 @@ void ApiServer::GetJob(const httplib::Request& request, const std::string&, http
 void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
                           httplib::Response& response) {
   const uint64_t id = ParseJobId(request.matches[1]);
+  CheckMayCancel(request, id);
   // Cancel first and ask afterwards: checking the state first would race with the farm
   // finishing the job in between.
   if (!store_.Cancel(id)) {

@@ -3,6 +3,11 @@
 // {"error": {"status", "code", "message", "pointer"?}} that every failure answers with,
 // including the ones the HTTP library produces itself (unknown route, body too large).
 //
+// With tokens (ApiOptions::tokens) every route but /healthz and the dashboard's static
+// files needs "Authorization: Bearer TOKEN" of a role high enough: 401 without a known
+// token, 403 with one whose role is too low (http/api_tokens.h). Refused requests never
+// have their bodies read into memory or onto disk.
+//
 // The server only reads and writes the JobStore and asks the FarmControl for cancels and
 // snapshots; it never touches the farm's state directly, so a slow client cannot stall
 // rendering.
@@ -20,6 +25,7 @@
 #include <vector>
 
 #include "farm/farm_control.h"
+#include "http/api_tokens.h"
 #include "http/job_json.h"
 #include "http/submit_request.h"
 #include "net/http_listener.h"
@@ -57,6 +63,12 @@ struct ApiOptions {
   uint64_t assetMaxFileBytes = uint64_t{512} << 20;
   // All the assets one submission names together (--asset-max-job-mib); 0: no limit.
   uint64_t assetMaxJobBytes = uint64_t{2048} << 20;
+  // Who may do what (--api-tokens). Null: every request is allowed, for a coordinator on
+  // loopback or one started with --insecure-no-auth.
+  std::shared_ptr<const http::ApiTokens> tokens;
+  // Both set: HTTPS with this certificate chain and private key (PEM files).
+  std::filesystem::path tlsCertFile;
+  std::filesystem::path tlsKeyFile;
 };
 
 class ApiServer {
@@ -68,7 +80,8 @@ class ApiServer {
   ApiServer& operator=(const ApiServer&) = delete;
 
   // Binds and serves on a background thread; returns the bound port. Throws
-  // std::runtime_error "cannot listen on host:port" when the address is taken or invalid.
+  // std::runtime_error "cannot listen on host:port" when the address is taken or invalid,
+  // or naming the TLS files when they do not make a certificate and its key.
   int Start();
   // Stops accepting, finishes the requests in progress and joins the server thread.
   // Safe to call twice or without Start.
@@ -85,9 +98,12 @@ class ApiServer {
   using BodyPieces = std::function<bool(const std::function<void(const char* data, size_t length)>&)>;
   using StreamHandler = void (ApiServer::*)(const httplib::Request& request, const BodyPieces& read,
                                             httplib::Response& response);
+  // The least a caller needs for a route when the server has tokens.
+  enum class Access { kOpen, kRead, kSubmit, kAdmin };
   struct Route {
     const char* method;
     const char* pattern;  // a regex on the decoded path; groups are the path parameters
+    Access access;
     Handler handle;
     StreamHandler stream = nullptr;  // instead of handle, for routes that stream their body
   };
@@ -100,8 +116,16 @@ class ApiServer {
   static const std::vector<Route>& Routes();
   void Configure(httplib::Server& server);
   void Register(httplib::Server& server, const std::string& method, const std::string& pattern,
-                Handler handle);
-  void RegisterStream(httplib::Server& server, const std::string& pattern, StreamHandler stream);
+                Access access, Handler handle);
+  void RegisterStream(httplib::Server& server, const std::string& pattern, Access access, StreamHandler stream);
+  // Throws ApiError 401 (no known token) or 403 (a role too low). Without tokens, allows all.
+  void Authorize(const httplib::Request& request, Access access) const;
+  // Authorize, answering the error itself: false when the request is refused.
+  bool Admit(const httplib::Request& request, Access access, httplib::Response& response);
+  // The token's owner; nullopt when the server has no tokens.
+  std::optional<http::Caller> CallerOf(const httplib::Request& request) const;
+  // A submit token cancels only the jobs it submitted; throws 403 for another's.
+  void CheckMayCancel(const httplib::Request& request, uint64_t id) const;
   void Dispatch(Handler handle, const httplib::Request& request, const std::string& body,
                 httplib::Response& response);
   // Runs a handler, turning what it throws into the one error shape.
@@ -137,6 +161,8 @@ class ApiServer {
   AssetStore assetStore_;  // options_.storeRoot/assets
   prometheus::Counter* assetUploads_ = nullptr;      // with a metrics registry only
   prometheus::Counter* assetUploadBytes_ = nullptr;
+  prometheus::Counter* unauthorized_ = nullptr;  // 401s
+  prometheus::Counter* forbidden_ = nullptr;     // 403s
   std::vector<std::regex> routePatterns_;  // Routes() compiled once, for 405 vs 404
 
   std::mutex frameRangesMutex_;

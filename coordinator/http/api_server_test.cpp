@@ -1101,6 +1101,30 @@ TEST(OpenApiSpecTest, IsValidOpenApi) {
   EXPECT_EQ(status, 0) << output;
 }
 
+// checks: [schema name, response body] pairs, each validated against the spec's schema.
+void ExpectMatchesSchemas(const std::string& python, const fs::path& folder, const json& checks) {
+  const fs::path instances = folder / "instances.json";
+  std::ofstream(instances) << checks.dump();
+  const fs::path script = folder / "check.py";
+  std::ofstream(script) << R"(import json, sys, yaml
+from openapi_schema_validator import OAS30Validator
+spec = yaml.safe_load(open(sys.argv[1]))
+failures = 0
+for name, instance in json.load(open(sys.argv[2])):
+    schema = {"$ref": "#/components/schemas/" + name, "components": spec["components"]}
+    for error in OAS30Validator(schema).iter_errors(instance):
+        failures += 1
+        print(name, list(error.absolute_path), error.message)
+sys.exit(1 if failures else 0)
+)";
+  int status = 0;
+  const std::string output = RunCommand(
+      "'" + python + "' '" + script.string() + "' '" + kOpenApiSpec.string() + "' '" +
+          instances.string() + "' 2>&1",
+      &status);
+  EXPECT_EQ(status, 0) << output;
+}
+
 // Every response body the server writes must match its schema in the spec, so the spec
 // cannot drift from the code unnoticed (the schemas forbid unlisted properties).
 TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
@@ -1151,26 +1175,108 @@ TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
   withAssets["assets"] = {{"tri.obj", wire::Sha256Hex("")}, {"../x", asset}};
   add("Error", Post("/api/v1/jobs", withAssets));
 
-  const fs::path instances = folder_ / "instances.json";
-  std::ofstream(instances) << checks.dump();
-  const fs::path script = folder_ / "check.py";
-  std::ofstream(script) << R"(import json, sys, yaml
-from openapi_schema_validator import OAS30Validator
-spec = yaml.safe_load(open(sys.argv[1]))
-failures = 0
-for name, instance in json.load(open(sys.argv[2])):
-    schema = {"$ref": "#/components/schemas/" + name, "components": spec["components"]}
-    for error in OAS30Validator(schema).iter_errors(instance):
-        failures += 1
-        print(name, list(error.absolute_path), error.message)
-sys.exit(1 if failures else 0)
-)";
-  int status = 0;
-  const std::string output = RunCommand(
-      "'" + python + "' '" + script.string() + "' '" + kOpenApiSpec.string() + "' '" +
-          instances.string() + "' 2>&1",
-      &status);
-  EXPECT_EQ(status, 0) << output;
+  ExpectMatchesSchemas(python, folder_, checks);
+}
+
+// --- API tokens ------------------------------------------------------------------------
+
+const std::string kReadToken = "read-0123456789abcdef";
+const std::string kSubmitToken = "submit-0123456789abcdef";
+const std::string kOtherSubmitToken = "submit2-0123456789abcdef";
+const std::string kAdminToken = "admin-0123456789abcdef";
+
+// The same store and farm behind a second server that has tokens.
+class ApiServerWithTokensTest : public ApiServerTest {
+ protected:
+  void SetUp() override {
+    ApiServerTest::SetUp();
+    ApiOptions options;
+    options.host = "127.0.0.1";
+    options.port = 0;
+    options.storeRoot = folder_ / "store";
+    options.tokens = std::make_shared<const http::ApiTokens>(http::ApiTokens::Parse(
+        "read " + kReadToken + "\nsubmit " + kSubmitToken + "\nsubmit " + kOtherSubmitToken + "\nadmin " +
+            kAdminToken + "\n",
+        "test tokens"));
+    tokenServer_ = std::make_unique<ApiServer>(*store_, farm_, std::make_shared<prometheus::Registry>(), options);
+    tokenPort_ = tokenServer_->Start();
+  }
+  void TearDown() override {
+    tokenServer_.reset();
+    ApiServerTest::TearDown();
+  }
+
+  httplib::Client As(const std::string& token) {
+    httplib::Client client("127.0.0.1", tokenPort_);
+    if (!token.empty()) client.set_bearer_token_auth(token.c_str());
+    return client;
+  }
+
+  std::unique_ptr<ApiServer> tokenServer_;
+  int tokenPort_ = 0;
+};
+
+TEST_F(ApiServerWithTokensTest, EveryRouteButHealthzNeedsAKnownToken) {
+  for (const char* path : {"/api/v1/jobs", "/api/v1/jobs/1", "/api/v1/workers", "/metrics",
+                           "/api/v1/jobs/1/frames/0.png", "/api/v1/jobs/1/frames/0/mask.png"}) {
+    httplib::Result result = As("").Get(path);
+    ExpectError(result, 401, "unauthorized");
+    if (result) {
+      EXPECT_EQ(result->get_header_value("WWW-Authenticate"), "Bearer realm=\"tcfarm\"") << path;
+    }
+    ExpectError(As("unknown-0123456789abcdef").Get(path), 401, "unauthorized");
+    httplib::Result asReader = As(kReadToken).Get(path);
+    ASSERT_TRUE(asReader);
+    EXPECT_NE(asReader->status, 401) << path;
+    EXPECT_NE(asReader->status, 403) << path;
+  }
+  ExpectError(As("").Post("/api/v1/jobs", Submission().dump(), "application/json"), 401, "unauthorized");
+  ExpectError(As("").Post("/api/v1/assets/missing", "{}", "application/json"), 401, "unauthorized");
+  EXPECT_EQ(As("").Get("/healthz")->status, 200);
+  // A header that is not "Bearer TOKEN" is no token.
+  httplib::Client basic("127.0.0.1", tokenPort_);
+  basic.set_basic_auth("admin", kAdminToken.c_str());
+  ExpectError(basic.Get("/api/v1/jobs"), 401, "unauthorized");
+}
+
+TEST_F(ApiServerWithTokensTest, RolesDecideWhatATokenMayDo) {
+  const json readOnly = ExpectError(As(kReadToken).Post("/api/v1/jobs", Submission().dump(), "application/json"),
+                                    403, "forbidden");
+  EXPECT_NE(readOnly.value("message", "").find("needs a token of role submit"), std::string::npos) << readOnly;
+  EXPECT_EQ(readOnly.dump().find(kReadToken), std::string::npos);
+  ExpectError(As(kReadToken).Put(("/api/v1/assets/" + wire::Sha256Hex("x")).c_str(), "x", "application/octet-stream"),
+              403, "forbidden");
+  EXPECT_FALSE(fs::exists(folder_ / "store" / "assets" / wire::Sha256Hex("x")));
+  httplib::Result submitted = As(kSubmitToken).Post("/api/v1/jobs", Submission().dump(), "application/json");
+  ASSERT_TRUE(submitted);
+  ASSERT_EQ(submitted->status, 201) << submitted->body;
+  const json job = json::parse(submitted->body);
+  EXPECT_EQ(job.value("submitted_by", ""), http::TokenId(kSubmitToken));
+  const std::string cancel = "/api/v1/jobs/" + std::to_string(job["id"].get<uint64_t>()) + "/cancel";
+  const json notYours = ExpectError(As(kOtherSubmitToken).Post(cancel.c_str()), 403, "forbidden");
+  EXPECT_NE(notYours.value("message", "").find(http::TokenId(kSubmitToken)), std::string::npos) << notYours;
+  ExpectError(As(kReadToken).Post(cancel.c_str()), 403, "forbidden");
+  EXPECT_TRUE(farm_.Canceled().empty());
+  EXPECT_EQ(As(kSubmitToken).Post(cancel.c_str())->status, 200);
+  const uint64_t other = SubmitOk();  // through the server without tokens: nobody's
+  const std::string cancelOther = "/api/v1/jobs/" + std::to_string(other) + "/cancel";
+  ExpectError(As(kSubmitToken).Post(cancelOther.c_str()), 403, "forbidden");
+  EXPECT_EQ(As(kAdminToken).Post(cancelOther.c_str())->status, 200);
+}
+
+TEST_F(ApiServerWithTokensTest, RefusalsMatchTheOpenApiSchemas) {
+  const std::string python = PythonWith("yaml, openapi_schema_validator");
+  if (python.empty()) GTEST_SKIP() << "no python with yaml and openapi_schema_validator";
+  json checks = json::array();
+  auto add = [&checks](const std::string& schema, const httplib::Result& result) {
+    ASSERT_TRUE(result);
+    checks.push_back({schema, json::parse(result->body)});
+  };
+  add("Error", As("").Get("/api/v1/jobs"));
+  add("Error", As(kReadToken).Post("/api/v1/jobs", Submission().dump(), "application/json"));
+  add("Job", As(kSubmitToken).Post("/api/v1/jobs", Submission().dump(), "application/json"));
+  add("JobList", As(kReadToken).Get("/api/v1/jobs"));
+  ExpectMatchesSchemas(python, folder_, checks);
 }
 
 // The spec names exactly the routes the server has.

@@ -54,6 +54,9 @@ json JobJson(const JobRecord& record, const json* liveStats) {
        {{"self", JobPath(record.id)}, {"frames", JobPath(record.id) + "/frames/{frame}.png"}}},
   };
   if (record.state == JobState::kFailed) job["error"] = record.error;
+  // The id of the API token that submitted the job (never the token), when it had one.
+  const json& options = record.spec.options;
+  if (options.is_object() && options.contains("submitted_by")) job["submitted_by"] = options["submitted_by"];
   return job;
 }
 

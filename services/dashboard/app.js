@@ -1,6 +1,10 @@
 // tcfarm dashboard: polls the coordinator's HTTP API (proto/openapi.yaml) every second
 // and draws the jobs, the selected job's coherence figures and the workers. Charts are
 // Chart.js (node_modules/chart.js, installed from npm by scripts/bootstrap).
+//
+// A farm with API tokens answers 401: the page then asks for a token, keeps it in this
+// tab's sessionStorage and sends it as "Authorization: Bearer" on every request, images
+// included (fetched, then shown from blob URLs), never in a URL the server sees.
 "use strict";
 
 const POLL_MS = 1000;
@@ -55,10 +59,52 @@ function strategyOf(job) {
   return name === "exact" ? `exact L=${width}` : `${name} n=${width}`;
 }
 
-async function getJson(path) {
-  const response = await fetch(path, { cache: "no-store" });
+// --- API token -------------------------------------------------------------------------
+
+const TOKEN_KEY = "tcfarm-api-token";
+
+function storedToken() { return sessionStorage.getItem(TOKEN_KEY); }
+
+function showSignIn(needed, message) {
+  $("sign-in").hidden = !needed;
+  $("sign-in-message").textContent = message || "";
+  $("sign-out").hidden = needed || !storedToken();
+}
+
+function signIn(token) {
+  sessionStorage.setItem(TOKEN_KEY, token.trim());
+  showSignIn(false);
+}
+
+function signOut() {
+  sessionStorage.removeItem(TOKEN_KEY);
+  location.reload();  // forget every job, frame and image already shown
+}
+
+// "#token=T" (a link handed out with the dashboard's address) signs in once, and leaves
+// the address at once: the fragment never reaches the server.
+function takeTokenFromHash() {
+  const match = /(?:^#|&)token=([^&]+)/.exec(location.hash);
+  if (!match) return;
+  signIn(decodeURIComponent(match[1]));
+  const rest = location.hash.replace(/(^#|&)token=[^&]+/, "$1").replace(/^#&/, "#");
+  history.replaceState(null, "", rest === "#" ? location.pathname : location.pathname + rest);
+}
+
+async function apiFetch(path) {
+  const headers = storedToken() ? { Authorization: `Bearer ${storedToken()}` } : {};
+  const response = await fetch(path, { cache: "no-store", headers });
+  if (response.status === 401) {
+    showSignIn(true, storedToken() ? "The farm does not know this token." : "This farm needs an API token.");
+    throw new Error("sign in: the farm needs an API token");
+  }
+  if (response.status === 403) throw new Error(`${path}: this token's role may not read it`);
   if (!response.ok) throw new Error(`${path}: HTTP ${response.status}`);
-  return response.json();
+  return response;
+}
+
+async function getJson(path) {
+  return (await apiFetch(path)).json();
 }
 
 // "#job=7" selects job 7; "#job=7&frame=12" also shows its frame 12 instead of the latest.
@@ -304,17 +350,26 @@ function setImage(id, url, frame) {
   const loader = new Image();
   loaders[id] = { url, loader };
   loader.onload = () => {
-    if (!loaders[id] || loaders[id].loader !== loader) return;
+    if (!loaders[id] || loaders[id].loader !== loader) {
+      URL.revokeObjectURL(loader.src);
+      return;
+    }
     delete loaders[id];
+    if (img.src.startsWith("blob:")) URL.revokeObjectURL(img.src);
     img.dataset.src = url;
     img.dataset.frame = String(frame);
     img.src = loader.src;
     $(`${id}-caption`).textContent = `(frame ${frame})`;
   };
-  loader.onerror = () => {
+  const forget = () => {
     if (loaders[id] && loaders[id].loader === loader) delete loaders[id];
   };
-  loader.src = url + "?t=" + Date.now();
+  loader.onerror = forget;
+  // Fetched with the token, shown from a blob URL: an <img> cannot send a header.
+  apiFetch(url + "?t=" + Date.now())
+    .then((response) => response.blob())
+    .then((blob) => { loader.src = URL.createObjectURL(blob); })
+    .catch(forget);
 }
 
 function renderImages(job) {
@@ -416,6 +471,14 @@ function selectJob(id) {
 }
 
 function init() {
+  takeTokenFromHash();
+  showSignIn(false);
+  $("sign-in").addEventListener("submit", (event) => {
+    event.preventDefault();
+    signIn($("token-input").value);
+    $("token-input").value = "";
+  });
+  $("sign-out").addEventListener("click", signOut);
   initCharts();
   for (const id of ["frame-image", "mask-image", "change-image"]) {
     const img = $(id);

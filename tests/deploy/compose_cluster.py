@@ -109,6 +109,12 @@ class ComposeCluster:
         (self.log_dir / "compose.log").write_text(self.run("logs", "--no-color", check=False))
         self.run("down", "-v", "--remove-orphans", check=False)
 
+    def api_tokens(self):
+        """{role: token} of the tokens the coordinator made at its first start."""
+        text = self.run("exec", "-T", "coordinator", "cat", "/var/lib/tcfarm-tokens/api-tokens")
+        return {role: token for role, token in
+                (line.split() for line in text.splitlines() if line.strip() and not line.startswith("#"))}
+
     def containers(self, service):
         return self.run("ps", "-q", service).split()
 

@@ -35,6 +35,7 @@ def cluster(tmp_path_factory):
     try:
         cluster.up(WORKERS)
         cluster.wait_http(cluster.url + "/healthz")
+        cluster.tokens = cluster.api_tokens()
         yield cluster
     finally:
         cluster.down()
@@ -75,7 +76,7 @@ def busy_worker_container(client, cluster):
 @pytest.fixture(scope="module")
 def finished_job(cluster, scene, reference, tmp_path_factory):
     """The animation rendered by the cluster while one worker container is killed."""
-    client = Client(cluster.url)
+    client = Client(cluster.url, token=cluster.tokens["admin"])
     wait_for(lambda: len(client.workers()["workers"]) >= WORKERS, f"{WORKERS} workers connected")
     job = client.submit(scene, strategy="exact")
     wait_for(lambda: client.job(job["id"])["frames"]["done"] >= 1, "the first frame", timeout=300,
@@ -102,7 +103,8 @@ def test_cluster_renders_the_animation_bit_identical_despite_a_killed_worker(
     assert error["frames"] == 60
     assert error["differing_pixels"] == 0, error
     # The killed worker held tasks: they were taken back and traced elsewhere.
-    metrics = requests.get(cluster.url + "/metrics", timeout=10).text
+    metrics = requests.get(cluster.url + "/metrics", timeout=10,
+                           headers={"Authorization": f"Bearer {cluster.tokens['read']}"}).text
     requeued = float(re.search(r"^tcfarm_tasks_requeued_total (\S+)$", metrics, re.M).group(1))
     assert requeued >= 1
     pixels = job["width"] * job["height"] * job["frames"]["count"]
@@ -186,6 +188,10 @@ def test_the_api_and_dashboard_are_published(cluster):
     assert page.status_code == 200 and "<html" in page.text.lower()
     chart = requests.get(cluster.url + "/node_modules/chart.js/dist/chart.umd.js", timeout=10)
     assert chart.status_code == 200 and len(chart.content) > 100_000
-    bad = requests.post(cluster.url + "/api/v1/jobs", json={"scene": {"camera": 1}}, timeout=10)
+    anonymous = requests.post(cluster.url + "/api/v1/jobs", json={"scene": {"camera": 1}}, timeout=10)
+    assert anonymous.status_code == 401 and anonymous.json()["error"]["code"] == "unauthorized"
+    assert requests.get(cluster.url + "/metrics", timeout=10).status_code == 401
+    bad = requests.post(cluster.url + "/api/v1/jobs", json={"scene": {"camera": 1}}, timeout=10,
+                        headers={"Authorization": f"Bearer {cluster.tokens['admin']}"})
     assert bad.status_code == 400
     assert bad.json()["error"]["code"] == "invalid_scene"

@@ -102,3 +102,19 @@ def test_manifests_run_the_images_compose_builds_as_their_user():
         pod = found[("Deployment", deployment)]["spec"]["template"]["spec"]
         assert pod["securityContext"]["runAsNonRoot"] is True
         assert str(pod["securityContext"]["runAsUser"]) == image_user
+
+
+def test_the_coordinators_api_tokens_come_from_a_secret():
+    found = resources()
+    coordinator = container(found, "tcfarm-coordinator")
+    pod = found[("Deployment", "tcfarm-coordinator")]["spec"]["template"]["spec"]
+    env = {e["name"]: e["value"] for e in coordinator.get("env", [])}
+    mounts = {m["name"]: m["mountPath"] for m in coordinator["volumeMounts"]}
+    secrets = {v["name"]: v["secret"]["secretName"] for v in pod["volumes"] if "secret" in v}
+    assert secrets == {"api-tokens": "tcfarm-api-tokens"}
+    # The image's entrypoint hands TCFARM_API_TOKENS to --api-tokens: a file of that Secret.
+    assert env["TCFARM_API_TOKENS"].startswith(mounts["api-tokens"] + "/")
+    assert "--api-tokens" not in coordinator["args"]
+    assert "--insecure-no-auth" not in coordinator["args"]
+    assert "ENV TCFARM_API_TOKENS=" in (ROOT / "deploy" / "Dockerfile").read_text()
+    assert 'ENTRYPOINT ["coordinator-entrypoint"]' in (ROOT / "deploy" / "Dockerfile").read_text()

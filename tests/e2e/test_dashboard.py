@@ -122,7 +122,9 @@ def test_dashboard_shows_a_running_and_a_completed_job(farm, scenes_dir, tmp_pat
     for image in ("frame-image", "mask-image", "change-image"):
         assert page.by_id[image].get("data-loaded") == "1", (image, page.by_id[image])
     last = job["frames"]["end"]
-    assert f"/frames/{last}/mask.png" in page.by_id["mask-image"]["src"]
+    assert f"/frames/{last}/mask.png" in page.by_id["mask-image"]["data-src"]
+    assert page.by_id["mask-image"]["src"].startswith("blob:")  # fetched, then shown
+    assert page.by_id["sign-in"].get("hidden") is not None  # a farm without tokens asks none
 
 
 def test_cost_chart_shows_what_autos_survey_predicted(farm, scenes_dir, tmp_path):
@@ -161,3 +163,37 @@ def test_masks_are_the_traced_pixels_and_the_unchanged_ones(farm, scenes_dir):
     with pytest.raises(urllib.error.HTTPError) as error:
         urllib.request.urlopen(f"{frames}{len(job['traced_per_frame'])}/mask.png", timeout=10)
     assert error.value.code == 400
+
+
+READ_TOKEN = "dashboard-read-0123456789abcdef"
+ADMIN_TOKEN = "dashboard-admin-0123456789abcdef"
+
+
+def test_a_farm_with_tokens_asks_for_one_and_sends_it_on_every_request(tmp_path, scenes_dir):
+    with LocalFarm(tmp_path, workers=1, api_tokens={ADMIN_TOKEN: "admin", READ_TOKEN: "read"}) as farm:
+        farm.wait_for_workers(1)
+        # The page itself is open; the API is not.
+        with urllib.request.urlopen(farm.url + "/", timeout=10) as response:
+            assert b"sign-in" in response.read()
+        scene = small_scene(scenes_dir / "paper_a_one_sphere.json", WIDTH, HEIGHT, 6)
+        job = farm.run_job(scene, strategy="search", bin_width=3)
+
+        anonymous = Elements(chromium(f"{farm.url}/#job={job['id']}", tmp_path / "profile-anon", "--dump-dom"))
+        assert anonymous.by_id["sign-in"].get("hidden") is None  # the form is shown
+        assert anonymous.job_rows == set()
+        assert anonymous.by_id["mask-image"].get("data-loaded") == "0"
+
+        # A link with the token signs in: jobs, workers and every image come with it.
+        dom = chromium(f"{farm.url}/#token={READ_TOKEN}&job={job['id']}", tmp_path / "profile-token", "--dump-dom")
+        page = Elements(dom)
+        assert page.by_id["sign-in"].get("hidden") is not None
+        assert page.by_id["sign-out"].get("hidden") is None
+        assert job["id"] in page.job_rows
+        for image in ("frame-image", "mask-image", "change-image"):
+            assert page.by_id[image].get("data-loaded") == "1", (image, page.by_id[image])
+        assert READ_TOKEN not in dom  # not left in the page (nor in its address)
+
+        wrong = Elements(chromium(f"{farm.url}/#token=unknown-0123456789abcdef", tmp_path / "profile-wrong",
+                                  "--dump-dom"))
+        assert wrong.by_id["sign-in"].get("hidden") is None
+        assert wrong.job_rows == set()

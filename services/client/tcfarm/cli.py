@@ -8,6 +8,9 @@
   tcfarm cancel JOB
   tcfarm workers
   tcfarm analyze JOB|DIR      coherence of a job's frames (from the farm) or of a folder
+
+Global options: --url (TCFARM_URL), --token (TCFARM_TOKEN) for a farm with API tokens,
+--cacert (TCFARM_CACERT) for an https farm whose certificate authority is its own.
 """
 import argparse
 import json
@@ -199,6 +202,11 @@ def cmd_analyze(client, args):
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="tcfarm", description="Drive a tcfarm render farm.")
     parser.add_argument("--url", default=os.environ.get("TCFARM_URL", "http://127.0.0.1:8080"))
+    parser.add_argument("--token", default=os.environ.get("TCFARM_TOKEN"),
+                        help="API token of the farm (default: $TCFARM_TOKEN)")
+    parser.add_argument("--cacert", default=os.environ.get("TCFARM_CACERT"),
+                        help="PEM file of the certificate authority of an https farm with its own "
+                             "(default: $TCFARM_CACERT)")
     parser.add_argument("--json", action="store_true", help="print JSON records")
     sub = parser.add_subparsers(dest="command", required=True)
     submit = sub.add_parser("submit", help="submit a scene (JSON, or OBJ), uploading the files "
@@ -228,7 +236,11 @@ def main(argv=None):
     sub.add_parser("analyze", help="coherence of a job (id) or a folder of frames").add_argument(
         "target")
     args = parser.parse_args(argv)
-    client = Client(args.url)
+    try:
+        client = Client(args.url, token=args.token, cacert=args.cacert)
+    except (OSError, ValueError) as e:  # an unreadable or malformed --cacert file
+        print(f"tcfarm: --cacert {args.cacert}: {e}", file=sys.stderr)
+        return 1
     try:
         if args.command == "submit":
             return cmd_submit(client, args)
@@ -251,8 +263,19 @@ def main(argv=None):
         print(json.dumps(job) if args.json else _summary(job))
         return 0
     except ApiError as e:
-        print(f"tcfarm: {e}", file=sys.stderr)
+        print(f"tcfarm: {e}{_access_hint(e, args.token)}", file=sys.stderr)
         return 1
+
+
+def _access_hint(error, token):
+    """How to get in, after a 401 or 403."""
+    if error.status == 401 and not token:
+        return "; pass a token with --token TOKEN or the environment variable TCFARM_TOKEN"
+    if error.status == 401:
+        return "; the farm does not know this token (--token or TCFARM_TOKEN): ask its operator for one"
+    if error.status == 403:
+        return "; this token's role is too low: submitting needs a submit token, cancelling others' jobs admin"
+    return ""
 
 
 if __name__ == "__main__":

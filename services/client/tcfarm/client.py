@@ -3,6 +3,7 @@ import collections
 import hashlib
 import json
 import os
+import ssl
 import time
 import urllib.error
 import urllib.request
@@ -36,24 +37,37 @@ def sha256_file(path):
 
 
 class Client:
-    def __init__(self, url="http://127.0.0.1:8080", timeout=30.0):
+    """token: an API token of the farm (`serve --api-tokens`), sent as
+    "Authorization: Bearer TOKEN"; None for a farm without tokens. cacert: a PEM file of
+    the certificate authority that signed an https farm's certificate, when the system's
+    do not."""
+
+    def __init__(self, url="http://127.0.0.1:8080", timeout=30.0, token=None, cacert=None):
         self.url = url.rstrip("/")
         self.timeout = timeout
+        self.token = token or None
+        self._tls = ssl.create_default_context(cafile=cacert) if cacert else None
 
     def _request(self, method, path, body=None, raw=False, data=None, headers=None):
         """body: JSON to send; or data (bytes or a file) with its headers."""
         if data is None:
             data = None if body is None else json.dumps(body).encode()
             headers = {"Content-Type": "application/json"}
+        headers = dict(headers or {})
+        if self.token:
+            headers["Authorization"] = f"Bearer {self.token}"
         request = urllib.request.Request(self.url + path, data=data, method=method,
                                          headers=headers)
         try:
-            with urllib.request.urlopen(request, timeout=self.timeout) as response:
+            with urllib.request.urlopen(request, timeout=self.timeout, context=self._tls) as response:
                 payload = response.read()
         except urllib.error.HTTPError as e:
             raise _api_error(e) from None
         except urllib.error.URLError as e:
-            raise ApiError(0, "unreachable", f"cannot reach {self.url}: {e.reason}") from None
+            hint = ""
+            if isinstance(e.reason, ssl.SSLCertVerificationError):
+                hint = " (a farm with its own certificate authority: --cacert FILE or TCFARM_CACERT)"
+            raise ApiError(0, "unreachable", f"cannot reach {self.url}: {e.reason}{hint}") from None
         return payload if raw else json.loads(payload)
 
     def submit(self, scene, **options):
