@@ -38,8 +38,8 @@ std::string TokenId(std::string_view token);
 
 class ApiTokens {
  public:
-  // Shortest token accepted: 16 characters of a random alphabet are beyond guessing, a
-  // shorter one is more likely a typo or a password than a generated token.
+  // Shortest token taken without a warning: 16 characters of a random alphabet are beyond
+  // guessing; a shorter one is more likely a password than a generated token.
   static constexpr size_t kMinTokenLength = 16;
   static constexpr size_t kMaxTokenLength = 512;
 
