@@ -18,6 +18,7 @@
 #include "farm/machine_memory.h"
 #include "http/api_server.h"
 #include "jobs/job_store.h"
+#include "store/store_identity.h"
 
 namespace tcfarm {
 namespace {
@@ -37,6 +38,7 @@ struct ServeOptions {
   bool insecureNoAuth = false;
   std::filesystem::path tlsCertFile;
   std::filesystem::path tlsKeyFile;
+  bool adoptStore = false;
 };
 
 // The dashboard beside a build tree (build/coordinator -> ../../services/dashboard) or
@@ -105,6 +107,7 @@ struct ServeFlags {
   bool insecureNoAuth = false;
   std::string tlsCert;
   std::string tlsKey;
+  bool adoptStore = false;
   // Set when given: their defaults are worked out, not fixed.
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
@@ -124,6 +127,10 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
       ->capture_default_str();
   serve.add_option("--db", flags.database, "Job database (default: STORE/jobs.db)")
       ->type_name("FILE");
+  serve.add_flag("--adopt-store", flags.adoptStore,
+                 "Bind the job database to a frame store it does not belong to (a fresh database over a "
+                 "store with jobs, or one moved to another store); new job ids start above the store's "
+                 "highest job folder. Refused when a job folder has the id of one of the database's jobs");
   serve.add_option("--local-workers", flags.localWorkers,
                    "Workers this process starts on loopback (0: the workers run elsewhere)")
       ->type_name("N")
@@ -248,6 +255,7 @@ ServeOptions Resolve(const ServeFlags& flags) {
   options.farm.endpoint = flags.zmq;
   options.farm.storeRoot = flags.store;
   options.database = flags.database;
+  options.adoptStore = flags.adoptStore;
   options.localWorkers = flags.localWorkers;
   options.workerThreads = flags.workerThreads;
   options.workerBinary = flags.workerBinary;
@@ -308,6 +316,7 @@ int RunServe(const ServeOptions& options) {
     std::filesystem::create_directories(options.database.parent_path());
   }
   JobStore store(options.database);
+  BindDatabaseToStore(store, options.farm.storeRoot, options.adoptStore);
   SystemClock clock;
   Farm farm(store, options.farm, clock);
 

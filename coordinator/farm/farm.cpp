@@ -1,6 +1,8 @@
 #include "farm/farm.h"
 
 #include <cstdio>
+#include <iterator>
+#include <stdexcept>
 
 namespace tcfarm {
 namespace {
@@ -24,12 +26,7 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       clock_(clock),
       frameStore_(options_.storeRoot),
       assets_(options_.storeRoot / "assets"),
-      dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_) {
-  for (uint64_t id : store_.RequeueInterrupted()) {
-    std::fprintf(stderr, "coordinator: job %llu was interrupted; requeued\n",
-                 static_cast<unsigned long long>(id));
-  }
-}
+      dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_) {}
 
 Farm::~Farm() = default;
 
@@ -45,6 +42,7 @@ void Farm::Step(Milliseconds pollTimeout) {
   SteadyTime now = clock_.Now();
   if (now - lastClaim_ >= kClaimInterval) {
     lastClaim_ = now;
+    SettleClosingJobs();
     ClaimJobs();
   }
   ApplyCancellations();
@@ -60,11 +58,24 @@ void Farm::Step(Milliseconds pollTimeout) {
   if (clock_.Now() - lastSnapshot_ >= kSnapshotInterval) PublishSnapshot();
 }
 
+// Jobs a previous process left running are requeued before anything is claimed: after
+// the first claim, "running" would also mean this process's own jobs.
 void Farm::ClaimJobs() {
-  while (static_cast<int>(runs_.size()) < options_.maxRunningJobs) {
-    std::optional<JobRecord> record = store_.ClaimNext();
-    if (!record) return;
-    StartJob(*record);
+  try {
+    if (!interruptedRequeued_) {
+      for (uint64_t id : store_.RequeueInterrupted()) {
+        std::fprintf(stderr, "coordinator: job %llu was interrupted; requeued to resume\n",
+                     static_cast<unsigned long long>(id));
+      }
+      interruptedRequeued_ = true;
+    }
+    while (static_cast<int>(runs_.size()) < options_.maxRunningJobs) {
+      std::optional<JobRecord> record = store_.ClaimNext();
+      if (!record) return;
+      StartJob(*record);
+    }
+  } catch (const JobStoreFullError& e) {
+    NoteRefusedWrite(e);  // claimed nothing; the next interval tries again
   }
 }
 
@@ -81,8 +92,10 @@ void Farm::StartJob(const JobRecord& record) {
     runs_[record.id] = std::move(run);
   } catch (const std::exception& e) {
     // A bad job fails alone; the farm goes on.
-    store_.Fail(record.id, e.what());
-    metrics_.jobsFinishedFailed.Increment();
+    ClosingJob closing;
+    closing.failed = true;
+    closing.why = e.what();
+    Close(record.id, std::move(closing));
   }
 }
 
@@ -150,6 +163,7 @@ void Farm::CollectFrames() {
       FailJob(id, e.what());
       return;  // runs_ changed
     }
+    if (!run->RecordsBlocked().empty()) NoteRefusedWrite(std::runtime_error(run->RecordsBlocked()));
     metrics_.framesWritten.Increment(frames);
     // Planners count pixels as results arrive, between collections.
     const JobRun::PixelTally pixels = run->TakeUnreportedPixels();
@@ -168,13 +182,62 @@ void Farm::FinishJob(uint64_t jobId) {
     FailJob(jobId, e.what());
     return;
   }
-  nlohmann::json stats = run->second->Stats(/*final=*/true);
-  CountError(stats["error"]);
+  ClosingJob closing;
+  closing.stats = run->second->Stats(/*final=*/true);
+  CountError(closing.stats["error"]);
   finishedTraced_ += run->second->tracedPixels();
   finishedPixels_ += run->second->tracedPixels() + run->second->copiedPixels();
   dispatcher_.RemoveJob(jobId);
+  closing.run = std::move(run->second);
   runs_.erase(run);
-  if (store_.Complete(jobId, stats)) metrics_.jobsFinishedCompleted.Increment();
+  Close(jobId, std::move(closing));
+}
+
+void Farm::Close(uint64_t jobId, ClosingJob closing) {
+  ClosingJob& stored = closing_[jobId] = std::move(closing);
+  if (Settle(jobId, stored)) closing_.erase(jobId);
+}
+
+void Farm::SettleClosingJobs() {
+  for (auto it = closing_.begin(); it != closing_.end();) {
+    it = Settle(it->first, it->second) ? closing_.erase(it) : std::next(it);
+  }
+}
+
+bool Farm::Settle(uint64_t jobId, ClosingJob& closing) {
+  try {
+    if (closing.run && !closing.run->RecordWrittenFrames(store_)) {
+      NoteRefusedWrite(std::runtime_error(closing.run->RecordsBlocked()));
+      return false;
+    }
+    if (!closing.failed) {
+      if (store_.Complete(jobId, closing.stats)) metrics_.jobsFinishedCompleted.Increment();
+      return true;
+    }
+    // Said once every frame that made it to disk is recorded, so the record is the folder.
+    std::string why = closing.why;
+    if (closing.run) {
+      if (std::optional<std::string> writeFailure = closing.run->WriteFailure()) why = *writeFailure;
+      store_.SetStats(jobId, closing.run->Stats());
+    }
+    if (store_.Fail(jobId, why)) metrics_.jobsFinishedFailed.Increment();
+    std::fprintf(stderr, "coordinator: job %llu failed: %s\n", static_cast<unsigned long long>(jobId), why.c_str());
+    return true;
+  } catch (const std::exception& e) {
+    NoteRefusedWrite(e);
+    return false;
+  }
+}
+
+// Every refusal is counted; the log says so at most once per interval, not once a step.
+void Farm::NoteRefusedWrite(const std::exception& error) {
+  constexpr Milliseconds kRefusalLogInterval{10000};
+  metrics_.jobStoreWritesRefused.Increment();
+  const SteadyTime now = clock_.Now();
+  if (lastRefusalLogged_ != SteadyTime{} && now - lastRefusalLogged_ < kRefusalLogInterval) return;
+  lastRefusalLogged_ = now;
+  std::fprintf(stderr, "coordinator: the job database refused a write; records are kept and retried: %s\n",
+               error.what());
 }
 
 // The job's measured error, added to the farm-wide counters.
@@ -192,16 +255,17 @@ void Farm::CountError(const nlohmann::json& error) {
 void Farm::FailJob(uint64_t jobId, const std::string& why) {
   auto run = runs_.find(jobId);
   if (run == runs_.end()) return;
-  std::fprintf(stderr, "coordinator: job %llu failed: %s\n",
-               static_cast<unsigned long long>(jobId), why.c_str());
   dispatcher_.RemoveJob(jobId);
   try {
-    run->second->FinishWriting();
+    run->second->FinishWriting();  // what is queued is written (or not), then recorded
   } catch (const std::exception&) {
   }
-  store_.SetStats(jobId, run->second->Stats());
+  ClosingJob closing;
+  closing.run = std::move(run->second);
+  closing.failed = true;
+  closing.why = why;
   runs_.erase(run);
-  if (store_.Fail(jobId, why)) metrics_.jobsFinishedFailed.Increment();
+  Close(jobId, std::move(closing));
 }
 
 void Farm::UpdateMetrics() {
@@ -232,7 +296,11 @@ void Farm::PublishSnapshot() {
   for (const auto& [id, run] : runs_) snapshot.runningStats[id] = run->Stats();
   snapshot.queuedTasks = dispatcher_.PendingTasks();
   snapshot.inFlightTasks = dispatcher_.InFlightTasks();
-  metrics_.queuedJobs.Set(static_cast<double>(store_.CountInState(JobState::kQueued)));
+  try {
+    metrics_.queuedJobs.Set(static_cast<double>(store_.CountInState(JobState::kQueued)));
+  } catch (const JobStoreError&) {
+    // A read the disk refused: the gauge keeps its last value.
+  }
   std::lock_guard<std::mutex> lock(shared_);
   snapshot_ = std::move(snapshot);
 }

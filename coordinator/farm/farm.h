@@ -3,6 +3,11 @@
 //
 // One thread runs the loop and owns everything in it. Other threads (the HTTP server)
 // talk to it only through the job store, RequestCancel, and Snapshot.
+//
+// The job store may refuse writes (its disk full): the loop never stops for that. A job
+// whose frames or final state cannot be recorded stays in memory, its frames on disk,
+// and the records are retried every claim interval until the store takes them; then the
+// job completes (or fails) as it would have. Nothing is lost, nothing recorded twice.
 #pragma once
 
 #include <atomic>
@@ -71,6 +76,18 @@ class Farm : public FarmControl, private DispatchSink {
   void CollectFrames();
   void FinishJob(uint64_t jobId);
   void FailJob(uint64_t jobId, const std::string& why);
+  // A job done rendering (completed, or failed with `why`) whose records are still owed.
+  struct ClosingJob {
+    std::unique_ptr<JobRun> run;  // null for a job that never started
+    bool failed = false;
+    std::string why;
+    nlohmann::json stats;
+  };
+  void Close(uint64_t jobId, ClosingJob closing);
+  void SettleClosingJobs();
+  // Records the job's last frames and its final state; false while the store refuses.
+  bool Settle(uint64_t jobId, ClosingJob& closing);
+  void NoteRefusedWrite(const std::exception& error);
   void CountError(const nlohmann::json& error);
   void UpdateMetrics();
   void PublishSnapshot();
@@ -95,6 +112,9 @@ class Farm : public FarmControl, private DispatchSink {
   FarmMetrics metrics_;
   Dispatcher dispatcher_;
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;
+  std::map<uint64_t, ClosingJob> closing_;
+  bool interruptedRequeued_ = false;  // RequeueInterrupted went through (before any claim)
+  SteadyTime lastRefusalLogged_{};
   DispatcherCounters lastCounters_;
   uint64_t finishedTraced_ = 0, finishedPixels_ = 0;
   SteadyTime lastClaim_{}, lastSnapshot_{};

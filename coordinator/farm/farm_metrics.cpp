@@ -55,6 +55,9 @@ FarmMetrics::FarmMetrics()
                                 "Frames compared with a brute-force reference (finished jobs)")),
       verifiedPixelsDiffering(NewCounter(*registry, "tcfarm_verified_pixels_differing_total",
                                          "Pixels of verified frames that differ from the reference")),
+      jobStoreWritesRefused(NewCounter(*registry, "tcfarm_job_store_writes_refused_total",
+                                       "Writes of the farm loop the job database refused (disk full or "
+                                       "failing); each is retried until it succeeds")),
       taskLatency(prometheus::BuildHistogram()
                       .Name("tcfarm_task_latency_seconds")
                       .Help("From sending a task to receiving its result")

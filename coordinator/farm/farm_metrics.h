@@ -34,6 +34,7 @@ struct FarmMetrics {
   prometheus::Counter& spotCheckMismatches;
   prometheus::Counter& verifiedFrames;
   prometheus::Counter& verifiedPixelsDiffering;
+  prometheus::Counter& jobStoreWritesRefused;  // the farm loop's, retried later
   prometheus::Histogram& taskLatency;
   prometheus::Gauge& queueDepth;      // tasks waiting for a worker
   prometheus::Gauge& tasksInFlight;

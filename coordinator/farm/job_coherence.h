@@ -34,6 +34,8 @@ class JobCoherence {
   std::vector<ChangeMask> Add(int frame, const std::vector<float>& rgb);
 
   const SequenceAnalyzer& analysis() const { return analyzer_; }
+  // The frame whose turn it is: every frame before it is analysed.
+  int NextFrame() const { return nextFrame_; }
   // Frames that ever waited on disk rather than in memory.
   uint64_t FramesWaitedOnDisk() const { return waiting_.TotalSpilled(); }
 

@@ -1,6 +1,8 @@
 #include "farm/job_run.h"
 
+#include <algorithm>
 #include <stdexcept>
+#include <system_error>
 
 #include "scene/scene.h"
 
@@ -55,7 +57,66 @@ bool CameraOrLightsChange(const JobSpec& spec) {
   return scene.CameraMoves() || scene.AnyLightChanges();
 }
 
+// What a killed coordinator left half done in the job's folder: a frame file being
+// renamed into place, frames waiting on disk for their turn.
+void RemoveLeftovers(const FrameStore& store, uint64_t job) {
+  std::error_code ignored;
+  std::filesystem::remove_all(store.SpillFolder(job), ignored);
+  for (std::filesystem::directory_iterator it(store.JobFolder(job), ignored), end; !ignored && it != end;
+       it.increment(ignored)) {
+    if (it->path().extension() == ".partial") std::filesystem::remove(it->path(), ignored);
+  }
+}
+
+// A job that was never started plans now; one that was keeps the plan it started with.
+ResolvedStrategy ResolveForRun(const JobRecord& record, int workers) {
+  if (std::optional<ResolvedStrategy> planned = PlanFromJson(record.plan)) return *planned;
+  return ResolveJobStrategy(record.spec, workers);
+}
+
 }  // namespace
+
+nlohmann::json PlanJson(const ResolvedStrategy& resolved) {
+  return {{"strategy", std::string(StrategyName(resolved.strategy))},
+          {"bin_width", resolved.binWidth},
+          {"reason", resolved.reason},
+          {"survey", resolved.surveyBinWidth}};
+}
+
+std::optional<ResolvedStrategy> PlanFromJson(const nlohmann::json& plan) {
+  if (!plan.is_object() || !plan.contains("strategy")) return std::nullopt;
+  const std::string name = plan.value("strategy", std::string());
+  const std::optional<Strategy> strategy = StrategyFromString(name);
+  if (!strategy || *strategy == Strategy::kAuto || !plan.contains("bin_width")) {
+    throw std::invalid_argument("the job's stored plan " + plan.dump() +
+                                " names no strategy and bin width this coordinator can run");
+  }
+  return ResolvedStrategy{*strategy, plan.value("bin_width", 0), plan.value("reason", std::string()),
+                          plan.value("survey", false)};
+}
+
+KeptFrames FindKeptFrames(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output) {
+  KeptFrames found;
+  found.kept.assign(static_cast<size_t>(record.FrameCount()), false);
+  const uint64_t pixels = record.spec.frameSize.Pixels();
+  std::error_code ignored;
+  for (size_t i = 0; i < record.tracedPerFrame.size() && i < found.kept.size(); ++i) {
+    if (record.tracedPerFrame[i] < 0) continue;
+    const int frame = record.spec.firstFrame + static_cast<int>(i);
+    // The coherence analysis reads kept frames back, bit for bit, from their EXR.
+    const bool present = output.writeExr && std::filesystem::is_regular_file(store.FramePath(record.id, frame, "exr"), ignored) &&
+                         (!output.writePng || std::filesystem::is_regular_file(store.FramePath(record.id, frame, "png"), ignored));
+    if (!present) {
+      found.missing.push_back(frame);
+      continue;
+    }
+    found.kept[i] = true;
+    ++found.count;
+    found.traced += static_cast<uint64_t>(record.tracedPerFrame[i]);
+    found.copied += pixels - static_cast<uint64_t>(record.tracedPerFrame[i]);
+  }
+  return found;
+}
 
 ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers) {
   return ResolveStrategy(spec.strategy, spec.binWidth, FrameCountOf(spec), CameraOrLightsChange(spec), workers);
@@ -80,20 +141,34 @@ PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& re
   return options;
 }
 
+namespace {
+PlannerOptions WithKeptFrames(PlannerOptions options, const KeptFrames& kept) {
+  if (kept.count > 0) options.keptFrames = kept.kept;
+  return options;
+}
+}  // namespace
+
 JobRun::JobRun(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output, int workers,
                size_t pendingFrameBytes, uint64_t jobMemoryBytes)
     : id_(record.id),
       spec_(record.spec),
-      resolved_(ResolveJobStrategy(record.spec, workers)),
-      plannerOptions_(PlannerOptionsFor(record.spec, resolved_, jobMemoryBytes)),
+      frameStore_(store),
+      kept_(FindKeptFrames(record, store, output)),
+      resolved_(ResolveForRun(record, workers)),
+      plannerOptions_(WithKeptFrames(PlannerOptionsFor(record.spec, resolved_, jobMemoryBytes), kept_)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
       writer_(CreatedDirectory(store.JobFolder(record.id)), output),
       coherence_(spec_.frameSize.width, spec_.frameSize.height, store.SpillFolder(record.id), pendingFrameBytes),
       cost_(PixelsPerFrame(), FrameCountOf(spec_)),
-      started_(std::chrono::steady_clock::now()) {
+      started_(std::chrono::steady_clock::now()),
+      framesToForget_(kept_.missing),
+      framesRecorded_(kept_.count) {
   spec_.sceneJson.clear();  // the dispatcher holds it for the workers
+  RemoveLeftovers(store, id_);
+  if (!PlanFromJson(record.plan)) planToSave_ = PlanJson(resolved_);
+  chosenWidthPlanned_ = !resolved_.surveyBinWidth;
 }
 
 std::vector<DispatchTask> JobRun::TakeTasks() {
@@ -136,22 +211,118 @@ bool JobRun::OnPlannerResult(uint64_t taskId, const wire::Result& result) {
 }
 
 int JobRun::CollectFinishedFrames(JobStore& store) {
-  for (FinishedFrame& frame : planner_->TakeFinishedFrames()) unwritten_.push_back(std::move(frame));
+  for (FinishedFrame& frame : planner_->TakeFinishedFrames()) {
+    if (kept_.count > 0 && kept_.kept[static_cast<size_t>(frame.frame)]) {
+      // In the store already, from before the restart: the same bits, not written again.
+      retracedPixels_ += frame.tracedCount;
+      ++retracedFrames_;
+      continue;
+    }
+    unwritten_.push_back(std::move(frame));
+  }
   // Only as much as the writer takes at once and a short turn allows: the farm loop must
   // come back to its socket (results, heartbeats) while large frames are encoded.
   const auto turnEnds = std::chrono::steady_clock::now() + kFinishingTurn;
+  FeedKeptFrames(turnEnds);
   int collected = 0;
   while (!unwritten_.empty() && writer_.HasRoom() && std::chrono::steady_clock::now() < turnEnds) {
-    FinishFrame(store, std::move(unwritten_.front()));
+    FinishFrame(std::move(unwritten_.front()));
     unwritten_.pop_front();
     ++collected;
+    FeedKeptFrames(turnEnds);
   }
+  RecordWrittenFrames(store);
+  if (std::optional<std::string> failure = WriteFailure()) throw FrameIoError(*failure);
   return collected;
 }
 
-void JobRun::FinishFrame(JobStore& store, FinishedFrame frame) {
+bool JobRun::RecordWrittenFrames(JobStore& store) {
+  for (int frame : writer_.TakeWritten()) {
+    const auto traced = writing_.find(frame);
+    if (traced == writing_.end()) continue;  // never ours to record (none such today)
+    unrecorded_.push_back({frame, traced->second});
+    writing_.erase(traced);
+  }
+  // The written frames of a failed write are counted too: they are in the folder.
+  if (writer_.FirstFailure()) {
+    for (auto it = writing_.begin(); it != writing_.end();) {
+      if (writer_.Idle()) {
+        it = writing_.erase(it);  // the writer is done with it, and it is not in place
+      } else {
+        ++it;
+      }
+    }
+  }
+  try {
+    FlushRecords(store);
+  } catch (const JobStoreFullError& e) {
+    recordsBlocked_ = e.what();
+    return false;
+  }
+  recordsBlocked_.clear();
+  return true;
+}
+
+// The plan first: a frame recorded under no plan could be resumed under another one.
+void JobRun::FlushRecords(JobStore& store) {
+  if (autoPlanner_ && !chosenWidthPlanned_ && autoPlanner_->ChosenBinWidth() > 0) {
+    ResolvedStrategy chosen = resolved_;
+    chosen.binWidth = autoPlanner_->ChosenBinWidth();
+    chosen.surveyBinWidth = false;
+    chosen.reason += "; bin width " + std::to_string(chosen.binWidth) + " chosen by the survey";
+    planToSave_ = PlanJson(chosen);
+    chosenWidthPlanned_ = true;
+  }
+  if (planToSave_) {
+    store.SetPlan(id_, *planToSave_);
+    planToSave_.reset();
+  }
+  if (!framesToForget_.empty()) {
+    store.ForgetFrames(id_, framesToForget_);
+    framesToForget_.clear();
+  }
+  // A frame is counted only after it is in the folder and its record is committed.
+  while (!unrecorded_.empty()) {
+    const FrameRecord& record = unrecorded_.front();
+    if (store.RecordFrame(id_, record.frame, record.traced, PixelsPerFrame() - record.traced)) ++framesRecorded_;
+    unrecorded_.pop_front();
+  }
+}
+
+std::optional<std::string> JobRun::WriteFailure() const {
+  const std::optional<FrameWriter::Failure> failure = writer_.FirstFailure();
+  if (!failure) return std::nullopt;
+  const std::string what = failure->frame ? "frame " + std::to_string(*failure->frame) + " (" + failure->file + ")"
+                                          : "the mask " + failure->file;
+  return what + " could not be written: " + failure->why + "; " + std::to_string(framesRecorded_) + " of " +
+         std::to_string(FrameCountOf(spec_)) +
+         " frames are written and recorded (traced_per_frame names them; they stay downloadable)";
+}
+
+void JobRun::FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds) {
+  const int frames = FrameCountOf(spec_);
+  while (kept_.count > 0 && coherence_.NextFrame() < frames &&
+         kept_.kept[static_cast<size_t>(coherence_.NextFrame())] && std::chrono::steady_clock::now() < turnEnds) {
+    const int frame = coherence_.NextFrame();
+    const int absolute = spec_.firstFrame + frame;
+    Image image = ReadImage(frameStore_.FramePath(id_, absolute, "exr"));
+    if (image.width != spec_.frameSize.width || image.height != spec_.frameSize.height) {
+      throw FrameIoError("frame " + std::to_string(absolute) + " kept from before the restart is " +
+                         std::to_string(image.width) + "x" + std::to_string(image.height) + ", expected " +
+                         std::to_string(spec_.frameSize.width) + "x" + std::to_string(spec_.frameSize.height));
+    }
+    // Its reference, when one is asked for, is traced and compared like any frame's; its
+    // traced pixels are not known here, so it gets no spot checks.
+    verification_.OnFrameFinished(frame, image.rgb, std::vector<uint8_t>(PixelsPerFrame(), 1));
+    for (JobCoherence::ChangeMask& mask : coherence_.Add(frame, image.rgb)) {
+      WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
+    }
+  }
+}
+
+void JobRun::FinishFrame(FinishedFrame frame) {
   const int absolute = spec_.firstFrame + frame.frame;
-  store.RecordFrame(id_, absolute, frame.tracedCount, PixelsPerFrame() - frame.tracedCount);
+  writing_[absolute] = frame.tracedCount;
   cost_.OnFrameFinished(frame.frame, frame.tracedCount);
   verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
   WriteMask(MaskKind::kTraced, absolute, std::move(frame.traced));
@@ -187,16 +358,24 @@ nlohmann::json JobRun::Stats(bool final) const {
     }
     stats["strategy"]["survey"] = survey;
   }
-  stats["frames_done"] = framesDone_;
+  stats["frames_done"] = kept_.count + framesDone_;
+  // A resumed job: frames it found in the store, and the pixels traced again because they
+  // lay in bins (segments) that were in progress when the coordinator stopped.
+  stats["resumed_frames"] = kept_.count;
+  stats["retraced_frames"] = retracedFrames_;
+  stats["retraced_pixels"] = retracedPixels_;
   // Bins (segments) worked on at once: fewer than 4 when the coordinator's memory for the
   // job would not hold their frames.
   stats["live_bins"] = plannerOptions_.maxLiveBins;
   // Frames that finished ahead of their turn and waited on disk, not in memory.
   stats["frames_waited_on_disk"] = coherence_.FramesWaitedOnDisk();
-  stats["pixels_traced"] = planner_->TracedPixels();
-  stats["pixels_copied"] = planner_->CopiedPixels();
-  stats["traced_pixel_ratio"] = static_cast<double>(planner_->TracedPixels()) /
-                                static_cast<double>(PixelsPerFrame() * FrameCountOf(spec_));
+  // The job's frames' own pixels: kept ones as recorded, not those traced again.
+  const uint64_t traced = kept_.traced + planner_->TracedPixels() - std::min(retracedPixels_, planner_->TracedPixels());
+  stats["pixels_traced"] = traced;
+  const uint64_t recopied = uint64_t(retracedFrames_) * PixelsPerFrame() - retracedPixels_;
+  stats["pixels_copied"] = kept_.copied + planner_->CopiedPixels() - std::min(recopied, planner_->CopiedPixels());
+  stats["traced_pixel_ratio"] =
+      static_cast<double>(traced) / static_cast<double>(PixelsPerFrame() * FrameCountOf(spec_));
   stats["wall_seconds"] = wall;
   const SequenceAnalyzer& coherence = coherence_.analysis();
   cost_.AddTo(stats, resolved_.strategy, BinWidth(), coherence.frameToFrame());

@@ -9,7 +9,10 @@
 #include <cstdint>
 #include <deque>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -36,6 +39,21 @@ ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers);
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
                                  uint64_t jobMemoryBytes = 0);
 
+// A plan (JobRecord::plan) as the job store keeps it, and back; nullopt for an empty plan.
+// Throws std::invalid_argument for a plan naming no strategy this coordinator knows.
+nlohmann::json PlanJson(const ResolvedStrategy& resolved);
+std::optional<ResolvedStrategy> PlanFromJson(const nlohmann::json& plan);
+
+// What a resumed job already has: frames recorded in the job store whose files are in the
+// frame store. A recorded frame whose files are gone is `missing`: its record is dropped.
+struct KeptFrames {
+  std::vector<bool> kept;    // index = frame - firstFrame
+  int count = 0;
+  uint64_t traced = 0, copied = 0;  // their pixels, as recorded
+  std::vector<int> missing;  // absolute frame numbers
+};
+KeptFrames FindKeptFrames(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output);
+
 class JobRun {
  public:
   // Throws std::invalid_argument for options out of range (and SceneError, see
@@ -54,12 +72,26 @@ class JobRun {
   std::vector<DispatchTask> TakeTasks();
   // Feeds a result to the planner or the verification. False when it had it already.
   bool OnResult(uint64_t taskId, const wire::Result& result);
-  // Hands finished frames to the writer and the verification, records them; returns how
-  // many. Never waits for the writer: frames it has no room for wait for a later call.
+  // Hands finished frames to the writer and the verification, and records in the job
+  // store the frames the writer has put in place (a frame is recorded only once its files
+  // are there); returns how many frames it handed on. Never waits for the writer: frames
+  // it has no room for wait for a later call. A job store that refuses the records (disk
+  // full) leaves them owed, to be retried by the next call. Throws FrameIoError naming
+  // the first frame that could not be written, once what was written is recorded.
   int CollectFinishedFrames(JobStore& store);
   bool Done() const {
-    return planner_->Done() && !verification_.Pending() && unwritten_.empty() && writer_.Idle();
+    return planner_->Done() && !verification_.Pending() && unwritten_.empty() && writer_.Idle() &&
+           writing_.empty() && !RecordsOwed();
   }
+  // Records what the writer has put in place since the last call, and what is owed from
+  // before (the plan, frames to forget); false, keeping them owed, while the job store
+  // refuses writes (RecordsBlocked says why). Other job store errors throw.
+  bool RecordWrittenFrames(JobStore& store);
+  bool RecordsOwed() const { return planToSave_.has_value() || !framesToForget_.empty() || !unrecorded_.empty(); }
+  const std::string& RecordsBlocked() const { return recordsBlocked_; }
+  // Which frame (or mask) could not be written first and why, with how many frames are
+  // written and recorded; nullopt when every write succeeded.
+  std::optional<std::string> WriteFailure() const;
   // Frames finished by the planner and not yet handed to the writer, beyond which the
   // job's tasks wait (kFarmFramesPerJob counts them).
   static constexpr size_t kMaxUnwrittenFrames = 4;
@@ -85,8 +117,12 @@ class JobRun {
 
   bool OnPlannerResult(uint64_t taskId, const wire::Result& result);
   bool OnVerificationResult(uint64_t taskId, const wire::Result& result);
-  // Records the frame, checks it, writes it and its masks, and feeds it to the coherence.
-  void FinishFrame(JobStore& store, FinishedFrame frame);
+  // Checks the frame, writes it and its masks, and feeds it to the coherence.
+  void FinishFrame(FinishedFrame frame);
+  // Kept frames whose turn in the coherence analysis has come, read back from the store,
+  // as far as the turn allows.
+  void FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds);
+  void FlushRecords(JobStore& store);
   // Queues the mask for the absolute frame on the frame writer.
   void WriteMask(MaskKind kind, int absoluteFrame, std::vector<uint8_t> mask);
   // The bin width (segment length) the job runs with; 0 while auto's survey runs.
@@ -95,6 +131,8 @@ class JobRun {
 
   uint64_t id_;
   JobSpec spec_;
+  FrameStore frameStore_;
+  KeptFrames kept_;  // from before a restart; nothing for a new job
   ResolvedStrategy resolved_;
   PlannerOptions plannerOptions_;
   AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
@@ -106,7 +144,24 @@ class JobRun {
   JobCoherence coherence_;
   JobCost cost_;
   std::chrono::steady_clock::time_point started_;
-  int framesDone_ = 0;
+  int framesDone_ = 0;  // handed to the writer by this run
+
+  // The job store's view, kept in step with the files: frames handed to the writer (by
+  // absolute number, with their traced pixels), then written and owed a record.
+  struct FrameRecord {
+    int frame = 0;
+    uint64_t traced = 0;
+  };
+  std::map<int, uint64_t> writing_;
+  std::deque<FrameRecord> unrecorded_;
+  std::optional<nlohmann::json> planToSave_;  // saved before any frame is recorded
+  bool chosenWidthPlanned_ = false;           // auto's survey result is in the plan
+  std::vector<int> framesToForget_;
+  int framesRecorded_ = 0;  // kept ones included
+  std::string recordsBlocked_;
+  // Kept frames the planner produced again (bins or segments that were in progress).
+  uint64_t retracedPixels_ = 0;
+  int retracedFrames_ = 0;
 };
 
 }  // namespace tcfarm

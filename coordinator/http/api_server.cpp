@@ -399,6 +399,13 @@ void ApiServer::Guard(const httplib::Request& request, httplib::Response& respon
     // RFC 6750: a 401 names the scheme that would get in.
     if (error.status() == 401) response.set_header("WWW-Authenticate", "Bearer realm=\"tcfarm\"");
     WriteError(response, error);
+  } catch (const JobStoreFullError& error) {
+    // The job database's disk is full: this write is refused whole (no job half
+    // submitted), reads go on, and the same request succeeds once there is room.
+    WriteError(response, ApiError(507, error_code::kInsufficientStorage,
+                                  request.method + " " + request.path +
+                                      " could not be stored: the job database's disk is full; nothing was "
+                                      "changed, retry once there is room (" + error.what() + ")"));
   } catch (const std::exception& error) {
     // A store failure or a bug: the client gets a 500 in the usual shape, the server goes on.
     std::fprintf(stderr, "coordinator http: %s %s failed: %s\n", request.method.c_str(),

@@ -73,16 +73,17 @@ class Database {
   const std::string& path() const { return path_; }
 
   [[noreturn]] void Throw(const std::string& context) const {
-    throw JobStoreError(path_ + ": " + context + ": " + sqlite3_errmsg(handle_));
+    ThrowFor(sqlite3_extended_errcode(handle_), context + ": " + sqlite3_errmsg(handle_));
   }
 
   // For statements without parameters or results (schema, pragmas, transaction control).
   void Exec(const char* sql) {
     char* message = nullptr;
-    if (sqlite3_exec(handle_, sql, nullptr, nullptr, &message) != SQLITE_OK) {
+    const int rc = sqlite3_exec(handle_, sql, nullptr, nullptr, &message);
+    if (rc != SQLITE_OK) {
       const std::string reason = message ? message : sqlite3_errmsg(handle_);
       sqlite3_free(message);
-      throw JobStoreError(path_ + ": " + sql + ": " + reason);
+      ThrowFor(rc, std::string(sql) + ": " + reason);
     }
   }
 
@@ -90,6 +91,18 @@ class Database {
   int64_t LastInsertRowId() const { return sqlite3_last_insert_rowid(handle_); }
 
  private:
+  // A full disk (or a file at its size limit) and a failing one are told apart from
+  // every other failure: the caller answers them with "no room" and retries later.
+  [[noreturn]] void ThrowFor(int rc, const std::string& what) const {
+    const int primary = rc & 0xff;
+    if (primary == SQLITE_FULL || primary == SQLITE_IOERR) {
+      throw JobStoreFullError(path_ + ": " + what +
+                              " (the disk holding the job database is full or failing; nothing of this "
+                              "write was kept)");
+    }
+    throw JobStoreError(path_ + ": " + what);
+  }
+
   std::string path_;
   sqlite3* handle_ = nullptr;
 };
@@ -236,6 +249,15 @@ constexpr std::array<const char*, JobStore::kSchemaVersion> kMigrations = {{
       ALTER TABLE jobs ADD COLUMN height INTEGER NOT NULL DEFAULT 0;
       ALTER TABLE jobs ADD COLUMN camera_or_lights_change INTEGER;
     )sql",
+    // The plan a job runs with, kept across restarts so that a resumed job plans the same
+    // bins; and the identity of the frame store this file belongs to.
+    R"sql(
+      ALTER TABLE jobs ADD COLUMN plan TEXT NOT NULL DEFAULT '{}';
+      CREATE TABLE store_identity (
+        one_row  INTEGER PRIMARY KEY CHECK (one_row = 1),
+        store_id TEXT NOT NULL
+      );
+    )sql",
 }};
 
 // The scene's render.width/height, read without parsing the rest of the scene (a stored
@@ -318,7 +340,7 @@ void ConfigureConnection(Database& db) {
 const std::string kSelectJobColumns =
     "SELECT id, name, scene_hash, first_frame, last_frame, strategy, bin_width, tolerance, "
     "priority, options, state, error, submitted_ms, started_ms, finished_ms, frames_done, "
-    "traced_pixels, copied_pixels, stats, width, height, camera_or_lights_change FROM jobs ";
+    "traced_pixels, copied_pixels, stats, width, height, camera_or_lights_change, plan FROM jobs ";
 
 // Submit writes only names from kStrategyNames, so another one means the file was changed
 // behind the coordinator's back: guessing what the job wanted would render the wrong thing.
@@ -355,6 +377,7 @@ JobRecord ReadRecord(const Statement& row) {
   record.stats = nlohmann::json::parse(row.Text(18));
   record.spec.frameSize = FrameSize{row.Int(19), row.Int(20)};
   if (!row.IsNull(21)) record.spec.cameraOrLightsChange = row.Int(21) != 0;
+  record.plan = nlohmann::json::parse(row.Text(22));
   return record;
 }
 
@@ -524,7 +547,9 @@ std::optional<JobRecord> JobStore::ClaimNext() {
   if (!next.Step()) return std::nullopt;
   const uint64_t id = next.UInt64(0);
   Transition(*db_, id,
-             "UPDATE jobs SET state = 'running', started_ms = ?2 "
+             // A resumed job keeps the time it first started.
+             "UPDATE jobs SET state = 'running', "
+             "started_ms = CASE WHEN started_ms = 0 THEN ?2 ELSE started_ms END "
              "WHERE id = ?1 AND state = 'queued'",
              nowMs_());
   std::optional<JobRecord> record = LoadFullRecord(*db_, id);
@@ -604,15 +629,90 @@ std::vector<uint64_t> JobStore::RequeueInterrupted() {
   std::vector<uint64_t> ids;
   Statement running(*db_, "SELECT id FROM jobs WHERE state = 'running' ORDER BY id");
   while (running.Step()) ids.push_back(running.UInt64(0));
-  for (uint64_t id : ids) {
-    Statement frames(*db_, "DELETE FROM job_frames WHERE job_id = ?1");
-    frames.Bind(1, static_cast<int64_t>(id));
-    frames.Run();
-  }
-  db_->Exec("UPDATE jobs SET state = 'queued', started_ms = 0, frames_done = 0, "
-            "traced_pixels = 0, copied_pixels = 0, stats = '{}' WHERE state = 'running'");
+  db_->Exec("UPDATE jobs SET state = 'queued' WHERE state = 'running'");
   transaction.Commit();
   return ids;
+}
+
+bool JobStore::SetPlan(uint64_t id, const nlohmann::json& plan) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "UPDATE jobs SET plan = ?2 WHERE id = ?1 AND state = 'running'");
+  statement.Bind(1, static_cast<int64_t>(id)).Bind(2, plan.dump());
+  statement.Run();
+  return db_->Changes() == 1;
+}
+
+void JobStore::ForgetFrames(uint64_t id, const std::vector<int>& frames) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  Statement read(*db_, "SELECT traced, copied FROM job_frames WHERE job_id = ?1 AND frame = ?2");
+  Statement remove(*db_, "DELETE FROM job_frames WHERE job_id = ?1 AND frame = ?2");
+  Statement update(*db_, "UPDATE jobs SET frames_done = frames_done - 1, traced_pixels = traced_pixels - ?2, "
+                         "copied_pixels = copied_pixels - ?3 WHERE id = ?1");
+  for (int frame : frames) {
+    read.Reset();
+    read.Bind(1, static_cast<int64_t>(id)).Bind(2, int64_t{frame});
+    if (!read.Step()) continue;
+    const int64_t traced = read.Int64(0), copied = read.Int64(1);
+    read.Reset();
+    remove.Reset();
+    remove.Bind(1, static_cast<int64_t>(id)).Bind(2, int64_t{frame});
+    remove.Run();
+    update.Reset();
+    update.Bind(1, static_cast<int64_t>(id)).Bind(2, traced).Bind(3, copied);
+    update.Run();
+  }
+  transaction.Commit();
+}
+
+std::optional<std::string> JobStore::StoreId() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT store_id FROM store_identity");
+  if (!statement.Step()) return std::nullopt;
+  return statement.Text(0);
+}
+
+void JobStore::SetStoreId(const std::string& id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "INSERT OR REPLACE INTO store_identity (one_row, store_id) VALUES (1, ?1)");
+  statement.Bind(1, id);
+  statement.Run();
+}
+
+bool JobStore::HasJob(uint64_t id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT 1 FROM jobs WHERE id = ?1");
+  statement.Bind(1, static_cast<int64_t>(id));
+  return statement.Step();
+}
+
+size_t JobStore::JobCount() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT COUNT(*) FROM jobs");
+  statement.Step();
+  return static_cast<size_t>(statement.Int64(0));
+}
+
+void JobStore::CapFilePages(int64_t pages) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  // PRAGMA takes no bound parameters; pages is an integer, never text.
+  db_->Exec(("PRAGMA max_page_count = " + std::to_string(pages)).c_str());
+}
+
+// AUTOINCREMENT hands out max(largest id ever used, sqlite_sequence's value) + 1; the
+// sequence's row exists once a job was ever inserted.
+void JobStore::ReserveJobIdsThrough(uint64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  Statement update(*db_, "UPDATE sqlite_sequence SET seq = MAX(seq, ?1) WHERE name = 'jobs'");
+  update.Bind(1, static_cast<int64_t>(id));
+  update.Run();
+  if (db_->Changes() == 0) {
+    Statement insert(*db_, "INSERT INTO sqlite_sequence (name, seq) VALUES ('jobs', ?1)");
+    insert.Bind(1, static_cast<int64_t>(id));
+    insert.Run();
+  }
+  transaction.Commit();
 }
 
 }  // namespace tcfarm

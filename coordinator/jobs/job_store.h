@@ -1,7 +1,8 @@
 // The job queue: every render job the coordinator has accepted, kept in one SQLite file.
 //
 // The file outlives the coordinator process, so a restart loses no submitted job: jobs
-// it was running go back to the queue (RequeueInterrupted), everything else is as it was.
+// it was running go back to the queue with the frames they had written (RequeueInterrupted),
+// everything else is as it was. It also records which frame store it belongs to (StoreId).
 //
 // A job moves through these states, and no other transition is possible:
 //
@@ -9,7 +10,7 @@
 //                 │                     │
 //                 │                     ├──Fail──> failed
 //                 ├──Fail──> failed     ├──Cancel──> canceled
-//                 └──Cancel──> canceled └──RequeueInterrupted──> queued (counters reset)
+//                 └──Cancel──> canceled └──RequeueInterrupted──> queued (frames kept)
 //
 // completed, failed and canceled are final. A call that asks for any other transition
 // (a late Complete after a Cancel, a RecordFrame after a Fail, ...) changes nothing and
@@ -83,6 +84,10 @@ struct JobRecord {
   // whatever the jobs' lengths.
   std::vector<int64_t> tracedPerFrame;
   nlohmann::json stats = nlohmann::json::object();  // results the coordinator attaches
+  // How the job runs, fixed when it first starts (SetPlan): the resolved strategy and bin
+  // width, so that a coordinator resuming it plans the same bins whatever its worker
+  // count. Empty until then.
+  nlohmann::json plan = nlohmann::json::object();
 
   int FrameCount() const { return spec.lastFrame - spec.firstFrame + 1; }
   // Traced pixels over the pixels a brute-force render of the finished frames would have
@@ -94,6 +99,14 @@ struct JobRecord {
 class JobStoreError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+// A write the disk refused (SQLITE_FULL, or an I/O error: the disk is full or failing).
+// Nothing of the refused call is kept; reads go on working, and the same call succeeds
+// once there is room again.
+class JobStoreFullError : public JobStoreError {
+ public:
+  using JobStoreError::JobStoreError;
 };
 
 namespace sqlite {
@@ -110,7 +123,7 @@ class JobStore {
 
   // The newest schema this code knows. A file with a newer one is refused, since an older
   // coordinator cannot know what the newer columns mean.
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
   // Creates the file or opens it, migrating an older schema forward. Throws JobStoreError
   // naming the path when the file is not a database, is unreadable, or is too new.
@@ -153,10 +166,30 @@ class JobStore {
   // Merge-patches (RFC 7386) live stats into a running job's stats; false when not running.
   bool SetStats(uint64_t id, const nlohmann::json& stats);
 
-  // For startup: jobs a previous coordinator process left running go back to queued with
-  // their frames, counters, startedMs and stats reset, since their partial frames were in
-  // that process's memory. Returns their ids, ascending.
+  // For startup: jobs a previous coordinator process left running go back to queued. Their
+  // recorded frames (written to the store before they were recorded), counters, startedMs,
+  // stats and plan stay, so the next claim resumes them. Returns their ids, ascending.
   std::vector<uint64_t> RequeueInterrupted();
+
+  // Fixes a running job's plan (JobRecord::plan); false when the job is not running.
+  bool SetPlan(uint64_t id, const nlohmann::json& plan);
+  // Un-records frames whose files are gone from the store, their counters with them, so
+  // the record says what the store holds. Frames not recorded are skipped.
+  void ForgetFrames(uint64_t id, const std::vector<int>& frames);
+
+  // The frame store this database belongs to (its identity file's id); nullopt before
+  // one is recorded.
+  std::optional<std::string> StoreId() const;
+  void SetStoreId(const std::string& id);
+  bool HasJob(uint64_t id) const;
+  size_t JobCount() const;
+  // Ids Submit hands out from now on are above `id` (a store's job folders up to it are
+  // someone's already).
+  void ReserveJobIdsThrough(uint64_t id);
+
+  // Caps the file at `pages` pages (SQLite's PRAGMA max_page_count, this connection only):
+  // writes beyond it fail with JobStoreFullError as on a full disk. For tests.
+  void CapFilePages(int64_t pages);
 
  private:
   mutable std::mutex mutex_;  // serializes all use of the single connection

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <set>
 #include <thread>
@@ -396,26 +397,32 @@ TEST_F(JobStoreTest, RequeueInterruptedAfterACrash) {
     store->ClaimNext();
     store->Complete(finished, {});
     store->ClaimNext();
+    store->SetPlan(interrupted, {{"strategy", "exact"}, {"bin_width", 4}});
     store->RecordFrame(interrupted, 3, 50, 50);
     store->SetStats(interrupted, {{"coherence", 0.4}});
   }  // the process "dies" with `interrupted` running
 
+  nowMs_ = 9'000;
   auto store = Open();
   EXPECT_EQ(store->RequeueInterrupted(), std::vector<uint64_t>{interrupted});
-  const JobRecord record = *store->Get(interrupted);
+  JobRecord record = *store->Get(interrupted);
+  // Queued again with what it had written: the next claim resumes it.
   EXPECT_EQ(record.state, JobState::kQueued);
-  EXPECT_EQ(record.startedMs, 0);
-  EXPECT_EQ(record.framesDone, 0);
-  EXPECT_EQ(record.tracedPixels, 0u);
-  EXPECT_EQ(record.copiedPixels, 0u);
-  EXPECT_EQ(record.tracedPerFrame, std::vector<int64_t>(10, -1));
-  EXPECT_EQ(record.stats, nlohmann::json::object());
+  EXPECT_EQ(record.startedMs, 1'000);
+  EXPECT_EQ(record.framesDone, 1);
+  EXPECT_EQ(record.tracedPixels, 50u);
+  EXPECT_EQ(record.tracedPerFrame[2], 50);
+  EXPECT_EQ(record.plan, (nlohmann::json{{"strategy", "exact"}, {"bin_width", 4}}));
   EXPECT_EQ(store->Get(finished)->state, JobState::kCompleted);
   EXPECT_EQ(store->Get(waiting)->state, JobState::kQueued);
   EXPECT_TRUE(store->RequeueInterrupted().empty());
-  // Its priority still puts it ahead of the job that was waiting.
-  EXPECT_EQ(store->ClaimNext()->id, interrupted);
-  EXPECT_TRUE(store->RecordFrame(interrupted, 3, 50, 50));  // the frame counts again
+  // Its priority still puts it ahead of the job that was waiting; it keeps its start time.
+  record = *store->ClaimNext();
+  EXPECT_EQ(record.id, interrupted);
+  EXPECT_EQ(record.startedMs, 1'000);
+  EXPECT_FALSE(store->RecordFrame(interrupted, 3, 50, 50));  // counted once, before the crash
+  EXPECT_TRUE(store->RecordFrame(interrupted, 4, 60, 40));
+  EXPECT_EQ(store->Get(interrupted)->framesDone, 2);
 }
 
 // A real crash: a child process claims a job and dies without closing the database, so
@@ -438,7 +445,113 @@ TEST_F(JobStoreTest, RequeueInterruptedAfterTheProcessDies) {
   EXPECT_EQ(store->Get(id)->framesDone, 1);
   EXPECT_EQ(store->RequeueInterrupted(), std::vector<uint64_t>{id});
   EXPECT_EQ(store->Get(id)->state, JobState::kQueued);
-  EXPECT_EQ(store->Get(id)->framesDone, 0);
+  EXPECT_EQ(store->Get(id)->framesDone, 1);  // the frame the dead process recorded
+}
+
+// The database's disk full, simulated with a page cap: every write is refused with
+// JobStoreFullError and changes nothing, reads go on, and once there is room the same
+// calls succeed, with no job lost or doubled.
+TEST_F(JobStoreTest, AFullDatabaseRefusesWritesAndRecovers) {
+  auto store = Open();
+  const uint64_t running = store->Submit(Spec(1));
+  const uint64_t queued = store->Submit(Spec(0));
+  ASSERT_EQ(store->ClaimNext()->id, running);
+  ASSERT_TRUE(store->RecordFrame(running, 1, 10, 38));
+  JobSpec large = Spec();
+  large.sceneJson = "{\"pad\": \"" + std::string(64 << 10, 'x') + "\"}";
+  store->CapFilePages(1);  // below what the file holds: no page can be added
+  try {
+    store->Submit(large);
+    FAIL() << "a submit into a full database succeeded";
+  } catch (const JobStoreFullError& e) {
+    EXPECT_NE(std::string(e.what()).find("full"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(file_.string()), std::string::npos) << e.what();
+  }
+  for (int frame = 2; frame <= 10; ++frame) {
+    try {
+      store->RecordFrame(running, frame, 10, 38);
+    } catch (const JobStoreFullError&) {
+    }
+  }
+  // Reads work; what was refused left no trace (the frames that fit before the cap bit
+  // are counted once each).
+  EXPECT_EQ(store->List().size(), 2u);
+  const int recorded = store->Get(running)->framesDone;
+  EXPECT_EQ(store->CountInState(JobState::kQueued), 1u);
+
+  store->CapFilePages(1 << 30);  // room again
+  const uint64_t next = store->Submit(large);
+  EXPECT_EQ(next, queued + 1);  // the refused submit took no id
+  for (int frame = 2; frame <= 10; ++frame) store->RecordFrame(running, frame, 10, 38);
+  EXPECT_EQ(store->Get(running)->framesDone, 10);
+  EXPECT_GE(recorded, 1);
+  EXPECT_TRUE(store->Complete(running, {{"done", true}}));
+  EXPECT_EQ(store->List().size(), 3u);
+}
+
+TEST_F(JobStoreTest, EachTransitionOfAFullDatabaseIsRefusedWhole) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec());
+  const uint64_t other = store->Submit(Spec());
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  // Pad the file so that the cap below leaves no free page for any write.
+  JobSpec large = Spec();
+  large.sceneJson = "{\"pad\": \"" + std::string(256 << 10, 'x') + "\"}";
+  const uint64_t padding = store->Submit(large);
+  ASSERT_TRUE(store->Cancel(padding));
+  store->CapFilePages(1);
+  int refused = 0;
+  for (const std::function<void()>& write : std::vector<std::function<void()>>{
+           [&] { store->SetStats(id, {{"big", std::string(64 << 10, 'y')}}); },
+           [&] { store->SetPlan(id, {{"pad", std::string(64 << 10, 'z')}}); },
+           [&] { store->Fail(id, std::string(64 << 10, 'w')); },
+       }) {
+    try {
+      write();
+    } catch (const JobStoreFullError&) {
+      ++refused;
+    }
+  }
+  EXPECT_EQ(refused, 3);
+  const JobRecord record = *store->Get(id);
+  EXPECT_EQ(record.state, JobState::kRunning);
+  EXPECT_EQ(record.stats, nlohmann::json::object());
+  EXPECT_EQ(record.plan, nlohmann::json::object());
+  EXPECT_EQ(store->Get(other)->state, JobState::kQueued);
+  store->CapFilePages(1 << 30);
+  EXPECT_TRUE(store->Fail(id, "disk was full"));
+}
+
+TEST_F(JobStoreTest, ForgetFramesUncountsThem) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec());
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  store->RecordFrame(id, 1, 10, 38);
+  store->RecordFrame(id, 2, 20, 28);
+  store->ForgetFrames(id, {2, 5});  // 5 was never recorded
+  const JobRecord record = *store->Get(id);
+  EXPECT_EQ(record.framesDone, 1);
+  EXPECT_EQ(record.tracedPixels, 10u);
+  EXPECT_EQ(record.copiedPixels, 38u);
+  EXPECT_EQ(record.tracedPerFrame[1], -1);
+  EXPECT_TRUE(store->RecordFrame(id, 2, 20, 28));
+}
+
+TEST_F(JobStoreTest, StoreIdentityAndReservedIds) {
+  auto store = Open();
+  EXPECT_EQ(store->StoreId(), std::nullopt);
+  EXPECT_EQ(store->JobCount(), 0u);
+  store->SetStoreId("abc");
+  store->ReserveJobIdsThrough(41);  // before any job: the sequence row is created
+  EXPECT_EQ(store->Submit(Spec()), 42u);
+  store->ReserveJobIdsThrough(7);   // never lowers it
+  EXPECT_EQ(store->Submit(Spec()), 43u);
+  store.reset();
+  store = Open();
+  EXPECT_EQ(store->StoreId(), "abc");
+  EXPECT_TRUE(store->HasJob(42));
+  EXPECT_FALSE(store->HasJob(41));
+  EXPECT_EQ(store->JobCount(), 2u);
 }
 
 TEST_F(JobStoreTest, StatsStayAnObject) {
@@ -489,7 +602,8 @@ TEST_F(JobStoreTest, SchemaOneFilesGetTheirFrameSizesFromTheirScenes) {
   const uint64_t id = Open()->Submit(spec);
   RawExec(file_,
           "ALTER TABLE jobs DROP COLUMN width; ALTER TABLE jobs DROP COLUMN height; "
-          "ALTER TABLE jobs DROP COLUMN camera_or_lights_change; PRAGMA user_version = 1");
+          "ALTER TABLE jobs DROP COLUMN camera_or_lights_change; ALTER TABLE jobs DROP COLUMN plan; "
+          "DROP TABLE store_identity; PRAGMA user_version = 1");
   auto store = Open();
   const std::optional<JobRecord> record = store->Get(id);
   ASSERT_TRUE(record.has_value());

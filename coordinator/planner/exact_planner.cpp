@@ -28,8 +28,13 @@ std::string PixelName(uint32_t pixel, int frame) {
 ExactPlanner::ExactPlanner(const PlannerOptions& options) : options_(options) {
   ValidateOptions(options);
   pixelCount_ = static_cast<uint32_t>(options.width) * static_cast<uint32_t>(options.height);
-  segmentCount_ = static_cast<size_t>((static_cast<long long>(options.frameCount) + options.binWidth - 1) /
-                                      options.binWidth);
+  for (long long first = 0; first < options.frameCount; first += options.binWidth) {
+    const int last = static_cast<int>(std::min<long long>(first + options.binWidth, options.frameCount) - 1);
+    // A resumed segment starts at its first frame not in the store.
+    int start = static_cast<int>(first);
+    while (start <= last && planner_internal::AllKept(options, start, start)) ++start;
+    if (start <= last) segmentFrames_.emplace_back(start, last);
+  }
   StartSegments();
 }
 
@@ -38,7 +43,7 @@ std::vector<TraceTask> ExactPlanner::TakeReadyTasks() { return TakeAll(readyTask
 std::vector<FinishedFrame> ExactPlanner::TakeFinishedFrames() { return TakeAll(finished_); }
 
 bool ExactPlanner::Done() const {
-  return nextSegment_ == segmentCount_ && segments_.empty() && finished_.empty();
+  return nextSegment_ == segmentFrames_.size() && segments_.empty() && finished_.empty();
 }
 
 bool ExactPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCount, const int32_t* horizons,
@@ -70,17 +75,15 @@ bool ExactPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floatCount
 }
 
 void ExactPlanner::StartSegments() {
-  while (segments_.size() < static_cast<size_t>(options_.maxLiveBins) && nextSegment_ < segmentCount_) {
+  while (segments_.size() < static_cast<size_t>(options_.maxLiveBins) && nextSegment_ < segmentFrames_.size()) {
     StartSegment(nextSegment_++);
   }
 }
 
 void ExactPlanner::StartSegment(size_t index) {
-  const long long first = static_cast<long long>(index) * options_.binWidth;
-  const long long end = std::min<long long>(first + options_.binWidth, options_.frameCount);
   Segment& segment = segments_[index];
-  segment.first = static_cast<int>(first);
-  segment.last = static_cast<int>(end - 1);
+  segment.first = segmentFrames_[index].first;
+  segment.last = segmentFrames_[index].second;
   segment.frame = segment.first;
   segment.rgb.assign(size_t{pixelCount_} * 3, 0.0f);
   // Nothing is known at a segment's first frame: it is traced in full.

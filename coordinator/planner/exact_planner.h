@@ -19,6 +19,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <utility>
 #include <unordered_map>
 #include <vector>
 
@@ -78,7 +79,7 @@ class ExactPlanner : public Planner {
 
   PlannerOptions options_;
   uint32_t pixelCount_ = 0;
-  size_t segmentCount_ = 0;
+  std::vector<std::pair<int, int>> segmentFrames_;  // [first, last] of each segment to render
   size_t nextSegment_ = 0;  // segments start in frame order: those before this one have started
 
   std::map<size_t, Segment> segments_;  // live segments by index

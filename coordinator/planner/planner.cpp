@@ -71,6 +71,13 @@ std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& op
 
 namespace planner_internal {
 
+bool AllKept(const PlannerOptions& options, int first, int last) {
+  for (int frame = first; frame <= last; ++frame) {
+    if (static_cast<size_t>(frame) >= options.keptFrames.size() || !options.keptFrames[frame]) return false;
+  }
+  return true;
+}
+
 std::vector<std::pair<int, int>> TileBins(int frameCount, int binWidth) {
   if (frameCount == 1) return {{0, 0}};
   std::vector<std::pair<int, int>> bins;

@@ -37,6 +37,13 @@ struct PlannerOptions {
   int maxLiveBins = 4;             // bins (segments) worked on at once; bounds the frames held in memory
   // guarded: the coarse raster has one sample per coarseTile x coarseTile tile (the paper's 8).
   int coarseTile = 8;
+  // A resumed job's frames already in the store (index = frame; empty: none). Every frame
+  // of a bin is derived from that bin's own traces, so a bin (search, guarded) whose frames
+  // are all kept is not planned at all, and the others run exactly as they would have:
+  // their kept frames are traced again and still come out of TakeFinishedFrames, for the
+  // caller to drop. An exact segment starts at its first frame not kept (a full trace
+  // there), since exact's output does not depend on where segments start.
+  std::vector<bool> keptFrames;
 };
 
 struct TraceTask {
@@ -86,6 +93,11 @@ class Planner {
   // planner's memory, bounded through maxLiveBins.
   virtual size_t LiveFrames() const = 0;
 };
+
+namespace planner_internal {
+// Whether frames [first, last] are all in options.keptFrames.
+bool AllKept(const PlannerOptions& options, int first, int last);
+}  // namespace planner_internal
 
 // Empties a planner's queue of ready tasks or finished frames into the caller's hands.
 template <typename T>

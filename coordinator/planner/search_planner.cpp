@@ -53,6 +53,7 @@ SearchPlanner::SearchPlanner(const PlannerOptions& options, std::unique_ptr<Coar
   searchPixels_ = PixelSet::Full(pixelCount_);
   if (guard_) searchPixels_ = searchPixels_.Difference(guard_->Samples());
   for (const auto& [left, right] : planner_internal::TileBins(options.frameCount, options.binWidth)) {
+    if (planner_internal::AllKept(options, left, right)) continue;  // in the store already
     Bin bin;
     bin.left = left;
     bin.right = right;
@@ -111,9 +112,12 @@ void SearchPlanner::StartBin(size_t binIndex) {
   // A bin reads both its end frames until it finishes. The right end is also the next
   // bin's left end: its reader is added now, on the next bin's behalf, so the frame
   // cannot be released in the gap between this bin finishing and the next starting.
-  if (binIndex == 0) AddReader(bin.left);
+  // (A resumed job plans only some bins, so neighbours in bins_ need not share an end.)
+  const bool sharesLeft = binIndex > 0 && bins_[binIndex - 1].right == bin.left;
+  const bool sharesRight = binIndex + 1 < bins_.size() && bins_[binIndex + 1].left == bin.right;
+  if (!sharesLeft) AddReader(bin.left);
   AddReader(bin.right);
-  if (binIndex + 1 < bins_.size()) AddReader(bin.right);
+  if (sharesRight) AddReader(bin.right);
 
   std::vector<int> ends = {bin.left};
   if (bin.right != bin.left) ends.push_back(bin.right);  // a one-frame job's bin is [0, 0]

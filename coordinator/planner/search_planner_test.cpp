@@ -185,6 +185,34 @@ Rgb NoisyAnimation(int frame, int x, int y) {
   return {static_cast<float>(hash % 1000) / 1000.0f, static_cast<float>(frame), 0.0f};
 }
 
+// A resumed job: bins whose frames are all kept are not planned; the others run as in an
+// uninterrupted run and give the same frames, bit for bit, and the same traced masks.
+TEST(SearchPlanner, ResumedJobPlansOnlyBinsNotKeptAndMatchesAnUninterruptedRun) {
+  PlannerOptions options = Options(9, 7, 21, 5);  // bins [0,4] [4,8] [8,12] [12,16] [16,20]
+  const Animation animation = [](int f, int x, int y) {
+    return Rgb{static_cast<float>((x * 7 + y * 3 + f / 3) % 5), static_cast<float>(x == f % 9), 0.0f};
+  };
+  const RenderRun full = Render(options, animation);
+  options.keptFrames.assign(21, false);
+  for (int f : {0, 1, 2, 3, 4, 5, 6, 7, 8, 10, 16}) options.keptFrames[f] = true;
+  SearchPlanner planner(options);
+  const RenderRun resumed = Drive(planner, options, animation);
+  std::set<int> produced;
+  uint64_t traced = 0, bound = 0;
+  for (const auto& [f, frame] : resumed.frames) {
+    produced.insert(f);
+    EXPECT_EQ(frame.rgb, full.frames.at(f).rgb) << "frame " << f;
+    EXPECT_EQ(frame.traced, full.frames.at(f).traced) << "frame " << f;
+    traced += frame.tracedCount;
+  }
+  std::set<int> expected;
+  for (int f = 8; f <= 20; ++f) expected.insert(f);
+  EXPECT_EQ(produced, expected);  // bins [0,4] and [4,8] are kept whole
+  EXPECT_EQ(planner.TracedPixels(), traced);
+  for (int f = 8; f <= 20; ++f) bound += full.frames.at(f).tracedCount;
+  EXPECT_EQ(traced, bound);
+}
+
 TEST(SearchPlanner, BinWidthTwoIsBruteForce) {
   const PlannerOptions options = Options(7, 5, 9, 2);
   const RenderRun run = Render(options, NoisyAnimation, 7);

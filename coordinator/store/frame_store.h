@@ -5,6 +5,7 @@
 //   STORE/<job>/change_NNNN.png                  pixels equal to frame NNNN-1's white
 //   STORE/<job>/.pending/                        frames waiting for their turn on disk
 //                                                (PendingFrames names the files inside)
+//   STORE/store-id                               the store's identity (store_identity.h)
 //
 // NNNN is the scene's absolute frame number. The farm writes these files; the HTTP API
 // serves them. Paths only: nothing here touches the disk.

@@ -1,6 +1,7 @@
 #include "frame/frame_writer.h"
 
 #include <algorithm>
+#include <system_error>
 
 namespace tcfarm {
 
@@ -68,9 +69,55 @@ void FrameWriter::WriteFiles(const Item& item) const {
     WriteMaskPng(directory_ / item.maskName, item.image.width, item.image.height, item.mask);
     return;
   }
-  std::filesystem::path stem = directory_ / FrameFileStem(item.frame);
-  if (options_.writeExr) WriteExr(stem.string() + ".exr", item.image, options_.exrCompression);
-  if (options_.writePng) WritePng(stem.string() + ".png", item.image);
+  WriteFrameFiles(item);
+}
+
+// Both files or neither: a frame whose PNG found no room loses its EXR too, so that a
+// frame in the folder is always a whole frame.
+void FrameWriter::WriteFrameFiles(const Item& item) const {
+  const std::string stem = (directory_ / FrameFileStem(item.frame)).string();
+  std::vector<std::filesystem::path> placed;
+  try {
+    if (options_.writeExr) {
+      WriteExr(stem + ".exr", item.image, options_.exrCompression);
+      placed.push_back(stem + ".exr");
+    }
+    if (options_.writePng) {
+      WritePng(stem + ".png", item.image);
+      placed.push_back(stem + ".png");
+    }
+  } catch (...) {
+    std::error_code ignored;
+    for (const std::filesystem::path& path : placed) std::filesystem::remove(path, ignored);
+    throw;
+  }
+}
+
+std::vector<int> FrameWriter::TakeWritten() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return std::exchange(written_, {});
+}
+
+std::optional<FrameWriter::Failure> FrameWriter::FirstFailure() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return firstFailure_;
+}
+
+// The free space goes with the reason: an encoder's message for a full disk is often
+// only "write failed".
+void FrameWriter::NoteFailure(const Item& item, const std::exception& error) {
+  if (firstFailure_) return;
+  Failure failure;
+  if (item.maskName.empty()) failure.frame = item.frame;
+  failure.file = item.maskName.empty() ? FrameFileStem(item.frame) : item.maskName;
+  failure.why = error.what();
+  std::error_code spaceError;
+  const std::filesystem::space_info space = std::filesystem::space(directory_, spaceError);
+  if (!spaceError) {
+    failure.why += "; " + std::to_string(space.available) + " bytes free on the disk of " + directory_.string();
+    if (space.available < (uint64_t{1} << 20)) failure.why += " (disk full)";
+  }
+  firstFailure_ = std::move(failure);
 }
 
 void FrameWriter::Run() {
@@ -91,6 +138,16 @@ void FrameWriter::Run() {
       error = std::current_exception();
     }
     lock.lock();
+    if (error) {
+      try {
+        std::rethrow_exception(error);
+      } catch (const std::exception& e) {
+        NoteFailure(item, e);
+      } catch (...) {
+      }
+    } else if (item.maskName.empty()) {
+      written_.push_back(item.frame);
+    }
     if (error && !error_) error_ = error;
     --writing_;
     changed_.notify_all();

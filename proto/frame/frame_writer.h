@@ -1,6 +1,11 @@
 // Writes finished frames on a background thread, so that encoding and disk never stall
 // tracing. The queue is bounded: a producer faster than the disk waits instead of
 // holding an unbounded number of frames in memory.
+//
+// A frame is whole or absent: each file goes to a temporary name and is renamed into
+// place, and when one of a frame's files cannot be written the others are removed. The
+// caller learns which frames are in place (TakeWritten) and which write failed first
+// (FirstFailure), so its records can say exactly what the folder holds.
 #pragma once
 
 #include <condition_variable>
@@ -8,6 +13,7 @@
 #include <exception>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <string>
 #include <utility>
@@ -48,6 +54,15 @@ class FrameWriter {
   bool HasRoom() const;
   // Whether everything queued is written (Finish would return at once).
   bool Idle() const;
+  // Frames whose files are all in place since the last call, in the order they finished.
+  std::vector<int> TakeWritten();
+  // The first write that failed: its frame (nullopt for a mask), its file and why.
+  struct Failure {
+    std::optional<int> frame;
+    std::string file;
+    std::string why;
+  };
+  std::optional<Failure> FirstFailure() const;
 
  private:
   void Run();
@@ -60,6 +75,9 @@ class FrameWriter {
     std::vector<uint8_t> mask;
   };
   void WriteFiles(const Item& item) const;
+  void WriteFrameFiles(const Item& item) const;
+  // Records a failed item; the caller holds mutex_.
+  void NoteFailure(const Item& item, const std::exception& error);
 
   std::filesystem::path directory_;
   FrameWriterOptions options_;
@@ -70,6 +88,8 @@ class FrameWriter {
   unsigned writing_ = 0;
   bool stopping_ = false;
   std::exception_ptr error_;
+  std::optional<Failure> firstFailure_;
+  std::vector<int> written_;  // frames in place, not yet taken
   std::vector<std::thread> threads_;
 };
 
