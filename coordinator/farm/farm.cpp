@@ -250,6 +250,10 @@ void Farm::CountError(const nlohmann::json& error) {
     metrics_.verifiedFrames.Increment(reference.value("frames_compared", 0.0));
     metrics_.verifiedPixelsDiffering.Increment(reference.value("pixels_differing", 0.0));
   }
+  if (error.contains("suspect")) {
+    metrics_.suspectJobs.Increment();
+    metrics_.suspectPixels.Increment(error["suspect"].value("pixels_disagreeing", 0.0));
+  }
 }
 
 void Farm::FailJob(uint64_t jobId, const std::string& why) {

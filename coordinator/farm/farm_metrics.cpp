@@ -55,6 +55,11 @@ FarmMetrics::FarmMetrics()
                                 "Frames compared with a brute-force reference (finished jobs)")),
       verifiedPixelsDiffering(NewCounter(*registry, "tcfarm_verified_pixels_differing_total",
                                          "Pixels of verified frames that differ from the reference")),
+      suspectJobs(NewCounter(*registry, "tcfarm_suspect_jobs_total",
+                             "Finished jobs whose strategy promises 0 wrong pixels (exact, brute) but whose "
+                             "checks found pixels that disagree: a bug or a worker returning wrong values")),
+      suspectPixels(NewCounter(*registry, "tcfarm_suspect_pixels_total",
+                               "Pixels of such jobs that checks found disagreeing")),
       jobStoreWritesRefused(NewCounter(*registry, "tcfarm_job_store_writes_refused_total",
                                        "Writes of the farm loop the job database refused (disk full or "
                                        "failing); each is retried until it succeeds")),

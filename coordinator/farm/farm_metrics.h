@@ -34,6 +34,8 @@ struct FarmMetrics {
   prometheus::Counter& spotCheckMismatches;
   prometheus::Counter& verifiedFrames;
   prometheus::Counter& verifiedPixelsDiffering;
+  prometheus::Counter& suspectJobs;  // jobs promising exactness whose checks disagreed
+  prometheus::Counter& suspectPixels;
   prometheus::Counter& jobStoreWritesRefused;  // the farm loop's, retried later
   prometheus::Histogram& taskLatency;
   prometheus::Gauge& queueDepth;      // tasks waiting for a worker

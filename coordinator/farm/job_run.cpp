@@ -37,6 +37,7 @@ VerificationOptions VerificationFor(const JobSpec& spec, uint64_t jobId, Strateg
   if (strategy == Strategy::kExact && options.referenceFrames.empty()) {
     options.referenceFrames = {FrameCountOf(spec) - 1};
   }
+  options.promisesExact = strategy == Strategy::kExact || strategy == Strategy::kBrute;
   return options;
 }
 

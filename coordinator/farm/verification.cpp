@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <stdexcept>
 
@@ -107,24 +108,39 @@ std::vector<Verification::Request> Verification::TakeRequests() {
 bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount) {
   auto outstanding = outstanding_.find(id);
   if (outstanding == outstanding_.end()) return false;
+  const int frame = outstanding->second;
   outstanding_.erase(outstanding);
   if (auto check = spotChecks_.find(id); check != spotChecks_.end()) {
     if (floatCount != check->second.copied.size()) throw std::invalid_argument("spot check size");
+    uint64_t mismatched = 0;
     for (size_t i = 0; i < floatCount; i += 3) {
       ++checkedPixels_;
-      mismatchedPixels_ += std::memcmp(&rgb[i], &check->second.copied[i], 3 * sizeof(float)) != 0;
+      mismatched += std::memcmp(&rgb[i], &check->second.copied[i], 3 * sizeof(float)) != 0;
     }
+    mismatchedPixels_ += mismatched;
+    if (mismatched > 0) NoteDisagreement(check->second.frame, mismatched);
     spotChecks_.erase(check);
     return true;
   }
   auto job = jobFramesAwaitingReference_.find(id);
   if (job == jobFramesAwaitingReference_.end()) return false;
   Image reference{width_, height_, std::vector<float>(rgb, rgb + floatCount)};
-  reference_ += CompareImages(reference, job->second);
+  const FrameError frameError = CompareImages(reference, job->second);
+  if (frameError.differingPixels > 0) NoteDisagreement(frame, frameError.differingPixels);
+  reference_ += frameError;
   ssimSum_ += Ssim(reference, job->second);
   ++referenceFramesDone_;
   jobFramesAwaitingReference_.erase(job);
   return true;
+}
+
+void Verification::NoteDisagreement(int frame, uint64_t pixels) {
+  const bool first = suspectFrames_.empty();
+  suspectFrames_[frame] += pixels;
+  if (!options_.promisesExact || !first) return;
+  std::fprintf(stderr, "coordinator: a check found %llu pixels of frame %d that disagree with the job's, which "
+               "promises none: a bug or a worker returning wrong values; the job is marked suspect\n",
+               static_cast<unsigned long long>(pixels), frame);
 }
 
 nlohmann::json Verification::Report() const {
@@ -150,6 +166,18 @@ nlohmann::json Verification::Report() const {
         {"ssim", referenceFramesDone_ ? ssimSum_ / referenceFramesDone_ : 1.0}};
   }
   report["extra_pixels_traced"] = extraPixels_;
+  if (Suspect()) {
+    nlohmann::json frames = nlohmann::json::object();
+    uint64_t pixels = 0;
+    for (const auto& [frame, count] : suspectFrames_) {
+      frames[std::to_string(frame)] = count;
+      pixels += count;
+    }
+    report["suspect"] = {{"pixels_disagreeing", pixels},
+                         {"frames", frames},
+                         {"why", "the strategy promises 0 wrong pixels, yet traced-again pixels disagree with the "
+                                 "job's: a bug or a worker returning wrong values"}};
+  }
   return report;
 }
 

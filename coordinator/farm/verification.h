@@ -30,6 +30,9 @@ struct VerificationOptions {
   // Share of each frame's copied pixels traced again; 0 turns spot checks off.
   double spotCheckShare = 0.01;
   uint64_t seed = 1;
+  // The strategy promises 0 wrong pixels (exact, brute): then any disagreement a check
+  // finds is a bug or a worker that returns wrong values, and the job is marked suspect.
+  bool promisesExact = false;
 };
 
 // The share of a frame's pixels spot checks may trace again (the promise of <= 2 %).
@@ -57,6 +60,8 @@ class Verification {
   // Whether an outstanding request traces part of a reference frame (not a spot check).
   bool IsReference(uint64_t id) const { return outstanding_.count(id) > 0 && spotChecks_.count(id) == 0; }
   bool Pending() const { return !outstanding_.empty() || !ready_.empty(); }
+  // A job that promises exactness and whose checks found a disagreement.
+  bool Suspect() const { return options_.promisesExact && !suspectFrames_.empty(); }
   uint64_t ExtraPixels() const { return extraPixels_; }
 
   nlohmann::json Report() const;
@@ -70,6 +75,8 @@ class Verification {
                          const std::vector<uint8_t>& traced);
   void ScheduleReference(int frame, const std::vector<float>& rgb);
   uint64_t Issue(int frame, PixelSet pixels);
+  // A check of `frame` found `pixels` that disagree with the job's values.
+  void NoteDisagreement(int frame, uint64_t pixels);
 
   int width_, height_, frameCount_;
   VerificationOptions options_;
@@ -87,6 +94,7 @@ class Verification {
   FrameError reference_;
   double ssimSum_ = 0;
   int referenceFramesDone_ = 0;
+  std::map<int, uint64_t> suspectFrames_;  // frame -> pixels a check disagreed on
 };
 
 }  // namespace tcfarm

@@ -90,3 +90,45 @@ TEST(VerificationTest, ReferenceFramesAreComparedInFull) {
 
 }  // namespace
 }  // namespace tcfarm
+
+namespace tcfarm {
+namespace {
+
+// exact and brute promise 0 wrong pixels: a spot check or a reference that disagrees marks
+// the job suspect, naming the frames; a strategy that allows error is only measured.
+TEST(VerificationTest, ADisagreementMarksAJobThatPromisesExactnessSuspect) {
+  for (const bool promisesExact : {true, false}) {
+    VerificationOptions options;
+    options.spotCheckShare = 0.02;
+    options.referenceFrames = {1};
+    options.promisesExact = promisesExact;
+    Verification verification(kWidth, kHeight, 2, options);
+    auto [rgb, traced] = Frame();
+    verification.OnFrameFinished(0, rgb, traced);
+    verification.OnFrameFinished(1, rgb, traced);
+    std::set<uint32_t> wrong;
+    for (uint32_t p = 0; p < kPixels; ++p) wrong.insert(p);  // a worker that lies everywhere
+    Answer(verification, wrong);
+    const nlohmann::json report = verification.Report();
+    EXPECT_EQ(verification.Suspect(), promisesExact);
+    EXPECT_EQ(report.contains("suspect"), promisesExact) << report.dump();
+    if (!promisesExact) continue;
+    EXPECT_EQ(report["suspect"]["frames"]["1"], kPixels);  // the reference differs everywhere
+    EXPECT_EQ(report["suspect"]["frames"]["0"], report["spot_checks"]["mismatches"]);
+  }
+}
+
+TEST(VerificationTest, AJobWhoseChecksAgreeIsNotSuspect) {
+  VerificationOptions options;
+  options.referenceFrames = {0};
+  options.promisesExact = true;
+  Verification verification(kWidth, kHeight, 1, options);
+  auto [rgb, traced] = Frame();
+  verification.OnFrameFinished(0, rgb, traced);
+  Answer(verification);
+  EXPECT_FALSE(verification.Suspect());
+  EXPECT_FALSE(verification.Report().contains("suspect"));
+}
+
+}  // namespace
+}  // namespace tcfarm
