@@ -1,13 +1,17 @@
 #include "cli/serve_command.h"
 
+#include <stdlib.h>
+
 #include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <stdexcept>
 
+#include "curve/curve_keys.h"
 #include "farm/farm.h"
 #include "farm/job_run.h"
 #include "frame/frame_io.h"
@@ -30,6 +34,7 @@ struct ServeOptions {
   std::filesystem::path dashboard;  // static files served at /; empty: none
   uint64_t assetMaxFileBytes = ApiOptions{}.assetMaxFileBytes;
   uint64_t assetMaxJobBytes = ApiOptions{}.assetMaxJobBytes;
+  bool insecureNoAuth = false;  // a non-loopback endpoint without keys, on purpose
 };
 
 // The dashboard beside a build tree (build/coordinator -> ../../services/dashboard) or
@@ -94,6 +99,9 @@ struct ServeFlags {
   size_t pendingFrameMib = JobRun::kDefaultPendingFrameBytes >> 20;
   uint64_t assetMaxFileMib = ApiOptions{}.assetMaxFileBytes >> 20;
   uint64_t assetMaxJobMib = ApiOptions{}.assetMaxJobBytes >> 20;
+  std::string curveSecret;  // empty: no CURVE
+  std::string workerKeys;
+  bool insecureNoAuth = false;
   // Set when given: their defaults are worked out, not fixed.
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
@@ -171,6 +179,60 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
       ->type_name("MIB")
       ->check(IntegerFrom(1, 1 << 24))
       ->capture_default_str();
+  serve.add_option("--curve-secret", flags.curveSecret,
+                   "The coordinator's CURVE secret key (tcfarm-coordinator keygen); with --worker-keys, "
+                   "workers must authenticate (CurveZMQ) and its public key is printed at start")
+      ->type_name("FILE")
+      ->envname("TCFARM_CURVE_SECRET");
+  serve.add_option("--worker-keys", flags.workerKeys,
+                   "Allow-list: every *.pub file here is a worker's public key; read again when it "
+                   "changes, so adding a worker needs no restart")
+      ->type_name("DIR")
+      ->envname("TCFARM_WORKER_KEYS");
+  serve.add_flag("--insecure-no-auth", flags.insecureNoAuth,
+                 "Serve beyond loopback without authentication: any process that reaches the port "
+                 "can take tasks and return pixels. Without it such an endpoint needs keys");
+}
+
+// True for endpoints only this machine can reach: tcp on a loopback address, ipc, inproc.
+bool IsLoopbackEndpoint(const std::string& endpoint) {
+  if (endpoint.rfind("ipc://", 0) == 0 || endpoint.rfind("inproc://", 0) == 0) return true;
+  if (endpoint.rfind("tcp://", 0) != 0) return false;
+  const std::string address = endpoint.substr(6);
+  const size_t colon = address.rfind(':');
+  std::string host = address.substr(0, colon == std::string::npos ? address.size() : colon);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  return host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
+// Both CURVE flags or neither; without them, loopback unless insecurity is asked for.
+void ResolveWorkerAuthentication(const ServeFlags& flags, ServeOptions* options) {
+  if (flags.curveSecret.empty() != flags.workerKeys.empty()) {
+    throw std::invalid_argument(std::string(flags.curveSecret.empty() ? "--worker-keys" : "--curve-secret") +
+                                " without " + (flags.curveSecret.empty() ? "--curve-secret" : "--worker-keys") +
+                                ": CURVE needs the coordinator's secret key and the workers' allow-list");
+  }
+  options->insecureNoAuth = flags.insecureNoAuth;
+  if (flags.curveSecret.empty()) {
+    if (!IsLoopbackEndpoint(flags.zmq) && !flags.insecureNoAuth) {
+      throw std::invalid_argument(
+          "--zmq " + flags.zmq + ": reachable beyond loopback without worker authentication; give "
+          "--curve-secret FILE and --worker-keys DIR (make keys with tcfarm-coordinator keygen), or "
+          "--insecure-no-auth to let any process that reaches the port take tasks");
+    }
+    return;
+  }
+  CurveServerKeys keys;
+  try {
+    keys.secretKey = curve::ReadSecretKeyFile(flags.curveSecret).secretKey;
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--curve-secret ") + e.what());
+  }
+  if (!std::filesystem::is_directory(flags.workerKeys)) {
+    throw std::invalid_argument("--worker-keys " + flags.workerKeys + ": not a folder (expected one holding *.pub files)");
+  }
+  keys.workerKeysDirectory = flags.workerKeys;
+  options->farm.curve = std::move(keys);
 }
 
 // Throws std::invalid_argument naming the flag whose value cannot be used.
@@ -195,6 +257,7 @@ ServeOptions Resolve(const ServeFlags& flags) {
   options.farm.pendingFrameBytes = flags.pendingFrameMib << 20;
   options.assetMaxFileBytes = flags.assetMaxFileMib << 20;
   options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
+  ResolveWorkerAuthentication(flags, &options);
   if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
@@ -206,6 +269,33 @@ ServeOptions Resolve(const ServeFlags& flags) {
   }
   return options;
 }
+
+// Keys for the coordinator's own local workers when workers must authenticate: a fresh
+// pair at each start, allowed in memory, its files in a private temp folder (mode 0700)
+// that goes away with the coordinator.
+class LocalWorkerKeys {
+ public:
+  explicit LocalWorkerKeys(const std::string& coordinatorPublicKey) : keys_(curve::GenerateKeyPair()) {
+    std::string folder = (std::filesystem::temp_directory_path() / "tcfarm-local-worker-keys-XXXXXX").string();
+    if (!::mkdtemp(folder.data())) throw std::runtime_error("cannot make a folder for the local workers' keys in " + folder);
+    folder_ = folder;
+    curve::WriteKeyPair(folder_, "local-worker", keys_);
+    std::ofstream(folder_ / "coordinator.pub") << "# this coordinator's CURVE public key\n" << coordinatorPublicKey << "\n";
+  }
+  ~LocalWorkerKeys() {
+    std::error_code ignored;
+    std::filesystem::remove_all(folder_, ignored);
+  }
+  const std::string& PublicKey() const { return keys_.publicKey; }
+  std::vector<std::string> WorkerArguments() const {
+    return {"--curve-secret", (folder_ / "local-worker.key").string(), "--coordinator-key",
+            (folder_ / "coordinator.pub").string()};
+  }
+
+ private:
+  curve::KeyPair keys_;
+  std::filesystem::path folder_;
+};
 
 // Where local workers connect: a wildcard bind is reached through loopback.
 std::string LoopbackEndpoint(std::string bound) {
@@ -227,7 +317,13 @@ int RunServe(const ServeOptions& options) {
   }
   JobStore store(options.database);
   SystemClock clock;
-  Farm farm(store, options.farm, clock);
+  FarmOptions farmOptions = options.farm;
+  std::unique_ptr<LocalWorkerKeys> localWorkerKeys;
+  if (farmOptions.curve && options.localWorkers > 0) {
+    localWorkerKeys = std::make_unique<LocalWorkerKeys>(curve::PublicKeyOf(farmOptions.curve->secretKey));
+    farmOptions.curve->alsoAllowed.insert(localWorkerKeys->PublicKey());
+  }
+  Farm farm(store, farmOptions, clock);
 
   ApiOptions api;
   api.host = options.httpHost;
@@ -244,9 +340,20 @@ int RunServe(const ServeOptions& options) {
 
   std::string workerEndpoint = LoopbackEndpoint(farm.BoundEndpoint());
   LocalWorkers localWorkers(options.workerBinary.empty() ? FindWorkerBinary() : options.workerBinary,
-                            workerEndpoint, options.workerThreads);
+                            workerEndpoint, options.workerThreads,
+                            localWorkerKeys ? localWorkerKeys->WorkerArguments() : std::vector<std::string>{});
   localWorkers.Start(options.localWorkers);
 
+  // Before the line that says it listens: whoever waits for that line finds this one too.
+  if (farmOptions.curve) {
+    std::fprintf(stderr,
+                 "tcfarm-coordinator: workers authenticate with CURVE; this coordinator's public key is %s "
+                 "(workers: --coordinator-key FILE holding it); allowed worker keys: %s/*.pub\n",
+                 farm.PublicKey().c_str(), farmOptions.curve->workerKeysDirectory.c_str());
+  } else if (!IsLoopbackEndpoint(options.farm.endpoint)) {
+    std::fprintf(stderr, "tcfarm-coordinator: --insecure-no-auth: any process that reaches %s may take tasks "
+                         "and return pixels\n", options.farm.endpoint.c_str());
+  }
   std::printf("tcfarm-coordinator: listening http=http://%s:%d zmq=%s workers=%u store=%s\n",
               options.httpHost.c_str(), port, workerEndpoint.c_str(), options.localWorkers,
               options.farm.storeRoot.c_str());
