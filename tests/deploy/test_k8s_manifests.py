@@ -102,3 +102,23 @@ def test_manifests_run_the_images_compose_builds_as_their_user():
         pod = found[("Deployment", deployment)]["spec"]["template"]["spec"]
         assert pod["securityContext"]["runAsNonRoot"] is True
         assert str(pod["securityContext"]["runAsUser"]) == image_user
+
+
+def test_both_sides_read_their_curve_keys_from_mounted_secrets():
+    """CURVE key files name paths inside mounts, the secret ones from Secrets (never a
+    ConfigMap), and only the coordinator holds its own secret."""
+    found = resources()
+    for deployment, secret_flags in (("tcfarm-coordinator", ["--curve-secret"]), ("tcfarm-worker", ["--curve-secret"])):
+        spec = container(found, deployment)
+        pod = found[("Deployment", deployment)]["spec"]["template"]["spec"]
+        volumes = {v["name"]: v for v in pod["volumes"]}
+        mounts = {m["mountPath"]: m["name"] for m in spec["volumeMounts"]}
+        for name in secret_flags + (["--worker-keys"] if deployment == "tcfarm-coordinator" else ["--coordinator-key"]):
+            path = flag(spec["args"], name)
+            [mount] = [m for m in mounts if path == m or path.startswith(m + "/")]
+            if name == "--curve-secret":
+                assert "secret" in volumes[mounts[mount]], (deployment, name)
+                assert pod["securityContext"]["fsGroup"] == pod["securityContext"]["runAsUser"]
+    worker_secret = {v["name"]: v for v in found[("Deployment", "tcfarm-worker")]["spec"]["template"]["spec"]["volumes"]}
+    coordinator_secret = {v["name"]: v for v in found[("Deployment", "tcfarm-coordinator")]["spec"]["template"]["spec"]["volumes"]}
+    assert worker_secret["curve-key"]["secret"]["secretName"] != coordinator_secret["curve-key"]["secret"]["secretName"]
