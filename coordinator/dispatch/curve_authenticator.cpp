@@ -81,7 +81,7 @@ void CurveAuthenticator::AnswerZapRequest(zmq::socket_t& zap) {
   const bool allowed = !key.empty() && IsAllowed(key);
   if (!allowed) {
     ++refusedKeys_;
-    LogRateLimited(key.empty() ? "refused a client that presented no CURVE key"
+    LogRateLimited(LogKind::kKeyRefused, key.empty() ? "refused a client that presented no CURVE key"
                                : "refused worker key " + key + " from " + frames[3] + ": not in " +
                                      directory_.string());
   }
@@ -98,7 +98,7 @@ void CurveAuthenticator::ReadMonitorEvent(zmq::socket_t& monitor) {
     if (event->event == ZMQ_EVENT_HANDSHAKE_FAILED_AUTH) continue;
     if (!(event->event & curve::kHandshakeFailureEvents)) continue;
     ++failedHandshakes_;
-    LogRateLimited("refused a connection: " + curve::DescribeHandshakeFailure(*event));
+    LogRateLimited(LogKind::kHandshakeFailed, "refused a connection: " + curve::DescribeHandshakeFailure(*event));
   }
 }
 
@@ -132,7 +132,7 @@ void CurveAuthenticator::ReloadIfChanged() {
   try {
     listing = Listing();
   } catch (const std::invalid_argument& e) {
-    LogRateLimited(std::string("cannot read the worker keys again: ") + e.what() + "; the keys read before still hold");
+    LogRateLimited(LogKind::kFolderUnreadable, std::string("cannot read the worker keys again: ") + e.what() + "; the keys read before still hold");
     return;
   }
   if (listing == listing_) return;
@@ -144,17 +144,20 @@ void CurveAuthenticator::ReloadIfChanged() {
   for (const auto& [file, why] : skipped) std::fprintf(stderr, "coordinator: skipped %s\n", why.c_str());
 }
 
-void CurveAuthenticator::LogRateLimited(const std::string& line) {
+void CurveAuthenticator::LogRateLimited(LogKind kind, const std::string& line) {
+  LogLimit& limit = logLimits_[static_cast<size_t>(kind)];
   const auto now = std::chrono::steady_clock::now();
-  if (now - lastLog_ < kLogInterval) {
-    ++unlogged_;
+  if (limit.last != std::chrono::steady_clock::time_point{} && now - limit.last < kLogInterval) {
+    ++limit.unlogged;
     return;
   }
-  lastLog_ = now;
+  limit.last = now;
   std::fprintf(stderr, "coordinator: %s", line.c_str());
-  if (unlogged_ > 0) std::fprintf(stderr, " (and %llu lines like it not logged)", static_cast<unsigned long long>(unlogged_));
+  if (limit.unlogged > 0) {
+    std::fprintf(stderr, " (and %llu lines like it not logged)", static_cast<unsigned long long>(limit.unlogged));
+  }
   std::fprintf(stderr, "\n");
-  unlogged_ = 0;
+  limit.unlogged = 0;
 }
 
 }  // namespace tcfarm

@@ -64,15 +64,20 @@ class CurveAuthenticator {
   bool IsAllowed(const std::string& publicKey);
   void ReloadIfChanged();
   std::vector<ListingEntry> Listing() const;
-  // At most one line a second: a rogue that reconnects in a loop must not flood the log.
-  void LogRateLimited(const std::string& line);
+  // At most one line a second of each kind: a rogue that reconnects in a loop must not
+  // flood the log, nor hide the refusals of another kind.
+  enum class LogKind { kKeyRefused, kHandshakeFailed, kFolderUnreadable, kCount };
+  void LogRateLimited(LogKind kind, const std::string& line);
 
   std::filesystem::path directory_;
   std::set<std::string> alsoAllowed_;
   std::map<std::string, std::string> allowed_;  // key -> file; only the thread touches it
   std::vector<ListingEntry> listing_;
-  std::chrono::steady_clock::time_point lastLog_{};
-  uint64_t unlogged_ = 0;
+  struct LogLimit {
+    std::chrono::steady_clock::time_point last{};
+    uint64_t unlogged = 0;
+  };
+  LogLimit logLimits_[static_cast<size_t>(LogKind::kCount)];
   std::atomic<uint64_t> refusedKeys_{0};
   std::atomic<uint64_t> failedHandshakes_{0};
   std::atomic<size_t> allowedCount_{0};
