@@ -3,6 +3,7 @@
 //   tcfarm-coordinator serve [options]          the daemon (and, with workers, a local farm)
 //   tcfarm-coordinator compare REF_DIR DIR      error of a sequence against its reference
 //   tcfarm-coordinator analyze DIR              coherence of a sequence, equation 3 by bin width
+//   tcfarm-coordinator keygen --name NAME       a CURVE key pair for the workers' link
 #include <cstdio>
 #include <exception>
 
@@ -10,6 +11,7 @@
 #include "cli/compare_command.h"
 #include "cli/serve_command.h"
 #include "command_line/command_line.h"
+#include "curve/keygen_command.h"
 
 int main(int argc, char** argv) {
   CLI::App program("Owns the jobs, plans which pixels to trace, dispatches tasks to the "
@@ -19,7 +21,8 @@ int main(int argc, char** argv) {
   program.require_subcommand(1);
   const tcfarm::cli::Subcommand commands[] = {tcfarm::AddServeCommand(program),
                                               tcfarm::AddCompareCommand(program),
-                                              tcfarm::AddAnalyzeCommand(program)};
+                                              tcfarm::AddAnalyzeCommand(program),
+                                              tcfarm::curve::AddKeygenCommand(program)};
   if (auto exitCode = tcfarm::cli::ParseCommandLine(program, argc, argv)) return *exitCode;
   for (const tcfarm::cli::Subcommand& command : commands) {
     if (!command.app->parsed()) continue;

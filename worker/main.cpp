@@ -2,6 +2,7 @@
 //   tcfarm-worker serve [--coordinator tcp://HOST:5555] [--threads N] ...   trace tasks
 //   tcfarm-worker render SCENE [--frames A:B] [--out DIR] ...   brute-force reference render
 //                                                 (runs tcfarm-render, installed beside it)
+//   tcfarm-worker keygen --name NAME [--out DIR]   a CURVE key pair for the coordinator link
 // Each answers --help with its flags.
 #include <unistd.h>
 
@@ -11,10 +12,13 @@
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "command_line/command_line.h"
+#include "curve/curve_keys.h"
+#include "curve/keygen_command.h"
 #include "daemon/worker_daemon.h"
 
 namespace {
@@ -30,6 +34,8 @@ struct ServeArguments {
   std::string assetCache;
   uint64_t assetMaxMib = tcfarm::WorkerOptions{}.maxAssetBytes >> 20;
   CLI::Option* coordinatorTimeoutOption = nullptr;  // set when given
+  std::string curveSecret;     // empty: no CURVE
+  std::string coordinatorKey;
 };
 
 void AddServeFlags(CLI::App& serve, ServeArguments& parsed) {
@@ -71,12 +77,46 @@ void AddServeFlags(CLI::App& serve, ServeArguments& parsed) {
           ->type_name("MS")
           ->check(IntegerFrom(100, 65536))
           ->capture_default_str();
+  serve.add_option("--curve-secret", parsed.curveSecret,
+                   "This worker's CURVE secret key (tcfarm-worker keygen); its .pub must be in the "
+                   "coordinator's --worker-keys folder. Needs --coordinator-key")
+      ->type_name("FILE")
+      ->envname("TCFARM_CURVE_SECRET");
+  serve.add_option("--coordinator-key", parsed.coordinatorKey,
+                   "The coordinator's CURVE public key (its .pub file): the worker talks only to it")
+      ->type_name("FILE")
+      ->envname("TCFARM_COORDINATOR_KEY");
+}
+
+// Both key files or neither; a file that is not a key names itself.
+std::optional<tcfarm::CurveClientKeys> ReadCurveKeys(const ServeArguments& parsed) {
+  if (parsed.curveSecret.empty() != parsed.coordinatorKey.empty()) {
+    throw std::invalid_argument(std::string(parsed.curveSecret.empty() ? "--coordinator-key" : "--curve-secret") +
+                                " without " + (parsed.curveSecret.empty() ? "--curve-secret" : "--coordinator-key") +
+                                ": CURVE needs this worker's secret key and the coordinator's public key");
+  }
+  if (parsed.curveSecret.empty()) return std::nullopt;
+  tcfarm::CurveClientKeys keys;
+  try {
+    const tcfarm::curve::KeyPair own = tcfarm::curve::ReadSecretKeyFile(parsed.curveSecret);
+    keys.secretKey = own.secretKey;
+    keys.publicKey = own.publicKey;
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--curve-secret ") + e.what());
+  }
+  try {
+    keys.coordinatorKey = tcfarm::curve::ReadKeyFile(parsed.coordinatorKey);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--coordinator-key ") + e.what());
+  }
+  return keys;
 }
 
 int RunServe(ServeArguments parsed) {
   parsed.worker.capacity = std::min(parsed.worker.capacity, tcfarm::wire::kMaxCapacity);
   parsed.worker.assetCache = parsed.assetCache;
   parsed.worker.maxAssetBytes = parsed.assetMaxMib << 20;
+  parsed.worker.curve = ReadCurveKeys(parsed);
   if (parsed.coordinatorTimeoutOption->count()) {
     parsed.worker.heartbeat.SetTimeout(tcfarm::Milliseconds(parsed.coordinatorTimeoutMs));
   }
@@ -93,6 +133,9 @@ int RunServe(ServeArguments parsed) {
   if (!parsed.metricsAddress.empty()) {
     const int port = endpoint.Start(metricsHost, metricsPort);
     std::fprintf(stderr, "tcfarm-worker: metrics on http://%s:%d/metrics\n", metricsHost.c_str(), port);
+  }
+  if (parsed.worker.curve) {
+    std::fprintf(stderr, "tcfarm-worker: CURVE public key %s\n", parsed.worker.curve->publicKey.c_str());
   }
   std::fprintf(stderr, "tcfarm-worker: serving %s\n", parsed.worker.coordinator.c_str());
   daemon.Run(stopRequested);
@@ -131,7 +174,9 @@ int main(int argc, char** argv) {
   program.add_subcommand("render",
                          "Brute-force reference render of a scene's frames (runs tcfarm-render, "
                          "installed beside this program; see tcfarm-worker render --help)");
+  const tcfarm::cli::Subcommand keygen = tcfarm::curve::AddKeygenCommand(program);
   if (auto exitCode = tcfarm::cli::ParseCommandLine(program, argc, argv)) return *exitCode;
+  if (keygen.app->parsed()) return keygen.run();
   try {
     return RunServe(parsed);
   } catch (const std::invalid_argument& e) {  // a flag's value that cannot be used

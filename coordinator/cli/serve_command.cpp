@@ -1,16 +1,20 @@
 #include "cli/serve_command.h"
 
+#include <stdlib.h>
+
 #include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <fstream>
 #include <stdexcept>
 
 #include <arpa/inet.h>
 
+#include "curve/curve_keys.h"
 #include "farm/farm.h"
 #include "farm/job_run.h"
 #include "frame/frame_io.h"
@@ -35,7 +39,7 @@ struct ServeOptions {
   uint64_t assetMaxFileBytes = ApiOptions{}.assetMaxFileBytes;
   uint64_t assetMaxJobBytes = ApiOptions{}.assetMaxJobBytes;
   std::shared_ptr<const http::ApiTokens> tokens;  // null: no authentication
-  bool insecureNoAuth = false;
+  bool insecureNoAuth = false;  // beyond loopback without tokens or keys, on purpose
   std::filesystem::path tlsCertFile;
   std::filesystem::path tlsKeyFile;
   bool adoptStore = false;
@@ -108,6 +112,8 @@ struct ServeFlags {
   std::string tlsCert;
   std::string tlsKey;
   bool adoptStore = false;
+  std::string curveSecret;  // empty: no CURVE
+  std::string workerKeys;
   // Set when given: their defaults are worked out, not fixed.
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
@@ -194,12 +200,24 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
                    "(also TOKEN ROLE, ROLE:TOKEN); requests then need 'Authorization: Bearer TOKEN'. "
                    "Required when --http is beyond loopback")
       ->type_name("FILE");
-  serve.add_flag("--insecure-no-auth", flags.insecureNoAuth,
-                 "Serve the HTTP API beyond loopback without tokens: anyone who reaches it may submit, "
-                 "cancel and download");
   serve.add_option("--tls-cert", flags.tlsCert, "Serve HTTPS with this PEM certificate (chain); needs --tls-key")
       ->type_name("FILE");
   serve.add_option("--tls-key", flags.tlsKey, "The PEM private key of --tls-cert")->type_name("FILE");
+}
+  serve.add_option("--curve-secret", flags.curveSecret,
+                   "The coordinator's CURVE secret key (tcfarm-coordinator keygen); with --worker-keys, "
+                   "workers must authenticate (CurveZMQ) and its public key is printed at start")
+      ->type_name("FILE")
+      ->envname("TCFARM_CURVE_SECRET");
+  serve.add_option("--worker-keys", flags.workerKeys,
+                   "Allow-list: every *.pub file here is a worker's public key; read again when it "
+                   "changes, so adding a worker needs no restart")
+      ->type_name("DIR")
+      ->envname("TCFARM_WORKER_KEYS");
+  serve.add_flag("--insecure-no-auth", flags.insecureNoAuth,
+                 "Serve beyond loopback without authentication: without --api-tokens anyone who reaches "
+                 "the HTTP API may submit, cancel and download; without CURVE keys any process that "
+                 "reaches the ZeroMQ port can take tasks and return pixels");
 }
 
 // 127.0.0.0/8, ::1 and localhost: only this machine reaches them. Anything else (0.0.0.0,
@@ -220,9 +238,6 @@ void RequireReadable(const std::string& flag, const std::filesystem::path& file)
 // Tokens, TLS, and the rule that a coordinator reachable beyond loopback has tokens.
 void ResolveSecurity(const ServeFlags& flags, ServeOptions* options) {
   if (!flags.apiTokens.empty()) {
-    if (flags.insecureNoAuth) {
-      throw std::invalid_argument("--insecure-no-auth and --api-tokens contradict each other; expected one of them");
-    }
     try {
       options->tokens = std::make_shared<const http::ApiTokens>(http::ApiTokens::Load(flags.apiTokens));
     } catch (const std::invalid_argument& error) {
@@ -246,6 +261,46 @@ void ResolveSecurity(const ServeFlags& flags, ServeOptions* options) {
     options->tlsCertFile = flags.tlsCert;
     options->tlsKeyFile = flags.tlsKey;
   }
+}
+
+// True for endpoints only this machine can reach: tcp on a loopback address, ipc, inproc.
+bool IsLoopbackEndpoint(const std::string& endpoint) {
+  if (endpoint.rfind("ipc://", 0) == 0 || endpoint.rfind("inproc://", 0) == 0) return true;
+  if (endpoint.rfind("tcp://", 0) != 0) return false;
+  const std::string address = endpoint.substr(6);
+  const size_t colon = address.rfind(':');
+  std::string host = address.substr(0, colon == std::string::npos ? address.size() : colon);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  return IsLoopbackHost(host);
+}
+
+// Both CURVE flags or neither; without them, loopback unless insecurity is asked for.
+void ResolveWorkerAuthentication(const ServeFlags& flags, ServeOptions* options) {
+  if (flags.curveSecret.empty() != flags.workerKeys.empty()) {
+    throw std::invalid_argument(std::string(flags.curveSecret.empty() ? "--worker-keys" : "--curve-secret") +
+                                " without " + (flags.curveSecret.empty() ? "--curve-secret" : "--worker-keys") +
+                                ": CURVE needs the coordinator's secret key and the workers' allow-list");
+  }
+  if (flags.curveSecret.empty()) {
+    if (!IsLoopbackEndpoint(flags.zmq) && !flags.insecureNoAuth) {
+      throw std::invalid_argument(
+          "--zmq " + flags.zmq + ": reachable beyond loopback without worker authentication; give "
+          "--curve-secret FILE and --worker-keys DIR (make keys with tcfarm-coordinator keygen), or "
+          "--insecure-no-auth to let any process that reaches the port take tasks");
+    }
+    return;
+  }
+  CurveServerKeys keys;
+  try {
+    keys.secretKey = curve::ReadSecretKeyFile(flags.curveSecret).secretKey;
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("--curve-secret ") + e.what());
+  }
+  if (!std::filesystem::is_directory(flags.workerKeys)) {
+    throw std::invalid_argument("--worker-keys " + flags.workerKeys + ": not a folder (expected one holding *.pub files)");
+  }
+  keys.workerKeysDirectory = flags.workerKeys;
+  options->farm.curve = std::move(keys);
 }
 
 // Throws std::invalid_argument naming the flag whose value cannot be used.
@@ -272,6 +327,7 @@ ServeOptions Resolve(const ServeFlags& flags) {
   options.assetMaxFileBytes = flags.assetMaxFileMib << 20;
   options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
   ResolveSecurity(flags, &options);
+  ResolveWorkerAuthentication(flags, &options);
   if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
@@ -283,6 +339,33 @@ ServeOptions Resolve(const ServeFlags& flags) {
   }
   return options;
 }
+
+// Keys for the coordinator's own local workers when workers must authenticate: a fresh
+// pair at each start, allowed in memory, its files in a private temp folder (mode 0700)
+// that goes away with the coordinator.
+class LocalWorkerKeys {
+ public:
+  explicit LocalWorkerKeys(const std::string& coordinatorPublicKey) : keys_(curve::GenerateKeyPair()) {
+    std::string folder = (std::filesystem::temp_directory_path() / "tcfarm-local-worker-keys-XXXXXX").string();
+    if (!::mkdtemp(folder.data())) throw std::runtime_error("cannot make a folder for the local workers' keys in " + folder);
+    folder_ = folder;
+    curve::WriteKeyPair(folder_, "local-worker", keys_);
+    std::ofstream(folder_ / "coordinator.pub") << "# this coordinator's CURVE public key\n" << coordinatorPublicKey << "\n";
+  }
+  ~LocalWorkerKeys() {
+    std::error_code ignored;
+    std::filesystem::remove_all(folder_, ignored);
+  }
+  const std::string& PublicKey() const { return keys_.publicKey; }
+  std::vector<std::string> WorkerArguments() const {
+    return {"--curve-secret", (folder_ / "local-worker.key").string(), "--coordinator-key",
+            (folder_ / "coordinator.pub").string()};
+  }
+
+ private:
+  curve::KeyPair keys_;
+  std::filesystem::path folder_;
+};
 
 // Where local workers connect: a wildcard bind is reached through loopback.
 std::string LoopbackEndpoint(std::string bound) {
@@ -318,7 +401,13 @@ int RunServe(const ServeOptions& options) {
   JobStore store(options.database);
   BindDatabaseToStore(store, options.farm.storeRoot, options.adoptStore);
   SystemClock clock;
-  Farm farm(store, options.farm, clock);
+  FarmOptions farmOptions = options.farm;
+  std::unique_ptr<LocalWorkerKeys> localWorkerKeys;
+  if (farmOptions.curve && options.localWorkers > 0) {
+    localWorkerKeys = std::make_unique<LocalWorkerKeys>(curve::PublicKeyOf(farmOptions.curve->secretKey));
+    farmOptions.curve->alsoAllowed.insert(localWorkerKeys->PublicKey());
+  }
+  Farm farm(store, farmOptions, clock);
 
   ApiOptions api;
   api.host = options.httpHost;
@@ -338,9 +427,20 @@ int RunServe(const ServeOptions& options) {
 
   std::string workerEndpoint = LoopbackEndpoint(farm.BoundEndpoint());
   LocalWorkers localWorkers(options.workerBinary.empty() ? FindWorkerBinary() : options.workerBinary,
-                            workerEndpoint, options.workerThreads);
+                            workerEndpoint, options.workerThreads,
+                            localWorkerKeys ? localWorkerKeys->WorkerArguments() : std::vector<std::string>{});
   localWorkers.Start(options.localWorkers);
 
+  // Before the line that says it listens: whoever waits for that line finds this one too.
+  if (farmOptions.curve) {
+    std::fprintf(stderr,
+                 "tcfarm-coordinator: workers authenticate with CURVE; this coordinator's public key is %s "
+                 "(workers: --coordinator-key FILE holding it); allowed worker keys: %s/*.pub\n",
+                 farm.PublicKey().c_str(), farmOptions.curve->workerKeysDirectory.c_str());
+  } else if (!IsLoopbackEndpoint(options.farm.endpoint)) {
+    std::fprintf(stderr, "tcfarm-coordinator: --insecure-no-auth: any process that reaches %s may take tasks "
+                         "and return pixels\n", options.farm.endpoint.c_str());
+  }
   const char* scheme = options.tlsCertFile.empty() ? "http" : "https";
   std::printf("tcfarm-coordinator: listening http=%s://%s:%d zmq=%s workers=%u store=%s\n", scheme,
               options.httpHost.c_str(), port, workerEndpoint.c_str(), options.localWorkers,

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
+#include "curve/curve_keys.h"
+#include "curve/socket_events.h"
 #include "wire/zmq_io.h"
 
 namespace tcfarm {
@@ -17,11 +19,14 @@ constexpr int kMaxMessagesPerPoll = 4096;
 constexpr Milliseconds kGoodbyeLinger{1000};
 // A job of priority p gets (1 + p) shares of the workers; negative priorities get one.
 double WeightOf(int priority) { return 1.0 + std::max(0, priority); }
+// Log lines per kind of wrong message: enough to see what a broken or hostile peer
+// does, few enough that a flood of them does not flood the log.
+constexpr uint64_t kLoggedSamples = 10;
 
 }  // namespace
 
 Dispatcher::Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy,
-                       const AssetSource* assets)
+                       const AssetSource* assets, std::optional<CurveServerKeys> curve)
     : clock_(clock),
       policy_(policy),
       socket_(context_, zmq::socket_type::router),
@@ -33,6 +38,17 @@ Dispatcher::Dispatcher(const std::string& endpoint, const Clock& clock, Heartbea
   // Sending to a peer that is gone fails instead of silently vanishing, so the credit
   // it would have held is never taken.
   socket_.set(zmq::sockopt::router_mandatory, 1);
+  if (curve) {
+    publicKey_ = curve::PublicKeyOf(curve->secretKey);
+    socket_.set(zmq::sockopt::curve_server, 1);
+    socket_.set(zmq::sockopt::curve_secretkey, curve->secretKey);
+    socket_.set(zmq::sockopt::zap_domain, "tcfarm-workers");
+    // The monitor is published before the authenticator reads it and before the socket
+    // binds: no refused connection goes uncounted.
+    const std::string monitor = "inproc://tcfarm-dispatcher-monitor-" + std::to_string(reinterpret_cast<uintptr_t>(this));
+    zmq_socket_monitor(socket_.handle(), monitor.c_str(), curve::kHandshakeFailureEvents);
+    authenticator_ = std::make_unique<CurveAuthenticator>(context_, *curve, monitor);
+  }
   socket_.bind(endpoint);
 }
 
@@ -80,7 +96,9 @@ void Dispatcher::Enqueue(DispatchTask task) {
   if (job == jobs_.end()) return;
   uint64_t id = nextTaskId_++;
   job->second.pending.push_back(id);
-  tasks_.emplace(id, TaskEntry{std::move(task), true, SteadyTime{}});
+  TaskEntry entry;
+  entry.task = std::move(task);
+  tasks_.emplace(id, std::move(entry));
   ++pendingCount_;
 }
 
@@ -99,6 +117,10 @@ void Dispatcher::Flush() {
     ++counters_.workersLost;
     std::fprintf(stderr, "coordinator: worker %s went silent; its tasks are requeued\n",
                  name.c_str());
+  }
+  if (authenticator_) {
+    counters_.refusedKeys = authenticator_->RefusedKeys();
+    counters_.failedHandshakes = authenticator_->FailedHandshakes();
   }
   SendHeartbeats(now);
   DispatchPending();
@@ -192,10 +214,12 @@ void Dispatcher::Handle(const std::string& identity, wire::Message message,
     return;
   }
   if (!registry_.OnHeard(identity, now)) {
-    // A worker we expired (or never met): ask it to reconnect and say READY again.
+    // A worker we expired (or never met): ask it to reconnect and say READY again. It
+    // holds no task, so a RESULT or ERROR from it settles nothing (IsHolder counts it).
     ++counters_.unexpected;
     Send(identity, wire::Disconnect{});
-    if (auto* result = std::get_if<wire::Result>(&message)) OnResult(identity, std::move(*result), sink);
+    if (auto* result = std::get_if<wire::Result>(&message)) IsHolder(identity, result->taskId);
+    if (auto* error = std::get_if<wire::Error>(&message)) IsHolder(identity, error->taskId);
     return;
   }
   if (auto* result = std::get_if<wire::Result>(&message)) {
@@ -219,27 +243,64 @@ void Dispatcher::Handle(const std::string& identity, wire::Message message,
   }
 }
 
+bool Dispatcher::IsHolder(const std::string& identity, uint64_t taskId) {
+  auto entry = tasks_.find(taskId);
+  if (entry == tasks_.end() || entry->second.pending) {
+    ++counters_.duplicateResults;  // settled, requeued, or its job is gone: harmless
+    return false;
+  }
+  if (entry->second.holder == identity) return true;
+  if (counters_.foreignReplies++ < kLoggedSamples) {
+    const WorkerState* sender = registry_.Find(identity);
+    std::fprintf(stderr, "coordinator: dropped a reply for task %llu from %s; it was given to another worker\n",
+                 static_cast<unsigned long long>(taskId), sender ? sender->name.c_str() : "an unknown connection");
+  }
+  return false;
+}
+
+std::string Dispatcher::ResultMismatch(const DispatchTask& task, const wire::Result& result) {
+  if (result.jobId != task.jobId) return "job " + std::to_string(result.jobId) + " instead of " + std::to_string(task.jobId);
+  if (result.frame != task.frame) return "frame " + std::to_string(result.frame) + " instead of " + std::to_string(task.frame);
+  if (result.PixelCount() != task.pixels.size()) {
+    return std::to_string(result.PixelCount()) + " pixels instead of " + std::to_string(task.pixels.size());
+  }
+  if (result.horizons.empty() != (task.window == 0)) {
+    return task.window == 0 ? "horizons for a task without a window" : "no horizons for a task with a window";
+  }
+  // 64-bit so that a job's last frames cannot overflow the bound.
+  const long long highest = static_cast<long long>(task.frame) + task.window + 1;
+  for (int32_t horizon : result.horizons) {
+    if (horizon <= task.frame || horizon > highest) {
+      return "horizon " + std::to_string(horizon) + " outside " + std::to_string(task.frame + 1) + " .. " +
+             std::to_string(highest);
+    }
+  }
+  return "";
+}
+
+void Dispatcher::DropWorker(const std::string& identity, const std::string& why) {
+  const WorkerState* worker = registry_.Find(identity);
+  std::fprintf(stderr, "coordinator: dropped worker %s: %s; its tasks are requeued\n",
+               worker ? worker->name.c_str() : "?", why.c_str());
+  ++counters_.workersDropped;
+  Requeue(registry_.Remove(identity));
+  Send(identity, wire::Disconnect{});
+}
+
 void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
                           DispatchSink& sink) {
-  registry_.Release(identity, result.taskId);
+  if (!IsHolder(identity, result.taskId)) return;
   auto entry = tasks_.find(result.taskId);
-  if (entry == tasks_.end()) {
-    ++counters_.duplicateResults;  // traced twice after a requeue, or its job is gone
-    return;
-  }
-  const DispatchTask& task = entry->second.task;
-  if (result.jobId != task.jobId || result.frame != task.frame ||
-      result.PixelCount() != task.pixels.size()) {
-    // A wrong answer: the pixels are still owed. Requeue so another attempt settles it.
+  const std::string wrong = ResultMismatch(entry->second.task, result);
+  if (!wrong.empty()) {
+    // A wrong answer to its own task: nothing it sends can be trusted. The pixels are
+    // still owed, so its tasks go to the others.
     ++counters_.unexpected;
-    Requeue({result.taskId});
+    DropWorker(identity, "result for task " + std::to_string(result.taskId) + " has " + wrong);
     return;
   }
-  if (entry->second.pending) {  // requeued, but the first worker answered after all
-    --pendingCount_;
-    auto& pending = jobs_[task.jobId].pending;
-    pending.erase(std::remove(pending.begin(), pending.end(), result.taskId), pending.end());
-  }
+  registry_.Release(identity, result.taskId);
+  const DispatchTask& task = entry->second.task;
   if (WorkerState* worker = registry_.Find(identity)) {
     ++worker->tasksDone;
     worker->pixelsDone += result.PixelCount();
@@ -255,14 +316,28 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
 
 void Dispatcher::OnError(const std::string& identity, const wire::Error& error,
                          DispatchSink& sink) {
-  if (error.taskId == 0) return;
+  if (error.taskId == 0 || !IsHolder(identity, error.taskId)) return;
   registry_.Release(identity, error.taskId);
-  auto entry = tasks_.find(error.taskId);
-  if (entry == tasks_.end()) return;
-  if (entry->second.pending) return;  // requeued meanwhile; another worker will try it
-  uint64_t jobId = entry->second.task.jobId, plannerTaskId = entry->second.task.plannerTaskId;
-  tasks_.erase(entry);
-  sink.OnTaskFailed(jobId, plannerTaskId, error.message);
+  TaskEntry& entry = tasks_.at(error.taskId);
+  entry.failedBy.insert(identity);
+  if (entry.failedBy.size() < kWorkersThatMustFailATask) {
+    // It may be this worker's fault (a full disk, a broken cache): another worker tries.
+    entry.firstError = error.message;
+    ++counters_.taskErrorsRetried;
+    const WorkerState* worker = registry_.Find(identity);
+    std::fprintf(stderr, "coordinator: worker %s could not trace task %llu (%s); another worker will\n",
+                 worker ? worker->name.c_str() : "?", static_cast<unsigned long long>(error.taskId),
+                 error.message.c_str());
+    Requeue({error.taskId});
+    return;
+  }
+  ++counters_.tasksFailed;
+  uint64_t jobId = entry.task.jobId, plannerTaskId = entry.task.plannerTaskId;
+  const std::string why = entry.firstError == error.message
+                              ? error.message
+                              : entry.firstError + "; on another worker: " + error.message;
+  tasks_.erase(error.taskId);
+  sink.OnTaskFailed(jobId, plannerTaskId, why);
 }
 
 void Dispatcher::Requeue(const std::vector<uint64_t>& taskIds) {
@@ -272,6 +347,7 @@ void Dispatcher::Requeue(const std::vector<uint64_t>& taskIds) {
     auto job = jobs_.find(entry->second.task.jobId);
     if (job == jobs_.end()) continue;
     entry->second.pending = true;
+    entry->second.holder.clear();
     ++pendingCount_;
     job->second.pending.push_front(id);  // it waited long enough already
     ++counters_.requeued;
@@ -284,28 +360,44 @@ void Dispatcher::SendHeartbeats(SteadyTime now) {
   for (const auto& [identity, worker] : registry_.workers()) Send(identity, wire::Heartbeat{});
 }
 
-Dispatcher::JobQueue* Dispatcher::NextJob() {
-  JobQueue* next = nullptr;
+uint64_t Dispatcher::TakeTaskFor(const std::string& worker) {
+  std::vector<JobQueue*> order;
   for (auto& [id, job] : jobs_) {
-    if (!job.pending.empty() && (!next || job.pass < next->pass)) next = &job;
+    if (!job.pending.empty()) order.push_back(&job);
   }
-  return next;
+  // Stride scheduling: the job with the lowest pass goes first.
+  std::stable_sort(order.begin(), order.end(), [](const JobQueue* a, const JobQueue* b) { return a->pass < b->pass; });
+  for (JobQueue* job : order) {
+    for (auto it = job->pending.begin(); it != job->pending.end(); ++it) {
+      if (tasks_.at(*it).failedBy.count(worker)) continue;  // it failed there once
+      const uint64_t id = *it;
+      job->pending.erase(it);
+      job->pass += 1.0 / job->weight;
+      return id;
+    }
+  }
+  return 0;
 }
 
 void Dispatcher::DispatchPending() {
+  // Workers for which no pending task is allowed (they failed every one) sit this turn out.
+  std::set<std::string> nothingFor;
   while (pendingCount_ > 0) {
-    WorkerState* worker = registry_.MostAvailable();
-    JobQueue* job = NextJob();
-    if (!worker || !job) return;
-    uint64_t id = job->pending.front();
-    job->pending.pop_front();
-    job->pass += 1.0 / job->weight;
+    WorkerState* worker = registry_.MostAvailable(nothingFor);
+    if (!worker) return;
+    const uint64_t id = TakeTaskFor(worker->identity);
+    if (id == 0) {
+      nothingFor.insert(worker->identity);
+      continue;
+    }
     TaskEntry& entry = tasks_.at(id);
+    const JobQueue& job = jobs_.at(entry.task.jobId);
     entry.pending = false;
+    entry.holder = worker->identity;
     entry.sentAt = clock_.Now();
     --pendingCount_;
     const DispatchTask& t = entry.task;
-    wire::Task message{id, t.jobId, job->sceneHash, t.frame, job->width, job->height, t.pixels,
+    wire::Task message{id, t.jobId, job.sceneHash, t.frame, job.width, job.height, t.pixels,
                        t.window};
     registry_.Assign(worker->identity, id);
     ++counters_.tasksSent;

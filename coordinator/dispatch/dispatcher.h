@@ -2,7 +2,13 @@
 // queue of tasks waiting for a worker.
 //
 // Flow control is by credit: a worker gets at most `capacity` tasks in flight, and each
-// RESULT or ERROR returns one. Jobs share the workers by stride scheduling weighted by
+// RESULT or ERROR returns one. A task belongs to the worker it was given to: a RESULT or
+// ERROR for it from anyone else is dropped and counted. One worker's ERROR sends the task
+// to a different worker; only a second worker's ERROR fails it. A worker whose RESULT for
+// its own task is malformed is dropped (told DISCONNECT, its tasks requeued).
+//
+// With CURVE keys the ROUTER is a CurveZMQ server and only workers whose public key is on
+// the allow-list get through (dispatch/curve_authenticator.h). Jobs share the workers by stride scheduling weighted by
 // priority, so a long job cannot starve a short one. A worker that dies or goes silent
 // has its tasks requeued: no pixel is lost. Every inbound message is decoded and
 // validated; anything malformed is dropped and counted.
@@ -15,11 +21,13 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <unordered_map>
 
 #include <zmq.hpp>
 
+#include "dispatch/curve_authenticator.h"
 #include "dispatch/worker_registry.h"
 #include "pixel_set/pixel_set.h"
 #include "wire/liveness.h"
@@ -59,6 +67,12 @@ struct DispatcherCounters {
   uint64_t malformed = 0;         // undecodable or invalid messages dropped
   uint64_t unexpected = 0;        // valid messages that made no sense (unknown worker, wrong sizes)
   uint64_t duplicateResults = 0;  // results of tasks no longer outstanding (ignored)
+  uint64_t foreignReplies = 0;    // RESULT or ERROR for a task in flight with another worker: dropped
+  uint64_t workersDropped = 0;    // forgotten for a malformed RESULT of their own task
+  uint64_t taskErrorsRetried = 0;  // a worker's ERROR: the task went back for a different worker
+  uint64_t tasksFailed = 0;       // ERRORs from two different workers: the task failed
+  uint64_t refusedKeys = 0;       // CURVE clients whose key is not on the allow-list
+  uint64_t failedHandshakes = 0;  // connections refused before ZAP (no CURVE, wrong server key)
   uint64_t tasksSent = 0;
   uint64_t resultsReceived = 0;
   uint64_t pixelsReceived = 0;
@@ -74,11 +88,18 @@ class Dispatcher {
   // Binds a ROUTER socket at `endpoint` ("tcp://*:5555", "tcp://127.0.0.1:0" for any port,
   // "ipc:///path"). Throws zmq::error_t if the address cannot be bound.
   // assets: where ASSET_GET is answered from; none: every asset request is refused.
+  // curve: the coordinator's secret key and the worker allow-list; none: no authentication
+  // (the caller keeps such an endpoint on loopback). Throws std::invalid_argument for keys
+  // that cannot be used.
   Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy = {},
-             const AssetSource* assets = nullptr);
+             const AssetSource* assets = nullptr, std::optional<CurveServerKeys> curve = std::nullopt);
   ~Dispatcher();
 
   std::string BoundEndpoint() const;
+  // The CURVE public key workers must know (Z85), or "" without CURVE.
+  const std::string& PublicKey() const { return publicKey_; }
+  // ERRORs from this many different workers fail a task: one worker's may be its own fault.
+  static constexpr size_t kWorkersThatMustFailATask = 2;
 
   void AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
               const std::string& sceneHash, const std::string& sceneJson);
@@ -110,6 +131,9 @@ class Dispatcher {
     DispatchTask task;
     bool pending = true;
     SteadyTime sentAt;
+    std::string holder;                 // the worker it is in flight with; "" while pending
+    std::set<std::string> failedBy;     // workers that answered ERROR for it: not sent there again
+    std::string firstError;
   };
   struct JobQueue {
     int priority = 0;
@@ -124,18 +148,30 @@ class Dispatcher {
   void Handle(const std::string& identity, wire::Message message, DispatchSink& sink);
   void OnResult(const std::string& identity, wire::Result&& result, DispatchSink& sink);
   void OnError(const std::string& identity, const wire::Error& error, DispatchSink& sink);
+  // A RESULT or ERROR that names a task: false (and counted) unless `identity` holds it.
+  bool IsHolder(const std::string& identity, uint64_t taskId);
+  // Why the holder's result does not fit its task, or "" when it does.
+  static std::string ResultMismatch(const DispatchTask& task, const wire::Result& result);
+  // Forgets a worker that answered wrongly, tells it DISCONNECT, requeues its tasks.
+  void DropWorker(const std::string& identity, const std::string& why);
   void Requeue(const std::vector<uint64_t>& taskIds);
   void SendHeartbeats(SteadyTime now);
   void OnAssetGet(const std::string& identity, const wire::AssetGet& get);
   void SendAssetPieces();
   void DispatchPending();
-  JobQueue* NextJob();
+  // The next task `worker` may take (stride order over jobs, skipping tasks it failed),
+  // taken off its job's queue; 0 when there is none for it.
+  uint64_t TakeTaskFor(const std::string& worker);
   // False when the peer is gone or its queue is full.
   bool Send(const std::string& identity, const wire::Message& message);
 
   const Clock& clock_;
   HeartbeatPolicy policy_;
   zmq::context_t context_;
+  // Declared between the context and the socket: it starts before the socket binds and
+  // stops after it closes.
+  std::unique_ptr<CurveAuthenticator> authenticator_;
+  std::string publicKey_;
   zmq::socket_t socket_;
   WorkerRegistry registry_;
   std::unordered_map<uint64_t, TaskEntry> tasks_;

@@ -139,24 +139,109 @@ TEST_F(DispatcherTest, ALateDuplicateResultIsIgnored) {
   EXPECT_EQ(dispatcher_.counters().duplicateResults, 1u);
 }
 
-TEST_F(DispatcherTest, AResultOfTheWrongSizeIsNotDelivered) {
+bool SaidDisconnect(FakeWorker& worker) {
+  for (const wire::Message& message : worker.Drain()) {
+    if (std::holds_alternative<wire::Disconnect>(message)) return true;
+  }
+  return false;
+}
+
+// A worker that answers its own task wrongly cannot be trusted with the others either: it
+// is forgotten and told DISCONNECT, and everything it held goes to another worker.
+TEST_F(DispatcherTest, AResultOfTheWrongSizeDropsTheWorker) {
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 2);
+  EnqueueTasks(1, 2);
+  Pump();
+  std::vector<wire::Task> tasks = worker.Tasks();
+  ASSERT_EQ(tasks.size(), 2u);
+  wire::Result result;
+  result.taskId = tasks[0].taskId;
+  result.jobId = tasks[0].jobId;
+  result.frame = tasks[0].frame;
+  result.rgb.assign(3, 0.0f);  // one pixel instead of 16
+  worker.Send(result);
+  Pump();
+  EXPECT_TRUE(sink_.results.empty());
+  EXPECT_EQ(dispatcher_.counters().workersDropped, 1u);
+  EXPECT_TRUE(dispatcher_.registry().workers().empty());
+  EXPECT_TRUE(SaidDisconnect(worker));
+  EXPECT_EQ(dispatcher_.PendingTasks(), 2u);  // the pixels are still owed
+  FakeWorker honest(context_, dispatcher_.BoundEndpoint(), 2);
+  Pump();
+  std::vector<wire::Task> again = honest.Tasks();
+  ASSERT_EQ(again.size(), 2u);
+  for (const auto& task : again) honest.Answer(task);
+  Pump();
+  EXPECT_EQ(sink_.results.size(), 2u);
+}
+
+TEST_F(DispatcherTest, HorizonsOutsideTheWindowDropTheWorker) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
-  EnqueueTasks(1, 1);
+  dispatcher_.Enqueue({1, 100, 10, PixelSet::Full(16), 4});  // horizons 11 .. 15 are valid
   Pump();
   wire::Task task = worker.Tasks().at(0);
   wire::Result result;
   result.taskId = task.taskId;
   result.jobId = task.jobId;
   result.frame = task.frame;
-  result.rgb.assign(3, 0.0f);  // one pixel instead of 16
+  result.rgb.assign(16 * 3, 0.5f);
+  result.horizons.assign(16, 15);
+  result.horizons[7] = 16;  // one frame beyond the window
   worker.Send(result);
   Pump();
   EXPECT_TRUE(sink_.results.empty());
-  EXPECT_EQ(dispatcher_.counters().unexpected, 1u);
-  // The pixels are still owed: the task goes out again.
-  std::vector<wire::Task> again = worker.Tasks();
-  ASSERT_EQ(again.size(), 1u);
-  EXPECT_EQ(again[0].taskId, task.taskId);
+  EXPECT_EQ(dispatcher_.counters().workersDropped, 1u);
+  EXPECT_TRUE(SaidDisconnect(worker));
+}
+
+// A probe that said READY and answers task ids it never got (the ids are sequential, so
+// easy to guess) settles nothing: a task's reply counts only from the worker holding it.
+TEST_F(DispatcherTest, RepliesFromAnotherWorkerAreDroppedAndCounted) {
+  FakeWorker honest(context_, dispatcher_.BoundEndpoint(), 2);
+  EnqueueTasks(1, 2);
+  Pump();
+  std::vector<wire::Task> tasks = honest.Tasks();
+  ASSERT_EQ(tasks.size(), 2u);
+  FakeWorker rogue(context_, dispatcher_.BoundEndpoint(), 4);
+  Pump();
+  rogue.Answer(tasks[0], 0.25f);
+  rogue.Send(wire::Error{tasks[1].taskId, kHash, "guessed", ""});
+  Pump();
+  EXPECT_TRUE(sink_.results.empty());
+  EXPECT_TRUE(sink_.failures.empty());
+  EXPECT_EQ(dispatcher_.counters().foreignReplies, 2u);
+  EXPECT_EQ(dispatcher_.InFlightTasks(), 2u);
+  EXPECT_EQ(dispatcher_.counters().workersDropped, 0u);  // not its task: nothing to judge it by
+  for (const auto& task : tasks) honest.Answer(task);
+  Pump();
+  EXPECT_EQ(sink_.results.size(), 2u);
+  EXPECT_TRUE(rogue.Tasks().empty());
+}
+
+// A worker taken for dead whose answer comes after all: its task is another worker's now,
+// and only that worker's answer counts (both would be the same bits anyway).
+TEST_F(DispatcherTest, ALateResultFromAnExpiredWorkerIsIgnored) {
+  FakeWorker slow(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 1);
+  Pump();
+  wire::Task task = slow.Tasks().at(0);
+  FakeWorker other(context_, dispatcher_.BoundEndpoint(), 1);
+  Pump();
+  clock_.Advance(Milliseconds(3000));
+  other.Send(wire::Heartbeat{});
+  Pump();
+  clock_.Advance(Milliseconds(2500));  // slow: 5.5 s of silence
+  Pump();
+  std::vector<wire::Task> moved = other.Tasks();
+  ASSERT_EQ(moved.size(), 1u);
+  slow.Answer(task);
+  Pump();
+  EXPECT_TRUE(sink_.results.empty());
+  EXPECT_EQ(dispatcher_.counters().foreignReplies, 1u);
+  EXPECT_TRUE(SaidDisconnect(slow));  // it is unknown now: told to start afresh
+  other.Answer(moved[0]);
+  Pump();
+  EXPECT_EQ(sink_.results.size(), 1u);
 }
 
 TEST_F(DispatcherTest, MalformedMessagesAreDroppedAndCounted) {
@@ -189,15 +274,48 @@ TEST_F(DispatcherTest, ScenesAreSentOnRequest) {
   EXPECT_EQ(errors, 1);
 }
 
-TEST_F(DispatcherTest, AWorkerErrorFailsTheTask) {
-  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
-  EnqueueTasks(1, 1);
+TEST_F(DispatcherTest, OneWorkersErrorSendsTheTaskToAnotherAndASecondFailsIt) {
+  FakeWorker first(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 2);
   Pump();
-  wire::Task task = worker.Tasks().at(0);
-  worker.Send(wire::Error{task.taskId, kHash, "scene would not build", ""});
+  wire::Task task = first.Tasks().at(0);
+  first.Send(wire::Error{task.taskId, kHash, "disk full", ""});
+  Pump();
+  EXPECT_TRUE(sink_.failures.empty());
+  EXPECT_EQ(dispatcher_.counters().taskErrorsRetried, 1u);
+  // The only worker gets the job's other task, never the one it failed.
+  std::vector<wire::Task> next = first.Tasks();
+  ASSERT_EQ(next.size(), 1u);
+  EXPECT_NE(next[0].taskId, task.taskId);
+  first.Answer(next[0]);
+  Pump();
+  EXPECT_TRUE(first.Tasks().empty());
+  EXPECT_EQ(dispatcher_.PendingTasks(), 1u);  // waits for a different worker
+  FakeWorker second(context_, dispatcher_.BoundEndpoint(), 1);
+  Pump();
+  std::vector<wire::Task> retried = second.Tasks();
+  ASSERT_EQ(retried.size(), 1u);
+  EXPECT_EQ(retried[0].taskId, task.taskId);
+  second.Send(wire::Error{task.taskId, kHash, "scene would not build", ""});
   Pump();
   ASSERT_EQ(sink_.failures.size(), 1u);
-  EXPECT_EQ(sink_.failures[0].why, "scene would not build");
+  EXPECT_EQ(sink_.failures[0].plannerTaskId, 100u);
+  EXPECT_EQ(sink_.failures[0].why, "disk full; on another worker: scene would not build");
+  EXPECT_EQ(dispatcher_.counters().tasksFailed, 1u);
+}
+
+TEST_F(DispatcherTest, ATaskRetriedElsewhereCompletesThere) {
+  FakeWorker failing(context_, dispatcher_.BoundEndpoint(), 1);
+  FakeWorker honest(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 6);
+  for (int round = 0; round < 20 && sink_.results.size() < 6; ++round) {
+    Pump(2);
+    for (const auto& task : failing.Tasks()) failing.Send(wire::Error{task.taskId, kHash, "broken", ""});
+    for (const auto& task : honest.Tasks()) honest.Answer(task);
+  }
+  EXPECT_EQ(sink_.results.size(), 6u);
+  EXPECT_TRUE(sink_.failures.empty());
+  EXPECT_GE(dispatcher_.counters().taskErrorsRetried, 1u);
 }
 
 TEST_F(DispatcherTest, HigherPriorityJobsGetALargerShare) {

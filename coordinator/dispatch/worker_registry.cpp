@@ -54,10 +54,10 @@ std::vector<uint64_t> WorkerRegistry::Remove(const std::string& identity) {
   return lost;
 }
 
-WorkerState* WorkerRegistry::MostAvailable() {
+WorkerState* WorkerRegistry::MostAvailable(const std::set<std::string>& skip) {
   WorkerState* best = nullptr;
   for (auto& [identity, worker] : workers_) {
-    if (worker.FreeCredit() == 0) continue;
+    if (worker.FreeCredit() == 0 || skip.count(identity)) continue;
     if (!best || worker.FreeCredit() > best->FreeCredit() ||
         (worker.FreeCredit() == best->FreeCredit() && worker.tasksDone < best->tasksDone)) {
       best = &worker;

@@ -46,8 +46,9 @@ class WorkerRegistry {
   std::vector<uint64_t> Remove(const std::string& identity);
 
   // The worker with the most free credit (ties: fewest tasks done, to spread the
-  // first tasks of a job), or nullptr when every worker is full.
-  WorkerState* MostAvailable();
+  // first tasks of a job), or nullptr when every worker is full. Workers in `skip` are
+  // passed over.
+  WorkerState* MostAvailable(const std::set<std::string>& skip = {});
   void Assign(const std::string& identity, uint64_t taskId);
   // Returns the credit of a finished (or failed) task; false if that worker did not hold it.
   bool Release(const std::string& identity, uint64_t taskId);

@@ -26,7 +26,7 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       clock_(clock),
       frameStore_(options_.storeRoot),
       assets_(options_.storeRoot / "assets"),
-      dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_) {}
+      dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_, options_.curve) {}
 
 Farm::~Farm() = default;
 
@@ -277,6 +277,12 @@ void Farm::UpdateMetrics() {
   metrics_.tasksDispatched.Increment(static_cast<double>(c.tasksSent - lastCounters_.tasksSent));
   metrics_.tasksRequeued.Increment(static_cast<double>(c.requeued - lastCounters_.requeued));
   metrics_.messagesMalformed.Increment(static_cast<double>(c.malformed - lastCounters_.malformed));
+  metrics_.foreignReplies.Increment(static_cast<double>(c.foreignReplies - lastCounters_.foreignReplies));
+  metrics_.workersDropped.Increment(static_cast<double>(c.workersDropped - lastCounters_.workersDropped));
+  metrics_.taskErrorsRetried.Increment(static_cast<double>(c.taskErrorsRetried - lastCounters_.taskErrorsRetried));
+  metrics_.workersRefusedKey.Increment(static_cast<double>(c.refusedKeys - lastCounters_.refusedKeys));
+  metrics_.workersRefusedHandshake.Increment(
+      static_cast<double>(c.failedHandshakes - lastCounters_.failedHandshakes));
   lastCounters_ = c;
   metrics_.queueDepth.Set(static_cast<double>(dispatcher_.PendingTasks()));
   metrics_.tasksInFlight.Set(static_cast<double>(dispatcher_.InFlightTasks()));

@@ -31,7 +31,10 @@
 namespace tcfarm {
 
 struct FarmOptions {
-  std::string endpoint = "tcp://*:5555";
+  // Loopback unless keys are given: an unauthenticated socket must not face a network.
+  std::string endpoint = "tcp://127.0.0.1:5555";
+  // The coordinator's CURVE secret key and the workers' allow-list; none: no authentication.
+  std::optional<CurveServerKeys> curve;
   std::filesystem::path storeRoot = "store";
   // Jobs rendered at once; more queue in the store. Several keep the workers busy while
   // one job's search waits on its last results.
@@ -50,6 +53,8 @@ class Farm : public FarmControl, private DispatchSink {
   ~Farm() override;
 
   std::string BoundEndpoint() const { return dispatcher_.BoundEndpoint(); }
+  // The CURVE public key workers need (Z85), or "" without CURVE.
+  const std::string& PublicKey() const { return dispatcher_.PublicKey(); }
   FarmMetrics& metrics() { return metrics_; }
 
   // Runs the loop until *stop, calling afterStep (if any) after each step; then tells the

@@ -10,6 +10,11 @@ prometheus::Family<prometheus::Counter>& RayFamily(prometheus::Registry& registr
                           "Rays cast by the workers for this coordinator, by ray type");
 }
 
+prometheus::Family<prometheus::Counter>& RefusedFamily(prometheus::Registry& registry) {
+  return NewCounterFamily(registry, "tcfarm_workers_refused_total",
+                          "Connections to the workers' socket refused by CURVE authentication, by reason");
+}
+
 prometheus::Family<prometheus::Counter>& JobsFamily(prometheus::Registry& registry) {
   return NewCounterFamily(registry, "tcfarm_jobs_finished_total",
                           "Jobs that reached a final state, by state");
@@ -35,9 +40,17 @@ FarmMetrics::FarmMetrics()
       taskResults(NewCounter(*registry, "tcfarm_task_results_total",
                              "Task results accepted from workers")),
       tasksRequeued(NewCounter(*registry, "tcfarm_tasks_requeued_total",
-                               "Tasks taken back from dead or silent workers and requeued")),
+                               "Tasks taken back (dead, silent or dropped workers, a worker's error) and requeued")),
       messagesMalformed(NewCounter(*registry, "tcfarm_messages_malformed_total",
                                    "Inbound messages dropped as malformed")),
+      foreignReplies(NewCounter(*registry, "tcfarm_task_replies_foreign_total",
+                                "RESULT or ERROR messages for a task in flight with another worker, dropped")),
+      workersDropped(NewCounter(*registry, "tcfarm_workers_dropped_total",
+                                "Workers forgotten and told DISCONNECT for a malformed result of their own task")),
+      taskErrorsRetried(NewCounter(*registry, "tcfarm_task_errors_retried_total",
+                                   "Tasks a worker could not trace, sent to a different worker")),
+      workersRefusedKey(RefusedFamily(*registry).Add({{"reason", "key_not_allowed"}})),
+      workersRefusedHandshake(RefusedFamily(*registry).Add({{"reason", "handshake_failed"}})),
       framesWritten(NewCounter(*registry, "tcfarm_frames_written_total",
                                "Finished frames handed to the frame store")),
       raysPrimary(RayFamily(*registry).Add({{"type", "primary"}})),

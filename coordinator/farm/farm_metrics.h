@@ -22,6 +22,11 @@ struct FarmMetrics {
   prometheus::Counter& taskResults;
   prometheus::Counter& tasksRequeued;
   prometheus::Counter& messagesMalformed;
+  prometheus::Counter& foreignReplies;
+  prometheus::Counter& workersDropped;
+  prometheus::Counter& taskErrorsRetried;
+  prometheus::Counter& workersRefusedKey;
+  prometheus::Counter& workersRefusedHandshake;
   prometheus::Counter& framesWritten;
   prometheus::Counter& raysPrimary;
   prometheus::Counter& raysShadow;

@@ -35,9 +35,9 @@ std::string FindWorkerBinary() {
 }
 
 LocalWorkers::LocalWorkers(std::string binary, std::string coordinatorEndpoint,
-                           unsigned threadsEach)
+                           unsigned threadsEach, std::vector<std::string> extraArguments)
     : binary_(std::move(binary)), endpoint_(std::move(coordinatorEndpoint)),
-      threadsEach_(threadsEach) {}
+      threadsEach_(threadsEach), extraArguments_(std::move(extraArguments)) {}
 
 LocalWorkers::~LocalWorkers() { Stop(); }
 
@@ -45,6 +45,7 @@ pid_t LocalWorkers::Spawn(unsigned index) const {
   std::vector<std::string> args = {binary_,    "serve",  "--coordinator", endpoint_,
                                    "--threads", std::to_string(threadsEach_),
                                    "--name",   "local-" + std::to_string(index)};
+  args.insert(args.end(), extraArguments_.begin(), extraArguments_.end());
   std::vector<char*> argv;
   for (auto& arg : args) argv.push_back(arg.data());
   argv.push_back(nullptr);

@@ -12,7 +12,9 @@ namespace tcfarm {
 
 class LocalWorkers {
  public:
-  LocalWorkers(std::string binary, std::string coordinatorEndpoint, unsigned threadsEach);
+  // extraArguments: added to each worker's command line (its CURVE keys).
+  LocalWorkers(std::string binary, std::string coordinatorEndpoint, unsigned threadsEach,
+               std::vector<std::string> extraArguments = {});
   ~LocalWorkers();  // stops them
 
   void Start(unsigned count);
@@ -28,6 +30,7 @@ class LocalWorkers {
   std::string binary_;
   std::string endpoint_;
   unsigned threadsEach_;
+  std::vector<std::string> extraArguments_;
   std::vector<pid_t> pids_;
 };
 

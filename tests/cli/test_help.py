@@ -13,18 +13,22 @@ WORKER = BUILD / "worker" / "tcfarm-worker"
 
 # (program, command words, text the help must show: flags, commands, defaults)
 HELP_CASES = [
-    (COORDINATOR, [], ["serve", "compare", "analyze"]),
-    (COORDINATOR, ["serve"], ["--http", "127.0.0.1:8080", "--zmq", "tcp://*:5555", "--store",
+    (COORDINATOR, [], ["serve", "compare", "analyze", "keygen"]),
+    (COORDINATOR, ["serve"], ["--http", "127.0.0.1:8080", "--zmq", "tcp://127.0.0.1:5555", "--store",
                               "--db", "--local-workers", "--worker-threads", "--worker-timeout",
                               "--exr-compression", "--dashboard", "--job-memory",
                               "--pending-frame-memory", "--asset-max-file-mib", "MIB=512",
-                              "--asset-max-job-mib", "MIB=2048"]),
+                              "--asset-max-job-mib", "MIB=2048", "--curve-secret", "TCFARM_CURVE_SECRET",
+                              "--worker-keys", "TCFARM_WORKER_KEYS", "--insecure-no-auth"]),
+    (COORDINATOR, ["keygen"], ["--out", "--name", "--force"]),
     (COORDINATOR, ["compare"], ["REFERENCE_DIR", "TEST_DIR", "--json"]),
     (COORDINATOR, ["analyze"], ["DIR", "--json", "--change-mask"]),
-    (WORKER, [], ["serve", "render"]),
+    (WORKER, [], ["serve", "render", "keygen"]),
+    (WORKER, ["keygen"], ["--out", "--name", "--force"]),
     (WORKER, ["serve"], ["--coordinator", "tcp://127.0.0.1:5555", "TCFARM_COORDINATOR",
                          "--threads", "--capacity", "--name", "--metrics",
-                         "--coordinator-timeout"]),
+                         "--coordinator-timeout", "--curve-secret", "--coordinator-key",
+                         "TCFARM_COORDINATOR_KEY"]),
     (WORKER, ["render"], ["SCENE", "--frames", "--out", "--threads", "--no-exr", "--no-png",
                           "--exr-compression"]),
 ]

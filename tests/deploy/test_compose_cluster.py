@@ -195,3 +195,15 @@ def test_the_api_and_dashboard_are_published(cluster):
                         headers={"Authorization": f"Bearer {cluster.tokens['admin']}"})
     assert bad.status_code == 400
     assert bad.json()["error"]["code"] == "invalid_scene"
+
+
+def test_workers_authenticate_with_keys_made_at_first_start(cluster):
+    """`keys` made the pairs into their volumes; the coordinator serves CURVE with them, its
+    secret private to its user, and the workers, holding theirs, connected."""
+    logs = cluster.run("logs", "--no-color", "coordinator")
+    assert "workers authenticate with CURVE" in logs, logs[-2000:]
+    client = Client(cluster.url)
+    wait_for(lambda: len(client.workers()["workers"]) >= 1, "a worker with keys connected")
+    coordinator = cluster.containers("coordinator")[0]
+    secret = docker("exec", coordinator, "stat", "-c", "%a %u", "/etc/tcfarm/keys/coordinator.key")
+    assert secret.stdout.split() == ["600", "10001"], secret.stderr

@@ -111,10 +111,30 @@ def test_the_coordinators_api_tokens_come_from_a_secret():
     env = {e["name"]: e["value"] for e in coordinator.get("env", [])}
     mounts = {m["name"]: m["mountPath"] for m in coordinator["volumeMounts"]}
     secrets = {v["name"]: v["secret"]["secretName"] for v in pod["volumes"] if "secret" in v}
-    assert secrets == {"api-tokens": "tcfarm-api-tokens"}
+    assert secrets["api-tokens"] == "tcfarm-api-tokens"
     # The image's entrypoint hands TCFARM_API_TOKENS to --api-tokens: a file of that Secret.
     assert env["TCFARM_API_TOKENS"].startswith(mounts["api-tokens"] + "/")
     assert "--api-tokens" not in coordinator["args"]
     assert "--insecure-no-auth" not in coordinator["args"]
     assert "ENV TCFARM_API_TOKENS=" in (ROOT / "deploy" / "Dockerfile").read_text()
     assert 'ENTRYPOINT ["coordinator-entrypoint"]' in (ROOT / "deploy" / "Dockerfile").read_text()
+
+
+def test_both_sides_read_their_curve_keys_from_mounted_secrets():
+    """CURVE key files name paths inside mounts, the secret ones from Secrets (never a
+    ConfigMap), and only the coordinator holds its own secret."""
+    found = resources()
+    for deployment, secret_flags in (("tcfarm-coordinator", ["--curve-secret"]), ("tcfarm-worker", ["--curve-secret"])):
+        spec = container(found, deployment)
+        pod = found[("Deployment", deployment)]["spec"]["template"]["spec"]
+        volumes = {v["name"]: v for v in pod["volumes"]}
+        mounts = {m["mountPath"]: m["name"] for m in spec["volumeMounts"]}
+        for name in secret_flags + (["--worker-keys"] if deployment == "tcfarm-coordinator" else ["--coordinator-key"]):
+            path = flag(spec["args"], name)
+            [mount] = [m for m in mounts if path == m or path.startswith(m + "/")]
+            if name == "--curve-secret":
+                assert "secret" in volumes[mounts[mount]], (deployment, name)
+                assert pod["securityContext"]["fsGroup"] == pod["securityContext"]["runAsUser"]
+    worker_secret = {v["name"]: v for v in found[("Deployment", "tcfarm-worker")]["spec"]["template"]["spec"]["volumes"]}
+    coordinator_secret = {v["name"]: v for v in found[("Deployment", "tcfarm-coordinator")]["spec"]["template"]["spec"]["volumes"]}
+    assert worker_secret["curve-key"]["secret"]["secretName"] != coordinator_secret["curve-key"]["secret"]["secretName"]

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <thread>
 
+#include "curve/socket_events.h"
 #include "wire/content_hash.h"
 #include "wire/zmq_io.h"
 
@@ -74,6 +75,18 @@ WorkerDaemon::~WorkerDaemon() = default;
 void WorkerDaemon::Connect() {
   socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
   socket_->set(zmq::sockopt::linger, 0);
+  if (options_.curve) {
+    socket_->set(zmq::sockopt::curve_serverkey, options_.curve->coordinatorKey);
+    socket_->set(zmq::sockopt::curve_publickey, options_.curve->publicKey);
+    socket_->set(zmq::sockopt::curve_secretkey, options_.curve->secretKey);
+  }
+  // Watched before it connects, so that no refusal goes unseen.
+  const std::string monitor = "inproc://tcfarm-worker-monitor-" + std::to_string(++connections_);
+  zmq_socket_monitor(socket_->handle(), monitor.c_str(), curve::kHandshakeFailureEvents);
+  monitor_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::pair);
+  monitor_->set(zmq::sockopt::linger, 0);
+  monitor_->connect(monitor);
+  handshakeFailure_.clear();
   socket_->connect(options_.coordinator);
   coordinator_ = PeerLiveness(options_.heartbeat, clock_.Now());
   Send(wire::Ready{options_.capacity, pool_.ThreadCount(), options_.name});
@@ -89,11 +102,15 @@ void WorkerDaemon::Reconnect(const std::atomic<bool>& stop) {
   waitingForAssets_.clear();
   assets_.AbandonDownloads();
   for (auto& [hash, build] : building_) build.tasks.clear();  // the scene itself is still worth having
+  monitor_.reset();
   socket_.reset();
   Milliseconds delay = backoff_.Next();
+  const std::string why = !handshakeFailure_.empty() ? "refused this worker: " + handshakeFailure_
+                          : coordinatorLeft_         ? "said goodbye"
+                                                     : "silent";
   std::fprintf(stderr, "worker %s: coordinator %s %s; reconnecting in %lld ms\n",
-               options_.name.c_str(), options_.coordinator.c_str(),
-               coordinatorLeft_ ? "said goodbye" : "silent", static_cast<long long>(delay.count()));
+               options_.name.c_str(), options_.coordinator.c_str(), why.c_str(),
+               static_cast<long long>(delay.count()));
   coordinatorLeft_ = false;
   for (auto waited = Milliseconds(0); waited < delay && !stop; waited += Milliseconds(50)) {
     std::this_thread::sleep_for(Milliseconds(50));
@@ -110,17 +127,27 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
   while (!stop) {
     wire::WaitForInput(*socket_, std::chrono::milliseconds(ready_.empty() ? kIdlePollMs : 0));
     ReceiveAll();
+    CheckHandshake();
     CollectBuiltScenes();
     if (!ready_.empty() && !coordinatorLeft_) TraceNext();
     SteadyTime now = clock_.Now();
     lastLoopTurn_ = now.time_since_epoch().count();
-    if (coordinatorLeft_ || coordinator_.IsDead(now)) {
+    if (coordinatorLeft_ || !handshakeFailure_.empty() || coordinator_.IsDead(now)) {
       Reconnect(stop);
       continue;
     }
     if (coordinator_.ShouldSendHeartbeat(now)) Send(wire::Heartbeat{});
   }
   Send(wire::Disconnect{});
+}
+
+void WorkerDaemon::CheckHandshake() {
+  while (auto event = curve::ReadSocketEvent(*monitor_)) {
+    if (event->event & curve::kHandshakeFailureEvents) {
+      metrics_.handshakesRefused.Increment();
+      handshakeFailure_ = curve::DescribeHandshakeFailure(*event);
+    }
+  }
 }
 
 void WorkerDaemon::ReceiveAll() {

@@ -4,6 +4,10 @@
 // requeues its tasks; if the coordinator goes silent or says goodbye (DISCONNECT), it
 // reconnects with back-off.
 //
+// With CURVE keys the worker proves who it is to the coordinator (CurveZMQ) and checks the
+// coordinator's key; a coordinator that refuses it is asked again only after the
+// reconnect back-off, never in a tight loop.
+//
 // One thread owns the socket and does everything; tracing fans out over the thread pool.
 // Tasks are small (tens of milliseconds), so heartbeats still go out on time.
 #pragma once
@@ -15,6 +19,7 @@
 #include <future>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -30,6 +35,13 @@
 
 namespace tcfarm {
 
+// A worker's CURVE keys (Z85): its own pair and the coordinator's public key.
+struct CurveClientKeys {
+  std::string secretKey;
+  std::string publicKey;
+  std::string coordinatorKey;
+};
+
 struct WorkerOptions {
   std::string coordinator = "tcp://127.0.0.1:5555";
   unsigned threads = 0;  // 0: all cores
@@ -42,6 +54,7 @@ struct WorkerOptions {
   // the system's temp directory, shared by the workers of one machine.
   std::filesystem::path assetCache;
   uint64_t maxAssetBytes = uint64_t{4} << 30;
+  std::optional<CurveClientKeys> curve;  // none: the NULL mechanism, no authentication
 };
 
 class WorkerDaemon {
@@ -60,6 +73,9 @@ class WorkerDaemon {
  private:
   void Connect();
   void Reconnect(const std::atomic<bool>& stop);
+  // Reads the socket's monitor: a failed handshake (refused key, wrong coordinator key,
+  // CURVE on one end only) ends this connection; Reconnect then waits its back-off.
+  void CheckHandshake();
   void ReceiveAll();
   void Handle(wire::Message message);
   void OnTask(wire::Task task);
@@ -82,6 +98,9 @@ class WorkerDaemon {
   SceneCache scenes_;
   zmq::context_t context_;
   std::unique_ptr<zmq::socket_t> socket_;
+  std::unique_ptr<zmq::socket_t> monitor_;  // socket_'s handshake events
+  uint64_t connections_ = 0;                // names each connection's monitor endpoint
+  std::string handshakeFailure_;            // why the coordinator refused this connection; "" if it did not
   PeerLiveness coordinator_;
   Backoff backoff_;
   std::deque<wire::Task> ready_;                           // scene at hand

@@ -37,6 +37,8 @@ WorkerMetrics::WorkerMetrics()
                                    "Inbound messages dropped as malformed")),
       reconnects(NewCounter(*registry, "tcfarm_worker_reconnects_total",
                             "Reconnections after the coordinator went silent")),
+      handshakesRefused(NewCounter(*registry, "tcfarm_worker_handshakes_refused_total",
+                                   "Connections whose handshake the coordinator refused (keys, CURVE)")),
       raysPerSecond(NewGauge(*registry, "tcfarm_worker_rays_per_second",
                              "Rays per second of tracing time, last task")),
       coordinatorUp(NewGauge(*registry, "tcfarm_worker_coordinator_up",

@@ -36,6 +36,7 @@ struct WorkerMetrics {
   prometheus::Counter& assetBytes;        // bytes of assets received
   prometheus::Counter& messagesMalformed;
   prometheus::Counter& reconnects;
+  prometheus::Counter& handshakesRefused;  // connections the coordinator refused (CURVE keys)
   prometheus::Gauge& raysPerSecond;  // rays / tracing second of the last task
   prometheus::Gauge& coordinatorUp;  // 1 while the coordinator answers
   prometheus::Gauge& threads;
