@@ -203,7 +203,6 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
   serve.add_option("--tls-cert", flags.tlsCert, "Serve HTTPS with this PEM certificate (chain); needs --tls-key")
       ->type_name("FILE");
   serve.add_option("--tls-key", flags.tlsKey, "The PEM private key of --tls-cert")->type_name("FILE");
-}
   serve.add_option("--curve-secret", flags.curveSecret,
                    "The coordinator's CURVE secret key (tcfarm-coordinator keygen); with --worker-keys, "
                    "workers must authenticate (CurveZMQ) and its public key is printed at start")
