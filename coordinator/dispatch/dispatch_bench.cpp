@@ -49,7 +49,7 @@ void SyntheticWorker(zmq::context_t& context, const std::string& endpoint,
 class PlannerSink : public DispatchSink {
  public:
   explicit PlannerSink(SearchPlanner& planner) : planner_(planner) {}
-  void OnResult(uint64_t, uint64_t plannerTaskId, wire::Result&& result, double) override {
+  void OnResult(uint64_t, uint64_t plannerTaskId, wire::Result&& result, double, const std::string&) override {
     planner_.OnResult(plannerTaskId, result.rgb.data(), result.rgb.size());
     pixels += result.PixelCount();
     ++tasks;
@@ -99,7 +99,7 @@ int main(int argc, char** argv) {
   uint64_t frames = 0;
   while (!planner.Done()) {
     for (TraceTask& t : planner.TakeReadyTasks()) {
-      dispatcher.Enqueue({1, t.id, t.frame, std::move(t.pixels), 0});
+      dispatcher.Enqueue({1, t.id, t.frame, std::move(t.pixels), 0, {}});
     }
     dispatcher.Poll(Milliseconds(1), sink);
     frames += planner.TakeFinishedFrames().size();

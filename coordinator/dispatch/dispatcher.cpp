@@ -311,7 +311,7 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
   uint64_t jobId = task.jobId, plannerTaskId = task.plannerTaskId;
   double latency = std::chrono::duration<double>(clock_.Now() - entry->second.sentAt).count();
   tasks_.erase(entry);
-  sink.OnResult(jobId, plannerTaskId, std::move(result), latency);
+  sink.OnResult(jobId, plannerTaskId, std::move(result), latency, identity);
 }
 
 void Dispatcher::OnError(const std::string& identity, const wire::Error& error,
@@ -360,6 +360,13 @@ void Dispatcher::SendHeartbeats(SteadyTime now) {
   for (const auto& [identity, worker] : registry_.workers()) Send(identity, wire::Heartbeat{});
 }
 
+bool Dispatcher::EveryWorkerIn(const std::set<std::string>& identities) const {
+  for (const auto& [identity, worker] : registry_.workers()) {
+    if (!identities.count(identity)) return false;
+  }
+  return true;
+}
+
 uint64_t Dispatcher::TakeTaskFor(const std::string& worker) {
   std::vector<JobQueue*> order;
   for (auto& [id, job] : jobs_) {
@@ -369,7 +376,9 @@ uint64_t Dispatcher::TakeTaskFor(const std::string& worker) {
   std::stable_sort(order.begin(), order.end(), [](const JobQueue* a, const JobQueue* b) { return a->pass < b->pass; });
   for (JobQueue* job : order) {
     for (auto it = job->pending.begin(); it != job->pending.end(); ++it) {
-      if (tasks_.at(*it).failedBy.count(worker)) continue;  // it failed there once
+      const TaskEntry& entry = tasks_.at(*it);
+      if (entry.failedBy.count(worker)) continue;  // it failed there once
+      if (entry.task.avoid.count(worker) && !EveryWorkerIn(entry.task.avoid)) continue;
       const uint64_t id = *it;
       job->pending.erase(it);
       job->pass += 1.0 / job->weight;

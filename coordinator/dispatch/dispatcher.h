@@ -41,6 +41,10 @@ struct DispatchTask {
   int frame = 0;  // absolute frame number (the scene's)
   PixelSet pixels;
   int window = 0;
+  // Workers it should not go to: a check is worth something only when someone other than
+  // the worker whose values it checks traces it. A preference, not a rule: when every
+  // worker present is listed, any may take it (a check by the same worker beats none).
+  std::set<std::string> avoid;
 };
 
 // Where the dispatcher delivers what workers send back.
@@ -48,8 +52,9 @@ class DispatchSink {
  public:
   virtual ~DispatchSink() = default;
   // latencySeconds: from sending the task to receiving its result.
+  // worker: the identity that traced it (for checks that must go to someone else).
   virtual void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
-                        double latencySeconds) = 0;
+                        double latencySeconds, const std::string& worker) = 0;
   virtual void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) = 0;
 };
 
@@ -162,6 +167,8 @@ class Dispatcher {
   // The next task `worker` may take (stride order over jobs, skipping tasks it failed),
   // taken off its job's queue; 0 when there is none for it.
   uint64_t TakeTaskFor(const std::string& worker);
+  // Whether every worker present is one of these.
+  bool EveryWorkerIn(const std::set<std::string>& identities) const;
   // False when the peer is gone or its queue is full.
   bool Send(const std::string& identity, const wire::Message& message);
 

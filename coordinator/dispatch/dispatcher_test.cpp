@@ -22,7 +22,7 @@ const std::string kHash(64, 'a');
 
 class RecordingSink : public DispatchSink {
  public:
-  void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result, double) override {
+  void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result, double, const std::string&) override {
     results.push_back({jobId, plannerTaskId, result.PixelCount()});
   }
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override {
@@ -54,7 +54,7 @@ class DispatcherTest : public ::testing::Test {
   }
   void EnqueueTasks(uint64_t job, int count) {
     for (int i = 0; i < count; ++i) {
-      dispatcher_.Enqueue({job, static_cast<uint64_t>(100 + i), 0, PixelSet::Full(16), 0});
+      dispatcher_.Enqueue({job, static_cast<uint64_t>(100 + i), 0, PixelSet::Full(16), 0, {}});
     }
   }
 
@@ -63,6 +63,27 @@ class DispatcherTest : public ::testing::Test {
   Dispatcher dispatcher_;
   RecordingSink sink_;
 };
+
+// A check goes to a worker other than the one whose values it checks; when no other is
+// present, to that one rather than to nobody.
+TEST_F(DispatcherTest, ATaskAvoidsTheWorkersItNamesWhileAnotherIsPresent) {
+  FakeWorker checked(context_, dispatcher_.BoundEndpoint(), 4);
+  Pump();
+  ASSERT_EQ(dispatcher_.registry().workers().size(), 1u);
+  const std::string checkedIdentity = dispatcher_.registry().workers().begin()->first;
+  dispatcher_.Enqueue({1, 100, 0, PixelSet::Full(16), 0, {checkedIdentity}});
+  Pump();
+  ASSERT_EQ(checked.Tasks().size(), 1u);  // the only worker: better it than nobody
+  FakeWorker other(context_, dispatcher_.BoundEndpoint(), 4);
+  Pump();
+  ASSERT_EQ(dispatcher_.registry().workers().size(), 2u);
+  for (uint64_t id = 101; id < 104; ++id) {
+    dispatcher_.Enqueue({1, id, 0, PixelSet::Full(16), 0, {checkedIdentity}});
+  }
+  Pump();
+  EXPECT_TRUE(checked.Tasks().empty());  // it had credit to spare, yet got none
+  EXPECT_EQ(other.Tasks().size(), 3u);
+}
 
 TEST_F(DispatcherTest, CreditLimitsTasksInFlight) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 2);
@@ -177,7 +198,7 @@ TEST_F(DispatcherTest, AResultOfTheWrongSizeDropsTheWorker) {
 
 TEST_F(DispatcherTest, HorizonsOutsideTheWindowDropTheWorker) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
-  dispatcher_.Enqueue({1, 100, 10, PixelSet::Full(16), 4});  // horizons 11 .. 15 are valid
+  dispatcher_.Enqueue({1, 100, 10, PixelSet::Full(16), 4, {}});  // horizons 11 .. 15 are valid
   Pump();
   wire::Task task = worker.Tasks().at(0);
   wire::Result result;

@@ -130,12 +130,12 @@ void Farm::PumpTasks() {
 }
 
 void Farm::OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
-                    double latencySeconds) {
+                    double latencySeconds, const std::string& worker) {
   metrics_.taskLatency.Observe(latencySeconds);
   auto run = runs_.find(jobId);
   if (run == runs_.end()) return;
   try {
-    if (!run->second->OnResult(plannerTaskId, result)) return;
+    if (!run->second->OnResult(plannerTaskId, result, worker)) return;
   } catch (const std::invalid_argument& e) {
     // The dispatcher checked sizes; a planner complaint here means values it refuses
     // (non-finite). The pixels are lost, so the job cannot finish correctly.

@@ -71,7 +71,7 @@ class Farm : public FarmControl, private DispatchSink {
 
  private:
   void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
-                double latencySeconds) override;
+                double latencySeconds, const std::string& worker) override;
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override;
 
   void ClaimJobs();

@@ -178,18 +178,18 @@ std::vector<DispatchTask> JobRun::TakeTasks() {
   // frames in memory.
   const bool writerBehind = unwritten_.size() >= kMaxUnwrittenFrames;
   for (TraceTask& t : writerBehind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
-    tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window});
+    tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}});
   }
   for (Verification::Request& r : verification_.TakeRequests()) {
-    tasks.push_back({id_, r.id | kVerificationTask, spec_.firstFrame + r.frame,
-                     std::move(r.pixels), 0});
+    tasks.push_back({id_, r.id | kVerificationTask, spec_.firstFrame + r.frame, std::move(r.pixels), 0,
+                     tracersOfFrame_[r.frame]});
   }
   return tasks;
 }
 
-bool JobRun::OnResult(uint64_t taskId, const wire::Result& result) {
+bool JobRun::OnResult(uint64_t taskId, const wire::Result& result, const std::string& worker) {
   return (taskId & kVerificationTask) ? OnVerificationResult(taskId & ~kVerificationTask, result)
-                                      : OnPlannerResult(taskId, result);
+                                      : OnPlannerResult(taskId, result, worker);
 }
 
 bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result) {
@@ -199,7 +199,7 @@ bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result) {
   return true;
 }
 
-bool JobRun::OnPlannerResult(uint64_t taskId, const wire::Result& result) {
+bool JobRun::OnPlannerResult(uint64_t taskId, const wire::Result& result, const std::string& worker) {
   // Workers speak absolute frames; the planner counts from the job's first frame.
   std::vector<int32_t> horizons(result.horizons);
   for (int32_t& h : horizons) h -= spec_.firstFrame;
@@ -208,6 +208,7 @@ bool JobRun::OnPlannerResult(uint64_t taskId, const wire::Result& result) {
     return false;
   }
   cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
+  tracersOfFrame_[result.frame - spec_.firstFrame].insert(worker);
   return true;
 }
 

@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -71,7 +72,8 @@ class JobRun {
 
   std::vector<DispatchTask> TakeTasks();
   // Feeds a result to the planner or the verification. False when it had it already.
-  bool OnResult(uint64_t taskId, const wire::Result& result);
+  // worker: who traced it; checks of a frame then go to someone else where possible.
+  bool OnResult(uint64_t taskId, const wire::Result& result, const std::string& worker);
   // Hands finished frames to the writer and the verification, and records in the job
   // store the frames the writer has put in place (a frame is recorded only once its files
   // are there); returns how many frames it handed on. Never waits for the writer: frames
@@ -115,7 +117,7 @@ class JobRun {
   // How long one CollectFinishedFrames call may spend on frames.
   static constexpr std::chrono::milliseconds kFinishingTurn{20};
 
-  bool OnPlannerResult(uint64_t taskId, const wire::Result& result);
+  bool OnPlannerResult(uint64_t taskId, const wire::Result& result, const std::string& worker);
   bool OnVerificationResult(uint64_t taskId, const wire::Result& result);
   // Checks the frame, writes it and its masks, and feeds it to the coherence.
   void FinishFrame(FinishedFrame frame);
@@ -153,6 +155,9 @@ class JobRun {
     uint64_t traced = 0;
   };
   std::map<int, uint64_t> writing_;
+  // By frame (the job's): the workers that traced its pixels. Its spot checks and its
+  // reference avoid them, so that a worker that returns wrong values never checks itself.
+  std::map<int, std::set<std::string>> tracersOfFrame_;
   std::deque<FrameRecord> unrecorded_;
   std::optional<nlohmann::json> planToSave_;  // saved before any frame is recorded
   bool chosenWidthPlanned_ = false;           // auto's survey result is in the plan
