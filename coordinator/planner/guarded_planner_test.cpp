@@ -215,8 +215,9 @@ void ExpectMatchesReference(const RenderRun& run, const PlannerOptions& options,
 Rgb StaticAnimation(int, int x, int y) { return {0.1f * x, 0.2f * y, 0.3f}; }
 
 Rgb NoisyAnimation(int frame, int x, int y) {
-  const unsigned hash = static_cast<unsigned>(frame * 73856093) ^ static_cast<unsigned>(x * 19349663) ^
-                        static_cast<unsigned>(y * 83492791);
+  // Unsigned products: they wrap by definition, where int products overflow (UBSan).
+  const unsigned hash = static_cast<unsigned>(frame) * 73856093u ^ static_cast<unsigned>(x) * 19349663u ^
+                        static_cast<unsigned>(y) * 83492791u;
   return {static_cast<float>(hash % 1000) / 1000.0f, static_cast<float>(frame), 0.0f};
 }
 

@@ -134,10 +134,33 @@ bool WriteNothing(std::string* error, const std::string&, const std::vector<unsi
   return false;
 }
 
+// tinygltf 2.7 hands an image stored in a bufferView to the image loader without checking
+// that the view lies inside its buffer: a GLB whose view runs past the binary chunk would
+// be read out of bounds. The model being loaded already holds its views and buffers.
+std::string ImageViewOutsideBuffer(const tinygltf::Model& model, const tinygltf::Image& image, int imageIndex) {
+  if (image.bufferView < 0) return "";  // a data: URI or a file, decoded into memory tinygltf owns
+  const tinygltf::BufferView& view = model.bufferViews.at(static_cast<size_t>(image.bufferView));
+  const tinygltf::Buffer& buffer = model.buffers.at(static_cast<size_t>(view.buffer));
+  const size_t size = buffer.data.size();
+  if (view.byteOffset <= size && view.byteLength <= size - view.byteOffset &&
+      view.byteLength <= static_cast<size_t>(std::numeric_limits<int>::max())) {
+    return "";
+  }
+  return "image " + std::to_string(imageIndex) + "'s bufferView " + std::to_string(image.bufferView) +
+         " (bytes " + std::to_string(view.byteOffset) + " + " + std::to_string(view.byteLength) +
+         ") runs past the end of buffer " + std::to_string(view.buffer) + " (" + std::to_string(size) + " bytes)";
+}
+
 // Images are kept as their file's bytes (PNG, JPEG): workers decode them when a scene is
 // built, and the bytes' hash names the image wherever the scene travels.
-bool KeepImageEncoded(tinygltf::Image* image, const int, std::string*, std::string*, int, int,
-                      const unsigned char* bytes, int size, void*) {
+bool KeepImageEncoded(tinygltf::Image* image, const int imageIndex, std::string* error, std::string*, int, int,
+                      const unsigned char* bytes, int size, void* loadingModel) {
+  const std::string outside =
+      ImageViewOutsideBuffer(*static_cast<const tinygltf::Model*>(loadingModel), *image, imageIndex);
+  if (!outside.empty() || size < 0) {
+    if (error) *error += outside.empty() ? "image " + std::to_string(imageIndex) + " is too large" : outside;
+    return false;
+  }
   image->image.assign(bytes, bytes + size);
   image->as_is = true;
   return true;
@@ -482,7 +505,7 @@ class GltfReader {
       access.prefix = base + "/";
     }
     loader.SetFsCallbacks({&FileExistsInside, &ExpandNothing, &ReadFileInside, &WriteNothing, &access});
-    loader.SetImageLoader(&KeepImageEncoded, nullptr);
+    loader.SetImageLoader(&KeepImageEncoded, &model_);
     std::string error, warning;
     bool loaded = false;
     const auto* data = reinterpret_cast<const unsigned char*>(input_.bytes.data());

@@ -594,6 +594,41 @@ TEST(GltfImporterTest, TruncatedGlbNamesTheByteOffset) {
   EXPECT_NE(what.find("GLB byte 10: the file ends inside its header"), std::string::npos) << what;
 }
 
+// A GLB file: the 12-byte header, the JSON chunk and, when there is one, the BIN chunk,
+// each chunk padded to 4 bytes as the format requires.
+std::string Glb(const json& document, const std::string& binary) {
+  auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  std::string text = document.dump();
+  text.resize((text.size() + 3) / 4 * 4, ' ');
+  std::string chunks = u32(static_cast<uint32_t>(text.size())) + "JSON" + text;
+  if (!binary.empty()) {
+    std::string padded = binary;
+    padded.resize((padded.size() + 3) / 4 * 4, '\0');
+    chunks += u32(static_cast<uint32_t>(padded.size())) + std::string("BIN\0", 4) + padded;
+  }
+  return "glTF" + u32(2) + u32(static_cast<uint32_t>(12 + chunks.size())) + chunks;
+}
+
+// Found by tests/fuzz/gltf_fuzz: tinygltf passes an image's bufferView to the image loader
+// unchecked, and a view one byte past its buffer was read out of bounds.
+TEST(GltfImporterTest, ImageViewPastItsBufferIsRefused) {
+  json document = {{"asset", {{"version", "2.0"}}},
+                   {"images", json::array({json{{"bufferView", 0}, {"mimeType", "image/png"}}})},
+                   {"bufferViews", json::array({json{{"buffer", 0}, {"byteOffset", 4}, {"byteLength", 9}}})},
+                   {"buffers", json::array({json{{"byteLength", 12}}})}};
+  std::string what = ErrorOf([&] { ImportSceneBytes(Glb(document, std::string(12, 'x')), "gltf"); });
+  EXPECT_NE(what.find("image 0's bufferView 0 (bytes 4 + 9) runs past the end of buffer 0 (12 bytes)"),
+            std::string::npos)
+      << what;
+  document["bufferViews"][0]["byteOffset"] = 4000000000u;
+  what = ErrorOf([&] { ImportSceneBytes(Glb(document, std::string(12, 'x')), "gltf"); });
+  EXPECT_NE(what.find("runs past the end of buffer 0 (12 bytes)"), std::string::npos) << what;
+  // The same view inside its buffer is read.
+  document["bufferViews"][0]["byteOffset"] = 3;
+  what = ErrorOf([&] { ImportSceneBytes(Glb(document, std::string(12, 'x')), "gltf"); });
+  EXPECT_EQ(what.find("runs past"), std::string::npos) << what;
+}
+
 TEST(GltfImporterTest, GoodTestModelsImportAndReadBack) {
   if (!fs::exists(kTestModels)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
   for (const char* file :
