@@ -202,7 +202,7 @@ def test_workers_authenticate_with_keys_made_at_first_start(cluster):
     secret private to its user, and the workers, holding theirs, connected."""
     logs = cluster.run("logs", "--no-color", "coordinator")
     assert "workers authenticate with CURVE" in logs, logs[-2000:]
-    client = Client(cluster.url)
+    client = Client(cluster.url, token=cluster.tokens["read"])
     wait_for(lambda: len(client.workers()["workers"]) >= 1, "a worker with keys connected")
     coordinator = cluster.containers("coordinator")[0]
     secret = docker("exec", coordinator, "stat", "-c", "%a %u", "/etc/tcfarm/keys/coordinator.key")
