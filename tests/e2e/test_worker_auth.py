@@ -80,7 +80,8 @@ def wait_for(condition, what, timeout=WAIT_S):
 class RogueWorker(threading.Thread):
     """A DEALER that never traces. It says READY (unless ready=False), answers every TASK it
     is given with ERROR, and with guess=True keeps sending grey RESULTs and ERRORs for task
-    ids it guesses (they are sequential from 1). `curve`: (secret key file, coordinator's
+    ids it guesses (they are sequential from 1), and a grey RESULT for each task it failed,
+    which by then belongs to another worker. `curve`: (secret key file, coordinator's
     public key file), or none for no CURVE at all."""
 
     GUESSED_IDS = 400
@@ -115,6 +116,8 @@ class RogueWorker(threading.Thread):
                     task = msgpack.unpackb(header)
                     self.send(socket, ERROR, {"task_id": task["task_id"], "scene_hash": task["scene_hash"],
                                               "message": "this worker fails every task"})
+                    if self.guess:  # the task now goes to another worker: answer it anyway
+                        self.send_guesses(socket, task["task_id"])
             if self.guess:
                 for _ in range(20):
                     self.send_guesses(socket, guess)
