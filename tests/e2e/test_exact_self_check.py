@@ -13,9 +13,7 @@ import pytest
 import zmq
 
 from farm_harness import LocalFarm, small_scene
-
-WIRE_VERSION = 2
-READY, TASK, RESULT, HEARTBEAT = 1, 2, 3, 6
+from test_asset_fetch import HEARTBEAT, READY, RESULT, TASK, WIRE_VERSION
 SCENE = pathlib.Path(__file__).resolve().parents[1] / "scenes" / "paper_b_twelve_spheres.json"
 
 
