@@ -49,8 +49,8 @@ void SyntheticWorker(zmq::context_t& context, const std::string& endpoint,
 class PlannerSink : public DispatchSink {
  public:
   explicit PlannerSink(SearchPlanner& planner) : planner_(planner) {}
-  void OnResult(uint64_t, uint64_t plannerTaskId, wire::Result&& result, double, const std::string&) override {
-    planner_.OnResult(plannerTaskId, result.rgb.data(), result.rgb.size());
+  void OnResult(const DispatchTask& task, wire::Result&& result, double, const std::string&) override {
+    planner_.OnResult(task.plannerTaskId, result.rgb.data(), result.rgb.size());
     pixels += result.PixelCount();
     ++tasks;
   }

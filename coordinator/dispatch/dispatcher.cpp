@@ -209,6 +209,10 @@ void Dispatcher::ReceiveAll(DispatchSink& sink) {
 void Dispatcher::Handle(const std::string& identity, wire::Message message,
                         DispatchSink& sink) {
   SteadyTime now = clock_.Now();
+  if (distrusted_.count(identity)) {
+    ++counters_.distrustedMessages;  // not even DISCONNECT: it gets nothing from us
+    return;
+  }
   if (auto* ready = std::get_if<wire::Ready>(&message)) {
     Requeue(registry_.OnReady(identity, *ready, now));
     return;
@@ -287,6 +291,12 @@ void Dispatcher::DropWorker(const std::string& identity, const std::string& why)
   Send(identity, wire::Disconnect{});
 }
 
+void Dispatcher::Distrust(const std::string& identity, const std::string& why) {
+  if (!distrusted_.insert(identity).second) return;
+  ++counters_.workersDistrusted;
+  if (registry_.Find(identity)) DropWorker(identity, "it returned wrong values: " + why);
+}
+
 void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
                           DispatchSink& sink) {
   if (!IsHolder(identity, result.taskId)) return;
@@ -300,7 +310,6 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
     return;
   }
   registry_.Release(identity, result.taskId);
-  const DispatchTask& task = entry->second.task;
   if (WorkerState* worker = registry_.Find(identity)) {
     ++worker->tasksDone;
     worker->pixelsDone += result.PixelCount();
@@ -308,10 +317,10 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
   }
   ++counters_.resultsReceived;
   counters_.pixelsReceived += result.PixelCount();
-  uint64_t jobId = task.jobId, plannerTaskId = task.plannerTaskId;
-  double latency = std::chrono::duration<double>(clock_.Now() - entry->second.sentAt).count();
+  const double latency = std::chrono::duration<double>(clock_.Now() - entry->second.sentAt).count();
+  const DispatchTask answered = std::move(entry->second.task);
   tasks_.erase(entry);
-  sink.OnResult(jobId, plannerTaskId, std::move(result), latency, identity);
+  sink.OnResult(answered, std::move(result), latency, identity);
 }
 
 void Dispatcher::OnError(const std::string& identity, const wire::Error& error,

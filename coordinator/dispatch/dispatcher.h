@@ -51,10 +51,11 @@ struct DispatchTask {
 class DispatchSink {
  public:
   virtual ~DispatchSink() = default;
-  // latencySeconds: from sending the task to receiving its result.
-  // worker: the identity that traced it (for checks that must go to someone else).
-  virtual void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
-                        double latencySeconds, const std::string& worker) = 0;
+  // task: the one the result answers. latencySeconds: from sending the task to
+  // receiving its result. worker: the identity that traced it (for checks that must go
+  // to someone else, and for finding who returned wrong values).
+  virtual void OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
+                        const std::string& worker) = 0;
   virtual void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) = 0;
 };
 
@@ -74,6 +75,8 @@ struct DispatcherCounters {
   uint64_t duplicateResults = 0;  // results of tasks no longer outstanding (ignored)
   uint64_t foreignReplies = 0;    // RESULT or ERROR for a task in flight with another worker: dropped
   uint64_t workersDropped = 0;    // forgotten for a malformed RESULT of their own task
+  uint64_t workersDistrusted = 0;  // found returning wrong values: dropped, never taken back
+  uint64_t distrustedMessages = 0;  // messages from them afterwards: dropped
   uint64_t taskErrorsRetried = 0;  // a worker's ERROR: the task went back for a different worker
   uint64_t tasksFailed = 0;       // ERRORs from two different workers: the task failed
   uint64_t refusedKeys = 0;       // CURVE clients whose key is not on the allow-list
@@ -125,6 +128,11 @@ class Dispatcher {
   // Tells every worker the coordinator is leaving; destroying the dispatcher afterwards
   // waits (briefly, bounded) for the goodbyes to leave.
   void SayGoodbye();
+
+  // A worker found returning wrong values (farm/exactness_audit.h): it is dropped, its
+  // tasks go to others, and nothing it sends is heard again, READY included, for the
+  // life of this dispatcher. Its name when known, for messages.
+  void Distrust(const std::string& identity, const std::string& why);
 
   size_t PendingTasks() const;
   size_t InFlightTasks() const { return tasks_.size() - PendingTasks(); }
@@ -180,6 +188,7 @@ class Dispatcher {
   std::unique_ptr<CurveAuthenticator> authenticator_;
   std::string publicKey_;
   zmq::socket_t socket_;
+  std::set<std::string> distrusted_;  // identities never heard again (Distrust)
   WorkerRegistry registry_;
   std::unordered_map<uint64_t, TaskEntry> tasks_;
   std::map<uint64_t, JobQueue> jobs_;

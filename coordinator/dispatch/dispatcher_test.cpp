@@ -22,8 +22,8 @@ const std::string kHash(64, 'a');
 
 class RecordingSink : public DispatchSink {
  public:
-  void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result, double, const std::string&) override {
-    results.push_back({jobId, plannerTaskId, result.PixelCount()});
+  void OnResult(const DispatchTask& task, wire::Result&& result, double, const std::string&) override {
+    results.push_back({task.jobId, task.plannerTaskId, result.PixelCount()});
   }
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override {
     failures.push_back({jobId, plannerTaskId, why});

@@ -84,6 +84,11 @@ WorkerState* WorkerRegistry::Find(const std::string& identity) {
   return it == workers_.end() ? nullptr : &it->second;
 }
 
+const WorkerState* WorkerRegistry::Find(const std::string& identity) const {
+  auto it = workers_.find(identity);
+  return it == workers_.end() ? nullptr : &it->second;
+}
+
 size_t WorkerRegistry::TotalFreeCredit() const {
   size_t credit = 0;
   for (const auto& [identity, worker] : workers_) credit += worker.FreeCredit();

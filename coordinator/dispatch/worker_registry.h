@@ -56,6 +56,7 @@ class WorkerRegistry {
   void Forget(uint64_t taskId);
 
   WorkerState* Find(const std::string& identity);
+  const WorkerState* Find(const std::string& identity) const;
   const std::map<std::string, WorkerState>& workers() const { return workers_; }
   size_t TotalFreeCredit() const;
 

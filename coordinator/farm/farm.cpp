@@ -26,7 +26,8 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       clock_(clock),
       frameStore_(options_.storeRoot),
       assets_(options_.storeRoot / "assets"),
-      dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_, options_.curve) {}
+      dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_, options_.curve),
+      referee_(options_.storeRoot / "assets") {}
 
 Farm::~Farm() = default;
 
@@ -54,6 +55,7 @@ void Farm::Step(Milliseconds pollTimeout) {
   PumpTasks();
   dispatcher_.Flush();
   CollectFrames();
+  DistrustWrongWorkers();
   UpdateMetrics();
   if (clock_.Now() - lastSnapshot_ >= kSnapshotInterval) PublishSnapshot();
 }
@@ -84,7 +86,7 @@ void Farm::StartJob(const JobRecord& record) {
     auto run = std::make_unique<JobRun>(
         record, frameStore_, options_.output,
         static_cast<int>(dispatcher_.registry().workers().size()), options_.pendingFrameBytes,
-        options_.jobMemoryBytes);
+        options_.jobMemoryBytes, &referee_);
     const FrameSize size = run->frameSize();
     dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(size.width),
                        static_cast<uint32_t>(size.height), record.spec.sceneHash,
@@ -129,13 +131,14 @@ void Farm::PumpTasks() {
   }
 }
 
-void Farm::OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
-                    double latencySeconds, const std::string& worker) {
+void Farm::OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
+                    const std::string& worker) {
   metrics_.taskLatency.Observe(latencySeconds);
+  const uint64_t jobId = task.jobId;
   auto run = runs_.find(jobId);
   if (run == runs_.end()) return;
   try {
-    if (!run->second->OnResult(plannerTaskId, result, worker)) return;
+    if (!run->second->OnResult(task, result, worker)) return;
   } catch (const std::invalid_argument& e) {
     // The dispatcher checked sizes; a planner complaint here means values it refuses
     // (non-finite). The pixels are lost, so the job cannot finish correctly.
@@ -172,6 +175,21 @@ void Farm::CollectFrames() {
     if (run->Done()) done.push_back(id);
   }
   for (uint64_t id : done) FinishJob(id);
+}
+
+void Farm::DistrustWrongWorkers() {
+  std::vector<ExactnessAudit::Verdict> verdicts;
+  for (auto& [id, run] : runs_) {
+    for (ExactnessAudit::Verdict& verdict : run->TakeVerdicts()) verdicts.push_back(std::move(verdict));
+  }
+  for (const ExactnessAudit::Verdict& verdict : verdicts) {
+    const WorkerState* worker = dispatcher_.registry().Find(verdict.worker);
+    const std::string name = worker ? worker->name : "a worker no longer connected";
+    std::fprintf(stderr, "coordinator: distrusted worker %s: %s; the frames its values reached are traced again\n",
+                 name.c_str(), verdict.why.c_str());
+    dispatcher_.Distrust(verdict.worker, verdict.why);
+    for (auto& [id, run] : runs_) run->OnWorkerDistrusted(verdict.worker, name);
+  }
 }
 
 void Farm::FinishJob(uint64_t jobId) {
@@ -254,6 +272,10 @@ void Farm::CountError(const nlohmann::json& error) {
     metrics_.suspectJobs.Increment();
     metrics_.suspectPixels.Increment(error["suspect"].value("pixels_disagreeing", 0.0));
   }
+  if (error.contains("audit")) {
+    metrics_.framesRewritten.Increment(error["audit"].value("frames_rewritten", 0.0));
+    metrics_.pixelsRewritten.Increment(error["audit"].value("pixels_rewritten", 0.0));
+  }
 }
 
 void Farm::FailJob(uint64_t jobId, const std::string& why) {
@@ -279,6 +301,8 @@ void Farm::UpdateMetrics() {
   metrics_.messagesMalformed.Increment(static_cast<double>(c.malformed - lastCounters_.malformed));
   metrics_.foreignReplies.Increment(static_cast<double>(c.foreignReplies - lastCounters_.foreignReplies));
   metrics_.workersDropped.Increment(static_cast<double>(c.workersDropped - lastCounters_.workersDropped));
+  metrics_.workersDistrusted.Increment(
+      static_cast<double>(c.workersDistrusted - lastCounters_.workersDistrusted));
   metrics_.taskErrorsRetried.Increment(static_cast<double>(c.taskErrorsRetried - lastCounters_.taskErrorsRetried));
   metrics_.workersRefusedKey.Increment(static_cast<double>(c.refusedKeys - lastCounters_.refusedKeys));
   metrics_.workersRefusedHandshake.Increment(

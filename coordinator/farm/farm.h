@@ -25,6 +25,7 @@
 #include "farm/farm_control.h"
 #include "farm/farm_metrics.h"
 #include "farm/job_run.h"
+#include "farm/referee.h"
 #include "jobs/job_store.h"
 #include "store/asset_store.h"
 
@@ -70,8 +71,8 @@ class Farm : public FarmControl, private DispatchSink {
   FarmSnapshot Snapshot() const override;
 
  private:
-  void OnResult(uint64_t jobId, uint64_t plannerTaskId, wire::Result&& result,
-                double latencySeconds, const std::string& worker) override;
+  void OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
+                const std::string& worker) override;
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override;
 
   void ClaimJobs();
@@ -79,6 +80,9 @@ class Farm : public FarmControl, private DispatchSink {
   void ApplyCancellations();
   void PumpTasks();
   void CollectFrames();
+  // Workers the jobs' referee verdicts found returning wrong values: dropped for good,
+  // and every running job repairs the frames their values reached.
+  void DistrustWrongWorkers();
   void FinishJob(uint64_t jobId);
   void FailJob(uint64_t jobId, const std::string& why);
   // A job done rendering (completed, or failed with `why`) whose records are still owed.
@@ -116,6 +120,7 @@ class Farm : public FarmControl, private DispatchSink {
   StoredAssets assets_;
   FarmMetrics metrics_;
   Dispatcher dispatcher_;
+  TracingReferee referee_;  // settles disputes of jobs that promise exactness
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;
   std::map<uint64_t, ClosingJob> closing_;
   bool interruptedRequeued_ = false;  // RequeueInterrupted went through (before any claim)

@@ -73,6 +73,14 @@ FarmMetrics::FarmMetrics()
                              "checks found pixels that disagree: a bug or a worker returning wrong values")),
       suspectPixels(NewCounter(*registry, "tcfarm_suspect_pixels_total",
                                "Pixels of such jobs that checks found disagreeing")),
+      workersDistrusted(NewCounter(*registry, "tcfarm_workers_distrusted_total",
+                                   "Workers the coordinator's own trace of a disputed check showed returning "
+                                   "wrong values: dropped and never heard again")),
+      framesRewritten(NewCounter(*registry, "tcfarm_frames_rewritten_total",
+                                 "Frames their values reached, traced again by another worker and rewritten "
+                                 "because they differed (finished jobs)")),
+      pixelsRewritten(NewCounter(*registry, "tcfarm_pixels_rewritten_total",
+                                 "Pixels those rewrites changed (finished jobs)")),
       jobStoreWritesRefused(NewCounter(*registry, "tcfarm_job_store_writes_refused_total",
                                        "Writes of the farm loop the job database refused (disk full or "
                                        "failing); each is retried until it succeeds")),

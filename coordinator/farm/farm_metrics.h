@@ -41,6 +41,9 @@ struct FarmMetrics {
   prometheus::Counter& verifiedPixelsDiffering;
   prometheus::Counter& suspectJobs;  // jobs promising exactness whose checks disagreed
   prometheus::Counter& suspectPixels;
+  prometheus::Counter& workersDistrusted;  // found returning wrong values by the referee
+  prometheus::Counter& framesRewritten;    // traced again because of them, and different
+  prometheus::Counter& pixelsRewritten;
   prometheus::Counter& jobStoreWritesRefused;  // the farm loop's, retried later
   prometheus::Histogram& taskLatency;
   prometheus::Gauge& queueDepth;      // tasks waiting for a worker

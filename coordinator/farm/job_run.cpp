@@ -1,6 +1,8 @@
 #include "farm/job_run.h"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstring>
 #include <stdexcept>
 #include <system_error>
 
@@ -150,7 +152,7 @@ PlannerOptions WithKeptFrames(PlannerOptions options, const KeptFrames& kept) {
 }  // namespace
 
 JobRun::JobRun(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output, int workers,
-               size_t pendingFrameBytes, uint64_t jobMemoryBytes)
+               size_t pendingFrameBytes, uint64_t jobMemoryBytes, Referee* referee)
     : id_(record.id),
       spec_(record.spec),
       frameStore_(store),
@@ -160,6 +162,8 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const FrameWrit
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
+      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), referee),
+      written_(kept_.kept),
       writer_(CreatedDirectory(store.JobFolder(record.id)), output),
       coherence_(spec_.frameSize.width, spec_.frameSize.height, store.SpillFolder(record.id), pendingFrameBytes),
       cost_(PixelsPerFrame(), FrameCountOf(spec_)),
@@ -180,26 +184,71 @@ std::vector<DispatchTask> JobRun::TakeTasks() {
   for (TraceTask& t : writerBehind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
     tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}});
   }
+  // Checks go to a worker other than the ones whose values they check, so that a worker
+  // that returns wrong values never checks itself.
   for (Verification::Request& r : verification_.TakeRequests()) {
     tasks.push_back({id_, r.id | kVerificationTask, spec_.firstFrame + r.frame, std::move(r.pixels), 0,
-                     tracersOfFrame_[r.frame]});
+                     audit_.WorkersOf(r.frame)});
+  }
+  for (int frame : audit_.TakeFramesToRepair([this](int f) { return written_[static_cast<size_t>(f)]; })) {
+    tasks.push_back({id_, kRepairTask | static_cast<uint64_t>(frame), spec_.firstFrame + frame,
+                     PixelSet::Full(static_cast<uint32_t>(PixelsPerFrame())), 0, audit_.Distrusted()});
   }
   return tasks;
 }
 
-bool JobRun::OnResult(uint64_t taskId, const wire::Result& result, const std::string& worker) {
-  return (taskId & kVerificationTask) ? OnVerificationResult(taskId & ~kVerificationTask, result)
-                                      : OnPlannerResult(taskId, result, worker);
+bool JobRun::OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
+  if (task.plannerTaskId & kVerificationTask) {
+    return OnVerificationResult(task.plannerTaskId & ~kVerificationTask, result, worker);
+  }
+  if (task.plannerTaskId & kRepairTask) return OnRepairResult(task, result, worker);
+  return OnPlannerResult(task, result, worker);
 }
 
-bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result) {
+bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result, const std::string& worker) {
   const bool reference = verification_.IsReference(taskId);
-  if (!verification_.OnResult(taskId, result.rgb.data(), result.rgb.size())) return false;
+  if (!verification_.OnResult(taskId, result.rgb.data(), result.rgb.size(), worker)) return false;
   cost_.OnVerificationResult(result, reference);
   return true;
 }
 
-bool JobRun::OnPlannerResult(uint64_t taskId, const wire::Result& result, const std::string& worker) {
+bool JobRun::OnRepairResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
+  const int frame = static_cast<int>(task.plannerTaskId & ~kRepairTask);
+  const int absolute = spec_.firstFrame + frame;
+  Image written = ReadImage(frameStore_.FramePath(id_, absolute, "exr"));
+  if (written.rgb.size() != result.rgb.size()) {
+    throw FrameIoError("frame " + std::to_string(absolute) + " to repair is " + std::to_string(written.width) + "x" +
+                       std::to_string(written.height) + " on disk");
+  }
+  uint64_t changed = 0;
+  for (size_t i = 0; i < result.rgb.size(); i += 3) {
+    changed += std::memcmp(&written.rgb[i], &result.rgb[i], 3 * sizeof(float)) != 0;
+  }
+  if (changed > 0) {
+    std::fprintf(stderr, "coordinator: job %llu: frame %d traced again: %llu pixels differed; rewritten\n",
+                 static_cast<unsigned long long>(id_), absolute, static_cast<unsigned long long>(changed));
+    writer_.Write(absolute, Image{spec_.frameSize.width, spec_.frameSize.height, result.rgb});
+  }
+  audit_.OnRepaired(frame, worker, task.pixels, changed);
+  return true;
+}
+
+std::vector<ExactnessAudit::Verdict> JobRun::TakeVerdicts() {
+  std::vector<ExactnessAudit::Verdict> verdicts;
+  verdicts.swap(verdicts_);
+  return verdicts;
+}
+
+void JobRun::Audit(const JobStore& store) {
+  audit_.Open(verification_.TakeDisputes(), [&] {
+    std::optional<JobRecord> record = store.Get(id_);
+    return ExactnessAudit::SceneRef{spec_.sceneHash, record ? record->spec.sceneJson : std::string()};
+  });
+  for (ExactnessAudit::Verdict& verdict : audit_.HearReferee()) verdicts_.push_back(std::move(verdict));
+}
+
+bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
+  const uint64_t taskId = task.plannerTaskId;
   // Workers speak absolute frames; the planner counts from the job's first frame.
   std::vector<int32_t> horizons(result.horizons);
   for (int32_t& h : horizons) h -= spec_.firstFrame;
@@ -208,7 +257,10 @@ bool JobRun::OnPlannerResult(uint64_t taskId, const wire::Result& result, const 
     return false;
   }
   cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
-  tracersOfFrame_[result.frame - spec_.firstFrame].insert(worker);
+  // Only a job that promises exactness traces wrong values back to their worker; the
+  // others need just who traced a frame (its checks avoid them).
+  const bool exact = resolved_.strategy == Strategy::kExact || resolved_.strategy == Strategy::kBrute;
+  audit_.OnTraced(result.frame - spec_.firstFrame, worker, exact ? task.pixels : PixelSet(), task.window);
   return true;
 }
 
@@ -235,11 +287,13 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
   }
   RecordWrittenFrames(store);
   if (std::optional<std::string> failure = WriteFailure()) throw FrameIoError(*failure);
+  Audit(store);
   return collected;
 }
 
 bool JobRun::RecordWrittenFrames(JobStore& store) {
   for (int frame : writer_.TakeWritten()) {
+    written_[static_cast<size_t>(frame - spec_.firstFrame)] = true;
     const auto traced = writing_.find(frame);
     if (traced == writing_.end()) continue;  // never ours to record (none such today)
     unrecorded_.push_back({frame, traced->second});
@@ -382,6 +436,7 @@ nlohmann::json JobRun::Stats(bool final) const {
   const SequenceAnalyzer& coherence = coherence_.analysis();
   cost_.AddTo(stats, resolved_.strategy, BinWidth(), coherence.frameToFrame());
   stats["error"] = verification_.Report();
+  if (nlohmann::json audit = audit_.Report(); !audit.is_null()) stats["error"]["audit"] = audit;
   const RunningStats& f2f = coherence.frameToFrame();
   const RunningStats& longTerm = coherence.longTerm();
   if (f2f.count > 0) {

@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "dispatch/dispatcher.h"
+#include "farm/exactness_audit.h"
 #include "farm/job_coherence.h"
 #include "farm/job_cost.h"
 #include "farm/verification.h"
@@ -63,17 +64,29 @@ class JobRun {
   // they wait on disk (PendingFrames).
   // jobMemoryBytes: the coordinator's memory for this job's frames (0: no limit); the
   // planner works on as many bins at once as fit in it.
+  // referee: settles the disputes of a job that promises exactness (ExactnessAudit);
+  // none leaves them unsettled.
   JobRun(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output = {}, int workers = 1,
-         size_t pendingFrameBytes = kDefaultPendingFrameBytes, uint64_t jobMemoryBytes = 0);
+         size_t pendingFrameBytes = kDefaultPendingFrameBytes, uint64_t jobMemoryBytes = 0,
+         Referee* referee = nullptr);
   static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
 
   uint64_t id() const { return id_; }
   FrameSize frameSize() const { return spec_.frameSize; }
 
   std::vector<DispatchTask> TakeTasks();
-  // Feeds a result to the planner or the verification. False when it had it already.
-  // worker: who traced it; checks of a frame then go to someone else where possible.
-  bool OnResult(uint64_t taskId, const wire::Result& result, const std::string& worker);
+  // Feeds a result to the planner, the verification or a repair. False when it had it
+  // already. worker: who traced it; checks of a frame then go to someone else where
+  // possible, and a worker found returning wrong values is traced back through it.
+  bool OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
+  // Workers this job's disputes showed returning wrong values, since the last call. The
+  // farm distrusts them and tells every job (OnWorkerDistrusted).
+  std::vector<ExactnessAudit::Verdict> TakeVerdicts();
+  // A worker found returning wrong values: frames its values reached are traced again
+  // and rewritten where they differ. name: how the job record names it.
+  void OnWorkerDistrusted(const std::string& worker, const std::string& name) {
+    audit_.OnWorkerDistrusted(worker, name);
+  }
   // Hands finished frames to the writer and the verification, and records in the job
   // store the frames the writer has put in place (a frame is recorded only once its files
   // are there); returns how many frames it handed on. Never waits for the writer: frames
@@ -82,8 +95,8 @@ class JobRun {
   // the first frame that could not be written, once what was written is recorded.
   int CollectFinishedFrames(JobStore& store);
   bool Done() const {
-    return planner_->Done() && !verification_.Pending() && unwritten_.empty() && writer_.Idle() &&
-           writing_.empty() && !RecordsOwed();
+    return planner_->Done() && !verification_.Pending() && !audit_.Pending() && unwritten_.empty() &&
+           writer_.Idle() && writing_.empty() && !RecordsOwed();
   }
   // Records what the writer has put in place since the last call, and what is owed from
   // before (the plan, frames to forget); false, keeping them owed, while the job store
@@ -112,13 +125,19 @@ class JobRun {
   PixelTally TakeUnreportedPixels();
 
  private:
-  // Task ids of verification requests carry this bit; planner ids never reach it.
+  // Task ids of verification requests and of repairs carry these bits; planner ids never
+  // reach them. A repair's id is the bit and its frame.
   static constexpr uint64_t kVerificationTask = uint64_t{1} << 62;
+  static constexpr uint64_t kRepairTask = uint64_t{1} << 61;
   // How long one CollectFinishedFrames call may spend on frames.
   static constexpr std::chrono::milliseconds kFinishingTurn{20};
 
-  bool OnPlannerResult(uint64_t taskId, const wire::Result& result, const std::string& worker);
-  bool OnVerificationResult(uint64_t taskId, const wire::Result& result);
+  bool OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
+  bool OnVerificationResult(uint64_t taskId, const wire::Result& result, const std::string& worker);
+  // A frame traced again in full: rewritten where it differs from what was written.
+  bool OnRepairResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
+  // Disputes to the referee, its verdicts back.
+  void Audit(const JobStore& store);
   // Checks the frame, writes it and its masks, and feeds it to the coherence.
   void FinishFrame(FinishedFrame frame);
   // Kept frames whose turn in the coherence analysis has come, read back from the store,
@@ -141,6 +160,10 @@ class JobRun {
   std::unique_ptr<Planner> planner_;
   PixelTally reported_;
   Verification verification_;
+  ExactnessAudit audit_;
+  std::vector<ExactnessAudit::Verdict> verdicts_;
+  // By frame (the job's): whether its files are written, so a repair may replace them.
+  std::vector<bool> written_;
   FrameWriter writer_;
   std::deque<FinishedFrame> unwritten_;  // taken from the planner, not yet written
   JobCoherence coherence_;
@@ -155,9 +178,6 @@ class JobRun {
     uint64_t traced = 0;
   };
   std::map<int, uint64_t> writing_;
-  // By frame (the job's): the workers that traced its pixels. Its spot checks and its
-  // reference avoid them, so that a worker that returns wrong values never checks itself.
-  std::map<int, std::set<std::string>> tracersOfFrame_;
   std::deque<FrameRecord> unrecorded_;
   std::optional<nlohmann::json> planToSave_;  // saved before any frame is recorded
   bool chosenWidthPlanned_ = false;           // auto's survey result is in the plan

@@ -88,7 +88,7 @@ void Verification::ScheduleSpotCheck(int frame, const std::vector<float>& rgb,
   if (chosen.empty()) return;
   std::sort(chosen.begin(), chosen.end());
   chosen.erase(std::unique(chosen.begin(), chosen.end()), chosen.end());
-  SpotCheck check{frame, {}};
+  SpotCheck check{frame, chosen, {}};
   for (uint32_t p : chosen) check.copied.insert(check.copied.end(), &rgb[3 * p], &rgb[3 * p + 3]);
   uint64_t id = Issue(frame, PixelSet::FromSortedIndices(chosen));
   spotChecks_[id] = std::move(check);
@@ -105,20 +105,46 @@ std::vector<Verification::Request> Verification::TakeRequests() {
   return requests;
 }
 
-bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount) {
+namespace {
+
+bool SamePixel(const float* a, const float* b) { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
+
+// The pixels (of `count`, 3 floats each in `job` and `check`) whose values differ, and
+// a dispute over an evenly spread sample of at most kMaxDisputedPixels of them.
+// `indexOf` maps a position to its pixel index.
+template <typename IndexOf>
+std::pair<uint64_t, Dispute> Disagreements(int frame, size_t count, const float* job, const float* check,
+                                           IndexOf indexOf, const std::string& checker) {
+  std::vector<size_t> differing;
+  for (size_t i = 0; i < count; ++i) {
+    if (!SamePixel(&job[3 * i], &check[3 * i])) differing.push_back(i);
+  }
+  Dispute dispute{frame, checker, {}, {}, {}};
+  const size_t step = std::max<size_t>(1, (differing.size() + kMaxDisputedPixels - 1) / kMaxDisputedPixels);
+  for (size_t k = 0; k < differing.size(); k += step) {
+    const size_t i = differing[k];
+    dispute.pixels.push_back(indexOf(i));
+    dispute.jobValues.insert(dispute.jobValues.end(), &job[3 * i], &job[3 * i + 3]);
+    dispute.checkerValues.insert(dispute.checkerValues.end(), &check[3 * i], &check[3 * i + 3]);
+  }
+  return {differing.size(), std::move(dispute)};
+}
+
+}  // namespace
+
+bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount, const std::string& checker) {
   auto outstanding = outstanding_.find(id);
   if (outstanding == outstanding_.end()) return false;
   const int frame = outstanding->second;
   outstanding_.erase(outstanding);
   if (auto check = spotChecks_.find(id); check != spotChecks_.end()) {
-    if (floatCount != check->second.copied.size()) throw std::invalid_argument("spot check size");
-    uint64_t mismatched = 0;
-    for (size_t i = 0; i < floatCount; i += 3) {
-      ++checkedPixels_;
-      mismatched += std::memcmp(&rgb[i], &check->second.copied[i], 3 * sizeof(float)) != 0;
-    }
+    const SpotCheck& spot = check->second;
+    if (floatCount != spot.copied.size()) throw std::invalid_argument("spot check size");
+    auto [mismatched, dispute] = Disagreements(
+        spot.frame, floatCount / 3, spot.copied.data(), rgb, [&](size_t i) { return spot.pixels[i]; }, checker);
+    checkedPixels_ += floatCount / 3;
     mismatchedPixels_ += mismatched;
-    if (mismatched > 0) NoteDisagreement(check->second.frame, mismatched);
+    if (mismatched > 0) NoteDisagreement(spot.frame, mismatched, std::move(dispute));
     spotChecks_.erase(check);
     return true;
   }
@@ -126,7 +152,12 @@ bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount) {
   if (job == jobFramesAwaitingReference_.end()) return false;
   Image reference{width_, height_, std::vector<float>(rgb, rgb + floatCount)};
   const FrameError frameError = CompareImages(reference, job->second);
-  if (frameError.differingPixels > 0) NoteDisagreement(frame, frameError.differingPixels);
+  if (frameError.differingPixels > 0) {
+    auto [differing, dispute] = Disagreements(
+        frame, floatCount / 3, job->second.rgb.data(), rgb, [](size_t i) { return static_cast<uint32_t>(i); },
+        checker);
+    NoteDisagreement(frame, differing, std::move(dispute));
+  }
   reference_ += frameError;
   ssimSum_ += Ssim(reference, job->second);
   ++referenceFramesDone_;
@@ -134,13 +165,22 @@ bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount) {
   return true;
 }
 
-void Verification::NoteDisagreement(int frame, uint64_t pixels) {
+void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute) {
   const bool first = suspectFrames_.empty();
   suspectFrames_[frame] += pixels;
-  if (!options_.promisesExact || !first) return;
+  if (!options_.promisesExact) return;
+  disputes_.push_back(std::move(dispute));
+  if (!first) return;
   std::fprintf(stderr, "coordinator: a check found %llu pixels of frame %d that disagree with the job's, which "
-               "promises none: a bug or a worker returning wrong values; the job is marked suspect\n",
+               "promises none: a bug or a worker returning wrong values; the job is marked suspect and the "
+               "coordinator traces the disputed pixels itself to settle who is wrong\n",
                static_cast<unsigned long long>(pixels), frame);
+}
+
+std::vector<Dispute> Verification::TakeDisputes() {
+  std::vector<Dispute> disputes;
+  disputes.swap(disputes_);
+  return disputes;
 }
 
 nlohmann::json Verification::Report() const {

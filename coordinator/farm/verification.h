@@ -14,10 +14,12 @@
 #include <cstdint>
 #include <map>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "farm/dispute.h"
 #include "frame/compare.h"
 #include "frame/frame_io.h"
 #include "pixel_set/pixel_set.h"
@@ -56,7 +58,10 @@ class Verification {
                        const std::vector<uint8_t>& traced);
   std::vector<Request> TakeRequests();
   // Returns false for an id this verification did not issue (or already answered).
-  bool OnResult(uint64_t id, const float* rgb, size_t floatCount);
+  // checker: the worker that traced it, named in the dispute a disagreement raises.
+  bool OnResult(uint64_t id, const float* rgb, size_t floatCount, const std::string& checker = "");
+  // Disagreements found since the last call, for a job that promises exactness.
+  std::vector<Dispute> TakeDisputes();
   // Whether an outstanding request traces part of a reference frame (not a spot check).
   bool IsReference(uint64_t id) const { return outstanding_.count(id) > 0 && spotChecks_.count(id) == 0; }
   bool Pending() const { return !outstanding_.empty() || !ready_.empty(); }
@@ -69,14 +74,16 @@ class Verification {
  private:
   struct SpotCheck {
     int frame;
-    std::vector<float> copied;  // the values the job copied, in pixel-set order
+    std::vector<uint32_t> pixels;
+    std::vector<float> copied;  // the values the job copied, in pixels' order
   };
   void ScheduleSpotCheck(int frame, const std::vector<float>& rgb,
                          const std::vector<uint8_t>& traced);
   void ScheduleReference(int frame, const std::vector<float>& rgb);
   uint64_t Issue(int frame, PixelSet pixels);
-  // A check of `frame` found `pixels` that disagree with the job's values.
-  void NoteDisagreement(int frame, uint64_t pixels);
+  // A check of `frame` found `pixels` that disagree with the job's values; `dispute`
+  // holds a sample of them.
+  void NoteDisagreement(int frame, uint64_t pixels, Dispute dispute);
 
   int width_, height_, frameCount_;
   VerificationOptions options_;
@@ -95,6 +102,7 @@ class Verification {
   double ssimSum_ = 0;
   int referenceFramesDone_ = 0;
   std::map<int, uint64_t> suspectFrames_;  // frame -> pixels a check disagreed on
+  std::vector<Dispute> disputes_;
 };
 
 }  // namespace tcfarm

@@ -1,0 +1,98 @@
+// What a job that promises exactness does when its own checks disagree with it.
+//
+// 1. The disagreement becomes a dispute (farm/dispute.h), which the coordinator's
+//    referee settles by tracing the disputed pixels itself (farm/referee.h).
+// 2. Whoever returned bits that are not the truth is distrusted: the checker, and the
+//    workers that traced the wrong values the job shows (found through the ledger, even
+//    when the job shows a copy). The farm then drops them and gives them no more tasks.
+// 3. Every frame a distrusted worker's values can have reached (TracerLedger) is traced
+//    again in full by another worker and rewritten where it differs. A job keeps its
+//    promise even when a worker lied, as long as one honest worker remains.
+//
+// The job is marked suspect all the same (Verification reports it): a disagreement
+// means a bug or a bad worker, and a person should look. Owned by the job's run; not
+// thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "farm/dispute.h"
+#include "farm/referee.h"
+#include "farm/tracer_ledger.h"
+
+namespace tcfarm {
+
+class ExactnessAudit {
+ public:
+  // referee: null leaves disputes unsettled (reported as such), as in unit tests of the
+  // parts around it. firstFrame: the job's first frame in the scene's numbering.
+  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee);
+
+  // The job's values: which worker traced which pixels.
+  void OnTraced(int frame, const std::string& worker, const PixelSet& pixels, int window) {
+    ledger_.Record(frame, worker, pixels, window);
+  }
+  std::set<std::string> WorkersOf(int frame) const { return ledger_.WorkersOf(frame); }
+
+  struct SceneRef {
+    std::string hash;
+    std::string json;
+  };
+  // Sends disputes to the referee; scene() is called once, the first time one is sent.
+  void Open(std::vector<Dispute> disputes, const std::function<SceneRef()>& scene);
+
+  struct Verdict {
+    std::string worker;
+    std::string why;
+  };
+  // The referee's answers so far: the workers they show returned wrong values, each
+  // named once per job.
+  std::vector<Verdict> HearReferee();
+
+  // A worker found wrong, by this job or another: the frames its values reached are owed
+  // a repair. `name`: how the job record names it.
+  void OnWorkerDistrusted(const std::string& worker, const std::string& name);
+  // Frames owed a repair whose files are written (`written` says), now in repair.
+  std::vector<int> TakeFramesToRepair(const std::function<bool(int frame)>& written);
+  // A repair of `frame` by `worker` came back; `changed` of its pixels differed from
+  // what was written (and are now rewritten).
+  void OnRepaired(int frame, const std::string& worker, const PixelSet& pixels, uint64_t changed);
+
+  // Disputes at the referee or repairs owed: the job is not done.
+  bool Pending() const { return !openDisputes_.empty() || !owedRepairs_.empty() || !repairing_.empty(); }
+  const std::set<std::string>& Distrusted() const { return distrusted_; }
+  // What was settled and repaired; null while nothing was disputed.
+  nlohmann::json Report() const;
+
+ private:
+  void Distrust(const std::string& worker, const std::string& why, std::vector<Verdict>& verdicts);
+  void Rule(const Dispute& dispute, const Referee::Answer& answer, std::vector<Verdict>& verdicts);
+
+  uint64_t jobId_;
+  int firstFrame_, frameCount_;
+  Referee* referee_;
+  TracerLedger ledger_;
+  bool sceneKnown_ = false;
+  SceneRef scene_;
+  uint64_t nextDispute_ = 1;
+  std::map<uint64_t, Dispute> openDisputes_;
+  std::set<std::string> distrusted_;     // found wrong by this job's disputes, or told
+  std::vector<std::string> distrustedNames_;
+  std::set<int> owedRepairs_, repairing_, repaired_;
+  // Figures for the report
+  int disputesSettled_ = 0;
+  int checksWrong_ = 0;  // disputes where the checker's values were not the truth
+  int jobWrong_ = 0;     // disputes where the job's values were not the truth
+  std::vector<std::string> unsettled_;  // why the referee could not answer
+  int framesRewritten_ = 0;
+  uint64_t pixelsRewritten_ = 0;
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,163 @@
+// Disputes settled by a referee, workers traced back through the ledger, frames repaired.
+// The referee here is a stand-in that answers from a table of true values: the tracing
+// one is tested in referee_test.cpp.
+#include "farm/exactness_audit.h"
+
+#include <gtest/gtest.h>
+
+namespace tcfarm {
+namespace {
+
+constexpr int kFrames = 10;
+
+// Answers every question with `truth` for every channel, or with `error`.
+class TableReferee : public Referee {
+ public:
+  void Ask(Question question) override { questions.push_back(std::move(question)); }
+  std::vector<Answer> TakeAnswers(uint64_t jobId) override {
+    std::vector<Answer> answers;
+    for (const Question& q : questions) {
+      if (q.jobId != jobId) continue;
+      Answer answer{q.id, {}, error};
+      if (error.empty()) answer.rgb.assign(3 * q.pixels.size(), truth);
+      answers.push_back(std::move(answer));
+    }
+    questions.clear();
+    return answers;
+  }
+  std::vector<Question> questions;
+  float truth = 1.0f;
+  std::string error;
+};
+
+Dispute DisputeOver(int frame, std::vector<uint32_t> pixels, float job, float check) {
+  Dispute d{frame, "checker", std::move(pixels), {}, {}};
+  d.jobValues.assign(3 * d.pixels.size(), job);
+  d.checkerValues.assign(3 * d.pixels.size(), check);
+  return d;
+}
+
+ExactnessAudit::SceneRef Scene() { return {std::string(64, 'c'), "{}"}; }
+
+std::vector<int> Repairs(ExactnessAudit& audit) {
+  return audit.TakeFramesToRepair([](int) { return true; });
+}
+
+TEST(SettleTest, TheTruthSaysWhichSideIsWrong) {
+  EXPECT_TRUE(Settle(DisputeOver(0, {4, 9}, 1, 2), std::vector<float>(6, 1.0f)).checkerWrong);
+  EXPECT_TRUE(Settle(DisputeOver(0, {4, 9}, 1, 2), std::vector<float>(6, 1.0f)).jobWrong.empty());
+  const Ruling jobWrong = Settle(DisputeOver(0, {4, 9}, 3, 2), std::vector<float>(6, 2.0f));
+  EXPECT_FALSE(jobWrong.checkerWrong);
+  EXPECT_EQ(jobWrong.jobWrong, (std::vector<uint32_t>{4, 9}));
+  const Ruling both = Settle(DisputeOver(0, {4}, 3, 2), std::vector<float>(3, 1.0f));
+  EXPECT_TRUE(both.checkerWrong);
+  EXPECT_EQ(both.jobWrong.size(), 1u);
+  EXPECT_THROW(Settle(DisputeOver(0, {4}, 3, 2), std::vector<float>(2, 1.0f)), std::invalid_argument);
+}
+
+// -0 and +0 compare equal as numbers but not as bits: exactness is about bits.
+TEST(SettleTest, BitsNotNumbers) {
+  Dispute d = DisputeOver(0, {1}, 0.0f, 0.0f);
+  d.jobValues[0] = -0.0f;
+  EXPECT_EQ(Settle(d, std::vector<float>(3, 0.0f)).jobWrong.size(), 1u);
+}
+
+TEST(TracerLedgerTest, FindsWhoTracedTheValueAFrameShows) {
+  TracerLedger ledger;
+  ledger.Record(2, "a", PixelSet::FromSortedIndices({5, 6}), 3);
+  ledger.Record(3, "b", PixelSet::FromSortedIndices({6}), 3);
+  EXPECT_EQ(ledger.SourceOf(4, 5)->worker, "a");  // copied from frame 2
+  EXPECT_EQ(ledger.SourceOf(4, 5)->frame, 2);
+  EXPECT_EQ(ledger.SourceOf(4, 6)->worker, "b");  // traced again in frame 3
+  EXPECT_EQ(ledger.SourceOf(2, 6)->worker, "a");
+  EXPECT_FALSE(ledger.SourceOf(1, 5));            // never traced at or before frame 1
+  EXPECT_FALSE(ledger.SourceOf(4, 7));
+  EXPECT_EQ(ledger.WorkersOf(3), (std::set<std::string>{"b"}));
+}
+
+TEST(TracerLedgerTest, AWorkersValuesReachItsFramesAndTheirWindows) {
+  TracerLedger ledger;
+  ledger.Record(2, "a", PixelSet::Full(4), 2);
+  ledger.Record(8, "a", PixelSet::Full(4), 3);
+  ledger.Record(5, "b", PixelSet::Full(4), 0);
+  EXPECT_EQ(ledger.FramesReachedBy("a", kFrames), (std::set<int>{2, 3, 4, 8, 9}));
+  EXPECT_EQ(ledger.FramesReachedBy("b", kFrames), (std::set<int>{5}));
+  EXPECT_TRUE(ledger.FramesReachedBy("c", kFrames).empty());
+}
+
+// The job shows a copy of a value the liar traced two frames before: the liar is named,
+// and once the farm distrusts it, the frames its values reached are repaired.
+TEST(ExactnessAuditTest, AWrongCopyIsTracedBackToItsWorker) {
+  TableReferee referee;
+  ExactnessAudit audit(7, 100, kFrames, &referee);
+  audit.OnTraced(3, "liar", PixelSet::FromSortedIndices({10, 11}), 2);
+  audit.OnTraced(5, "honest", PixelSet::FromSortedIndices({12}), 2);
+  audit.Open({DisputeOver(5, {10}, 0.5f, 1.0f)}, Scene);
+  ASSERT_EQ(referee.questions.size(), 1u);
+  EXPECT_EQ(referee.questions[0].frame, 105);  // the scene's numbering
+  const std::vector<ExactnessAudit::Verdict> verdicts = audit.HearReferee();
+  ASSERT_EQ(verdicts.size(), 1u);
+  EXPECT_EQ(verdicts[0].worker, "liar");
+  EXPECT_NE(verdicts[0].why.find("frame 103"), std::string::npos) << verdicts[0].why;
+  EXPECT_TRUE(audit.Pending());  // frame 5 shows a wrong value: owed a repair
+  audit.OnWorkerDistrusted("liar", "liar's name");
+  EXPECT_EQ(Repairs(audit), (std::vector<int>{3, 4, 5}));
+  audit.OnRepaired(3, "honest", PixelSet::Full(16), 0);
+  audit.OnRepaired(4, "honest", PixelSet::Full(16), 2);
+  audit.OnRepaired(5, "honest", PixelSet::Full(16), 1);
+  EXPECT_FALSE(audit.Pending());
+  const nlohmann::json report = audit.Report();
+  EXPECT_EQ(report["workers_distrusted"], nlohmann::json::array({"liar's name"}));
+  EXPECT_EQ(report["job_values_wrong"], 1);
+  EXPECT_EQ(report["checks_wrong"], 0);
+  EXPECT_EQ(report["frames_retraced"], 3);
+  EXPECT_EQ(report["frames_rewritten"], 2);
+  EXPECT_EQ(report["pixels_rewritten"], 3);
+}
+
+TEST(ExactnessAuditTest, ALyingCheckerIsNamedAndTheJobKeepsItsValues) {
+  TableReferee referee;
+  ExactnessAudit audit(7, 0, kFrames, &referee);
+  audit.OnTraced(1, "honest", PixelSet::Full(16), 3);
+  audit.Open({DisputeOver(2, {3, 4}, 1.0f, 0.5f)}, Scene);
+  const std::vector<ExactnessAudit::Verdict> verdicts = audit.HearReferee();
+  ASSERT_EQ(verdicts.size(), 1u);
+  EXPECT_EQ(verdicts[0].worker, "checker");
+  EXPECT_FALSE(audit.Pending());  // nothing of the job is wrong
+  audit.OnWorkerDistrusted("checker", "checker");
+  EXPECT_TRUE(Repairs(audit).empty());  // it traced none of the job's values
+  EXPECT_EQ(audit.Report()["checks_wrong"], 1);
+}
+
+TEST(ExactnessAuditTest, RepairsWaitForTheFrameToBeWrittenAndARepairerFoundWrongRepairsAgain) {
+  TableReferee referee;
+  ExactnessAudit audit(7, 0, kFrames, &referee);
+  audit.OnTraced(6, "liar", PixelSet::Full(16), 0);
+  audit.OnWorkerDistrusted("liar", "liar");
+  EXPECT_TRUE(audit.TakeFramesToRepair([](int) { return false; }).empty());
+  EXPECT_TRUE(audit.Pending());
+  EXPECT_EQ(Repairs(audit), std::vector<int>{6});
+  EXPECT_TRUE(Repairs(audit).empty());  // in repair already
+  audit.OnRepaired(6, "second", PixelSet::Full(16), 16);
+  audit.OnWorkerDistrusted("second", "second");
+  EXPECT_EQ(Repairs(audit), std::vector<int>{6});
+}
+
+TEST(ExactnessAuditTest, AnUnansweredDisputeIsReportedUnsettled) {
+  TableReferee referee;
+  referee.error = "the scene no longer parses";
+  ExactnessAudit audit(7, 0, kFrames, &referee);
+  audit.Open({DisputeOver(2, {3}, 1.0f, 0.5f)}, Scene);
+  EXPECT_TRUE(audit.Pending());
+  EXPECT_TRUE(audit.HearReferee().empty());
+  EXPECT_FALSE(audit.Pending());
+  EXPECT_NE(audit.Report()["unsettled"][0].get<std::string>().find("no longer parses"), std::string::npos);
+
+  ExactnessAudit withoutReferee(8, 0, kFrames, nullptr);
+  withoutReferee.Open({DisputeOver(2, {3}, 1.0f, 0.5f)}, Scene);
+  EXPECT_FALSE(withoutReferee.Pending());
+  EXPECT_EQ(withoutReferee.Report()["unsettled"].size(), 1u);
+}
+
+}  // namespace
+}  // namespace tcfarm

@@ -1,0 +1,101 @@
+#include "farm/referee.h"
+
+#include <exception>
+#include <optional>
+
+#include "embree/device.h"
+#include "scene/scene.h"
+#include "trace/tracer.h"
+#include "util/tracing_threads.h"
+
+namespace tcfarm {
+
+// Built on first use: a coordinator whose workers never disagree never starts Embree.
+class TracingReferee::Tracing {
+ public:
+  Tracer& TracerFor(const std::string& hash, const std::string& sceneJson, const std::filesystem::path& assetRoot) {
+    if (tracer_ && hash == hash_) return *tracer_;
+    tracer_.reset();
+    scene_ = std::make_unique<Scene>(ParseScene(sceneJson));
+    // Textures are named by hash at submit; the store holds every one a job's scene names.
+    for (Material& material : scene_->materials) {
+      if (material.diffuseTexture && !material.diffuseTexture->asset.empty()) {
+        material.diffuseTexture->file = assetRoot / material.diffuseTexture->asset;
+      }
+    }
+    PrepareForTracing(*scene_);  // as the workers do: the same bits
+    tracer_ = std::make_unique<Tracer>(device_, *scene_, threads_);
+    hash_ = hash;
+    return *tracer_;
+  }
+
+ private:
+  EmbreeDevice device_;
+  TracingThreads threads_{1};  // a few pixels: the farm loop keeps the other cores
+  std::string hash_;
+  std::unique_ptr<Scene> scene_;
+  std::unique_ptr<Tracer> tracer_;  // refers to scene_
+};
+
+TracingReferee::TracingReferee(std::filesystem::path assetRoot)
+    : assetRoot_(std::move(assetRoot)), thread_([this] { Serve(); }) {}
+
+TracingReferee::~TracingReferee() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  thread_.join();
+}
+
+void TracingReferee::Ask(Question question) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    questions_.push_back(std::move(question));
+  }
+  wake_.notify_all();
+}
+
+std::vector<Referee::Answer> TracingReferee::TakeAnswers(uint64_t jobId) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  auto found = answers_.find(jobId);
+  if (found == answers_.end()) return {};
+  std::vector<Answer> answers = std::move(found->second);
+  answers_.erase(found);
+  return answers;
+}
+
+void TracingReferee::Serve() {
+  for (;;) {
+    Question question;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [this] { return stopping_ || !questions_.empty(); });
+      if (stopping_) return;
+      question = std::move(questions_.front());
+      questions_.pop_front();
+    }
+    Answer answer = Trace(question);
+    std::lock_guard<std::mutex> lock(mutex_);
+    answers_[question.jobId].push_back(std::move(answer));
+  }
+}
+
+Referee::Answer TracingReferee::Trace(const Question& question) {
+  Answer answer;
+  answer.id = question.id;
+  try {
+    if (!tracing_) tracing_ = std::make_unique<Tracing>();
+    Tracer& tracer = tracing_->TracerFor(question.sceneHash, question.sceneJson, assetRoot_);
+    answer.rgb.resize(3 * question.pixels.size());
+    tracer.TracePixels(question.frame, question.pixels.data(), question.pixels.size(), answer.rgb.data());
+  } catch (const std::exception& e) {
+    answer.rgb.clear();
+    answer.error = e.what();
+    tracing_.reset();  // a failed build leaves nothing half made behind
+  }
+  return answer;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,75 @@
+// The coordinator's own tracer: the one party every job trusts. When a check of a job
+// that promises exactness disagrees with the job, two workers returned different bits
+// for the same pixels and neither can be believed over the other (farm/dispute.h). The
+// referee traces those pixels itself, with the tracer the workers run and the scene and
+// texture bytes the workers were sent, so its values are the bits an honest worker
+// returns.
+//
+// Disputes are rare and small (kMaxDisputedPixels), so the referee builds a scene only
+// when one arrives, keeps the last one it built, and traces on its own thread: a scene
+// build never stalls the farm loop.
+#pragma once
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace tcfarm {
+
+// Settles disputes: the pixels' true values. The farm's is a TracingReferee.
+class Referee {
+ public:
+  struct Question {
+    uint64_t jobId = 0;
+    uint64_t id = 0;  // the asker's, returned with the answer
+    std::string sceneHash;
+    std::string sceneJson;
+    int frame = 0;  // the scene's numbering
+    std::vector<uint32_t> pixels;
+  };
+  struct Answer {
+    uint64_t id = 0;
+    std::vector<float> rgb;  // 3 per pixel, in the question's order; empty on error
+    std::string error;       // why the pixels could not be traced (a scene that no longer builds)
+  };
+
+  virtual ~Referee() = default;
+  virtual void Ask(Question question) = 0;
+  // Answers for the job's questions that are ready; never waits.
+  virtual std::vector<Answer> TakeAnswers(uint64_t jobId) = 0;
+};
+
+class TracingReferee : public Referee {
+ public:
+  // assetRoot: the store's assets (STORE/assets), where the scene's textures are by hash.
+  explicit TracingReferee(std::filesystem::path assetRoot);
+  ~TracingReferee() override;
+  TracingReferee(const TracingReferee&) = delete;
+  TracingReferee& operator=(const TracingReferee&) = delete;
+
+  void Ask(Question question) override;
+  std::vector<Answer> TakeAnswers(uint64_t jobId) override;
+
+ private:
+  class Tracing;  // Embree and the scene it last built; lives on the referee's thread
+  void Serve();
+  Answer Trace(const Question& question);
+
+  std::filesystem::path assetRoot_;
+  std::unique_ptr<Tracing> tracing_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Question> questions_;
+  std::map<uint64_t, std::vector<Answer>> answers_;  // by job
+  bool stopping_ = false;
+  std::thread thread_;
+};
+
+}  // namespace tcfarm

@@ -1,0 +1,46 @@
+#include "farm/tracer_ledger.h"
+
+#include <algorithm>
+
+namespace tcfarm {
+
+void TracerLedger::Record(int frame, const std::string& worker, const PixelSet& pixels, int window) {
+  Traced& traced = frames_[frame][worker];
+  traced.tasks.push_back(pixels);
+  traced.window = std::max(traced.window, window);
+}
+
+std::set<std::string> TracerLedger::WorkersOf(int frame) const {
+  std::set<std::string> workers;
+  auto found = frames_.find(frame);
+  if (found == frames_.end()) return workers;
+  for (const auto& [worker, traced] : found->second) workers.insert(worker);
+  return workers;
+}
+
+std::optional<TracerLedger::Source> TracerLedger::SourceOf(int frame, uint32_t pixel) const {
+  // Latest frame first: the value shown is the one traced last.
+  for (auto it = frames_.upper_bound(frame); it != frames_.begin();) {
+    --it;
+    for (const auto& [worker, traced] : it->second) {
+      for (const PixelSet& task : traced.tasks) {
+        if (task.Contains(pixel)) return Source{it->first, worker};
+      }
+    }
+  }
+  return std::nullopt;
+}
+
+std::set<int> TracerLedger::FramesReachedBy(const std::string& worker, int frameCount) const {
+  std::set<int> reached;
+  for (const auto& [frame, workers] : frames_) {
+    auto traced = workers.find(worker);
+    if (traced == workers.end()) continue;
+    // A horizon is at most frame + window + 1, "valid through the window": copies reach
+    // frame + window at the furthest.
+    for (int f = frame; f <= frame + traced->second.window && f < frameCount; ++f) reached.insert(f);
+  }
+  return reached;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,47 @@
+// Who traced which pixels of each frame of a job that promises exactness. When a worker
+// is found to return wrong values, the ledger names the frames its values can have
+// reached: those it traced and, as far as its horizons could carry copies of them, the
+// window that followed each. A copied pixel's value is traced-then-copied, so the ledger
+// also finds which worker traced the value a frame shows at a pixel.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "pixel_set/pixel_set.h"
+
+namespace tcfarm {
+
+class TracerLedger {
+ public:
+  // `worker` traced `pixels` of `frame` (the job's numbering) in a task with `window`.
+  void Record(int frame, const std::string& worker, const PixelSet& pixels, int window);
+
+  // Every worker that traced some pixel of the frame.
+  std::set<std::string> WorkersOf(int frame) const;
+
+  struct Source {
+    int frame = 0;
+    std::string worker;
+  };
+  // Where the value `frame` shows at `pixel` was traced: the latest frame at or before
+  // `frame` whose tasks traced it. nullopt when no recorded task did (a frame kept from
+  // before a restart, or a bug that copied a pixel never traced).
+  std::optional<Source> SourceOf(int frame, uint32_t pixel) const;
+
+  // Frames (below frameCount) the worker's values can have reached: each frame it traced
+  // part of, and the frames of the window after it, into which horizons may copy.
+  std::set<int> FramesReachedBy(const std::string& worker, int frameCount) const;
+
+ private:
+  struct Traced {
+    std::vector<PixelSet> tasks;  // not merged: a lookup is rare, a record is not
+    int window = 0;               // the longest of its tasks'
+  };
+  std::map<int, std::map<std::string, Traced>> frames_;
+};
+
+}  // namespace tcfarm
