@@ -376,6 +376,12 @@ bool Dispatcher::EveryWorkerIn(const std::set<std::string>& identities) const {
   return true;
 }
 
+bool Dispatcher::MayTake(const TaskEntry& entry, const std::string& worker) const {
+  if (entry.failedBy.count(worker)) return false;  // a rule: it failed there once
+  // A preference: a check by the worker it checks beats none when no one else is here.
+  return !entry.task.avoid.count(worker) || EveryWorkerIn(entry.task.avoid);
+}
+
 uint64_t Dispatcher::TakeTaskFor(const std::string& worker) {
   std::vector<JobQueue*> order;
   for (auto& [id, job] : jobs_) {
@@ -385,9 +391,7 @@ uint64_t Dispatcher::TakeTaskFor(const std::string& worker) {
   std::stable_sort(order.begin(), order.end(), [](const JobQueue* a, const JobQueue* b) { return a->pass < b->pass; });
   for (JobQueue* job : order) {
     for (auto it = job->pending.begin(); it != job->pending.end(); ++it) {
-      const TaskEntry& entry = tasks_.at(*it);
-      if (entry.failedBy.count(worker)) continue;  // it failed there once
-      if (entry.task.avoid.count(worker) && !EveryWorkerIn(entry.task.avoid)) continue;
+      if (!MayTake(tasks_.at(*it), worker)) continue;
       const uint64_t id = *it;
       job->pending.erase(it);
       job->pass += 1.0 / job->weight;

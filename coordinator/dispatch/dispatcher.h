@@ -176,6 +176,9 @@ class Dispatcher {
   // taken off its job's queue; 0 when there is none for it.
   uint64_t TakeTaskFor(const std::string& worker);
   // Whether every worker present is one of these.
+  // Whether `worker` may take the task: never one it answered ERROR for; one that avoids
+  // it only when every worker present is avoided.
+  bool MayTake(const TaskEntry& entry, const std::string& worker) const;
   bool EveryWorkerIn(const std::set<std::string>& identities) const;
   // False when the peer is gone or its queue is full.
   bool Send(const std::string& identity, const wire::Message& message);
