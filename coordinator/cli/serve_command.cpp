@@ -104,7 +104,7 @@ struct ServeFlags {
   std::string dashboard;
   long workerTimeoutMs = HeartbeatPolicy{}.timeout.count();
   uint64_t jobMemoryMib = 0;
-  size_t pendingFrameMib = JobRun::kDefaultPendingFrameBytes >> 20;
+  size_t pendingFrameMib = JobRunSettings::kDefaultPendingFrameBytes >> 20;
   uint64_t assetMaxFileMib = ApiOptions{}.assetMaxFileBytes >> 20;
   uint64_t assetMaxJobMib = ApiOptions{}.assetMaxJobBytes >> 20;
   std::string apiTokens;

@@ -1,5 +1,6 @@
 #include "farm/farm.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <iterator>
 #include <stdexcept>
@@ -83,10 +84,14 @@ void Farm::ClaimJobs() {
 
 void Farm::StartJob(const JobRecord& record) {
   try {
-    auto run = std::make_unique<JobRun>(
-        record, frameStore_, options_.output,
-        static_cast<int>(dispatcher_.registry().workers().size()), options_.pendingFrameBytes,
-        options_.jobMemoryBytes, &referee_);
+    JobRunSettings settings;
+    settings.output = options_.output;
+    settings.workers = LiveWorkers();
+    settings.pendingFrameBytes = options_.pendingFrameBytes;
+    settings.jobMemoryBytes = options_.jobMemoryBytes;
+    settings.referee = &referee_;
+    settings.segmentPrices = segmentPrices_;
+    auto run = std::make_unique<JobRun>(record, frameStore_, settings);
     const FrameSize size = run->frameSize();
     dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(size.width),
                        static_cast<uint32_t>(size.height), record.spec.sceneHash,
@@ -127,7 +132,7 @@ void Farm::ApplyCancellations() {
 
 void Farm::PumpTasks() {
   for (auto& [id, run] : runs_) {
-    for (DispatchTask& task : run->TakeTasks()) dispatcher_.Enqueue(std::move(task));
+    for (DispatchTask& task : run->TakeTasks(LiveWorkers())) dispatcher_.Enqueue(std::move(task));
   }
 }
 
@@ -199,6 +204,12 @@ void Farm::FinishJob(uint64_t jobId) {
   } catch (const std::exception& e) {
     FailJob(jobId, e.what());
     return;
+  }
+  // The next auto job's exact segments are cut with what this one measured. Outliers
+  // (a job of a few frames, a noisy machine) are kept within what a segment can cost.
+  if (const std::optional<SegmentPrices> measured = run->second->MeasuredSegmentPrices()) {
+    segmentPrices_.startPrice = std::clamp(measured->startPrice, 1.0, 20.0);
+    segmentPrices_.framePrice = std::clamp(measured->framePrice, 0.001, 5.0);
   }
   ClosingJob closing;
   closing.stats = run->second->Stats(/*final=*/true);

@@ -43,7 +43,7 @@ struct FarmOptions {
   HeartbeatPolicy heartbeat;
   FrameWriterOptions output;  // how the frame store writes each job's frames
   // Per job: memory for frames that finish ahead of their turn; beyond it they wait on disk.
-  size_t pendingFrameBytes = JobRun::kDefaultPendingFrameBytes;
+  size_t pendingFrameBytes = JobRunSettings::kDefaultPendingFrameBytes;
   // Per job: the coordinator's memory for its frames (0: no limit); see FramesHeldPerJob.
   uint64_t jobMemoryBytes = 0;
 };
@@ -121,6 +121,8 @@ class Farm : public FarmControl, private DispatchSink {
   FarmMetrics metrics_;
   Dispatcher dispatcher_;
   TracingReferee referee_;  // settles disputes of jobs that promise exactness
+  SegmentPrices segmentPrices_;  // as the last exact job measured them (auto's model)
+  int LiveWorkers() const { return static_cast<int>(dispatcher_.registry().workers().size()); }
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;
   std::map<uint64_t, ClosingJob> closing_;
   bool interruptedRequeued_ = false;  // RequeueInterrupted went through (before any claim)

@@ -1,6 +1,10 @@
 #include "farm/job_cost.h"
 
+#include <algorithm>
 #include <cmath>
+#include <string>
+
+#include "planner/planner.h"
 
 namespace tcfarm {
 namespace {
@@ -9,9 +13,12 @@ TaskTime TimeOf(const wire::Result& result) { return {result.traceSeconds, resul
 
 }  // namespace
 
-void JobCost::OnPlannerResult(int frame, const wire::Result& result) {
+void JobCost::OnPlannerResult(int frame, const wire::Result& result, int chain, int step) {
   const TaskTime time = TimeOf(result);
   frameTraceTime_[frame] += time;
+  TaskTime& longest = longestTask_[chain][step];
+  longest.wall = std::max(longest.wall, time.wall);
+  longest.cpu = std::max(longest.cpu, time.cpu);
   if (!result.horizons.empty()) framesWithHorizons_.insert(frame);
   OnAnyResult(result, time);
 }
@@ -37,9 +44,16 @@ void JobCost::OnAnyResult(const wire::Result& result, const TaskTime& time) {
 }
 
 void JobCost::OnFrameFinished(int frame, uint64_t tracedCount) {
-  if (tracedCount == pixelsPerFrame_ && framesWithHorizons_.count(frame) == 0) {
+  const bool full = tracedCount == pixelsPerFrame_, horizons = framesWithHorizons_.count(frame) > 0;
+  if (full && !horizons) {
     fullFrameTime_ += frameTraceTime_[frame];
     ++fullFrames_;
+  } else if (full) {
+    startFrameTime_ += frameTraceTime_[frame];
+    ++startFrames_;
+  } else {
+    laterFrameTime_ += frameTraceTime_[frame];  // copies only: nothing, and counted so
+    ++laterFrames_;
   }
   frameTraceTime_.erase(frame);
   framesWithHorizons_.erase(frame);
@@ -56,6 +70,47 @@ void JobCost::AddTo(nlohmann::json& stats, Strategy strategy, int binWidth, cons
   stats["rays"] = {{"primary", rays_[0]}, {"shadow", rays_[1]}, {"reflection", rays_[2]},
                    {"refraction", rays_[3]}};
   stats["cost"] = Figures(strategy, binWidth, frameToFrame);
+  if (results_ > 0) stats["parallelism"] = Parallelism();
+}
+
+TaskTime JobCost::BruteEstimate(std::string* from) const {
+  if (referencePixels_ > 0) {
+    const double scale = double(pixelsPerFrame_) * frames_ / double(referencePixels_);
+    if (from) *from = "reference frames";
+    return {referenceTime_.wall * scale, referenceTime_.cpu * scale};
+  }
+  if (fullFrames_ > 0) {
+    if (from) *from = "frames traced in full";
+    return {fullFrameTime_.wall / fullFrames_ * frames_, fullFrameTime_.cpu / fullFrames_ * frames_};
+  }
+  return {};
+}
+
+std::optional<SegmentPrices> JobCost::MeasuredSegmentPrices() const {
+  const double bruteFrame = Basis(BruteEstimate()) / frames_;
+  if (bruteFrame <= 0 || startFrames_ == 0 || laterFrames_ == 0) return std::nullopt;
+  return SegmentPrices{Basis(startFrameTime_) / startFrames_ / bruteFrame,
+                       Basis(laterFrameTime_) / laterFrames_ / bruteFrame};
+}
+
+// Chains run side by side after the prelude; a chain's steps one after the other, each
+// as long as its longest task.
+nlohmann::json JobCost::Parallelism() const {
+  double prelude = 0, longestChain = 0;
+  for (const auto& [chain, steps] : longestTask_) {
+    double span = 0;
+    for (const auto& [step, longest] : steps) span += Basis(longest);
+    if (chain == TraceTask::kPreludeChain) {
+      prelude = span;
+    } else {
+      longestChain = std::max(longestChain, span);
+    }
+  }
+  const double work = Basis(traceTime_ - verifyTime_), span = prelude + longestChain;
+  return {{"work_seconds", work},
+          {"span_seconds", span},
+          {"parallelism", span > 0 ? work / span : 1.0},
+          {"basis", cpuReported_ ? "trace cpu seconds" : "trace seconds"}};
 }
 
 // Predicted (equation 3, or its exact analogue) beside measured relative cost. Measured
@@ -76,14 +131,12 @@ nlohmann::json JobCost::Figures(Strategy strategy, int binWidth, const RunningSt
     cost["d"] = d;
     cost["predicted_relative_cost"] = predicted;
   }
-  TaskTime brute;
-  if (referencePixels_ > 0) {
-    const double scale = double(pixelsPerFrame_) * frames_ / double(referencePixels_);
-    brute = {referenceTime_.wall * scale, referenceTime_.cpu * scale};
-    cost["brute_estimate_from"] = "reference frames";
-  } else if (fullFrames_ > 0) {
-    brute = {fullFrameTime_.wall / fullFrames_ * frames_, fullFrameTime_.cpu / fullFrames_ * frames_};
-    cost["brute_estimate_from"] = "frames traced in full";
+  std::string from;
+  const TaskTime brute = BruteEstimate(&from);
+  if (!from.empty()) cost["brute_estimate_from"] = from;
+  if (const std::optional<SegmentPrices> prices = MeasuredSegmentPrices()) {
+    cost["segment_start_price"] = prices->startPrice;
+    cost["frame_price"] = prices->framePrice;
   }
   const TaskTime job = traceTime_ - verifyTime_;
   if (brute.wall > 0) {

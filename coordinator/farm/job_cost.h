@@ -5,11 +5,13 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <set>
 
 #include <nlohmann/json.hpp>
 
 #include "frame/sequence_analysis.h"
+#include "planner/segment_plan.h"
 #include "planner/strategy.h"
 #include "wire/wire.h"
 
@@ -33,22 +35,34 @@ class JobCost {
  public:
   JobCost(uint64_t pixelsPerFrame, int frameCount) : pixelsPerFrame_(pixelsPerFrame), frames_(frameCount) {}
 
-  // A planner task's result; `frame` relative to the job.
-  void OnPlannerResult(int frame, const wire::Result& result);
+  // A planner task's result; `frame` relative to the job; chain and step as the task
+  // had them (TraceTask): the job's span follows its dependencies.
+  void OnPlannerResult(int frame, const wire::Result& result, int chain = 0, int step = 0);
   // A verification task's result; reference tasks trace frames brute force.
   void OnVerificationResult(const wire::Result& result, bool reference);
   // The planner finished `frame` with tracedCount of its pixels traced: one traced plainly
-  // in full (no horizons) shows what brute force pays for a frame.
+  // in full (no horizons) shows what brute force pays for a frame; one traced in full
+  // with horizons is an exact segment's start.
   void OnFrameFinished(int frame, uint64_t tracedCount);
 
+  // What an exact job measured of auto's segment prices (planner/segment_plan.h), in
+  // brute-force frames; nullopt before it has a brute-force price and both kinds of frame.
+  std::optional<SegmentPrices> MeasuredSegmentPrices() const;
+
   // Adds trace_seconds, verify_trace_seconds, their CPU seconds (when every worker
-  // reported them), tasks, rays, and cost: predicted for `strategy` at `binWidth` from the
-  // measured frame-to-frame coherence, beside measured.
+  // reported them), tasks, rays, cost: predicted for `strategy` at `binWidth` from the
+  // measured frame-to-frame coherence, beside measured, and parallelism: the job's work,
+  // its span (the longest chain of dependent tasks, in seconds of tracing) and work / span,
+  // the most workers it can keep busy.
   void AddTo(nlohmann::json& stats, Strategy strategy, int binWidth, const RunningStats& frameToFrame) const;
 
  private:
   void OnAnyResult(const wire::Result& result, const TaskTime& time);
   nlohmann::json Figures(Strategy strategy, int binWidth, const RunningStats& frameToFrame) const;
+  // Brute force's price of the whole job, from reference frames or frames traced in full.
+  TaskTime BruteEstimate(std::string* from = nullptr) const;
+  nlohmann::json Parallelism() const;
+  double Basis(const TaskTime& time) const { return cpuReported_ ? time.cpu : time.wall; }
 
   uint64_t pixelsPerFrame_;
   int frames_;
@@ -63,6 +77,11 @@ class JobCost {
   uint64_t referencePixels_ = 0;
   uint64_t rays_[4] = {};  // primary, shadow, reflection, refraction
   uint64_t results_ = 0;
+  // Frames traced in full with horizons (exact's segment starts), and the others.
+  TaskTime startFrameTime_, laterFrameTime_;
+  int startFrames_ = 0, laterFrames_ = 0;
+  // Per chain, per step: the longest task (CPU seconds where reported, else elapsed).
+  std::map<int, std::map<int, TaskTime>> longestTask_;
 };
 
 }  // namespace tcfarm

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include "planner/planner.h"
+
 namespace tcfarm {
 namespace {
 
@@ -57,6 +59,44 @@ TEST(JobCost, ReferenceFramesPriceBruteForceWhenNoFrameWasTracedPlainly) {
   EXPECT_EQ(stats["cost"]["brute_estimate_from"], "reference frames");
   EXPECT_DOUBLE_EQ(stats["cost"]["brute_trace_seconds_estimate"].get<double>(), 4.0);
   EXPECT_FALSE(stats["cost"].contains("predicted_relative_cost"));  // no coherence yet
+}
+
+// The span follows the tasks' chains: a chain's steps one after the other, each as long
+// as its longest task; chains side by side after the prelude.
+TEST(JobCost, SpanIsTheLongestChainAfterThePrelude) {
+  JobCost cost(10, 4);
+  cost.OnPlannerResult(0, Result(0.5, 2), TraceTask::kPreludeChain, 0);
+  cost.OnPlannerResult(0, Result(1.0, 5), 0, 0);
+  cost.OnPlannerResult(0, Result(2.0, 5), 0, 0);  // same step: runs beside the other
+  cost.OnPlannerResult(1, Result(1.0, 5), 0, 1);
+  cost.OnPlannerResult(2, Result(2.5, 5), 1, 0);
+  nlohmann::json stats;
+  cost.AddTo(stats, Strategy::kExact, 2, RunningStats{});
+  const nlohmann::json& parallelism = stats["parallelism"];
+  EXPECT_EQ(parallelism["basis"], "trace cpu seconds");
+  EXPECT_DOUBLE_EQ(parallelism["work_seconds"].get<double>(), 2 * 7.0);
+  EXPECT_DOUBLE_EQ(parallelism["span_seconds"].get<double>(), 2 * (0.5 + 3.0));  // chain 0: 2 + 1
+  EXPECT_DOUBLE_EQ(parallelism["parallelism"].get<double>(), 2.0);
+}
+
+// An exact job prices its segment starts and its other frames in brute-force frames.
+TEST(JobCost, AnExactJobMeasuresItsSegmentPrices) {
+  JobCost cost(10, 4);
+  EXPECT_FALSE(cost.MeasuredSegmentPrices());
+  cost.OnPlannerResult(0, Result(3.0, 10, /*horizons=*/true));
+  cost.OnFrameFinished(0, 10);
+  cost.OnPlannerResult(1, Result(0.4, 2, /*horizons=*/true));
+  cost.OnFrameFinished(1, 2);
+  cost.OnFrameFinished(2, 0);  // all copied
+  EXPECT_FALSE(cost.MeasuredSegmentPrices());  // no brute-force price yet
+  cost.OnVerificationResult(Result(1.0, 10), /*reference=*/true);
+  const std::optional<SegmentPrices> prices = cost.MeasuredSegmentPrices();
+  ASSERT_TRUE(prices);
+  EXPECT_DOUBLE_EQ(prices->startPrice, 3.0);
+  EXPECT_DOUBLE_EQ(prices->framePrice, 0.2);  // (0.4 + 0) / 2 frames
+  nlohmann::json stats;
+  cost.AddTo(stats, Strategy::kExact, 4, RunningStats{});
+  EXPECT_DOUBLE_EQ(stats["cost"]["segment_start_price"].get<double>(), 3.0);
 }
 
 }  // namespace

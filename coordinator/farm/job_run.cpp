@@ -72,18 +72,20 @@ void RemoveLeftovers(const FrameStore& store, uint64_t job) {
 }
 
 // A job that was never started plans now; one that was keeps the plan it started with.
-ResolvedStrategy ResolveForRun(const JobRecord& record, int workers) {
+ResolvedStrategy ResolveForRun(const JobRecord& record, int workers, const SegmentPrices& prices) {
   if (std::optional<ResolvedStrategy> planned = PlanFromJson(record.plan)) return *planned;
-  return ResolveJobStrategy(record.spec, workers);
+  return ResolveJobStrategy(record.spec, workers, prices);
 }
 
 }  // namespace
 
 nlohmann::json PlanJson(const ResolvedStrategy& resolved) {
-  return {{"strategy", std::string(StrategyName(resolved.strategy))},
-          {"bin_width", resolved.binWidth},
-          {"reason", resolved.reason},
-          {"survey", resolved.surveyBinWidth}};
+  nlohmann::json plan = {{"strategy", std::string(StrategyName(resolved.strategy))},
+                         {"bin_width", resolved.binWidth},
+                         {"reason", resolved.reason},
+                         {"survey", resolved.surveyBinWidth}};
+  if (resolved.segments) plan["segments"] = resolved.segments->ToJson();
+  return plan;
 }
 
 std::optional<ResolvedStrategy> PlanFromJson(const nlohmann::json& plan) {
@@ -94,8 +96,10 @@ std::optional<ResolvedStrategy> PlanFromJson(const nlohmann::json& plan) {
     throw std::invalid_argument("the job's stored plan " + plan.dump() +
                                 " names no strategy and bin width this coordinator can run");
   }
-  return ResolvedStrategy{*strategy, plan.value("bin_width", 0), plan.value("reason", std::string()),
-                          plan.value("survey", false)};
+  ResolvedStrategy resolved{*strategy, plan.value("bin_width", 0), plan.value("reason", std::string()),
+                            plan.value("survey", false), {}};
+  if (plan.contains("segments")) resolved.segments = SegmentPlan::FromJson(plan["segments"]);
+  return resolved;
 }
 
 KeptFrames FindKeptFrames(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output) {
@@ -121,8 +125,9 @@ KeptFrames FindKeptFrames(const JobRecord& record, const FrameStore& store, cons
   return found;
 }
 
-ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers) {
-  return ResolveStrategy(spec.strategy, spec.binWidth, FrameCountOf(spec), CameraOrLightsChange(spec), workers);
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers, const SegmentPrices& prices) {
+  return ResolveStrategy(spec.strategy, spec.binWidth, FrameCountOf(spec), CameraOrLightsChange(spec), workers,
+                         spec.frameSize.Pixels(), prices);
 }
 
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
@@ -151,21 +156,21 @@ PlannerOptions WithKeptFrames(PlannerOptions options, const KeptFrames& kept) {
 }
 }  // namespace
 
-JobRun::JobRun(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output, int workers,
-               size_t pendingFrameBytes, uint64_t jobMemoryBytes, Referee* referee)
+JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSettings& settings)
     : id_(record.id),
       spec_(record.spec),
       frameStore_(store),
-      kept_(FindKeptFrames(record, store, output)),
-      resolved_(ResolveForRun(record, workers)),
-      plannerOptions_(WithKeptFrames(PlannerOptionsFor(record.spec, resolved_, jobMemoryBytes), kept_)),
+      kept_(FindKeptFrames(record, store, settings.output)),
+      resolved_(ResolveForRun(record, settings.workers, settings.segmentPrices)),
+      plannerOptions_(WithKeptFrames(PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes), kept_)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
-      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), referee),
+      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
       written_(kept_.kept),
-      writer_(CreatedDirectory(store.JobFolder(record.id)), output),
-      coherence_(spec_.frameSize.width, spec_.frameSize.height, store.SpillFolder(record.id), pendingFrameBytes),
+      writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
+      coherence_(spec_.frameSize.width, spec_.frameSize.height, store.SpillFolder(record.id),
+                 settings.pendingFrameBytes),
       cost_(PixelsPerFrame(), FrameCountOf(spec_)),
       started_(std::chrono::steady_clock::now()),
       framesToForget_(kept_.missing),
@@ -176,12 +181,14 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const FrameWrit
   chosenWidthPlanned_ = !resolved_.surveyBinWidth;
 }
 
-std::vector<DispatchTask> JobRun::TakeTasks() {
+std::vector<DispatchTask> JobRun::TakeTasks(int workers) {
   std::vector<DispatchTask> tasks;
+  planner_->SetWorkers(workers);
   // While the writer is behind, the planner's tasks wait: tracing more would only pile up
   // frames in memory.
   const bool writerBehind = unwritten_.size() >= kMaxUnwrittenFrames;
   for (TraceTask& t : writerBehind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
+    taskChains_[t.id] = {t.chain, t.step};
     tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}});
   }
   // Checks go to a worker other than the ones whose values they check, so that a worker
@@ -215,15 +222,7 @@ bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result, c
 bool JobRun::OnRepairResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
   const int frame = static_cast<int>(task.plannerTaskId & ~kRepairTask);
   const int absolute = spec_.firstFrame + frame;
-  Image written = ReadImage(frameStore_.FramePath(id_, absolute, "exr"));
-  if (written.rgb.size() != result.rgb.size()) {
-    throw FrameIoError("frame " + std::to_string(absolute) + " to repair is " + std::to_string(written.width) + "x" +
-                       std::to_string(written.height) + " on disk");
-  }
-  uint64_t changed = 0;
-  for (size_t i = 0; i < result.rgb.size(); i += 3) {
-    changed += std::memcmp(&written.rgb[i], &result.rgb[i], 3 * sizeof(float)) != 0;
-  }
+  const uint64_t changed = PixelsDifferingFromWritten(absolute, result.rgb);
   if (changed > 0) {
     std::fprintf(stderr, "coordinator: job %llu: frame %d traced again: %llu pixels differed; rewritten\n",
                  static_cast<unsigned long long>(id_), absolute, static_cast<unsigned long long>(changed));
@@ -231,6 +230,23 @@ bool JobRun::OnRepairResult(const DispatchTask& task, const wire::Result& result
   }
   audit_.OnRepaired(frame, worker, task.pixels, changed);
   return true;
+}
+
+uint64_t JobRun::PixelsDifferingFromWritten(int absoluteFrame, const std::vector<float>& rgb) const {
+  Image written;
+  try {
+    written = ReadImage(frameStore_.FramePath(id_, absoluteFrame, "exr"));
+  } catch (const std::exception& e) {
+    // No lossless copy to compare with (a farm that writes PNG only, a file gone): the
+    // frame is rewritten whole.
+    std::fprintf(stderr, "coordinator: job %llu: frame %d to repair cannot be read back (%s); rewritten whole\n",
+                 static_cast<unsigned long long>(id_), absoluteFrame, e.what());
+    return rgb.size() / 3;
+  }
+  if (written.rgb.size() != rgb.size()) return rgb.size() / 3;
+  uint64_t changed = 0;
+  for (size_t i = 0; i < rgb.size(); i += 3) changed += std::memcmp(&written.rgb[i], &rgb[i], 3 * sizeof(float)) != 0;
+  return changed;
 }
 
 std::vector<ExactnessAudit::Verdict> JobRun::TakeVerdicts() {
@@ -256,7 +272,13 @@ bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& resul
                           horizons.empty() ? nullptr : horizons.data(), horizons.size())) {
     return false;
   }
-  cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
+  const auto chain = taskChains_.find(taskId);
+  if (chain != taskChains_.end()) {
+    cost_.OnPlannerResult(result.frame - spec_.firstFrame, result, chain->second.first, chain->second.second);
+    taskChains_.erase(chain);
+  } else {
+    cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
+  }
   // Only a job that promises exactness traces wrong values back to their worker; the
   // others need just who traced a frame (its checks avoid them).
   const bool exact = resolved_.strategy == Strategy::kExact || resolved_.strategy == Strategy::kBrute;
@@ -414,6 +436,7 @@ nlohmann::json JobRun::Stats(bool final) const {
     }
     stats["strategy"]["survey"] = survey;
   }
+  if (resolved_.segments) stats["strategy"]["segments"] = resolved_.segments->ToJson();
   stats["frames_done"] = kept_.count + framesDone_;
   // A resumed job: frames it found in the store, and the pixels traced again because they
   // lay in bins (segments) that were in progress when the coordinator stopped.

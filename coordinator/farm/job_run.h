@@ -14,6 +14,8 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -35,7 +37,7 @@ namespace tcfarm {
 // scene's motion and `workers` live workers. An auto job stored before the store kept
 // its motion (JobSpec::cameraOrLightsChange) has its scene parsed for it, which throws
 // SceneError if the scene no longer parses.
-ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers);
+ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers, const SegmentPrices& prices = {});
 // With jobMemoryBytes > 0, as many live bins (segments) as fit in it (FramesHeldPerJob);
 // throws std::invalid_argument naming the shortfall when not even one does.
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
@@ -56,25 +58,34 @@ struct KeptFrames {
 };
 KeptFrames FindKeptFrames(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output);
 
+// What the farm gives every job it runs.
+struct JobRunSettings {
+  FrameWriterOptions output;  // how the frame store writes the job's frames
+  int workers = 1;            // live now: auto cuts exact's segments for them
+  // Memory for frames that finish ahead of their turn, beyond which they wait on disk
+  // (PendingFrames).
+  static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
+  size_t pendingFrameBytes = kDefaultPendingFrameBytes;
+  // The coordinator's memory for this job's frames (0: no limit); the planner works on as
+  // many bins at once as fit in it.
+  uint64_t jobMemoryBytes = 0;
+  // Settles the disputes of a job that promises exactness (ExactnessAudit); none leaves
+  // them unsettled.
+  Referee* referee = nullptr;
+  SegmentPrices segmentPrices;  // measured by the farm's last exact job (auto's model)
+};
+
 class JobRun {
  public:
   // Throws std::invalid_argument for options out of range (and SceneError, see
-  // ResolveJobStrategy). `workers`: live workers now (auto sizes its segments by it).
-  // pendingFrameBytes: memory for frames that finish ahead of their turn, beyond which
-  // they wait on disk (PendingFrames).
-  // jobMemoryBytes: the coordinator's memory for this job's frames (0: no limit); the
-  // planner works on as many bins at once as fit in it.
-  // referee: settles the disputes of a job that promises exactness (ExactnessAudit);
-  // none leaves them unsettled.
-  JobRun(const JobRecord& record, const FrameStore& store, const FrameWriterOptions& output = {}, int workers = 1,
-         size_t pendingFrameBytes = kDefaultPendingFrameBytes, uint64_t jobMemoryBytes = 0,
-         Referee* referee = nullptr);
-  static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
+  // ResolveJobStrategy).
+  JobRun(const JobRecord& record, const FrameStore& store, const JobRunSettings& settings = {});
 
   uint64_t id() const { return id_; }
   FrameSize frameSize() const { return spec_.frameSize; }
 
-  std::vector<DispatchTask> TakeTasks();
+  // workers: live now; the planner spreads each trace request over them.
+  std::vector<DispatchTask> TakeTasks(int workers = 1);
   // Feeds a result to the planner, the verification or a repair. False when it had it
   // already. worker: who traced it; checks of a frame then go to someone else where
   // possible, and a worker found returning wrong values is traced back through it.
@@ -117,6 +128,8 @@ class JobRun {
   // coherence analysis of the output sequence (pixel events, equation 3 per bin width).
   nlohmann::json Stats(bool final = false) const;
   uint64_t tracedPixels() const { return planner_->TracedPixels(); }
+  // An exact job's segment prices as it measured them (auto's model for the next job).
+  std::optional<SegmentPrices> MeasuredSegmentPrices() const { return cost_.MeasuredSegmentPrices(); }
   uint64_t copiedPixels() const { return planner_->CopiedPixels(); }
   // Pixels traced and copied since the previous call: what the farm's counters lack.
   struct PixelTally {
@@ -125,10 +138,11 @@ class JobRun {
   PixelTally TakeUnreportedPixels();
 
  private:
-  // Task ids of verification requests and of repairs carry these bits; planner ids never
-  // reach them. A repair's id is the bit and its frame.
+  // Task ids of verification requests and of repairs carry these bits; planner ids stay
+  // below them (kPlannerTaskIdBits). A repair's id is the bit and its frame.
   static constexpr uint64_t kVerificationTask = uint64_t{1} << 62;
-  static constexpr uint64_t kRepairTask = uint64_t{1} << 61;
+  static constexpr uint64_t kRepairTask = uint64_t{1} << 63;
+  static_assert(kPlannerTaskIdBits <= 62, "planner task ids must not reach the farm's bits");
   // How long one CollectFinishedFrames call may spend on frames.
   static constexpr std::chrono::milliseconds kFinishingTurn{20};
 
@@ -136,6 +150,7 @@ class JobRun {
   bool OnVerificationResult(uint64_t taskId, const wire::Result& result, const std::string& worker);
   // A frame traced again in full: rewritten where it differs from what was written.
   bool OnRepairResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
+  uint64_t PixelsDifferingFromWritten(int absoluteFrame, const std::vector<float>& rgb) const;
   // Disputes to the referee, its verdicts back.
   void Audit(const JobStore& store);
   // Checks the frame, writes it and its masks, and feeds it to the coherence.
@@ -162,6 +177,8 @@ class JobRun {
   Verification verification_;
   ExactnessAudit audit_;
   std::vector<ExactnessAudit::Verdict> verdicts_;
+  // Planner tasks in flight: their chain and step (TraceTask), for the job's span.
+  std::unordered_map<uint64_t, std::pair<int, int>> taskChains_;
   // By frame (the job's): whether its files are written, so a repair may replace them.
   std::vector<bool> written_;
   FrameWriter writer_;

@@ -488,13 +488,14 @@ void ApiServer::RouteMiss(const httplib::Request& request, const std::string&,
 
 // The job's frames at their most, one bin at a time, against the coordinator's memory for
 // a job, with the strategy the farm will resolve. The worker count only sets the length of
-// auto's exact segments, which holds one working frame whatever its length; auto's guarded
+// auto's exact segments, which hold one working frame whatever their length; auto's guarded
 // is taken with the widest bin its survey may pick.
 void ApiServer::CheckJobFitsInMemory(const JobSpec& spec) const {
   if (options_.jobMemoryBytes == 0) return;
   const int frames = spec.lastFrame - spec.firstFrame + 1;
   const ResolvedStrategy resolved = ResolveStrategy(spec.strategy, spec.binWidth, frames,
-                                                    spec.cameraOrLightsChange.value_or(true), /*workers=*/1);
+                                                    spec.cameraOrLightsChange.value_or(true), /*workers=*/1,
+                                                    spec.frameSize.Pixels());
   const std::string shortfall = MemoryShortfall(options_.jobMemoryBytes, spec.frameSize.width,
                                                 spec.frameSize.height, resolved.strategy, resolved.binWidth, frames);
   if (!shortfall.empty()) {

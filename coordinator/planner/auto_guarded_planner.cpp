@@ -47,11 +47,16 @@ AutoGuardedPlanner::AutoGuardedPlanner(const PlannerOptions& options)
   for (int frame = 0; frame < frames; ++frame) {
     for (size_t chunk = 0; chunk < chunks_.size(); ++chunk) {
       const uint64_t index = static_cast<uint64_t>(frame) * chunks_.size() + chunk;
-      readyTasks_.push_back(TraceTask{kSurveyTask | index, frame, chunks_[chunk], 0});
+      readyTasks_.push_back(TraceTask{kSurveyTask | index, frame, chunks_[chunk], 0, TraceTask::kPreludeChain, 0});
     }
   }
   surveyed_.assign(size_t(frames) * chunks_.size(), false);
   surveyLeft_ = surveyed_.size();
+}
+
+void AutoGuardedPlanner::SetWorkers(int workers) {
+  options_.workers = workers;  // for the guarded planner it makes after the survey
+  if (guarded_) guarded_->SetWorkers(workers);
 }
 
 std::vector<TraceTask> AutoGuardedPlanner::TakeReadyTasks() {

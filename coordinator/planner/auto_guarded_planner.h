@@ -35,6 +35,7 @@ class AutoGuardedPlanner : public Planner {
   uint64_t TracedPixels() const override;
   uint64_t CopiedPixels() const override;
   size_t LiveFrames() const override;
+  void SetWorkers(int workers) override;
 
   // 0 while the survey runs.
   int ChosenBinWidth() const { return guarded_ ? choice_.binWidth : 0; }
@@ -44,7 +45,7 @@ class AutoGuardedPlanner : public Planner {
 
  private:
   // Survey task ids carry this bit; GuardedPlanner's ids count up from 1 and never reach it.
-  static constexpr uint64_t kSurveyTask = uint64_t{1} << 61;
+  static constexpr uint64_t kSurveyTask = uint64_t{1} << (kPlannerTaskIdBits - 1);
 
   void StartGuarded();
 

@@ -128,13 +128,14 @@ PixelSet ExactPlanner::PixelsToTraceAt(const Segment& segment) const {
 void ExactPlanner::IssueTasks(size_t index, Segment& segment) {
   // Any later frame of the segment may be the horizon; none beyond it is of use.
   const int window = segment.last - segment.frame;
-  std::vector<PixelSet> chunks = segment.tracing.Split(options_.maxTaskPixels);
+  std::vector<PixelSet> chunks = planner_internal::SplitForWorkers(segment.tracing, options_);
   Check(!chunks.empty(), "empty trace at frame " + std::to_string(segment.frame));
   segment.tasksLeft = chunks.size();
   for (PixelSet& chunk : chunks) {
     const uint64_t taskId = nextTaskId_++;
     pendingTasks_[taskId] = PendingTask{index, segment.frame, window, chunk};
-    readyTasks_.push_back(TraceTask{taskId, segment.frame, std::move(chunk), window});
+    readyTasks_.push_back(TraceTask{taskId, segment.frame, std::move(chunk), window, static_cast<int>(index),
+                                    segment.frame - segment.first});
   }
 }
 

@@ -45,6 +45,7 @@ class ExactPlanner : public Planner {
   uint64_t CopiedPixels() const override { return copiedPixels_; }
   // One working frame per live segment: at most maxLiveBins.
   size_t LiveFrames() const override { return segments_.size(); }
+  void SetWorkers(int workers) override { options_.workers = workers; }
   size_t InFlightTasks() const { return pendingTasks_.size(); }  // emitted, result not yet in
 
   // Invariant violations (planner bugs, never bad input) throw std::logic_error.

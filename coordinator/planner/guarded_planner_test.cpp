@@ -702,23 +702,52 @@ TEST(Planner, StrategiesByName) {
   EXPECT_THROW(MakePlanner(Strategy::kAuto, Options(12, 9, 9, 5, 4)), std::invalid_argument);
 }
 
-// auto's one rule: exact with a segment per worker when only shapes move, else guarded
-// surveyed up to its widest bin; the others run as asked, brute with bins of 2.
+// auto's one rule: exact with segments cut by the cost model when only shapes move, else
+// guarded surveyed up to its widest bin; the others run as asked, brute with bins of 2.
 TEST(Planner, ResolveStrategy) {
-  const ResolvedStrategy still = ResolveStrategy(Strategy::kAuto, 10, 60, false, 4);
+  constexpr uint64_t kPixels = 640 * 480;
+  const ResolvedStrategy still = ResolveStrategy(Strategy::kAuto, 10, 60, false, 4, kPixels);
   EXPECT_EQ(still.strategy, Strategy::kExact);
-  EXPECT_EQ(still.binWidth, 15);
+  EXPECT_EQ(still.binWidth, 60);  // one segment: the frames' pixels keep 4 workers busy
+  ASSERT_TRUE(still.segments.has_value());
+  EXPECT_EQ(still.segments->segments, 1);
   EXPECT_FALSE(still.surveyBinWidth);
-  EXPECT_EQ(ResolveStrategy(Strategy::kAuto, 10, 3, false, 8).binWidth, 1);  // more workers than frames
-  const ResolvedStrategy moving = ResolveStrategy(Strategy::kAuto, 10, 60, true, 4);
+  EXPECT_NE(still.reason.find("1 segment of 60 frames for 4 workers"), std::string::npos) << still.reason;
+  const ResolvedStrategy moving = ResolveStrategy(Strategy::kAuto, 10, 60, true, 4, kPixels);
   EXPECT_EQ(moving.strategy, Strategy::kGuarded);
   EXPECT_EQ(moving.binWidth, kAutoWidestBin);
   EXPECT_TRUE(moving.surveyBinWidth);
-  EXPECT_EQ(ResolveStrategy(Strategy::kAuto, 10, 1, true, 4).binWidth, 2);
-  EXPECT_EQ(ResolveStrategy(Strategy::kBrute, 10, 60, true, 4).binWidth, 2);
-  const ResolvedStrategy asked = ResolveStrategy(Strategy::kSearch, 7, 60, true, 4);
+  EXPECT_EQ(ResolveStrategy(Strategy::kAuto, 10, 1, true, 4, kPixels).binWidth, 2);
+  EXPECT_EQ(ResolveStrategy(Strategy::kBrute, 10, 60, true, 4, kPixels).binWidth, 2);
+  const ResolvedStrategy asked = ResolveStrategy(Strategy::kSearch, 7, 60, true, 4, kPixels);
   EXPECT_EQ(asked.strategy, Strategy::kSearch);
   EXPECT_EQ(asked.binWidth, 7);
+}
+
+// auto's exact segments: as few as keep the workers busy, never more than the CPU budget
+// allows. Large frames spread over any farm, so they stay in one segment; small ones
+// cannot, and a long sequence of them is cut into more segments, its CPU cost within
+// kExtraCostBudget of one segment's.
+TEST(Planner, SegmentsComeFromTheCostModelNotTheFarmSize) {
+  constexpr uint64_t kLarge = 640 * 480, kSmall = 64 * 48;
+  for (int workers : {1, 4, 16, 64}) {
+    EXPECT_EQ(PlanSegments(60, workers, kLarge).segments, 1) << workers;
+    EXPECT_EQ(PlanSegments(600, workers, kLarge).segments, 1) << workers;
+  }
+  EXPECT_GT(PlanSegments(600, 1000, kLarge).segments, 1);  // more workers than a frame's tasks
+  const SegmentPlan one = PlanSegments(600, 1, kSmall);
+  EXPECT_EQ(one.segments, 1);
+  const SegmentPlan many = PlanSegments(600, 64, kSmall);
+  EXPECT_GT(many.segments, 1);
+  EXPECT_EQ(many.length, (600 + many.segments - 1) / many.segments);
+  EXPECT_LE(many.predictedRelativeCost, one.predictedRelativeCost * (1 + kExtraCostBudget));
+  EXPECT_GT(many.predictedParallelism, one.predictedParallelism);
+  EXPECT_EQ(PlanSegments(60, 64, kSmall).segments, 1);  // a short one: any cut costs too much
+  EXPECT_LT(PlanSegments(600, 64, kSmall, SegmentPrices{10.0, 0.3}).segments, many.segments);  // dearer starts
+  const SegmentPlan back = SegmentPlan::FromJson(many.ToJson());
+  EXPECT_EQ(back.segments, many.segments);
+  EXPECT_EQ(back.length, many.length);
+  EXPECT_DOUBLE_EQ(back.predictedParallelism, many.predictedParallelism);
 }
 
 TEST(Planner, MakePlannerBuildsEachStrategy) {

@@ -71,6 +71,13 @@ std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& op
 
 namespace planner_internal {
 
+std::vector<PixelSet> SplitForWorkers(const PixelSet& pixels, const PlannerOptions& options) {
+  const uint64_t workers = static_cast<uint64_t>(std::max(1, options.workers));
+  const uint64_t share = (pixels.size() + workers - 1) / workers;
+  const uint64_t floor = std::min<uint64_t>(PlannerOptions::kMinTaskPixels, options.maxTaskPixels);
+  return pixels.Split(static_cast<uint32_t>(std::clamp<uint64_t>(share, floor, options.maxTaskPixels)));
+}
+
 bool AllKept(const PlannerOptions& options, int first, int last) {
   for (int frame = first; frame <= last; ++frame) {
     if (static_cast<size_t>(frame) >= options.keptFrames.size() || !options.keptFrames[frame]) return false;

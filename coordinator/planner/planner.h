@@ -34,6 +34,11 @@ struct PlannerOptions {
   // output is bit-identical to brute force.
   float tolerance = 0;
   uint32_t maxTaskPixels = 16384;  // larger requests are split so workers share the load
+  // Workers a trace request is spread over: it is cut into this many tasks, none smaller
+  // than kMinTaskPixels (a task's fixed costs) nor larger than maxTaskPixels. Parallelism
+  // then comes from within a frame, not only from more bins or segments.
+  int workers = 1;
+  static constexpr uint32_t kMinTaskPixels = 1024;
   int maxLiveBins = 4;             // bins (segments) worked on at once; bounds the frames held in memory
   // guarded: the coarse raster has one sample per coarseTile x coarseTile tile (the paper's 8).
   int coarseTile = 8;
@@ -46,6 +51,10 @@ struct PlannerOptions {
   std::vector<bool> keptFrames;
 };
 
+// Planner task ids fit in this many bits (a planner may use the top one of them, as
+// auto's survey does); the bits above are the farm's own (JobRun).
+constexpr int kPlannerTaskIdBits = 62;
+
 struct TraceTask {
   uint64_t id = 0;
   int frame = 0;
@@ -54,6 +63,12 @@ struct TraceTask {
   // frame h in [frame+1, frame+window+1] at which the pixel may change (frame+window+1
   // means "valid through the whole window"). 0: no horizons wanted.
   int window = 0;
+  // Dependencies, for the job's span: a task depends on the tasks of earlier steps of its
+  // chain (an exact segment's earlier frames, a search bin's shallower levels); chains are
+  // independent, except that every chain waits for the prelude (auto's survey).
+  int chain = 0;
+  int step = 0;
+  static constexpr int kPreludeChain = -1;
 };
 
 struct FinishedFrame {
@@ -86,6 +101,9 @@ class Planner {
   virtual std::vector<FinishedFrame> TakeFinishedFrames() = 0;
 
   virtual bool Done() const = 0;  // every frame finished and taken
+
+  // Live workers now: trace requests issued from here on are spread over them.
+  virtual void SetWorkers(int workers) = 0;
 
   virtual uint64_t TracedPixels() const = 0;
   virtual uint64_t CopiedPixels() const = 0;
@@ -135,6 +153,9 @@ std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& op
 
 // Shared by the planners' implementations; not for callers.
 namespace planner_internal {
+
+// A trace request cut into tasks as options.workers and the task size bounds say.
+std::vector<PixelSet> SplitForWorkers(const PixelSet& pixels, const PlannerOptions& options);
 
 // Invariants of a planner itself (planner bugs, never bad input). They throw
 // std::logic_error rather than abort so that a daemon can fail the one job and go on

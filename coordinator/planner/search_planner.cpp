@@ -166,7 +166,7 @@ void SearchPlanner::PrepareFrame(size_t binIndex, int frame, const PixelSet& pix
 void SearchPlanner::SearchPreparedBin(size_t binIndex) {
   const Bin& bin = bins_[binIndex];
   if (!guard_) {
-    Search(binIndex, searchPixels_, bin.left, bin.right);
+    Search(binIndex, searchPixels_, bin.left, bin.right, 1);
     return;
   }
   std::vector<const float*> frameRgb;
@@ -181,7 +181,7 @@ void SearchPlanner::SearchPreparedBin(size_t binIndex) {
     frameRgb.push_back(state.rgb.data());
   }
   guard_->IndexBin(binIndex, bin.left, frameRgb);
-  Search(binIndex, searchPixels_, bin.left, bin.right);
+  Search(binIndex, searchPixels_, bin.left, bin.right, 1);
   for (int frame = bin.left + 1; frame < bin.right; ++frame) RemoveReader(frame);
 }
 
@@ -208,8 +208,8 @@ void SearchPlanner::RunContinuation(const Continuation& continuation) {
   if (continuation.isPreparation) {
     if (--bin.preparing == 0) SearchPreparedBin(continuation.bin);
   } else {
-    Search(continuation.bin, continuation.pixels, continuation.left, continuation.mid);
-    Search(continuation.bin, continuation.pixels, continuation.mid, continuation.right);
+    Search(continuation.bin, continuation.pixels, continuation.left, continuation.mid, continuation.depth + 1);
+    Search(continuation.bin, continuation.pixels, continuation.mid, continuation.right, continuation.depth + 1);
     RemoveReader(continuation.left);
     RemoveReader(continuation.mid);
     RemoveReader(continuation.right);
@@ -218,7 +218,7 @@ void SearchPlanner::RunContinuation(const Continuation& continuation) {
 }
 
 // The paper's Search(S, l, r), up to the point where it must wait for a trace.
-void SearchPlanner::Search(size_t bin, const PixelSet& pixels, int left, int right) {
+void SearchPlanner::Search(size_t bin, const PixelSet& pixels, int left, int right, int depth) {
   if (right - left <= 1 || pixels.empty()) return;
   const Frame& leftFrame = frames_.at(left);
   const Frame& rightFrame = frames_.at(right);
@@ -246,6 +246,7 @@ void SearchPlanner::Search(size_t bin, const PixelSet& pixels, int left, int rig
   continuation.left = left;
   continuation.mid = left + (right - left) / 2;  // (l+r)/2 without overflow
   continuation.right = right;
+  continuation.depth = depth;
   continuation.pixels = std::move(toSearch);
   AddReader(continuation.left);
   AddReader(continuation.mid);
@@ -270,14 +271,15 @@ void SearchPlanner::Classify(const PixelSet& pixels, const Frame& left, const Fr
 uint64_t SearchPlanner::RequestTrace(int frame, const PixelSet& pixels, Continuation continuation) {
   FrameAt(frame);  // the frame must exist to receive the results
   const uint64_t requestId = nextRequestId_++;
-  std::vector<PixelSet> chunks = pixels.Split(options_.maxTaskPixels);
+  std::vector<PixelSet> chunks = planner_internal::SplitForWorkers(pixels, options_);
   Check(!chunks.empty(), "empty trace request at frame " + std::to_string(frame));
+  const int chain = static_cast<int>(continuation.bin), step = continuation.isPreparation ? 0 : continuation.depth;
   requests_[requestId].chunksLeft = chunks.size();
   AddContinuation(requestId, std::move(continuation));
   for (PixelSet& chunk : chunks) {
     const uint64_t taskId = nextTaskId_++;
     pendingTasks_[taskId] = PendingTask{requestId, frame, chunk};
-    readyTasks_.push_back(TraceTask{taskId, frame, std::move(chunk), 0});
+    readyTasks_.push_back(TraceTask{taskId, frame, std::move(chunk), 0, chain, step});
   }
   return requestId;
 }

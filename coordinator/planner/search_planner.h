@@ -56,6 +56,7 @@ class SearchPlanner : public Planner {
   uint64_t CopiedPixels() const override { return copiedPixels_; }
   // At most maxLiveBins * binWidth: each live bin holds at most its own frames.
   size_t LiveFrames() const override { return frames_.size(); }
+  void SetWorkers(int workers) override { options_.workers = workers; }
   size_t InFlightTasks() const { return pendingTasks_.size(); }  // emitted, result not yet in
 
   // Invariant violations (planner bugs, never bad input) throw std::logic_error.
@@ -95,6 +96,7 @@ class SearchPlanner : public Planner {
     int left = 0;
     int mid = 0;
     int right = 0;
+    int depth = 0;  // of the trace at mid: 1 for the bin's first search (0: preparation)
     PixelSet pixels;
   };
 
@@ -114,7 +116,7 @@ class SearchPlanner : public Planner {
   void PrepareFrame(size_t bin, int frame, const PixelSet& pixels);
   void SearchPreparedBin(size_t bin);
   void FinishBin(size_t bin);
-  void Search(size_t bin, const PixelSet& pixels, int left, int right);
+  void Search(size_t bin, const PixelSet& pixels, int left, int right, int depth);
   template <typename Equal>
   void Classify(const PixelSet& pixels, const Frame& left, const Frame& right, Equal equal,
                 PixelSetBuilder& same, PixelSetBuilder& changed) const;

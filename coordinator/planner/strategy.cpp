@@ -1,6 +1,7 @@
 #include "planner/strategy.h"
 
 #include <algorithm>
+#include <cstdio>
 
 namespace tcfarm {
 
@@ -18,20 +19,23 @@ std::string_view StrategyName(Strategy strategy) {
   return "unknown";
 }
 
-ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount,
-                                 bool cameraOrLightsChange, int workers) {
-  if (requested == Strategy::kBrute) return {Strategy::kBrute, 2, "every pixel of every frame"};
-  if (requested != Strategy::kAuto) return {requested, binWidth, "as requested"};
+ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount, bool cameraOrLightsChange,
+                                 int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices) {
+  if (requested == Strategy::kBrute) return {Strategy::kBrute, 2, "every pixel of every frame", false, {}};
+  if (requested != Strategy::kAuto) return {requested, binWidth, "as requested", false, {}};
   if (!cameraOrLightsChange) {
-    // Each segment costs one full frame; one segment per worker keeps all of them busy.
-    const int segments = std::clamp(workers, 1, frameCount);
-    const int length = (frameCount + segments - 1) / segments;
-    return {Strategy::kExact, std::max(1, length),
-            "camera and lights are static: exact, one segment per worker"};
+    const SegmentPlan plan = PlanSegments(frameCount, workers, pixelsPerFrame, prices);
+    char why[256];
+    std::snprintf(why, sizeof why,
+                  "camera and lights are static: exact, %d segment%s of %d frames for %d worker%s (predicted "
+                  "relative CPU cost %.3f, parallelism %.1f; frames spread over the workers)",
+                  plan.segments, plan.segments == 1 ? "" : "s", plan.length, std::max(1, workers),
+                  workers == 1 ? "" : "s", plan.predictedRelativeCost, plan.predictedParallelism);
+    return {Strategy::kExact, plan.length, why, false, plan};
   }
   return {Strategy::kGuarded, std::clamp(frameCount, 2, kAutoWidestBin),
           "the camera or a light moves: guarded search, its bin width chosen by a coarse survey",
-          /*surveyBinWidth=*/true};
+          /*surveyBinWidth=*/true, {}};
 }
 
 }  // namespace tcfarm

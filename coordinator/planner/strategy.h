@@ -3,9 +3,12 @@
 // coordinator passes the type, never the name.
 #pragma once
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
+
+#include "planner/segment_plan.h"
 
 namespace tcfarm {
 
@@ -43,13 +46,15 @@ struct ResolvedStrategy {
   int binWidth;  // with surveyBinWidth: the widest considered
   std::string reason;
   bool surveyBinWidth = false;  // guarded's width is chosen by a coarse survey (auto)
+  std::optional<SegmentPlan> segments;  // auto's exact: the cost model's choice
 };
 
 // `auto` picks exact when nothing but shapes move (every pixel then has a horizon to
-// find), else guarded; the length gives each of `workers` a segment (exact), or is
-// surveyed up to kAutoWidestBin (guarded). `brute` is the search with bins of 2. Any
-// other strategy runs as requested with `binWidth`.
-ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount,
-                                 bool cameraOrLightsChange, int workers);
+// find), else guarded; exact's segments are cut as the cost model says for `workers`
+// workers, frames of pixelsPerFrame and the segment prices measured so far
+// (planner/segment_plan.h), guarded's width is surveyed up to kAutoWidestBin. `brute` is
+// the search with bins of 2. Any other strategy runs as requested with `binWidth`.
+ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount, bool cameraOrLightsChange,
+                                 int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices = {});
 
 }  // namespace tcfarm

@@ -1,0 +1,71 @@
+#include "planner/segment_plan.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "planner/planner.h"
+
+namespace tcfarm {
+namespace {
+
+// How many workers a trace of `share` of a frame's pixels can keep busy at once.
+double SpreadOf(double share, uint64_t pixelsPerFrame, int workers) {
+  const double tasks = std::max(1.0, std::floor(share * double(pixelsPerFrame) / PlannerOptions::kMinTaskPixels));
+  return std::min(double(workers), tasks);
+}
+
+SegmentPlan Predict(int segments, int frameCount, int workers, uint64_t pixelsPerFrame, const SegmentPrices& p) {
+  SegmentPlan plan;
+  plan.length = (frameCount + segments - 1) / segments;
+  plan.segments = segments = (frameCount + plan.length - 1) / plan.length;  // the cut's own count
+  plan.prices = p;
+  const double work = segments * p.startPrice + (frameCount - segments) * p.framePrice;
+  plan.predictedRelativeCost = work / frameCount;
+  // The longest chain: one segment's frames, one after the other, each spread over the
+  // workers its segment has (segments share them).
+  const int perSegment = std::max(1, workers / segments);
+  const double startSpan = p.startPrice / SpreadOf(1.0, pixelsPerFrame, perSegment);
+  const double frameSpan = p.framePrice / SpreadOf(std::min(1.0, p.framePrice), pixelsPerFrame, perSegment);
+  plan.predictedParallelism = work / (startSpan + (plan.length - 1) * frameSpan);
+  return plan;
+}
+
+}  // namespace
+
+SegmentPlan PlanSegments(int frameCount, int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices) {
+  frameCount = std::max(1, frameCount);
+  workers = std::max(1, workers);
+  const SegmentPlan one = Predict(1, frameCount, workers, pixelsPerFrame, prices);
+  SegmentPlan chosen = one;
+  for (int segments = 2; segments <= std::min(frameCount, workers); ++segments) {
+    if (chosen.predictedParallelism >= workers) break;  // enough: more would cost CPU for nothing
+    const SegmentPlan more = Predict(segments, frameCount, workers, pixelsPerFrame, prices);
+    if (more.predictedRelativeCost > one.predictedRelativeCost * (1 + kExtraCostBudget)) break;
+    if (more.length == chosen.length) continue;  // the same cut
+    chosen = more;
+  }
+  return chosen;
+}
+
+nlohmann::json SegmentPlan::ToJson() const {
+  return {{"segments", segments},
+          {"length", length},
+          {"predicted_relative_cost", predictedRelativeCost},
+          {"predicted_parallelism", predictedParallelism},
+          {"segment_start_price", prices.startPrice},
+          {"frame_price", prices.framePrice}};
+}
+
+SegmentPlan SegmentPlan::FromJson(const nlohmann::json& json) {
+  SegmentPlan plan;
+  if (!json.is_object()) return plan;
+  plan.segments = json.value("segments", plan.segments);
+  plan.length = json.value("length", plan.length);
+  plan.predictedRelativeCost = json.value("predicted_relative_cost", plan.predictedRelativeCost);
+  plan.predictedParallelism = json.value("predicted_parallelism", plan.predictedParallelism);
+  plan.prices.startPrice = json.value("segment_start_price", plan.prices.startPrice);
+  plan.prices.framePrice = json.value("frame_price", plan.prices.framePrice);
+  return plan;
+}
+
+}  // namespace tcfarm
