@@ -28,7 +28,8 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       frameStore_(options_.storeRoot),
       assets_(options_.storeRoot / "assets"),
       dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_, options_.curve),
-      referee_(options_.storeRoot / "assets") {}
+      referee_(options_.storeRoot / "assets"),
+      finisher_(frameStore_, options_.output) {}
 
 Farm::~Farm() = default;
 
@@ -57,6 +58,7 @@ void Farm::Step(Milliseconds pollTimeout) {
   dispatcher_.Flush();
   CollectFrames();
   DistrustWrongWorkers();
+  finisher_.SetFarmBusy(!runs_.empty());
   UpdateMetrics();
   if (clock_.Now() - lastSnapshot_ >= kSnapshotInterval) PublishSnapshot();
 }
@@ -71,6 +73,7 @@ void Farm::ClaimJobs() {
                      static_cast<unsigned long long>(id));
       }
       interruptedRequeued_ = true;
+      RequeueUnfinishedFrames();
     }
     while (static_cast<int>(runs_.size()) < options_.maxRunningJobs) {
       std::optional<JobRecord> record = store_.ClaimNext();
@@ -82,10 +85,20 @@ void Farm::ClaimJobs() {
   }
 }
 
+void Farm::RequeueUnfinishedFrames() {
+  for (JobState state : {JobState::kCompleted, JobState::kFailed, JobState::kCanceled}) {
+    for (const JobRecord& record : store_.List(state, /*limit=*/0)) {
+      if (!FrameFinisher::IsFinished(frameStore_, record.id)) {
+        finisher_.Add(record.id, record.spec.firstFrame, record.spec.lastFrame);
+      }
+    }
+  }
+}
+
 void Farm::StartJob(const JobRecord& record) {
   try {
     JobRunSettings settings;
-    settings.output = options_.output;
+    settings.output = WhileRendering(options_.output);
     settings.workers = LiveWorkers();
     settings.pendingFrameBytes = options_.pendingFrameBytes;
     settings.jobMemoryBytes = options_.jobMemoryBytes;
@@ -125,6 +138,7 @@ void Farm::ApplyCancellations() {
       run->second->FinishWriting();  // frames already finished stay downloadable
     } catch (const std::exception&) {
     }
+    finisher_.Add(id, run->second->firstFrame(), run->second->lastFrame());
     runs_.erase(run);
     metrics_.jobsFinishedCanceled.Increment();
   }
@@ -223,6 +237,7 @@ void Farm::FinishJob(uint64_t jobId) {
 }
 
 void Farm::Close(uint64_t jobId, ClosingJob closing) {
+  if (closing.run) finisher_.Add(jobId, closing.run->firstFrame(), closing.run->lastFrame());
   ClosingJob& stored = closing_[jobId] = std::move(closing);
   if (Settle(jobId, stored)) closing_.erase(jobId);
 }

@@ -26,6 +26,7 @@
 #include "farm/farm_metrics.h"
 #include "farm/job_run.h"
 #include "farm/referee.h"
+#include "store/frame_finisher.h"
 #include "jobs/job_store.h"
 #include "store/asset_store.h"
 
@@ -41,7 +42,10 @@ struct FarmOptions {
   // one job's search waits on its last results.
   int maxRunningJobs = 4;
   HeartbeatPolicy heartbeat;
-  FrameWriterOptions output;  // how the frame store writes each job's frames
+  // How the frame store keeps each job's frames. While a job renders they are written
+  // uncompressed and without previews, and finished to this once no job renders
+  // (FrameFinisher).
+  FrameWriterOptions output;
   // Per job: memory for frames that finish ahead of their turn; beyond it they wait on disk.
   size_t pendingFrameBytes = JobRunSettings::kDefaultPendingFrameBytes;
   // Per job: the coordinator's memory for its frames (0: no limit); see FramesHeldPerJob.
@@ -122,6 +126,9 @@ class Farm : public FarmControl, private DispatchSink {
   Dispatcher dispatcher_;
   TracingReferee referee_;  // settles disputes of jobs that promise exactness
   SegmentPrices segmentPrices_;  // as the last exact job measured them (auto's model)
+  FrameFinisher finisher_;       // compresses and previews jobs' frames when no job renders
+  // Jobs a previous coordinator left unfinished (FrameFinisher) go back to the finisher.
+  void RequeueUnfinishedFrames();
   int LiveWorkers() const { return static_cast<int>(dispatcher_.registry().workers().size()); }
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;
   std::map<uint64_t, ClosingJob> closing_;

@@ -2,6 +2,7 @@
 // in this process (dispatch/fake_worker.h) and a fake clock, so that a worker's silence
 // lasts as long as the test says without the test sleeping through it.
 #include "farm/farm.h"
+#include "store/frame_finisher.h"
 
 #include <gtest/gtest.h>
 
@@ -88,8 +89,12 @@ TEST_F(FarmTest, ASmallJobCompletesAndItsFramesAreWritten) {
   EXPECT_EQ(record.tracedPixels, 3u * 12u);  // brute force traces every pixel
   EXPECT_EQ(record.stats["strategy"]["name"], "brute");
   const FrameStore files(folder_ / "store");
+  // While the job rendered its frames were written uncompressed and without previews;
+  // once no job renders, the finisher compresses them and makes the previews.
+  ASSERT_TRUE(TurnUntil([&] { return FrameFinisher::IsFinished(files, id); }));
   for (int frame = 0; frame < 3; ++frame) {
     EXPECT_TRUE(fs::exists(files.FramePath(id, frame, "png"))) << frame;
+    EXPECT_EQ(ExrCompressionOf(files.FramePath(id, frame, "exr")), "zip") << frame;
     EXPECT_TRUE(fs::exists(files.MaskPath(id, MaskKind::kTraced, frame))) << frame;
     EXPECT_TRUE(fs::exists(files.MaskPath(id, MaskKind::kChange, frame))) << frame;
     const Image image = ReadImage(files.FramePath(id, frame, "exr"));

@@ -83,6 +83,8 @@ class JobRun {
 
   uint64_t id() const { return id_; }
   FrameSize frameSize() const { return spec_.frameSize; }
+  int firstFrame() const { return spec_.firstFrame; }
+  int lastFrame() const { return spec_.lastFrame; }
 
   // workers: live now; the planner spreads each trace request over them.
   std::vector<DispatchTask> TakeTasks(int workers = 1);

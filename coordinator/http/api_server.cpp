@@ -19,6 +19,7 @@
 #include "http/submit_request.h"
 #include "metrics/metric_builders.h"
 #include "planner/planner.h"
+#include "store/frame_finisher.h"
 
 namespace tcfarm {
 namespace {
@@ -572,6 +573,23 @@ void ApiServer::GetFrame(const httplib::Request& request, const std::string&, ht
   const FrameFile file = ParseFrameFile(request.matches[2]);
   CheckFrameInJob(id, file.frame);
   const std::filesystem::path path = frameStore_.FramePath(id, file.frame, file.extension);
+  // A frame's preview is made once its job is done and the farm idle (FrameFinisher);
+  // asked for before, it is made now from the frame's EXR.
+  std::error_code missing;
+  if (file.extension == "png" && !std::filesystem::is_regular_file(path, missing)) {
+    std::optional<std::string> preview;
+    try {
+      preview = EncodePreview(frameStore_, id, file.frame);
+    } catch (const FrameIoError& e) {
+      throw ApiError(500, error_code::kInternal,
+                     "the preview of frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +
+                         " could not be made: " + e.what());
+    }
+    if (preview) {
+      response.set_content(std::move(*preview), file.contentType);
+      return;
+    }
+  }
   if (!ServeFile(response, path, file.contentType)) {
     throw ApiError(404, error_code::kFrameNotReady,
                    "frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +

@@ -897,6 +897,27 @@ TEST_F(ApiServerTest, FrameFilesComeBackByteForByte) {
   EXPECT_EQ(result->body, exr);
 }
 
+// A frame whose preview is not made yet (its job renders, or the farm has not been idle
+// since) gets one on request, from its EXR, kept for the next request.
+TEST_F(ApiServerTest, APreviewIsMadeFromTheExrWhenAskedBeforeItIsWritten) {
+  const uint64_t id = SubmitOk();
+  fs::create_directories(FramePath(id, 2, "exr").parent_path());
+  Image frame{4, 2, std::vector<float>(24, 0.0f)};
+  frame.rgb[0] = 1.0f;  // the top left pixel red
+  WriteExr(FramePath(id, 2, "exr"), frame, "none");
+  httplib::Result result = Get("/api/v1/jobs/" + std::to_string(id) + "/frames/2.png");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(result->get_header_value("Content-Type"), "image/png");
+  ASSERT_TRUE(fs::exists(FramePath(id, 2, "png")));
+  const Image preview = ReadImage(FramePath(id, 2, "png"));
+  EXPECT_EQ(preview.width, 4);
+  EXPECT_FLOAT_EQ(preview.rgb[0], 1.0f);
+  EXPECT_FLOAT_EQ(preview.rgb[3], 0.0f);
+  std::ifstream kept(FramePath(id, 2, "png"), std::ios::binary);
+  EXPECT_EQ(result->body, std::string(std::istreambuf_iterator<char>(kept), std::istreambuf_iterator<char>()));
+}
+
 TEST_F(ApiServerTest, FrameErrors) {
   const uint64_t id = SubmitOk();
   const std::string frames = "/api/v1/jobs/" + std::to_string(id) + "/frames/";

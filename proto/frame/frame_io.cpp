@@ -1,5 +1,6 @@
 #include "frame/frame_io.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -132,6 +133,23 @@ void WritePng(const std::filesystem::path& path, const Image& image) {
   WritePixels(path, image.width, image.height, 3, OIIO::TypeDesc::UINT8, codes.data());
 }
 
+std::string EncodePng(const Image& image) {
+  CheckShape("a PNG in memory", image);
+  std::vector<uint8_t> codes(image.rgb.size());
+  std::transform(image.rgb.begin(), image.rgb.end(), codes.begin(), LinearToSrgb8Fast);
+  std::vector<unsigned char> bytes;
+  OIIO::Filesystem::IOVecOutput memory(bytes);
+  auto out = OIIO::ImageOutput::create("preview.png");
+  if (!out) throw FrameIoError("cannot encode a PNG: " + OIIO::geterror());
+  OIIO::ImageSpec spec(image.width, image.height, 3, OIIO::TypeDesc::UINT8);
+  spec.attribute("png:compressionLevel", kPngCompressionLevel);
+  if (!out->set_ioproxy(&memory) || !out->open("preview.png", spec) ||
+      !out->write_image(OIIO::TypeDesc::UINT8, codes.data()) || !out->close()) {
+    throw FrameIoError("cannot encode a PNG: " + out->geterror());
+  }
+  return std::string(bytes.begin(), bytes.end());
+}
+
 void WriteMaskPng(const std::filesystem::path& path, int width, int height,
                   const std::vector<uint8_t>& mask) {
   if (width <= 0 || height <= 0 || mask.size() != static_cast<size_t>(width) * height) {
@@ -143,6 +161,12 @@ void WriteMaskPng(const std::filesystem::path& path, int width, int height,
   std::transform(mask.begin(), mask.end(), codes.begin(),
                  [](uint8_t value) { return static_cast<uint8_t>(value ? 255 : 0); });
   WritePixels(path, width, height, 1, OIIO::TypeDesc::UINT8, codes.data());
+}
+
+std::string ExrCompressionOf(const std::filesystem::path& path) {
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) throw FrameIoError("cannot read " + path.string() + ": " + OIIO::geterror());
+  return in->spec().get_string_attribute("compression", "none");
 }
 
 Image ReadImage(const std::filesystem::path& path) {

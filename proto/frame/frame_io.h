@@ -32,6 +32,11 @@ bool IsLosslessExrCompression(const std::string& name);
 void WriteExr(const std::filesystem::path& path, const Image& image,
               const std::string& compression = "zip:1");
 void WritePng(const std::filesystem::path& path, const Image& image);
+// The PNG file WritePng writes, as bytes. Throws FrameIoError when it cannot be encoded.
+std::string EncodePng(const Image& image);
+// The compression an EXR file was written with, as OpenImageIO names it ("zip", "none",
+// ...; a level is not recorded). Throws FrameIoError when the file cannot be read.
+std::string ExrCompressionOf(const std::filesystem::path& path);
 // A mask as an 8-bit greyscale PNG: white (255) where mask is non-zero, black elsewhere.
 // mask holds width * height values, row-major from the top row.
 void WriteMaskPng(const std::filesystem::path& path, int width, int height,

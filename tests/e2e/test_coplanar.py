@@ -107,14 +107,15 @@ def test_traced_pixels_equal_the_reference_on_coplanar_faces(farm, references, n
                                                               tmp_path):
     scene = SCENES[name]
     job = farm.run_job(scene, strategy=strategy, bin_width=8)
-    frames = farm.store / str(job["id"])
     traced_wrong = traced = 0
     for frame in range(scene["render"]["frames"]["count"]):
         mask_path = tmp_path / f"mask{frame}.png"
         mask_path.write_bytes(farm.client._request(
             "GET", f"/api/v1/jobs/{job['id']}/frames/{frame}/mask.png", raw=True))
         traced_here = np.asarray(Image.open(mask_path).convert("L")) > 127
-        ours = png(frames / f"frame_{frame:04d}.png")
+        ours_path = tmp_path / f"frame{frame}.png"  # the preview as users get it
+        ours_path.write_bytes(farm.client._request("GET", f"/api/v1/jobs/{job['id']}/frames/{frame}.png", raw=True))
+        ours = png(ours_path)
         reference = png(references[name] / f"frame_{frame:04d}.png")
         differs = (ours != reference).any(axis=2)
         traced += int(traced_here.sum())

@@ -144,15 +144,14 @@ def test_full_store_fails_the_job_with_a_record_of_the_frames_on_disk(tmp_path):
                          job["error"]), job["error"]
         folder = farm.store / str(job["id"])
         on_disk = sorted(int(p.stem[6:]) for p in folder.glob("frame_*.exr"))
-        pngs = sorted(int(p.stem[6:]) for p in folder.glob("frame_*.png"))
         recorded = [f for f, traced in enumerate(job["traced_per_frame"]) if traced >= 0]
         print(f"{len(recorded)} of 60 frames recorded, on disk: {on_disk}")
-        assert recorded == on_disk == pngs  # whole frames only, each recorded
+        assert recorded == on_disk  # whole frames only, each recorded
         assert job["frames"]["done"] == len(recorded)
         assert 0 < len(recorded) < 60
         assert not list(folder.glob("*.partial"))
         assert f"{len(recorded)} of 60 frames are written and recorded" in job["error"]
-        for frame in recorded:
+        for frame in recorded:  # their previews made on request, from memory on the full disk
             assert farm.client.frame(job["id"], frame, "png")[:8] == b"\x89PNG\r\n\x1a\n"
         missing = next(f for f in range(60) if f not in recorded)
         with pytest.raises(ApiError) as absent:

@@ -1,0 +1,135 @@
+#include "store/frame_finisher.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <system_error>
+
+#include "frame/frame_io.h"
+
+namespace tcfarm {
+namespace {
+
+constexpr const char* kFinishedMarker = ".finished";
+// Compression of the frames a job writes while it renders: none, the fastest lossless.
+constexpr const char* kRenderingCompression = "none";
+
+}  // namespace
+
+FrameWriterOptions WhileRendering(const FrameWriterOptions& stored) {
+  FrameWriterOptions rendering = stored;
+  if (!stored.writeExr) return rendering;
+  rendering.exrCompression = kRenderingCompression;
+  rendering.writePng = false;
+  return rendering;
+}
+
+std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, int frame) {
+  const std::filesystem::path exr = store.FramePath(job, frame, "exr");
+  std::error_code missing;
+  if (!std::filesystem::is_regular_file(exr, missing)) return std::nullopt;
+  std::string png = EncodePng(ReadImage(exr));
+  const std::filesystem::path path = store.FramePath(job, frame, "png");
+  std::filesystem::path partial = path;
+  partial += ".partial";
+  // Kept when the disk takes it; served from memory all the same when it does not.
+  std::error_code ignored;
+  if (std::ofstream out{partial, std::ios::binary}; out.write(png.data(), std::streamsize(png.size())) && out.flush()) {
+    out.close();
+    std::filesystem::rename(partial, path, ignored);
+  }
+  std::filesystem::remove(partial, ignored);
+  return png;
+}
+
+FrameFinisher::FrameFinisher(FrameStore store, FrameWriterOptions stored)
+    : store_(std::move(store)), stored_(std::move(stored)), thread_([this] { Run(); }) {}
+
+FrameFinisher::~FrameFinisher() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  thread_.join();
+}
+
+void FrameFinisher::Add(uint64_t job, int first, int last) {
+  if (!stored_.writeExr) return;  // written as the store keeps them already
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    queue_.push_back({job, first, last});
+  }
+  wake_.notify_all();
+}
+
+void FrameFinisher::SetFarmBusy(bool busy) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (busy_ == busy) return;
+    busy_ = busy;
+  }
+  wake_.notify_all();
+}
+
+bool FrameFinisher::Idle() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return queue_.empty() && !working_;
+}
+
+bool FrameFinisher::IsFinished(const FrameStore& store, uint64_t job) {
+  std::error_code ignored;
+  return std::filesystem::exists(store.JobFolder(job) / kFinishedMarker, ignored);
+}
+
+void FrameFinisher::Run() {
+  for (;;) {
+    Job job;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
+      if (stopping_) return;
+      job = queue_.front();
+      queue_.pop_front();
+      working_ = true;
+    }
+    Finish(job);
+    std::lock_guard<std::mutex> lock(mutex_);
+    working_ = false;
+  }
+}
+
+void FrameFinisher::Finish(const Job& job) {
+  for (int frame = job.first; frame <= job.last; ++frame) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      wake_.wait(lock, [this] { return stopping_ || !busy_; });
+      if (stopping_) return;  // the next coordinator finishes the job
+    }
+    try {
+      FinishFrame(job.id, frame);
+      ++framesFinished_;
+    } catch (const std::exception& e) {
+      // A full disk, a frame gone: the frame stays as it was rendered, lossless.
+      std::fprintf(stderr, "coordinator: job %llu frame %d stays as rendered: %s\n",
+                   static_cast<unsigned long long>(job.id), frame, e.what());
+    }
+  }
+  std::ofstream(store_.JobFolder(job.id) / kFinishedMarker) << "finished\n";
+}
+
+void FrameFinisher::FinishFrame(uint64_t job, int frame) const {
+  const std::filesystem::path exr = store_.FramePath(job, frame, "exr");
+  std::error_code missing;
+  if (!std::filesystem::is_regular_file(exr, missing)) return;  // never written (a failed job)
+  // "zip:1" is recorded as "zip": the name before the level says whether it is done.
+  const std::string wanted = stored_.exrCompression.substr(0, stored_.exrCompression.find(':'));
+  const bool compress = ExrCompressionOf(exr) != wanted;
+  const bool preview = stored_.writePng && !std::filesystem::is_regular_file(store_.FramePath(job, frame, "png"), missing);
+  if (!compress && !preview) return;  // finished before (a store older than the marker)
+  const Image image = ReadImage(exr);
+  if (compress) WriteExr(exr, image, stored_.exrCompression);
+  if (preview) WritePng(store_.FramePath(job, frame, "png"), image);
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,77 @@
+// Finishes a job's frames off its critical path. While a job renders, each frame is
+// stored as a lossless EXR written as fast as it can be (no compression) and nothing
+// else: encoding (the EXR's compression, the 8-bit PNG preview) costs several times
+// tracing the frame, and on a shared machine it would take the cores the workers trace
+// on. Once the job is done, and only while no job renders, the finisher re-encodes each
+// frame with the store's compression and writes its preview. Until then the API makes a
+// preview on request (EncodePreview), and the EXR is always the lossless master.
+//
+//   STORE/<job>/.finished   the job's frames are finished (written last)
+//
+// One background thread; a coordinator that stops leaves the rest for the next one
+// (Farm queues completed jobs without the marker at start).
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+
+#include "frame/frame_writer.h"
+#include "store/frame_store.h"
+
+namespace tcfarm {
+
+// How a job's frames are written while it renders, given how the store keeps them: the
+// EXR uncompressed and no preview (when the store keeps EXRs; without an EXR master the
+// PNG is the only copy, written at once).
+FrameWriterOptions WhileRendering(const FrameWriterOptions& stored);
+
+// `frame`'s PNG preview made from its EXR, and kept in its place for the next asker when
+// the disk takes it (atomically); nullopt when the EXR is not there. Throws FrameIoError
+// when the EXR cannot be read.
+std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, int frame);
+
+class FrameFinisher {
+ public:
+  // stored: the store's format (compression, previews); nothing to do when it keeps no EXR.
+  FrameFinisher(FrameStore store, FrameWriterOptions stored);
+  ~FrameFinisher();
+  FrameFinisher(const FrameFinisher&) = delete;
+  FrameFinisher& operator=(const FrameFinisher&) = delete;
+
+  // A job whose frames [first, last] are all written. Thread-safe.
+  void Add(uint64_t job, int first, int last);
+  // While the farm renders a job, finishing waits (between frames).
+  void SetFarmBusy(bool busy);
+  // Nothing queued or being finished.
+  bool Idle() const;
+  static bool IsFinished(const FrameStore& store, uint64_t job);
+  uint64_t FramesFinished() const { return framesFinished_; }
+
+ private:
+  struct Job {
+    uint64_t id;
+    int first, last;
+  };
+  void Run();
+  void Finish(const Job& job);
+  void FinishFrame(uint64_t job, int frame) const;
+
+  FrameStore store_;
+  FrameWriterOptions stored_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Job> queue_;
+  bool working_ = false;
+  bool busy_ = false;
+  bool stopping_ = false;
+  std::atomic<uint64_t> framesFinished_{0};
+  std::thread thread_;
+};
+
+}  // namespace tcfarm

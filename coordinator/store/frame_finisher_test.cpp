@@ -1,0 +1,81 @@
+// A job's frames, written fast while it rendered, are finished (compressed, previewed)
+// only while the farm is idle, bit for bit the same.
+#include "store/frame_finisher.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <thread>
+
+#include "frame/frame_io.h"
+
+namespace tcfarm {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool WaitFor(const std::function<bool()>& condition) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+class FrameFinisherTest : public testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = fs::temp_directory_path() / ("tcfarm_frame_finisher_test_" + std::to_string(::getpid()));
+    store_ = FrameStore(root_);
+    fs::create_directories(store_.JobFolder(7));
+    for (int frame = 10; frame <= 12; ++frame) {
+      // Values whose low bits a lossy step would lose.
+      Image image{5, 3, std::vector<float>(45)};
+      for (size_t i = 0; i < image.rgb.size(); ++i) image.rgb[i] = 0.1234567f * float(i + frame);
+      images_.push_back(image);
+      WriteExr(store_.FramePath(7, frame, "exr"), image, "none");
+    }
+  }
+  void TearDown() override { fs::remove_all(root_); }
+
+  fs::path root_;
+  FrameStore store_{""};
+  std::vector<Image> images_;
+};
+
+TEST_F(FrameFinisherTest, WaitsForTheFarmThenCompressesAndPreviewsBitForBit) {
+  FrameWriterOptions stored;  // zip:1 and previews
+  EXPECT_EQ(WhileRendering(stored).exrCompression, "none");
+  EXPECT_FALSE(WhileRendering(stored).writePng);
+  FrameFinisher finisher(store_, stored);
+  finisher.SetFarmBusy(true);
+  finisher.Add(7, 10, 13);  // frame 13 was never written (a failed job): skipped
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  EXPECT_EQ(finisher.FramesFinished(), 0u);  // a job renders: nothing is encoded
+  EXPECT_FALSE(FrameFinisher::IsFinished(store_, 7));
+  finisher.SetFarmBusy(false);
+  ASSERT_TRUE(WaitFor([&] { return finisher.Idle() && FrameFinisher::IsFinished(store_, 7); }));
+  for (int frame = 10; frame <= 12; ++frame) {
+    EXPECT_EQ(ExrCompressionOf(store_.FramePath(7, frame, "exr")), "zip");
+    EXPECT_EQ(ReadImage(store_.FramePath(7, frame, "exr")).rgb, images_[frame - 10].rgb);
+    EXPECT_TRUE(fs::exists(store_.FramePath(7, frame, "png")));
+  }
+  EXPECT_FALSE(fs::exists(store_.FramePath(7, 13, "png")));
+}
+
+TEST_F(FrameFinisherTest, AStoreWithoutExrsHasNothingToFinish) {
+  FrameWriterOptions pngOnly;
+  pngOnly.writeExr = false;
+  EXPECT_TRUE(WhileRendering(pngOnly).writePng);  // the PNG is the only copy: written at once
+  FrameFinisher finisher(store_, pngOnly);
+  finisher.Add(7, 10, 12);
+  EXPECT_TRUE(finisher.Idle());
+  EXPECT_FALSE(fs::exists(store_.FramePath(7, 10, "png")));
+}
+
+}  // namespace
+}  // namespace tcfarm
