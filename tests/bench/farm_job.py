@@ -3,6 +3,12 @@ cores) and prints the job's figures. As a whole process it is the farm's end-to-
 to set beside the standalone renderer (`tcfarm-worker render`) on the same frames:
 
   python tests/bench/farm_job.py tests/scenes/paper_b_twelve_spheres.json --strategy brute
+
+With --pair STRATEGY it renders the scene twice on the same farm, brute force and then
+STRATEGY, and prints the job wall and the trace CPU of the second over the first's: what a
+user waits for beside what the job costs.
+
+  python tests/bench/farm_job.py tests/scenes/paper_b_twelve_spheres.json --pair auto --size 1280x720 --spp 4
 """
 import argparse
 import json
@@ -14,22 +20,42 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 from farm_harness import LocalFarm  # noqa: E402
 
 
+def run(farm, scene, strategy, bin_width):
+    job = farm.client.submit(scene, strategy=strategy, bin_width=bin_width)
+    job = farm.client.wait(job["id"], poll_seconds=0.05, timeout=3600)
+    stats = job["stats"]
+    print(f"{strategy}: {job['state']}: traced-pixel ratio {job['traced_pixel_ratio']:.4f}, "
+          f"wall {stats['wall_seconds']:.2f} s, trace {stats['trace_seconds']:.2f} s, "
+          f"trace CPU {stats.get('trace_cpu_seconds', float('nan')):.2f} s")
+    return job
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("scene")
     parser.add_argument("--strategy", default="brute")
     parser.add_argument("--bin-width", type=int, default=10)
+    parser.add_argument("--pair", metavar="STRATEGY", help="brute force, then STRATEGY, on the same farm")
+    parser.add_argument("--size", help="WxH instead of the scene's")
+    parser.add_argument("--spp", type=int, help="samples per pixel instead of the scene's")
     args = parser.parse_args()
     scene = json.loads(pathlib.Path(args.scene).read_text())
+    if args.size:
+        width, height = map(int, args.size.split("x"))
+        scene["render"].update(width=width, height=height)
+    if args.spp:
+        scene["render"]["samples_per_pixel"] = args.spp
     with tempfile.TemporaryDirectory() as directory:
         with LocalFarm(directory, workers=0, local_workers=1, worker_threads=0) as farm:
             farm.wait_for_workers(1)
-            job = farm.client.submit(scene, strategy=args.strategy, bin_width=args.bin_width)
-            job = farm.client.wait(job["id"], poll_seconds=0.05, timeout=3600)
-    stats = job["stats"]
-    print(f"{job['state']}: traced-pixel ratio {job['traced_pixel_ratio']:.4f}, "
-          f"wall {stats['wall_seconds']:.2f} s, trace {stats['trace_seconds']:.2f} s")
-    return 0 if job["state"] == "completed" else 1
+            if not args.pair:
+                return 0 if run(farm, scene, args.strategy, args.bin_width)["state"] == "completed" else 1
+            brute = run(farm, scene, "brute", args.bin_width)
+            other = run(farm, scene, args.pair, args.bin_width)
+    wall = other["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"]
+    cpu = other["stats"]["trace_cpu_seconds"] / brute["stats"]["trace_cpu_seconds"]
+    print(f"{args.pair} against brute force: job wall {wall:.3f}, trace CPU {cpu:.3f}, wall / CPU {wall / cpu:.2f}")
+    return 0 if brute["state"] == other["state"] == "completed" else 1
 
 
 if __name__ == "__main__":
