@@ -59,7 +59,7 @@ WorkerState* WorkerRegistry::MostAvailable(const std::set<std::string>& skip) {
   for (auto& [identity, worker] : workers_) {
     if (worker.FreeCredit() == 0 || skip.count(identity)) continue;
     if (!best || worker.FreeCredit() > best->FreeCredit() ||
-        (worker.FreeCredit() == best->FreeCredit() && worker.tasksDone < best->tasksDone)) {
+        (worker.FreeCredit() == best->FreeCredit() && worker.lastAssigned > best->lastAssigned)) {
       best = &worker;
     }
   }
@@ -67,7 +67,10 @@ WorkerState* WorkerRegistry::MostAvailable(const std::set<std::string>& skip) {
 }
 
 void WorkerRegistry::Assign(const std::string& identity, uint64_t taskId) {
-  if (WorkerState* worker = Find(identity)) worker->inFlight.insert(taskId);
+  if (WorkerState* worker = Find(identity)) {
+    worker->inFlight.insert(taskId);
+    worker->lastAssigned = ++assignments_;
+  }
 }
 
 bool WorkerRegistry::Release(const std::string& identity, uint64_t taskId) {

@@ -23,6 +23,7 @@ struct WorkerState {
   SteadyTime lastHeard;
   std::set<uint64_t> inFlight;
   uint64_t tasksDone = 0;
+  uint64_t lastAssigned = 0;  // the registry's serial of the last task given to it; 0: none
   uint64_t pixelsDone = 0;
   double traceSeconds = 0;
   uint32_t FreeCredit() const {
@@ -45,9 +46,11 @@ class WorkerRegistry {
   // DISCONNECT: the worker leaves; its tasks are returned.
   std::vector<uint64_t> Remove(const std::string& identity);
 
-  // The worker with the most free credit (ties: fewest tasks done, to spread the
-  // first tasks of a job), or nullptr when every worker is full. Workers in `skip` are
-  // passed over.
+  // The worker with the most free credit, or nullptr when every worker is full. Ties go
+  // to the worker given a task last: its caches are warm (the scene built, its pages
+  // touched, the frame's top-level scene made), and a job that cannot use the whole farm
+  // keeps to the workers it has warmed instead of paying a cold start on every one.
+  // Workers in `skip` are passed over.
   WorkerState* MostAvailable(const std::set<std::string>& skip = {});
   void Assign(const std::string& identity, uint64_t taskId);
   // Returns the credit of a finished (or failed) task; false if that worker did not hold it.
@@ -61,6 +64,7 @@ class WorkerRegistry {
   size_t TotalFreeCredit() const;
 
  private:
+  uint64_t assignments_ = 0;  // tasks assigned so far: the serial of the next minus one
   HeartbeatPolicy policy_;
   std::map<std::string, WorkerState> workers_;
 };

@@ -279,20 +279,20 @@ TEST(ExactPlanner, StaticSceneInOneSegmentTracesOneFrame) {
 // A frame's pixels are spread over the workers, no task below kMinTaskPixels; each task
 // names its segment (chain) and its frame's place in it (step), for the job's span.
 TEST(ExactPlanner, AFramesPixelsAreSpreadOverTheWorkersAndTasksNameTheirChain) {
-  PlannerOptions options = Options(128, 64, 10, 5);  // 8192 pixels; segments [0,4] [5,9]
+  PlannerOptions options = Options(256, 64, 10, 5);  // 16384 pixels; segments [0,4] [5,9]
   options.workers = 4;
   ExactPlanner planner(options);
   std::vector<TraceTask> first = planner.TakeReadyTasks();
   std::map<int, int> tasksPerSegment;
   for (const TraceTask& task : first) {
-    EXPECT_EQ(task.pixels.size(), 2048u);
+    EXPECT_EQ(task.pixels.size(), 4096u);
     EXPECT_EQ(task.chain, task.frame / 5);
     EXPECT_EQ(task.step, 0);
     ++tasksPerSegment[task.chain];
   }
   EXPECT_EQ(tasksPerSegment, (std::map<int, int>{{0, 4}, {1, 4}}));
-  planner.SetWorkers(64);  // more workers than 1024-pixel tasks: the floor holds
-  const Animation animation(128, 64, 10, [](int frame, int x, int y) {
+  planner.SetWorkers(64);  // more workers than kMinTaskPixels tasks: the floor holds
+  const Animation animation(256, 64, 10, [](int frame, int x, int y) {
     Rgb value = StaticValue(frame, x, y);
     if (y < 20 && frame >= 2) value[0] = 0.5f;  // 20 rows change at frame 2
     return value;
@@ -302,7 +302,7 @@ TEST(ExactPlanner, AFramesPixelsAreSpreadOverTheWorkersAndTasksNameTheirChain) {
     planner.OnResult(task.id, result.rgb.data(), result.rgb.size(), result.horizons.data(), result.horizons.size());
   }
   const std::vector<TraceTask> second = planner.TakeReadyTasks();
-  ASSERT_EQ(second.size(), 3u);  // frame 2's 2560 pixels: 1024, 1024 and 512
+  ASSERT_EQ(second.size(), 2u);  // frame 2's 5120 pixels: 4096 and 1024
   EXPECT_EQ(second[0].pixels.size(), PlannerOptions::kMinTaskPixels);
   for (const TraceTask& task : second) {
     EXPECT_EQ(task.frame, 2);

@@ -730,11 +730,15 @@ TEST(Planner, ResolveStrategy) {
 // kExtraCostBudget of one segment's.
 TEST(Planner, SegmentsComeFromTheCostModelNotTheFarmSize) {
   constexpr uint64_t kLarge = 640 * 480, kSmall = 64 * 48;
-  for (int workers : {1, 4, 16, 64}) {
+  for (int workers : {1, 4, 16}) {
     EXPECT_EQ(PlanSegments(60, workers, kLarge).segments, 1) << workers;
     EXPECT_EQ(PlanSegments(600, workers, kLarge).segments, 1) << workers;
   }
-  EXPECT_GT(PlanSegments(600, 1000, kLarge).segments, 1);  // more workers than a frame's tasks
+  EXPECT_EQ(PlanSegments(60, 64, kLarge).segments, 1);  // any cut of 60 frames costs too much
+  // More workers than a frame's tasks: a long sequence is cut, within the budget.
+  const SegmentPlan wide = PlanSegments(600, 64, kLarge);
+  EXPECT_GT(wide.segments, 1);
+  EXPECT_LE(wide.predictedRelativeCost, PlanSegments(600, 1, kLarge).predictedRelativeCost * (1 + kExtraCostBudget));
   const SegmentPlan one = PlanSegments(600, 1, kSmall);
   EXPECT_EQ(one.segments, 1);
   const SegmentPlan many = PlanSegments(600, 64, kSmall);
