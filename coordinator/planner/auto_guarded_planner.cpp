@@ -8,8 +8,6 @@
 namespace tcfarm {
 namespace {
 
-constexpr const char* kPlannerName = "auto guarded planner";
-
 // Three bins of the widest width: enough to see how changes fall in time, few enough that
 // the survey's samples stay a small, bounded share of the job's memory.
 int SurveyFrames(const PlannerOptions& options) {
