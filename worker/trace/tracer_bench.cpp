@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,16 @@
 
 namespace tcfarm {
 namespace {
+
+double ElapsedSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double ProcessCpuSeconds() {
+  timespec now{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
 
 void TraceSceneFrames(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
@@ -200,8 +211,10 @@ void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
 
 // The tracer's time per frame beside the bare loop's, frame by frame in turns so that both
 // see the same load from whatever else shares the cores: tracer_ms, bare_ms and their
-// ratio; bare_tracer_flags_ms is the bare loop with the tracer's Embree flags (robust
-// traversal, high-quality trees), the part of the ratio that is Embree's own.
+// ratio in elapsed time, and the same in the process's CPU time (cpu_ratio; time the
+// threads wait for the cores does not count there); bare_tracer_flags_ms is the bare loop
+// with the tracer's Embree flags (robust traversal, high-quality trees), the part of the
+// ratio that is Embree's own.
 void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   if (!BareEmbreeLoop::Covers(scene)) {
@@ -220,29 +233,30 @@ void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
     bare.TraceFrame(scene.render.firstFrame + frame, pool, rgb.data());
     bareTracerFlags.TraceFrame(scene.render.firstFrame + frame, pool, rgb.data());
   }
-  using Clock = std::chrono::steady_clock;
-  Clock::duration tracerTime{}, bareTime{}, bareFlagsTime{};
+  // Elapsed and CPU seconds of each loop, summed over the iterations.
+  double tracerTime = 0, bareTime = 0, bareFlagsTime = 0, tracerCpu = 0, bareCpu = 0;
   int frame = 0;
   for (auto _ : state) {
     const int absolute = scene.render.firstFrame + frame;
-    const auto start = Clock::now();
+    const double start = ElapsedSeconds(), startCpu = ProcessCpuSeconds();
     tracer.TraceFrame(absolute, rgb.data());
-    const auto traced = Clock::now();
+    const double traced = ElapsedSeconds(), tracedCpu = ProcessCpuSeconds();
     bare.TraceFrame(absolute, pool, rgb.data());
-    const auto bared = Clock::now();
+    const double bared = ElapsedSeconds(), baredCpu = ProcessCpuSeconds();
     bareTracerFlags.TraceFrame(absolute, pool, rgb.data());
-    bareFlagsTime += Clock::now() - bared;
-    tracerTime += traced - start;
-    bareTime += bared - traced;
+    bareFlagsTime += ElapsedSeconds() - bared;
+    tracerTime += traced - start, tracerCpu += tracedCpu - startCpu;
+    bareTime += bared - traced, bareCpu += baredCpu - tracedCpu;
     benchmark::DoNotOptimize(rgb.data());
     frame = (frame + 1) % scene.render.frameCount;
   }
-  auto ms = [&](Clock::duration total) {
-    return std::chrono::duration<double, std::milli>(total).count() / static_cast<double>(state.iterations());
-  };
+  auto ms = [&](double total) { return 1e3 * total / static_cast<double>(state.iterations()); };
   state.counters["tracer_ms"] = ms(tracerTime);
   state.counters["bare_ms"] = ms(bareTime);
-  state.counters["ratio"] = ms(tracerTime) / ms(bareTime);
+  state.counters["ratio"] = tracerTime / bareTime;
+  state.counters["tracer_cpu_ms"] = ms(tracerCpu);
+  state.counters["bare_cpu_ms"] = ms(bareCpu);
+  state.counters["cpu_ratio"] = tracerCpu / bareCpu;
   state.counters["bare_tracer_flags_ms"] = ms(bareFlagsTime);
   state.counters["threads"] = pool.ThreadCount();
 }
