@@ -82,16 +82,6 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
           m[2][0] * objectNormal.x + m[2][1] * objectNormal.y + m[2][2] * objectNormal.z};
 }
 
-bool FrameGeometry::HasNormalTransform(int shape) const {
-  return static_cast<size_t>(shape) < normalFromObject_.size() && normalFromObject_[shape].present;
-}
-
-int FrameGeometry::ShapeOf(unsigned instanceId, unsigned geometryId) const {
-  if (instanceId == RTC_INVALID_GEOMETRY_ID) return (*staticShapeOfGeometry_)[geometryId];
-  int shape = shapeOfInstance_[instanceId];
-  return shape >= 0 ? shape : (*staticShapeOfGeometry_)[geometryId];
-}
-
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())),
       settlesTies_(SceneMayTie(scene)) {

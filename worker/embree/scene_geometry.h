@@ -26,13 +26,20 @@ class FrameGeometry {
  public:
   RTCScene scene() const { return top_.get(); }
   // The scene's shape index for a hit's (instID[0], geomID).
-  int ShapeOf(unsigned instanceId, unsigned geometryId) const;
+  // Inline, as HasNormalTransform: asked for every hit.
+  int ShapeOf(unsigned instanceId, unsigned geometryId) const {
+    if (instanceId == RTC_INVALID_GEOMETRY_ID) return (*staticShapeOfGeometry_)[geometryId];
+    int shape = shapeOfInstance_[instanceId];
+    return shape >= 0 ? shape : (*staticShapeOfGeometry_)[geometryId];
+  }
   // Whether the scene's shapes carry the tie rule (embree/tie_candidates.h).
   bool SettlesTies() const { return settlesTies_; }
   // Embree reports an instanced shape's normals in its object space: a shape that turns
   // or scales needs them carried to the world (not normalised). Still and merely
   // translated shapes return the normal as it is.
-  bool HasNormalTransform(int shape) const;
+  bool HasNormalTransform(int shape) const {
+    return static_cast<size_t>(shape) < normalFromObject_.size() && normalFromObject_[shape].present;
+  }
   Vec3 NormalToWorld(int shape, const Vec3& objectNormal) const;
 
  private:

@@ -6,25 +6,6 @@
 
 namespace tcfarm {
 
-bool ShadingLight::Toward(Float3 point, Float3 normal, Float3* direction, float* distance) const {
-  if (isPoint) {
-    Float3 toLight = position - point;
-    *distance = Length(toLight);
-    if (!(*distance > 0)) return false;
-    *direction = toLight * (1.0f / *distance);
-  } else {
-    *direction = towardLight;
-    *distance = std::numeric_limits<float>::infinity();
-  }
-  return Dot(*direction, normal) > 0 && Cone(*direction) > 0;
-}
-
-float ShadingLight::Cone(Float3 towardLight) const {
-  if (!isSpot) return 1.0f;
-  float share = std::clamp(-Dot(towardLight, axis) * coneScale + coneOffset, 0.0f, 1.0f);
-  return share * share;
-}
-
 std::vector<ShadingLight> MakeLights(const Scene& scene, int frame) {
   std::vector<ShadingLight> lights;
   for (const Light& light : scene.lights) {

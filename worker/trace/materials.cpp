@@ -4,16 +4,6 @@
 
 namespace tcfarm {
 
-Float3 ShadingMaterial::Reflected(Float3 towardLight, Float3 normal, Float3 arriving, Float3 surfaceDiffuse) const {
-  float cosine = Dot(towardLight, normal);
-  Float3 color = surfaceDiffuse * cosine;
-  if (specular.x > 0 || specular.y > 0 || specular.z > 0) {
-    float highlight = Dot(Reflect(-towardLight, normal), -arriving);
-    if (highlight > 0) color += specular * std::pow(highlight, shininess);
-  }
-  return color;
-}
-
 std::vector<ShadingMaterial> MakeMaterials(const Scene& scene) {
   std::vector<ShadingMaterial> materials;
   for (const Material& m : scene.materials) {

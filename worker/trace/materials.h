@@ -2,6 +2,7 @@
 // an ambient term, mirror reflection and refraction weights.
 #pragma once
 
+#include <cmath>
 #include <vector>
 
 #include "scene/scene.h"
@@ -23,7 +24,16 @@ struct ShadingMaterial {
   static Float3 Ambient(Float3 surfaceDiffuse) { return surfaceDiffuse * kAmbient; }
   // Phong: light of unit intensity arriving from unit direction `towardLight` at a surface
   // of unit `normal`, seen by a ray arriving along unit `arriving`.
-  Float3 Reflected(Float3 towardLight, Float3 normal, Float3 arriving, Float3 surfaceDiffuse) const;
+  // Inline: asked for every lit hit.
+  Float3 Reflected(Float3 towardLight, Float3 normal, Float3 arriving, Float3 surfaceDiffuse) const {
+    float cosine = Dot(towardLight, normal);
+    Float3 color = surfaceDiffuse * cosine;
+    if (specular.x > 0 || specular.y > 0 || specular.z > 0) {
+      float highlight = Dot(Reflect(-towardLight, normal), -arriving);
+      if (highlight > 0) color += specular * std::pow(highlight, shininess);
+    }
+    return color;
+  }
   bool MirrorsOrRefracts() const { return reflectivity != 0 || transparency != 0; }
 };
 

@@ -1,8 +1,8 @@
 // A real shot's load: about 100,000 triangles of smooth meshes that move and turn over a
 // floor, 640x480, one point light. The tracer's time per frame beside a bare Embree loop
 // over the very same triangles and placements (8-wide primary packets, one shadow ray,
-// Lambert with Embree's own normals): the price of everything the tracer adds (exact
-// normals, smooth shading, ties, horizons bookkeeping, ray counting).
+// Phong with Embree's own normals; trace/bare_embree_loop.h): the price of everything the
+// tracer adds (exact normals, smooth shading, ties, horizons bookkeeping, ray counting).
 //   build/worker/mesh_bench [--benchmark_min_time=2]
 #include <benchmark/benchmark.h>
 
@@ -14,6 +14,7 @@
 
 #include "embree/device.h"
 #include "scene/scene.h"
+#include "trace/bare_embree_loop.h"
 #include "trace/tracer.h"
 #include "util/tracing_threads.h"
 
@@ -94,142 +95,18 @@ void TraceMovingMeshes(benchmark::State& state) {
   state.counters["frames/s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
 }
 
-// The same frames with nothing but Embree: each mesh in its own scene, instanced per frame
-// at its motion's matrix into a top level over the still floor, as the tracer places them.
-class BareEmbreeFrames {
- public:
-  BareEmbreeFrames(RTCDevice device, const Scene& scene) : device_(device), scene_(scene) {
-    for (const Shape& shape : scene.shapes) {
-      RTCScene own = rtcNewScene(device);
-      RTCGeometry geometry = rtcNewGeometry(device, shape.type == Shape::Type::kQuad ? RTC_GEOMETRY_TYPE_QUAD
-                                                                                    : RTC_GEOMETRY_TYPE_TRIANGLE);
-      std::vector<Vec3> points = shape.Mesh().vertices;
-      std::vector<unsigned> indices;
-      if (shape.type == Shape::Type::kQuad) {
-        const Vec3 &c = shape.corner, &u = shape.edgeU, &v = shape.edgeV;
-        points = {c, {c.x + u.x, c.y + u.y, c.z + u.z}, {c.x + u.x + v.x, c.y + u.y + v.y, c.z + u.z + v.z},
-                  {c.x + v.x, c.y + v.y, c.z + v.z}};
-        indices = {0, 1, 2, 3};
-      } else {
-        for (const auto& t : shape.Mesh().triangles) indices.insert(indices.end(), t.begin(), t.end());
-      }
-      auto* vertex = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                                 3 * sizeof(float), points.size()));
-      for (size_t i = 0; i < points.size(); ++i) {
-        for (int axis = 0; axis < 3; ++axis) vertex[3 * i + axis] = static_cast<float>(points[i][axis]);
-      }
-      const bool quad = shape.type == Shape::Type::kQuad;
-      auto* index = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-          geometry, RTC_BUFFER_TYPE_INDEX, 0, quad ? RTC_FORMAT_UINT4 : RTC_FORMAT_UINT3,
-          (quad ? 4 : 3) * sizeof(unsigned), indices.size() / (quad ? 4 : 3)));
-      std::copy(indices.begin(), indices.end(), index);
-      rtcCommitGeometry(geometry);
-      rtcAttachGeometry(own, geometry);
-      rtcReleaseGeometry(geometry);
-      rtcCommitScene(own);
-      scenes_.push_back(own);
-    }
-  }
-  ~BareEmbreeFrames() {
-    for (RTCScene scene : scenes_) rtcReleaseScene(scene);
-  }
-
-  RTCScene Place(int frame) const {
-    RTCScene top = rtcNewScene(device_);
-    rtcSetSceneBuildQuality(top, RTC_BUILD_QUALITY_LOW);
-    for (size_t i = 0; i < scenes_.size(); ++i) {
-      const Affine placed = scene_.shapes[i].motion.WorldFromObject(frame);
-      float matrix[12];
-      for (int column = 0; column < 3; ++column) {
-        for (int row = 0; row < 3; ++row) matrix[3 * column + row] = static_cast<float>(placed.linear[row][column]);
-      }
-      for (int row = 0; row < 3; ++row) matrix[9 + row] = static_cast<float>(placed.offset[row]);
-      RTCGeometry instance = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
-      rtcSetGeometryInstancedScene(instance, scenes_[i]);
-      rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, matrix);
-      rtcCommitGeometry(instance);
-      rtcAttachGeometry(top, instance);
-      rtcReleaseGeometry(instance);
-    }
-    rtcCommitScene(top);
-    return top;
-  }
-
- private:
-  RTCDevice device_;
-  const Scene& scene_;
-  std::vector<RTCScene> scenes_;
-};
-
-void BareEmbreeLoop(benchmark::State& state) {
+// The same frames with nothing but Embree (trace/bare_embree_loop.h): each mesh in its own
+// scene, instanced per frame at its motion's matrix into a top level over the still floor,
+// as the tracer places them.
+void TraceMovingMeshesBare(benchmark::State& state) {
   const Scene& scene = SharedScene();
   EmbreeDevice device;
   TracingThreads threads;
-  BareEmbreeFrames frames(device.get(), scene);
-  const int width = scene.render.width, height = scene.render.height;
-  const CameraPose pose = scene.camera.At(0);
-  const Vec3 light = scene.lights[0].PositionAt(0);
-  // The tracer's camera, built the same way (position - look_at in double).
-  const Vec3 forward = NormalizeD(SubtractD(pose.lookAt, pose.position));
-  const Vec3 right = NormalizeD(CrossD(forward, pose.up)), up = CrossD(right, forward);
-  const double tanHalf = std::tan(scene.camera.verticalFovDegrees * M_PI / 360.0), aspect = double(width) / height;
-  std::vector<float> rgb(static_cast<size_t>(width) * height * 3);
+  BareEmbreeLoop bare(device.get(), scene);
+  std::vector<float> rgb(static_cast<size_t>(scene.render.width) * scene.render.height * 3);
   int frame = 0;
   for (auto _ : state) {
-    RTCScene top = frames.Place(frame);
-    threads.ParallelFor(static_cast<size_t>(width) * height, 128, [&](size_t begin, size_t end) {
-      RTCIntersectContext context;
-      rtcInitIntersectContext(&context);
-      for (size_t first = begin; first < end; first += 8) {
-        alignas(32) int valid[8] = {};
-        alignas(32) RTCRayHit8 packet{};
-        const int lanes = static_cast<int>(std::min<size_t>(8, end - first));
-        for (int lane = 0; lane < lanes; ++lane) {
-          const size_t pixel = first + lane;
-          const double sx = 2.0 * (pixel % width + 0.5) / width - 1, sy = 1 - 2.0 * (pixel / width + 0.5) / height;
-          Vec3 d{forward.x + (right.x * sx * aspect + up.x * sy) * tanHalf,
-                 forward.y + (right.y * sx * aspect + up.y * sy) * tanHalf,
-                 forward.z + (right.z * sx * aspect + up.z * sy) * tanHalf};
-          d = NormalizeD(d);
-          valid[lane] = -1;
-          packet.ray.org_x[lane] = float(pose.position.x), packet.ray.org_y[lane] = float(pose.position.y);
-          packet.ray.org_z[lane] = float(pose.position.z);
-          packet.ray.dir_x[lane] = float(d.x), packet.ray.dir_y[lane] = float(d.y), packet.ray.dir_z[lane] = float(d.z);
-          packet.ray.tfar[lane] = INFINITY;
-          packet.ray.mask[lane] = ~0u;
-          packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
-        }
-        rtcIntersect8(valid, top, &context, &packet);
-        alignas(32) int shadowValid[8] = {};
-        alignas(32) RTCRay8 shadow{};
-        float cosine[8] = {};
-        for (int lane = 0; lane < lanes; ++lane) {
-          if (packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) continue;
-          const float t = packet.ray.tfar[lane];
-          const float px = packet.ray.org_x[lane] + t * packet.ray.dir_x[lane];
-          const float py = packet.ray.org_y[lane] + t * packet.ray.dir_y[lane];
-          const float pz = packet.ray.org_z[lane] + t * packet.ray.dir_z[lane];
-          float lx = float(light.x) - px, ly = float(light.y) - py, lz = float(light.z) - pz;
-          const float distance = std::sqrt(lx * lx + ly * ly + lz * lz);
-          lx /= distance, ly /= distance, lz /= distance;
-          float nx = packet.hit.Ng_x[lane], ny = packet.hit.Ng_y[lane], nz = packet.hit.Ng_z[lane];
-          const float n = std::sqrt(nx * nx + ny * ny + nz * nz);
-          cosine[lane] = std::fabs(nx * lx + ny * ly + nz * lz) / n;
-          shadowValid[lane] = -1;
-          shadow.org_x[lane] = px + 1e-4f * nx / n, shadow.org_y[lane] = py + 1e-4f * ny / n;
-          shadow.org_z[lane] = pz + 1e-4f * nz / n;
-          shadow.dir_x[lane] = lx, shadow.dir_y[lane] = ly, shadow.dir_z[lane] = lz;
-          shadow.tfar[lane] = distance;
-          shadow.mask[lane] = ~0u;
-        }
-        rtcOccluded8(shadowValid, top, &context, &shadow);
-        for (int lane = 0; lane < lanes; ++lane) {
-          const bool lit = shadowValid[lane] && shadow.tfar[lane] >= 0;
-          rgb[3 * (first + lane)] = lit ? 0.7f * cosine[lane] : 0.0f;
-        }
-      }
-    });
-    rtcReleaseScene(top);
+    bare.TraceFrame(frame, threads, rgb.data());
     benchmark::DoNotOptimize(rgb.data());
     frame = (frame + 1) % scene.render.frameCount;
   }
@@ -294,7 +171,7 @@ BENCHMARK(BuildPlacements)
     ->UseRealTime();
 
 BENCHMARK(TraceMovingMeshes)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
-BENCHMARK(BareEmbreeLoop)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK(TraceMovingMeshesBare)->Name("BareEmbreeLoop")->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
 
 }  // namespace
 }  // namespace tcfarm

@@ -45,6 +45,8 @@ float StorableChannel(float value) {
   return std::clamp(value, -std::numeric_limits<float>::max(), std::numeric_limits<float>::max());
 }
 
+bool IsZero(const Float3& v) { return v.x == 0 && v.y == 0 && v.z == 0; }
+
 uint64_t ThreadCpuNanoseconds() {
   timespec now{};
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &now);
@@ -114,9 +116,17 @@ class Tracer::PixelTracer {
   // interpolated texture coordinates where the shape has them.
   Float3 SurfaceDiffuse(int shape, int material, const RawHit& raw) const;
   // A normal carried to the world and made unit (kept as it is when already unit and the
-  // shape does not turn); zero stays zero.
-  Float3 ToWorld(int shape, Float3 normal, bool unit = false) const;
-  SurfaceHit MakeHit(Float3 origin, Float3 direction, const RawHit& raw) const;
+  // shape does not turn); zero stays zero. Inline for the common shape that does not turn.
+  Float3 ToWorld(int shape, const Float3& normal, bool unit = false) const {
+    if (frame_.geometry->HasNormalTransform(shape)) return TurnedToWorld(shape, normal);
+    if (unit) return normal;  // computed unit in double: kept to the bit
+    float length = Length(normal);
+    return (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
+  }
+  Float3 TurnedToWorld(int shape, const Float3& normal) const;
+  // Vectors by reference: passed by value, their packed halves went through the stack
+  // and stalled every hit on the store forwarding.
+  SurfaceHit MakeHit(const Float3& origin, const Float3& direction, const RawHit& raw) const;
   // Light arriving at the hit from light i if nothing blocks it; false when the light is
   // behind the surface (then no shadow ray is needed at all).
   bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const;
@@ -149,7 +159,7 @@ RTCScene Tracer::PixelTracer::SceneAhead(int frame) {
   return framesAhead_[index]->scene();
 }
 
-Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Float3 direction,
+Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origin, const Float3& direction,
                                                              const RawHit& raw) const {
   SurfaceHit hit;
   hit.position = origin + direction * raw.t;
@@ -163,12 +173,14 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(Float3 origin, Floa
   // without faces; in object space for a shape that turns or scales.
   Float3 face = faces.empty() ? ToWorld(shape, raw.geometricNormal) : ToWorld(shape, faces[raw.primitiveId], true);
   // A degenerate normal would put NaN into the frame; face the ray instead.
-  if (face.x == 0 && face.y == 0 && face.z == 0) face = -direction;
+  if (IsZero(face)) face = -direction;
   hit.fromInside = Dot(face, direction) > 0;
   hit.faceNormal = hit.fromInside ? -face : face;
   // A smooth mesh shades with its interpolated normal, turned to the face's side.
-  Float3 shading = ToWorld(shape, SmoothNormal(shape, raw));
-  if (shading.x == 0 && shading.y == 0 && shading.z == 0) shading = hit.faceNormal;
+  // Zero (flat) stays zero in the world: only a smooth normal is carried there.
+  Float3 shading = SmoothNormal(shape, raw);
+  if (!IsZero(shading)) shading = ToWorld(shape, shading);
+  if (IsZero(shading)) shading = hit.faceNormal;
   hit.normal = Dot(shading, hit.faceNormal) < 0 ? -shading : shading;
   hit.diffuse = SurfaceDiffuse(shape, hit.material, raw);
   return hit;
@@ -197,15 +209,10 @@ Float3 Tracer::PixelTracer::SmoothNormal(int shape, const RawHit& raw) const {
   return a * (1.0f - raw.u - raw.v) + b * raw.u + c * raw.v;
 }
 
-Float3 Tracer::PixelTracer::ToWorld(int shape, Float3 normal, bool unit) const {
-  if (frame_.geometry->HasNormalTransform(shape)) {
-    Vec3 world = frame_.geometry->NormalToWorld(shape, {normal.x, normal.y, normal.z});
-    double length = std::sqrt(world.x * world.x + world.y * world.y + world.z * world.z);
-    return length > 0 ? ToFloat3({world.x / length, world.y / length, world.z / length}) : Float3{};
-  }
-  if (unit) return normal;  // computed unit in double: kept to the bit
-  float length = Length(normal);
-  return (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
+Float3 Tracer::PixelTracer::TurnedToWorld(int shape, const Float3& normal) const {
+  Vec3 world = frame_.geometry->NormalToWorld(shape, {normal.x, normal.y, normal.z});
+  double length = std::sqrt(world.x * world.x + world.y * world.y + world.z * world.z);
+  return length > 0 ? ToFloat3({world.x / length, world.y / length, world.z / length}) : Float3{};
 }
 
 bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,

@@ -1,16 +1,21 @@
 // Shaded frames per second of the paper's three animations at their full resolution
 // (640x480, one sample, primary + shadow rays, Phong), on all cores. Each iteration
 // traces the next frame of the sequence, so per-frame placement of moving shapes and
-// camera motion are part of the figure.
+// camera motion are part of the figure. TracerAgainstBareEmbree holds each scene's frames
+// to a bare Embree loop over the same primitives and rays (trace/bare_embree_loop.h).
 //   build/worker/tracer_bench [--benchmark_min_time=2]
+//   build/worker/tracer_bench --benchmark_filter=TracerAgainstBareEmbree
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <chrono>
+#include <ctime>
 #include <string>
 #include <vector>
 
 #include "embree/device.h"
 #include "scene/scene.h"
+#include "trace/bare_embree_loop.h"
 #include "trace/tracer.h"
 #include "util/tracing_threads.h"
 
@@ -20,6 +25,16 @@
 
 namespace tcfarm {
 namespace {
+
+double ElapsedSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double ProcessCpuSeconds() {
+  timespec now{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &now);
+  return static_cast<double>(now.tv_sec) + 1e-9 * static_cast<double>(now.tv_nsec);
+}
 
 void TraceSceneFrames(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
@@ -193,6 +208,65 @@ void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
   state.counters["ns/pixel"] = benchmark::Counter(
       double(state.iterations()) * pixels.size(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
+
+// The tracer's time per frame beside the bare loop's, frame by frame in turns so that both
+// see the same load from whatever else shares the cores: tracer_ms, bare_ms and their
+// ratio in elapsed time, and the same in the process's CPU time (cpu_ratio; time the
+// threads wait for the cores does not count there); bare_tracer_flags_ms is the bare loop
+// with the tracer's Embree flags (robust traversal, high-quality trees), the part of the
+// ratio that is Embree's own.
+void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
+  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+  if (!BareEmbreeLoop::Covers(scene)) {
+    state.SkipWithError("the bare loop traces no mirrors or refraction");
+    return;
+  }
+  EmbreeDevice device;
+  TracingThreads pool;
+  Tracer tracer(device, scene, pool);
+  BareEmbreeLoop bare(device.get(), scene);
+  BareEmbreeLoop bareTracerFlags(device.get(), scene, BareEmbreeLoop::Flags::kTracers);
+  std::vector<float> rgb(static_cast<size_t>(scene.render.width) * scene.render.height * 3);
+  // Every frame once before timing: both keep their placed frames.
+  for (int frame = 0; frame < scene.render.frameCount; ++frame) {
+    tracer.TraceFrame(scene.render.firstFrame + frame, rgb.data());
+    bare.TraceFrame(scene.render.firstFrame + frame, pool, rgb.data());
+    bareTracerFlags.TraceFrame(scene.render.firstFrame + frame, pool, rgb.data());
+  }
+  // Elapsed and CPU seconds of each loop, summed over the iterations.
+  double tracerTime = 0, bareTime = 0, bareFlagsTime = 0, tracerCpu = 0, bareCpu = 0;
+  int frame = 0;
+  for (auto _ : state) {
+    const int absolute = scene.render.firstFrame + frame;
+    const double start = ElapsedSeconds(), startCpu = ProcessCpuSeconds();
+    tracer.TraceFrame(absolute, rgb.data());
+    const double traced = ElapsedSeconds(), tracedCpu = ProcessCpuSeconds();
+    bare.TraceFrame(absolute, pool, rgb.data());
+    const double bared = ElapsedSeconds(), baredCpu = ProcessCpuSeconds();
+    bareTracerFlags.TraceFrame(absolute, pool, rgb.data());
+    bareFlagsTime += ElapsedSeconds() - bared;
+    tracerTime += traced - start, tracerCpu += tracedCpu - startCpu;
+    bareTime += bared - traced, bareCpu += baredCpu - tracedCpu;
+    benchmark::DoNotOptimize(rgb.data());
+    frame = (frame + 1) % scene.render.frameCount;
+  }
+  auto ms = [&](double total) { return 1e3 * total / static_cast<double>(state.iterations()); };
+  state.counters["tracer_ms"] = ms(tracerTime);
+  state.counters["bare_ms"] = ms(bareTime);
+  state.counters["ratio"] = tracerTime / bareTime;
+  state.counters["tracer_cpu_ms"] = ms(tracerCpu);
+  state.counters["bare_cpu_ms"] = ms(bareCpu);
+  state.counters["cpu_ratio"] = tracerCpu / bareCpu;
+  state.counters["bare_tracer_flags_ms"] = ms(bareFlagsTime);
+  state.counters["threads"] = pool.ThreadCount();
+}
+
+BENCHMARK_CAPTURE(TracerAgainstBareEmbree, a_one_sphere, "paper_a_one_sphere.json")
+    ->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3);
+BENCHMARK_CAPTURE(TracerAgainstBareEmbree, b_twelve_spheres, "paper_b_twelve_spheres.json")
+    ->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3);
+BENCHMARK_CAPTURE(TracerAgainstBareEmbree, c_terrain_flyover, "paper_c_terrain_flyover.json")
+    ->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3);
 
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, full, Subset::kFull)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, checkerboard, Subset::kCheckerboard)->MeasureProcessCPUTime()->UseRealTime();

@@ -1,0 +1,238 @@
+#include "trace/bare_embree_loop.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "shapes/shape_kind.h"
+#include "trace/camera.h"
+#include "trace/float3.h"
+#include "trace/lights.h"
+#include "trace/materials.h"
+
+namespace tcfarm {
+namespace {
+
+constexpr int kLanes = 8;
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+// Shadow rays start this far off the surface, relative to the hit's coordinates (the tracer's offset).
+constexpr float kRelativeOffset = 1e-5f;
+
+void ApplyFlags(RTCScene scene, BareEmbreeLoop::Flags flags) {
+  if (flags != BareEmbreeLoop::Flags::kTracers) return;
+  rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+}
+
+void AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Affine& placement) {
+  float matrix[12];  // column-major 3x4
+  for (int column = 0; column < 3; ++column) {
+    for (int row = 0; row < 3; ++row) matrix[3 * column + row] = static_cast<float>(placement.linear[row][column]);
+  }
+  for (int row = 0; row < 3; ++row) matrix[9 + row] = static_cast<float>(placement.offset[row]);
+  RTCGeometry instance = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+  rtcSetGeometryInstancedScene(instance, child);
+  rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, matrix);
+  rtcCommitGeometry(instance);
+  rtcAttachGeometry(top, instance);
+  rtcReleaseGeometry(instance);
+}
+
+// Normals go to the world by the inverse transpose of the linear part, up to a scale the
+// shading normalises away: the cofactor matrix.
+std::array<float, 9> NormalMatrix(const Affine& placement) {
+  const auto& m = placement.linear;
+  std::array<float, 9> out;
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 3; ++column) {
+      const int r1 = (row + 1) % 3, r2 = (row + 2) % 3, c1 = (column + 1) % 3, c2 = (column + 2) % 3;
+      out[3 * row + column] = static_cast<float>(m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1]);
+    }
+  }
+  return out;
+}
+
+// A primary hit as the shading needs it.
+struct LaneHit {
+  Float3 position, normal, arriving;
+  float offset;
+  const ShadingMaterial* material;
+};
+
+}  // namespace
+
+BareEmbreeLoop::BareEmbreeLoop(RTCDevice device, const Scene& scene, Flags flags)
+    : device_(device), scene_(scene), flags_(flags) {
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& shape = scene.shapes[i];
+    RTCScene target;
+    if (shape.motion.IsNone()) {
+      if (!still_) still_ = NewShapesScene();
+      target = still_;
+    } else {
+      movers_.emplace_back(static_cast<int>(i), NewShapesScene());
+      target = movers_.back().second;
+    }
+    RTCGeometry geometry = KindOf(shape).NewGeometry(device, shape);
+    rtcCommitGeometry(geometry);
+    const unsigned id = rtcAttachGeometry(target, geometry);
+    rtcReleaseGeometry(geometry);
+    if (target == still_) {
+      stillShapeOfGeometry_.resize(std::max<size_t>(stillShapeOfGeometry_.size(), id + 1), -1);
+      stillShapeOfGeometry_[id] = static_cast<int>(i);
+    }
+  }
+  if (still_) rtcCommitScene(still_);
+  for (auto& mover : movers_) rtcCommitScene(mover.second);
+}
+
+BareEmbreeLoop::~BareEmbreeLoop() {
+  for (auto& [frame, placed] : placed_) {
+    if (placed.scene != still_) rtcReleaseScene(placed.scene);
+  }
+  for (auto& mover : movers_) rtcReleaseScene(mover.second);
+  if (still_) rtcReleaseScene(still_);
+}
+
+bool BareEmbreeLoop::Covers(const Scene& scene) {
+  return !scene.AnyMaterialReflects() && !scene.AnyMaterialRefracts();
+}
+
+RTCScene BareEmbreeLoop::NewShapesScene() const {
+  RTCScene scene = rtcNewScene(device_);
+  ApplyFlags(scene, flags_);
+  return scene;
+}
+
+const BareEmbreeLoop::Placed& BareEmbreeLoop::Place(int frame) {
+  auto [it, isNew] = placed_.try_emplace(frame);
+  Placed& placed = it->second;
+  if (!isNew) return placed;
+  if (movers_.empty()) {  // nothing moves: the still scene itself, no instance
+    placed.scene = still_;
+    return placed;
+  }
+  placed.scene = rtcNewScene(device_);
+  rtcSetSceneBuildQuality(placed.scene, RTC_BUILD_QUALITY_LOW);
+  if (flags_ == Flags::kTracers) rtcSetSceneFlags(placed.scene, RTC_SCENE_FLAG_ROBUST);
+  if (still_) {
+    AttachInstance(device_, placed.scene, still_, Affine{});
+    placed.shapeOfInstance.push_back(-1);
+    placed.normalToWorld.push_back({1, 0, 0, 0, 1, 0, 0, 0, 1});
+  }
+  for (const auto& [shape, own] : movers_) {
+    const Affine worldFromObject = scene_.shapes[shape].motion.WorldFromObject(frame);
+    AttachInstance(device_, placed.scene, own, worldFromObject);
+    placed.shapeOfInstance.push_back(shape);
+    placed.normalToWorld.push_back(NormalMatrix(worldFromObject));
+  }
+  rtcCommitScene(placed.scene);
+  return placed;
+}
+
+void BareEmbreeLoop::TraceFrame(int frame, TracingThreads& threads, float* rgb) {
+  const Placed& placed = Place(frame);
+  const PerspectiveCamera camera = MakeCamera(scene_, frame);
+  const std::vector<ShadingLight> lights = MakeLights(scene_, frame);
+  const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
+  const Float3 background = ToFloat3(scene_.background);
+  const auto width = static_cast<uint32_t>(scene_.render.width);
+  const size_t pixels = size_t{width} * scene_.render.height;
+  const int spp = scene_.render.samplesPerPixel;
+  const size_t chunk = std::max<size_t>(128, pixels / (threads.ThreadCount() * 16));
+  threads.ParallelFor(pixels, chunk, [&](size_t begin, size_t end) {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    std::fill(rgb + 3 * begin, rgb + 3 * end, 0.0f);
+    const size_t items = (end - begin) * spp;
+    for (size_t first = 0; first < items; first += kLanes) {
+      const int lanes = static_cast<int>(std::min<size_t>(kLanes, items - first));
+      alignas(32) int valid[kLanes] = {};
+      alignas(32) RTCRayHit8 packet{};
+      for (int lane = 0; lane < lanes; ++lane) {
+        const size_t item = first + lane, pixel = begin + item / spp;
+        float px, py;
+        SamplePosition(pixel % width, pixel / width, static_cast<int>(item % spp), spp, &px, &py);
+        Float3 o, d;
+        camera.Ray(px, py, &o, &d);
+        valid[lane] = -1;
+        packet.ray.org_x[lane] = o.x, packet.ray.org_y[lane] = o.y, packet.ray.org_z[lane] = o.z;
+        packet.ray.dir_x[lane] = d.x, packet.ray.dir_y[lane] = d.y, packet.ray.dir_z[lane] = d.z;
+        packet.ray.tfar[lane] = kInfinity;
+        packet.ray.mask[lane] = ~0u;
+        packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+        packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
+      }
+      rtcIntersect8(valid, placed.scene, &context, &packet);
+
+      LaneHit hits[kLanes];
+      Float3 color[kLanes];
+      bool hasHit[kLanes] = {};
+      for (int lane = 0; lane < lanes; ++lane) {
+        if (packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) {
+          color[lane] = background;
+          continue;
+        }
+        hasHit[lane] = true;
+        const unsigned instance = packet.hit.instID[0][lane];
+        int shape;
+        Float3 n{packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]};
+        if (instance == RTC_INVALID_GEOMETRY_ID || placed.shapeOfInstance[instance] < 0) {
+          shape = stillShapeOfGeometry_[packet.hit.geomID[lane]];
+        } else {
+          shape = placed.shapeOfInstance[instance];
+          const auto& m = placed.normalToWorld[instance];
+          n = {m[0] * n.x + m[1] * n.y + m[2] * n.z, m[3] * n.x + m[4] * n.y + m[5] * n.z,
+               m[6] * n.x + m[7] * n.y + m[8] * n.z};
+        }
+        const Float3 o{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
+        const Float3 d{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
+        const float t = packet.ray.tfar[lane];
+        n = Normalize(n);
+        LaneHit& hit = hits[lane];
+        hit = {o + d * t, Dot(n, d) > 0 ? -n : n, d, kRelativeOffset * (MaxAbsComponent(o) + t),
+               &materials[scene_.shapes[shape].material]};
+        color[lane] = ShadingMaterial::Ambient(hit.material->diffuse);
+      }
+      for (const ShadingLight& light : lights) {
+        alignas(32) int shadowValid[kLanes] = {};
+        alignas(32) RTCRay8 shadow{};
+        Float3 toLight[kLanes];
+        float distance[kLanes];
+        for (int lane = 0; lane < lanes; ++lane) {
+          if (!hasHit[lane]) continue;
+          const LaneHit& hit = hits[lane];
+          if (light.isPoint) {  // spot cones left out: a point light's cost
+            const Float3 v = light.position - hit.position;
+            distance[lane] = Length(v);
+            toLight[lane] = v * (1.0f / distance[lane]);
+          } else {
+            toLight[lane] = light.towardLight;
+            distance[lane] = kInfinity;
+          }
+          if (!(Dot(toLight[lane], hit.normal) > 0)) continue;
+          const Float3 start = hit.position + hit.normal * hit.offset;
+          shadowValid[lane] = -1;
+          shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
+          shadow.dir_x[lane] = toLight[lane].x, shadow.dir_y[lane] = toLight[lane].y;
+          shadow.dir_z[lane] = toLight[lane].z;
+          shadow.tfar[lane] = distance[lane];
+          shadow.mask[lane] = ~0u;
+        }
+        rtcOccluded8(shadowValid, placed.scene, &context, &shadow);
+        for (int lane = 0; lane < lanes; ++lane) {
+          if (!shadowValid[lane] || shadow.tfar[lane] < 0) continue;
+          const LaneHit& hit = hits[lane];
+          color[lane] += hit.material->Reflected(toLight[lane], hit.normal, hit.arriving, hit.material->diffuse) *
+                         light.intensity * light.Falloff(distance[lane]);
+        }
+      }
+      for (int lane = 0; lane < lanes; ++lane) {
+        float* out = rgb + 3 * (begin + (first + lane) / spp);
+        out[0] += color[lane].x / spp, out[1] += color[lane].y / spp, out[2] += color[lane].z / spp;
+      }
+    }
+  });
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,59 @@
+// The yardstick the benchmarks hold the tracer to: a scene traced by a bare Embree loop,
+// without anything the tracer adds for exactness (face normals computed in double, the tie
+// rule, horizons, ray counts). The same shapes as the same Embree primitives
+// (ShapeKind::NewGeometry), placed per frame as the tracer places them (still shapes in one
+// scene; each moving shape in its own scene, instanced at its motion's matrix), the same
+// camera rays, 8-wide primary packets, one shadow packet per light, Phong with Embree's own
+// normals, on the same threads. Placed frames are kept, as the tracer's frame cache keeps
+// them. Mirrors and refraction are not traced: a scene with them is not measured.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <array>
+#include <map>
+#include <vector>
+
+#include "scene/scene.h"
+#include "util/tracing_threads.h"
+
+namespace tcfarm {
+
+class BareEmbreeLoop {
+ public:
+  // Embree's defaults (medium-quality trees, fast traversal), or with the tracer's flags:
+  // robust traversal and high-quality trees for the scenes of shapes.
+  enum class Flags { kEmbreeDefaults, kTracers };
+
+  // The scene must outlive the loop.
+  BareEmbreeLoop(RTCDevice device, const Scene& scene, Flags flags = Flags::kEmbreeDefaults);
+  ~BareEmbreeLoop();
+  BareEmbreeLoop(const BareEmbreeLoop&) = delete;
+  BareEmbreeLoop& operator=(const BareEmbreeLoop&) = delete;
+
+  // Whether the loop traces everything the scene asks for (no mirrors, no refraction).
+  static bool Covers(const Scene& scene);
+  // Every pixel of `frame`, row by row, as 3 floats of linear RGB.
+  void TraceFrame(int frame, TracingThreads& threads, float* rgb);
+
+ private:
+  // A frame's traceable scene, and for each instance its shape (-1: the still shapes) and
+  // the matrix carrying its object-space normals to the world (row-major).
+  struct Placed {
+    RTCScene scene = nullptr;
+    std::vector<int> shapeOfInstance;
+    std::vector<std::array<float, 9>> normalToWorld;
+  };
+  const Placed& Place(int frame);
+  RTCScene NewShapesScene() const;
+
+  RTCDevice device_;
+  const Scene& scene_;
+  Flags flags_;
+  RTCScene still_ = nullptr;            // the still shapes, null when there are none
+  std::vector<int> stillShapeOfGeometry_;
+  std::vector<std::pair<int, RTCScene>> movers_;  // shape, its own scene
+  std::map<int, Placed> placed_;
+};
+
+}  // namespace tcfarm
