@@ -196,6 +196,35 @@ TEST_F(DispatcherTest, AResultOfTheWrongSizeDropsTheWorker) {
   EXPECT_EQ(sink_.results.size(), 2u);
 }
 
+// A worker found returning wrong values is dropped for good: its tasks go to others, and
+// whatever it sends afterwards, READY included, is not heard.
+TEST_F(DispatcherTest, ADistrustedWorkerIsNeverHeardAgain) {
+  FakeWorker liar(context_, dispatcher_.BoundEndpoint(), 2);
+  EnqueueTasks(1, 2);
+  Pump();
+  const std::vector<wire::Task> held = liar.Tasks();
+  ASSERT_EQ(held.size(), 2u);
+  const std::string identity = dispatcher_.registry().workers().begin()->first;
+  dispatcher_.Distrust(identity, "its values are not the referee's");
+  EXPECT_EQ(dispatcher_.counters().workersDistrusted, 1u);
+  EXPECT_TRUE(dispatcher_.registry().workers().empty());
+  EXPECT_EQ(dispatcher_.PendingTasks(), 2u);
+  liar.Answer(held[0]);         // too late: not its task any more
+  liar.Send(wire::Ready{2, 1, "liar"});  // and it may not come back
+  Pump();
+  EXPECT_TRUE(sink_.results.empty());
+  EXPECT_TRUE(dispatcher_.registry().workers().empty());
+  EXPECT_GE(dispatcher_.counters().distrustedMessages, 2u);
+  FakeWorker honest(context_, dispatcher_.BoundEndpoint(), 2);
+  Pump();
+  const std::vector<wire::Task> again = honest.Tasks();
+  ASSERT_EQ(again.size(), 2u);
+  for (const auto& task : again) honest.Answer(task);
+  Pump();
+  EXPECT_EQ(sink_.results.size(), 2u);
+  EXPECT_TRUE(liar.Tasks().empty());
+}
+
 TEST_F(DispatcherTest, HorizonsOutsideTheWindowDropTheWorker) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
   dispatcher_.Enqueue({1, 100, 10, PixelSet::Full(16), 4, {}});  // horizons 11 .. 15 are valid
