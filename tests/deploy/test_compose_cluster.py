@@ -62,8 +62,7 @@ def wait_for(condition, what, timeout=60, interval=0.5):
         time.sleep(interval)
 
 
-def busy_worker_container(client, cluster):
-    containers = cluster.running_containers("worker")
+def busy_worker_container(client, containers):
     for worker in client.workers()["workers"]:
         if worker["in_flight"] > 0:
             host = worker["name"].rsplit(":", 1)[0]
@@ -78,11 +77,13 @@ def finished_job(cluster, scene, reference, tmp_path_factory):
     """The animation rendered by the cluster while one worker container is killed."""
     client = Client(cluster.url, token=cluster.tokens["admin"])
     wait_for(lambda: len(client.workers()["workers"]) >= WORKERS, f"{WORKERS} workers connected")
+    # Listed before the job starts: asking docker takes longer than the job may last.
+    containers = cluster.running_containers("worker")
     job = client.submit(scene, strategy="exact")
     # The victim is a worker holding tasks (its name is its container's hostname, the
     # container id's first 12 digits, a colon and its pid): its work must be taken back.
     # Picked as soon as one holds any: on a fast machine the job may be over before long.
-    victim = wait_for(lambda: busy_worker_container(client, cluster), "a worker holding tasks",
+    victim = wait_for(lambda: busy_worker_container(client, containers), "a worker holding tasks",
                       timeout=300, interval=0.01)
     assert client.job(job["id"])["state"] == "running", "the job ended before a worker was killed"
     assert docker("kill", "--signal", "KILL", victim).returncode == 0
