@@ -1,5 +1,6 @@
 #include "farm/exactness_audit.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace tcfarm {
@@ -60,6 +61,11 @@ void ExactnessAudit::Rule(const Dispute& dispute, const Referee::Answer& answer,
                  (source->frame == dispute.frame ? "" : " (frame " + std::to_string(frame) + " shows a copy)"),
              verdicts);
   }
+}
+
+void ExactnessAudit::ForgetBefore(int frame) {
+  for (const auto& [id, dispute] : openDisputes_) frame = std::min(frame, dispute.frame);
+  ledger_.ForgetPixelsBefore(frame);
 }
 
 void ExactnessAudit::Distrust(const std::string& worker, const std::string& why, std::vector<Verdict>& verdicts) {

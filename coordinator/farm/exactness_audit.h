@@ -40,6 +40,10 @@ class ExactnessAudit {
     ledger_.Record(frame, worker, pixels, window);
   }
   std::set<std::string> WorkersOf(int frame) const { return ledger_.WorkersOf(frame); }
+  // No check below `frame` is outstanding any more (the job's numbering): what only a
+  // dispute there could need is forgotten, as far as open disputes allow.
+  void ForgetBefore(int frame);
+  uint64_t PixelSetsHeld() const { return ledger_.PixelSetsHeld(); }
 
   struct SceneRef {
     std::string hash;

@@ -85,6 +85,39 @@ TEST(TracerLedgerTest, AWorkersValuesReachItsFramesAndTheirWindows) {
   EXPECT_TRUE(ledger.FramesReachedBy("c", kFrames).empty());
 }
 
+// What no dispute can need any more is forgotten: pixels of frames whose copies cannot
+// reach the lowest frame still checked. Who traced a frame is kept, for repairs.
+TEST(TracerLedgerTest, ForgetsThePixelsNoDisputeCanNeed) {
+  TracerLedger ledger;
+  ledger.Record(0, "a", PixelSet::FromSortedIndices({5}), 1);  // copies reach frame 1
+  ledger.Record(1, "b", PixelSet::FromSortedIndices({6}), 4);  // copies reach frame 5
+  ledger.Record(3, "a", PixelSet::FromSortedIndices({7}), 0);
+  EXPECT_EQ(ledger.PixelSetsHeld(), 3u);
+  ledger.ForgetPixelsBefore(2);
+  EXPECT_EQ(ledger.PixelSetsHeld(), 2u);                 // frame 0's: nothing reaches frame 2
+  EXPECT_FALSE(ledger.SourceOf(1, 5).has_value());
+  EXPECT_EQ(ledger.SourceOf(4, 6)->worker, "b");         // frame 1's copies may reach 4
+  ledger.ForgetPixelsBefore(6);
+  EXPECT_EQ(ledger.PixelSetsHeld(), 0u);
+  EXPECT_EQ(ledger.FramesReachedBy("a", kFrames), (std::set<int>{0, 1, 3}));  // repairs still find them
+  EXPECT_EQ(ledger.WorkersOf(1), (std::set<std::string>{"b"}));
+}
+
+// An open dispute keeps what it needs to find its source.
+TEST(ExactnessAuditTest, AnOpenDisputeKeepsItsSourcesPixels) {
+  TableReferee referee;
+  ExactnessAudit audit(7, 0, kFrames, &referee);
+  audit.OnTraced(3, "liar", PixelSet::FromSortedIndices({10}), 2);
+  audit.Open({DisputeOver(5, {10}, 0.5f, 1.0f)}, Scene);
+  audit.ForgetBefore(9);  // every check answered, but the dispute is open
+  EXPECT_EQ(audit.PixelSetsHeld(), 1u);
+  const std::vector<ExactnessAudit::Verdict> verdicts = audit.HearReferee();
+  ASSERT_EQ(verdicts.size(), 1u);
+  EXPECT_EQ(verdicts[0].worker, "liar");
+  audit.ForgetBefore(9);
+  EXPECT_EQ(audit.PixelSetsHeld(), 0u);
+}
+
 // The job shows a copy of a value the liar traced two frames before: the liar is named,
 // and once the farm distrusts it, the frames its values reached are repaired.
 TEST(ExactnessAuditTest, AWrongCopyIsTracedBackToItsWorker) {

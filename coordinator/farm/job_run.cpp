@@ -261,6 +261,9 @@ void JobRun::Audit(const JobStore& store) {
     return ExactnessAudit::SceneRef{spec_.sceneHash, record ? record->spec.sceneJson : std::string()};
   });
   for (ExactnessAudit::Verdict& verdict : audit_.HearReferee()) verdicts_.push_back(std::move(verdict));
+  // Frames below the coherence's next are finished and handed on; their checks are
+  // scheduled as they finish, so below both nothing can be disputed any more.
+  audit_.ForgetBefore(verification_.LowestPendingFrame(coherence_.NextFrame()));
 }
 
 bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {

@@ -7,6 +7,7 @@ namespace tcfarm {
 void TracerLedger::Record(int frame, const std::string& worker, const PixelSet& pixels, int window) {
   Traced& traced = frames_[frame][worker];
   traced.tasks.push_back(pixels);
+  ++pixelSetsHeld_;
   traced.window = std::max(traced.window, window);
 }
 
@@ -29,6 +30,24 @@ std::optional<TracerLedger::Source> TracerLedger::SourceOf(int frame, uint32_t p
     }
   }
   return std::nullopt;
+}
+
+void TracerLedger::ForgetPixelsBefore(int frame) {
+  for (auto it = frames_.lower_bound(pixelsForgottenBelow_); it != frames_.end() && it->first < frame; ++it) {
+    for (auto& [worker, traced] : it->second) {
+      if (traced.tasks.empty() || it->first + traced.window >= frame) continue;  // copies may reach `frame`
+      pixelSetsHeld_ -= traced.tasks.size();
+      traced.tasks = {};
+    }
+  }
+  // Frames whose windows still reach `frame` are looked at again next time.
+  int lowestKept = frame;
+  for (auto it = frames_.lower_bound(pixelsForgottenBelow_); it != frames_.end() && it->first < frame; ++it) {
+    for (const auto& [worker, traced] : it->second) {
+      if (!traced.tasks.empty()) lowestKept = std::min(lowestKept, it->first);
+    }
+  }
+  pixelsForgottenBelow_ = lowestKept;
 }
 
 std::set<int> TracerLedger::FramesReachedBy(const std::string& worker, int frameCount) const {

@@ -36,12 +36,20 @@ class TracerLedger {
   // part of, and the frames of the window after it, into which horizons may copy.
   std::set<int> FramesReachedBy(const std::string& worker, int frameCount) const;
 
+  // No dispute will be raised below `frame` any more: the pixels traced in frames whose
+  // copies cannot reach it are forgotten (who traced them and their windows are kept,
+  // for FramesReachedBy). Bounds the ledger by the frames in flight, not the job.
+  void ForgetPixelsBefore(int frame);
+  uint64_t PixelSetsHeld() const { return pixelSetsHeld_; }
+
  private:
   struct Traced {
     std::vector<PixelSet> tasks;  // not merged: a lookup is rare, a record is not
     int window = 0;               // the longest of its tasks'
   };
   std::map<int, std::map<std::string, Traced>> frames_;
+  int pixelsForgottenBelow_ = 0;  // frames below it hold no pixel sets
+  uint64_t pixelSetsHeld_ = 0;
 };
 
 }  // namespace tcfarm

@@ -177,6 +177,13 @@ void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute)
                static_cast<unsigned long long>(pixels), frame);
 }
 
+int Verification::LowestPendingFrame(int none) const {
+  int lowest = none;
+  for (const auto& [id, frame] : outstanding_) lowest = std::min(lowest, frame);
+  for (const Request& request : ready_) lowest = std::min(lowest, request.frame);
+  return lowest;
+}
+
 std::vector<Dispute> Verification::TakeDisputes() {
   std::vector<Dispute> disputes;
   disputes.swap(disputes_);

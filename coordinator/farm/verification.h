@@ -65,6 +65,8 @@ class Verification {
   // Whether an outstanding request traces part of a reference frame (not a spot check).
   bool IsReference(uint64_t id) const { return outstanding_.count(id) > 0 && spotChecks_.count(id) == 0; }
   bool Pending() const { return !outstanding_.empty() || !ready_.empty(); }
+  // The lowest frame a check is still owed or out for; `none` when there is none.
+  int LowestPendingFrame(int none) const;
   // A job that promises exactness and whose checks found a disagreement.
   bool Suspect() const { return options_.promisesExact && !suspectFrames_.empty(); }
   uint64_t ExtraPixels() const { return extraPixels_; }
