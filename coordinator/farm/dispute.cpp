@@ -1,15 +1,10 @@
 #include "farm/dispute.h"
 
-#include <cstring>
 #include <stdexcept>
 
+#include "frame/compare.h"
+
 namespace tcfarm {
-namespace {
-
-bool SamePixel(const float* a, const float* b) { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
-
-}  // namespace
-
 Ruling Settle(const Dispute& dispute, const std::vector<float>& truth) {
   const size_t floats = 3 * dispute.pixels.size();
   if (truth.size() != floats || dispute.jobValues.size() != floats || dispute.checkerValues.size() != floats) {
@@ -19,8 +14,8 @@ Ruling Settle(const Dispute& dispute, const std::vector<float>& truth) {
   Ruling ruling;
   for (size_t i = 0; i < dispute.pixels.size(); ++i) {
     const float* real = &truth[3 * i];
-    if (!SamePixel(&dispute.checkerValues[3 * i], real)) ruling.checkerWrong = true;
-    if (!SamePixel(&dispute.jobValues[3 * i], real)) ruling.jobWrong.push_back(dispute.pixels[i]);
+    if (!SameBits(&dispute.checkerValues[3 * i], real)) ruling.checkerWrong = true;
+    if (!SameBits(&dispute.jobValues[3 * i], real)) ruling.jobWrong.push_back(dispute.pixels[i]);
   }
   return ruling;
 }

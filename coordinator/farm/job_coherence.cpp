@@ -1,7 +1,8 @@
 #include "farm/job_coherence.h"
 
-#include <cstring>
 #include <utility>
+
+#include "frame/compare.h"
 
 namespace tcfarm {
 
@@ -28,7 +29,7 @@ JobCoherence::ChangeMask JobCoherence::TakeInOrder(Image frame) {
   std::vector<uint8_t> unchanged(frame.PixelCount(), 1);
   if (previousRgb_.size() == current.size()) {
     for (size_t pixel = 0; pixel < unchanged.size(); ++pixel) {
-      unchanged[pixel] = std::memcmp(&current[pixel * 3], &previousRgb_[pixel * 3], 3 * sizeof(float)) == 0;
+      unchanged[pixel] = SameBits(&current[pixel * 3], &previousRgb_[pixel * 3]);
     }
   }
   previousRgb_ = std::move(frame.rgb);

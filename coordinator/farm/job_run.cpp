@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <cstring>
 #include <stdexcept>
 #include <system_error>
 
+#include "frame/compare.h"
 #include "scene/scene.h"
 
 namespace tcfarm {
@@ -244,9 +244,7 @@ uint64_t JobRun::PixelsDifferingFromWritten(int absoluteFrame, const std::vector
     return rgb.size() / 3;
   }
   if (written.rgb.size() != rgb.size()) return rgb.size() / 3;
-  uint64_t changed = 0;
-  for (size_t i = 0; i < rgb.size(); i += 3) changed += std::memcmp(&written.rgb[i], &rgb[i], 3 * sizeof(float)) != 0;
-  return changed;
+  return CompareImages(written, Image{written.width, written.height, rgb}).differingPixels;
 }
 
 std::vector<ExactnessAudit::Verdict> JobRun::TakeVerdicts() {

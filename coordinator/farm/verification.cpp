@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <stdexcept>
 
 #include "frame/ssim.h"
@@ -107,8 +106,6 @@ std::vector<Verification::Request> Verification::TakeRequests() {
 
 namespace {
 
-bool SamePixel(const float* a, const float* b) { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
-
 // The pixels (of `count`, 3 floats each in `job` and `check`) whose values differ, and
 // a dispute over an evenly spread sample of at most kMaxDisputedPixels of them.
 // `indexOf` maps a position to its pixel index.
@@ -117,7 +114,7 @@ std::pair<uint64_t, Dispute> Disagreements(int frame, size_t count, const float*
                                            IndexOf indexOf, const std::string& checker) {
   std::vector<size_t> differing;
   for (size_t i = 0; i < count; ++i) {
-    if (!SamePixel(&job[3 * i], &check[3 * i])) differing.push_back(i);
+    if (!SameBits(&job[3 * i], &check[3 * i])) differing.push_back(i);
   }
   Dispute dispute{frame, checker, {}, {}, {}};
   const size_t step = std::max<size_t>(1, (differing.size() + kMaxDisputedPixels - 1) / kMaxDisputedPixels);

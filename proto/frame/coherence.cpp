@@ -2,8 +2,9 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <cstring>
 #include <stdexcept>
+
+#include "frame/compare.h"
 
 namespace tcfarm {
 
@@ -17,7 +18,7 @@ double Coherence(const Image& a, const Image& b) {
   size_t pixels = a.PixelCount(), equal = 0;
   for (size_t i = 0; i < pixels; ++i) {
     // Bitwise, not ==: the farm copies bits, so coherence must count identical bits.
-    equal += std::memcmp(&a.rgb[3 * i], &b.rgb[3 * i], 3 * sizeof(float)) == 0;
+    equal += SameBits(&a.rgb[3 * i], &b.rgb[3 * i]);
   }
   return pixels ? static_cast<double>(equal) / pixels : 1.0;
 }

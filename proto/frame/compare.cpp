@@ -52,7 +52,7 @@ FrameError CompareImages(const Image& reference, const Image& test) {
   for (size_t p = 0; p < error.pixels; ++p) {
     const float* a = &reference.rgb[3 * p];
     const float* b = &test.rgb[3 * p];
-    if (std::memcmp(a, b, 3 * sizeof(float)) == 0) continue;
+    if (SameBits(a, b)) continue;
     ++error.differingPixels;
     for (int c = 0; c < 3; ++c) {
       double d = std::clamp(double(a[c]), 0.0, 1.0) - std::clamp(double(b[c]), 0.0, 1.0);

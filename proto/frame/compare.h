@@ -3,11 +3,16 @@
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 #include <string>
 
 #include "frame/frame_io.h"
 
 namespace tcfarm {
+
+// Whether two pixels (3 floats of linear RGB each) have the same bits: the farm copies
+// bits, so equality is bitwise everywhere (-0 differs from +0, a NaN may equal itself).
+inline bool SameBits(const float* a, const float* b) { return std::memcmp(a, b, 3 * sizeof(float)) == 0; }
 
 struct FrameError {
   uint64_t pixels = 0;
