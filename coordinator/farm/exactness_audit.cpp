@@ -5,8 +5,10 @@
 
 namespace tcfarm {
 
-ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee)
-    : jobId_(jobId), firstFrame_(firstFrame), frameCount_(frameCount), referee_(referee) {}
+ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee,
+                               bool promisesExact)
+    : jobId_(jobId), firstFrame_(firstFrame), frameCount_(frameCount), referee_(referee),
+      promisesExact_(promisesExact) {}
 
 void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<SceneRef()>& scene) {
   for (Dispute& dispute : disputes) {
@@ -14,12 +16,9 @@ void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<Sce
       unsettled_.push_back("frame " + std::to_string(firstFrame_ + dispute.frame) + ": no referee to settle it");
       continue;
     }
-    if (!sceneKnown_) {
-      scene_ = scene();
-      sceneKnown_ = true;
-    }
+    if (!scene_) scene_ = scene();
     const uint64_t id = nextDispute_++;
-    referee_->Ask({jobId_, id, scene_.hash, scene_.json, firstFrame_ + dispute.frame, dispute.pixels});
+    referee_->Ask({jobId_, id, scene_->hash, scene_->json, firstFrame_ + dispute.frame, dispute.pixels});
     openDisputes_[id] = std::move(dispute);
   }
 }

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -33,11 +34,13 @@ class ExactnessAudit {
  public:
   // referee: null leaves disputes unsettled (reported as such), as in unit tests of the
   // parts around it. firstFrame: the job's first frame in the scene's numbering.
-  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee);
+  // promisesExact: only such a job disputes, so only it keeps which pixels each worker
+  // traced; the others keep who traced each frame (their checks avoid them).
+  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee, bool promisesExact = true);
 
   // The job's values: which worker traced which pixels.
   void OnTraced(int frame, const std::string& worker, const PixelSet& pixels, int window) {
-    ledger_.Record(frame, worker, pixels, window);
+    ledger_.Record(frame, worker, promisesExact_ ? pixels : PixelSet(), window);
   }
   std::set<std::string> WorkersOf(int frame) const { return ledger_.WorkersOf(frame); }
   // No check below `frame` is outstanding any more (the job's numbering): what only a
@@ -82,9 +85,9 @@ class ExactnessAudit {
   uint64_t jobId_;
   int firstFrame_, frameCount_;
   Referee* referee_;
+  bool promisesExact_;
   TracerLedger ledger_;
-  bool sceneKnown_ = false;
-  SceneRef scene_;
+  std::optional<SceneRef> scene_;  // asked for with the first dispute
   uint64_t nextDispute_ = 1;
   std::map<uint64_t, Dispute> openDisputes_;
   std::set<std::string> distrusted_;     // found wrong by this job's disputes, or told

@@ -39,7 +39,7 @@ VerificationOptions VerificationFor(const JobSpec& spec, uint64_t jobId, Strateg
   if (strategy == Strategy::kExact && options.referenceFrames.empty()) {
     options.referenceFrames = {FrameCountOf(spec) - 1};
   }
-  options.promisesExact = strategy == Strategy::kExact || strategy == Strategy::kBrute;
+  options.promisesExact = PromisesExact(strategy);
   return options;
 }
 
@@ -166,7 +166,8 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
-      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
+      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee,
+             PromisesExact(resolved_.strategy)),
       written_(kept_.kept),
       writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
       coherence_(spec_.frameSize.width, spec_.frameSize.height, store.SpillFolder(record.id),
@@ -280,10 +281,7 @@ bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& resul
   } else {
     cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
   }
-  // Only a job that promises exactness traces wrong values back to their worker; the
-  // others need just who traced a frame (its checks avoid them).
-  const bool exact = resolved_.strategy == Strategy::kExact || resolved_.strategy == Strategy::kBrute;
-  audit_.OnTraced(result.frame - spec_.firstFrame, worker, exact ? task.pixels : PixelSet(), task.window);
+  audit_.OnTraced(result.frame - spec_.firstFrame, worker, task.pixels, task.window);
   return true;
 }
 

@@ -6,9 +6,10 @@ namespace tcfarm {
 
 void TracerLedger::Record(int frame, const std::string& worker, const PixelSet& pixels, int window) {
   Traced& traced = frames_[frame][worker];
+  traced.window = std::max(traced.window, window);
+  if (pixels.empty()) return;
   traced.tasks.push_back(pixels);
   ++pixelSetsHeld_;
-  traced.window = std::max(traced.window, window);
 }
 
 std::set<std::string> TracerLedger::WorkersOf(int frame) const {
@@ -33,18 +34,16 @@ std::optional<TracerLedger::Source> TracerLedger::SourceOf(int frame, uint32_t p
 }
 
 void TracerLedger::ForgetPixelsBefore(int frame) {
+  int lowestKept = frame;  // frames whose copies still reach `frame` are looked at next time
   for (auto it = frames_.lower_bound(pixelsForgottenBelow_); it != frames_.end() && it->first < frame; ++it) {
     for (auto& [worker, traced] : it->second) {
-      if (traced.tasks.empty() || it->first + traced.window >= frame) continue;  // copies may reach `frame`
+      if (traced.tasks.empty()) continue;
+      if (it->first + traced.window >= frame) {
+        lowestKept = std::min(lowestKept, it->first);
+        continue;
+      }
       pixelSetsHeld_ -= traced.tasks.size();
       traced.tasks = {};
-    }
-  }
-  // Frames whose windows still reach `frame` are looked at again next time.
-  int lowestKept = frame;
-  for (auto it = frames_.lower_bound(pixelsForgottenBelow_); it != frames_.end() && it->first < frame; ++it) {
-    for (const auto& [worker, traced] : it->second) {
-      if (!traced.tasks.empty()) lowestKept = std::min(lowestKept, it->first);
     }
   }
   pixelsForgottenBelow_ = lowestKept;

@@ -18,6 +18,8 @@ namespace tcfarm {
 class TracerLedger {
  public:
   // `worker` traced `pixels` of `frame` (the job's numbering) in a task with `window`.
+  // Empty pixels record only who traced the frame (what a job that does not trace wrong
+  // values back needs).
   void Record(int frame, const std::string& worker, const PixelSet& pixels, int window);
 
   // Every worker that traced some pixel of the frame.

@@ -30,6 +30,10 @@ inline constexpr StrategyNameEntry kStrategyNames[] = {{Strategy::kSearch, "sear
                                                        {Strategy::kAuto, "auto"}};
 inline constexpr Strategy kDefaultStrategy = kStrategyNames[0].strategy;
 
+// exact and brute promise 0 wrong pixels: any disagreement their checks find is a bug or
+// a worker returning wrong values.
+constexpr bool PromisesExact(Strategy strategy) { return strategy == Strategy::kExact || strategy == Strategy::kBrute; }
+
 // nullopt for a name not in kStrategyNames (names are case-sensitive).
 std::optional<Strategy> StrategyFromString(std::string_view name);
 std::string_view StrategyName(Strategy strategy);
