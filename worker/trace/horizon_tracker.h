@@ -23,7 +23,7 @@ struct HorizonTracker {
   }
   void Segment(int forLane, Float3 origin, Float3 direction, float length) {
     if (horizon[forLane] == oracle->frame() + 1) return;  // cannot get any earlier
-    horizon[forLane] = std::min(horizon[forLane], oracle->FirstMeeting({origin, direction, length}));
+    horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
   }
   void Surface(int forLane, bool moves) {
     horizon[forLane] = std::min(horizon[forLane], moves ? oracle->frame() + 1 : oracle->LightCap());

@@ -169,23 +169,25 @@ HorizonOracle::Box HorizonOracle::EmptyBox() {
   return {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
 }
 
-int HorizonOracle::FirstMeeting(const RaySegment& segment) const {
-  if (movers_.empty()) return Unbounded();
+int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
+  before = std::min(before, Unbounded());
+  if (movers_.empty() || before <= frame_ + 1) return before;
   const SlabRay ray(segment);
   auto meets = [&](const Box& box) {
     const float lo[3] = {box.lo.x, box.lo.y, box.lo.z}, hi[3] = {box.hi.x, box.hi.y, box.hi.z};
     return Meets(ray, lo, hi);
   };
-  if (!meets(all_)) return Unbounded();
+  if (!meets(all_)) return before;
   // The movers whose whole path comes near the segment; usually one or two.
   thread_local std::vector<const Mover*> near;
   near.clear();
-  size_t frames = 0;
+  size_t frames = 0;  // frame offsets searched: 1 .. frames - 1
   for (const Mover& mover : movers_) {
     if (!meets(mover.swept)) continue;
     near.push_back(&mover);
     frames = std::max(frames, mover.proxies.size() / 4);
   }
+  frames = std::min(frames, static_cast<size_t>(before - frame_));
   // Chunk by chunk in time, every near mover at once: the first chunk with a meeting
   // holds the answer, and later chunks are never looked at.
   for (size_t chunk = 0; chunk * kFramesPerChunk < frames; ++chunk) {
@@ -204,7 +206,7 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment) const {
     }
     if (found) return frame_ + static_cast<int>(earliest);
   }
-  return Unbounded();
+  return before;
 }
 
 bool HorizonOracle::MayBeBlockedByMover(const RaySegment& segment) const {

@@ -53,9 +53,13 @@ class HorizonOracle {
   int CameraCap() const { return cameraCap_; }
   // Cap for a pixel whose ray tree reaches a surface (a light changes).
   int LightCap() const { return lightCap_; }
-  // The first frame after frame() at which a moving shape's bounds meet the segment,
-  // else Unbounded(). For segments the trace found clear of every shape at frame().
-  int FirstMeeting(const RaySegment& segment) const;
+  // The first frame after frame() and before `before` at which a moving shape's bounds
+  // meet the segment, else `before` (at most Unbounded()). For segments the trace found
+  // clear of every shape at frame(). A pixel's horizon is the least over its segments, so
+  // each segment need only be searched up to the horizon the pixel has so far: frames
+  // beyond it cannot lower it, and most of the search is skipped.
+  int FirstMeeting(const RaySegment& segment, int before) const;
+  int FirstMeeting(const RaySegment& segment) const { return FirstMeeting(segment, Unbounded()); }
   // Whether a moving shape's bounds meet the segment at frame() itself: for a blocked
   // shadow ray, whether what blocks it may be a shape that moves. When none may, a still
   // shape blocks it, and keeps blocking it at every frame.
