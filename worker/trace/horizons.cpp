@@ -31,6 +31,10 @@ bool SegmentMeetsSphere(const RaySegment& s, const float* sphere) {
   return Dot(gap, gap) <= sphere[3] * sphere[3];
 }
 
+// Slabs are widened by this fraction of their distances against rounding: the cull may
+// never say a false "no".
+constexpr float kSlabSlack = 1e-4f;
+
 // The segment with its direction's reciprocals, computed once for all its box tests.
 struct SlabRay {
   float origin[3], inverse[3], length;
@@ -46,12 +50,31 @@ bool Meets(const SlabRay& ray, const float lo[3], const float hi[3]) {
   for (int axis = 0; axis < 3; ++axis) {
     float a = (lo[axis] - ray.origin[axis]) * ray.inverse[axis];
     float b = (hi[axis] - ray.origin[axis]) * ray.inverse[axis];
-    // Widened by a relative margin against rounding: the cull may never say a false "no".
-    float slack = 1e-4f * (std::fabs(a) + std::fabs(b));
+    float slack = kSlabSlack * (std::fabs(a) + std::fabs(b));
     near = std::max(near, std::min(a, b) - slack);
     far = std::min(far, std::max(a, b) + slack);
   }
   return near <= far;
+}
+
+// Meets() for every box of a one-array-per-coordinate layout at once, without branches,
+// so that it vectorizes.
+void BoxesMet(const SlabRay& ray, const std::vector<float> (&boxLo)[3], const std::vector<float> (&boxHi)[3],
+              uint8_t* met) {
+  const size_t lanes = boxLo[0].size();
+  const float* lo[3] = {boxLo[0].data(), boxLo[1].data(), boxLo[2].data()};
+  const float* hi[3] = {boxHi[0].data(), boxHi[1].data(), boxHi[2].data()};
+  for (size_t i = 0; i < lanes; ++i) {
+    float near = 0, far = ray.length;
+    for (int axis = 0; axis < 3; ++axis) {
+      const float a = (lo[axis][i] - ray.origin[axis]) * ray.inverse[axis];
+      const float b = (hi[axis][i] - ray.origin[axis]) * ray.inverse[axis];
+      const float slack = kSlabSlack * (std::fabs(a) + std::fabs(b));
+      near = std::max(near, std::min(a, b) - slack);
+      far = std::min(far, std::max(a, b) + slack);
+    }
+    met[i] = near <= far;
+  }
 }
 
 }  // namespace
@@ -71,6 +94,26 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window)
   for (const Shape& shape : scene.shapes) {
     if (shape.Moves()) AddMover(shape, last);
   }
+  std::vector<Box> swept;
+  for (const Mover& mover : movers_) swept.push_back(mover.swept);
+  LayBoxesOut(swept, sweptLo_, sweptHi_);
+}
+
+void HorizonOracle::LayBoxesOut(const std::vector<Box>& boxes, std::vector<float> (&lo)[3],
+                                std::vector<float> (&hi)[3]) {
+  const size_t lanes = (boxes.size() + kBoxLanes - 1) / kBoxLanes * kBoxLanes;
+  for (int axis = 0; axis < 3; ++axis) {
+    lo[axis].assign(lanes, INFINITY);
+    hi[axis].assign(lanes, -INFINITY);
+  }
+  for (size_t i = 0; i < boxes.size(); ++i) {
+    const float boxLo[3] = {boxes[i].lo.x, boxes[i].lo.y, boxes[i].lo.z};
+    const float boxHi[3] = {boxes[i].hi.x, boxes[i].hi.y, boxes[i].hi.z};
+    for (int axis = 0; axis < 3; ++axis) {
+      lo[axis][i] = boxLo[axis];
+      hi[axis][i] = boxHi[axis];
+    }
+  }
 }
 
 // The shape's bounding sphere placed at `frame`: its centre moved by the motion, its
@@ -86,15 +129,18 @@ static BoundingSphere PlacedBounds(const Shape& shape, const BoundingSphere& obj
 
 void HorizonOracle::AddMover(const Shape& shape, int lastFrame) {
   const BoundingSphere object = KindOf(shape).Bounds(shape);
-  Mover mover{EmptyBox(), {}, {}};
+  Mover mover;
+  mover.swept = EmptyBox();
   for (int f = frame_; f <= lastFrame; ++f) {
     const BoundingSphere placed = PlacedBounds(shape, object, f);
     const Vec3& c = placed.center;
     double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)}) + placed.radius;
     // Padded, and rounded up again for the float conversion.
     double radius = (placed.radius + kRelativeProxyPad * magnitude) * (1 + 1e-6);
-    mover.proxies.insert(mover.proxies.end(),
-                         {float(c.x), float(c.y), float(c.z), float(radius)});
+    mover.x.push_back(float(c.x));
+    mover.y.push_back(float(c.y));
+    mover.z.push_back(float(c.z));
+    mover.radius.push_back(float(radius));
     float grow = float(radius) * (1 + 1e-5f) + 1e-6f * float(magnitude);
     size_t chunk = (f - frame_) / kFramesPerChunk;
     if (mover.chunks.size() <= chunk) mover.chunks.push_back(EmptyBox());
@@ -105,6 +151,14 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame) {
                  std::max(box->hi.z, float(c.z) + grow)};
     }
   }
+  mover.frames = mover.x.size();
+  // Padding meets nothing: its radius is negative, and only lanes below `frames` are read.
+  const size_t padded = mover.chunks.size() * kFramesPerChunk;
+  mover.x.resize(padded, 0.0f);
+  mover.y.resize(padded, 0.0f);
+  mover.z.resize(padded, 0.0f);
+  mover.radius.resize(padded, -1.0f);
+  LayBoxesOut(mover.chunks, mover.chunkLo, mover.chunkHi);
   movers_.push_back(std::move(mover));
   // Only a sphere that merely translates is settled by arithmetic: a turned or scaled one
   // is placed through a float matrix whose rounding the margins were not made for, so its
@@ -165,6 +219,34 @@ bool HorizonOracle::SphereSurelyBlocks(const MovingSphere& sphere, const RaySegm
   return enter > slack && enter < length - slack;
 }
 
+// SegmentMeetsSphere for the kFramesPerChunk proxies of a mover's chunk from `begin`,
+// branch-free so that it vectorizes: bit i set when the proxy of frame offset begin + i
+// meets the segment.
+uint32_t HorizonOracle::ChunkSpheresMet(const RaySegment& s, const Mover& mover, size_t begin) {
+  const float* x = mover.x.data() + begin;
+  const float* y = mover.y.data() + begin;
+  const float* z = mover.z.data() + begin;
+  const float* r = mover.radius.data() + begin;
+  int32_t met[kFramesPerChunk];
+  for (size_t i = 0; i < kFramesPerChunk; ++i) {
+    const float tx = x[i] - s.origin.x, ty = y[i] - s.origin.y, tz = z[i] - s.origin.z;
+    const float along = std::min(std::max(tx * s.direction.x + ty * s.direction.y + tz * s.direction.z, 0.0f),
+                                 s.length);
+    const float gx = tx - s.direction.x * along, gy = ty - s.direction.y * along, gz = tz - s.direction.z * along;
+    met[i] = (gx * gx + gy * gy + gz * gz <= r[i] * r[i]) && r[i] >= 0 ? 1 : 0;
+  }
+  uint32_t bits = 0;
+  for (size_t i = 0; i < kFramesPerChunk; ++i) bits |= static_cast<uint32_t>(met[i]) << i;
+  return bits;
+}
+
+// Bits of a chunk starting at frame offset `chunkBegin` for the offsets [from, to).
+uint32_t HorizonOracle::LaneMask(size_t chunkBegin, size_t from, size_t to) {
+  uint32_t mask = 0;
+  for (size_t i = from; i < to; ++i) mask |= 1u << (i - chunkBegin);
+  return mask;
+}
+
 HorizonOracle::Box HorizonOracle::EmptyBox() {
   return {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
 }
@@ -182,10 +264,21 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
   thread_local std::vector<const Mover*> near;
   near.clear();
   size_t frames = 0;  // frame offsets searched: 1 .. frames - 1
-  for (const Mover& mover : movers_) {
-    if (!meets(mover.swept)) continue;
+  const size_t lanes = sweptLo_[0].size();
+  thread_local std::vector<uint8_t> nearLane;
+  nearLane.resize(lanes);
+  BoxesMet(ray, sweptLo_, sweptHi_, nearLane.data());
+  // Per near mover, which of its chunks the segment meets: one byte per padded chunk.
+  thread_local std::vector<uint8_t> chunksMet;
+  chunksMet.clear();
+  for (size_t i = 0; i < movers_.size(); ++i) {
+    if (!nearLane[i]) continue;
+    const Mover& mover = movers_[i];
     near.push_back(&mover);
-    frames = std::max(frames, mover.proxies.size() / 4);
+    frames = std::max(frames, mover.frames);
+    const size_t at = chunksMet.size();
+    chunksMet.resize(at + mover.chunkLo[0].size());
+    BoxesMet(ray, mover.chunkLo, mover.chunkHi, chunksMet.data() + at);
   }
   frames = std::min(frames, static_cast<size_t>(before - frame_));
   // Chunk by chunk in time, every near mover at once: the first chunk with a meeting
@@ -193,15 +286,17 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
   for (size_t chunk = 0; chunk * kFramesPerChunk < frames; ++chunk) {
     size_t earliest = std::min(frames, (chunk + 1) * kFramesPerChunk);  // as a frame offset
     bool found = false;
+    size_t metAt = 0;  // where this mover's chunk bytes start in chunksMet
     for (const Mover* mover : near) {
-      if (chunk >= mover->chunks.size() || !meets(mover->chunks[chunk])) continue;
-      size_t end = std::min(earliest, mover->proxies.size() / 4);
-      for (size_t i = std::max<size_t>(chunk * kFramesPerChunk, 1); i < end; ++i) {
-        if (SegmentMeetsSphere(segment, &mover->proxies[4 * i])) {
-          earliest = i;
-          found = true;
-          break;
-        }
+      const bool chunkMet = chunk < mover->chunks.size() && chunksMet[metAt + chunk];
+      metAt += mover->chunkLo[0].size();
+      if (!chunkMet) continue;
+      const size_t begin = chunk * kFramesPerChunk;
+      const size_t end = std::min(earliest, mover->frames);
+      const uint32_t met = ChunkSpheresMet(segment, *mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
+      if (met != 0) {
+        earliest = begin + static_cast<size_t>(__builtin_ctz(met));
+        found = true;
       }
     }
     if (found) return frame_ + static_cast<int>(earliest);
@@ -211,7 +306,8 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
 
 bool HorizonOracle::MayBeBlockedByMover(const RaySegment& segment) const {
   return std::any_of(movers_.begin(), movers_.end(), [&](const Mover& mover) {
-    return SegmentMeetsSphere(segment, &mover.proxies[0]);  // its bounds at frame()
+    const float sphere[4] = {mover.x[0], mover.y[0], mover.z[0], mover.radius[0]};  // its bounds at frame()
+    return SegmentMeetsSphere(segment, sphere);
   });
 }
 

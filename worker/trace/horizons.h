@@ -81,7 +81,13 @@ class HorizonOracle {
   struct Mover {
     Box swept;                    // bounds of all its proxies over the window
     std::vector<Box> chunks;      // bounds of its proxies in frames [k * kFramesPerChunk, ...)
-    std::vector<float> proxies;   // per frame a .. a+W: center xyz, radius
+    // The chunks' boxes again, one array per coordinate, padded with empty boxes to a
+    // multiple of kBoxLanes: a segment tests all of a near mover's chunks at once.
+    std::vector<float> chunkLo[3], chunkHi[3];
+    // Per frame a .. a+W, its proxy sphere: one array per coordinate and one of radii,
+    // padded to whole chunks, so that a chunk's frames are tested in one SIMD loop.
+    std::vector<float> x, y, z, radius;
+    size_t frames = 0;            // proxies before the padding
   };
   // A moving sphere as the tracer places it: per frame a .. a+W, its centre.
   struct MovingSphere {
@@ -89,12 +95,20 @@ class HorizonOracle {
     std::vector<Vec3> centers;
   };
   static Box EmptyBox();
+  static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);
+  static uint32_t LaneMask(size_t chunkBegin, size_t from, size_t to);
   void AddMover(const Shape& shape, int lastFrame);
   bool SphereSurelyBlocks(const MovingSphere& sphere, const RaySegment& segment, int frame) const;
 
   int frame_, window_;
   int cameraCap_, lightCap_;
   std::vector<Mover> movers_;
+  // The movers' swept boxes again, one array per coordinate, padded with empty boxes to
+  // a multiple of kBoxLanes: every segment tests all of them, in a branch-free loop the
+  // compiler turns into SIMD.
+  static constexpr size_t kBoxLanes = 8;
+  std::vector<float> sweptLo_[3], sweptHi_[3];
+  static void LayBoxesOut(const std::vector<Box>& boxes, std::vector<float> (&lo)[3], std::vector<float> (&hi)[3]);
   std::vector<MovingSphere> spheres_;
   Box all_;  // bounds of every proxy: most segments miss it and cost one test
 };
