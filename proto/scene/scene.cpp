@@ -79,6 +79,14 @@ AnimatedVec3 Offset(const AnimatedVec3& value, const Vec3& offset) {
 
 namespace {
 
+// Gives a shape placing a shared mesh a copy of its own (to change its vertices alone).
+void OwnMesh(Shape& shape) {
+  if (!shape.SharesMesh()) return;
+  shape.mesh = *shape.sharedMesh;
+  shape.sharedMesh.reset();
+  shape.meshRef.clear();
+}
+
 // A motion moved with the world: what it turns and scales turns about the moved pivot.
 // A translation-only motion needs nothing, being relative to its object's place.
 // With parents, T(o) P L T(-o) = [T(o) P T(-o)] [T(o) L T(-o)]: every level moves.
@@ -124,6 +132,16 @@ void TranslateScene(Scene& scene, const Vec3& offset) {
     shape.center = Plus(shape.center, offset);
     shape.corner = Plus(shape.corner, offset);
     shape.terrain.origin = Plus(shape.terrain.origin, offset);
+    if (shape.deformation && shape.deformation->hasSkin) {
+      // Skinned vertices are in bind space, placed in the world by their joints: the
+      // offset is added after skinning (a shared mesh is then moved twice over, so a
+      // skinned shape keeps a copy of its own).
+      auto deformation = std::make_shared<Deformation>(*shape.deformation);
+      deformation->skin.worldOffset = Plus(deformation->skin.worldOffset, offset);
+      shape.deformation = std::move(deformation);
+      OwnMesh(shape);
+      continue;
+    }
     for (Vec3& v : shape.mesh.vertices) v = Plus(v, offset);
   }
   OffsetSharedMeshes(scene, offset);
@@ -159,13 +177,9 @@ bool PlaceStillShape(Shape& shape, const Affine& placement) {
       return true;
     case Shape::Type::kMesh:
     case Shape::Type::kTerrain:
-      if (shape.SharesMesh()) {
-        // A still placement is built into world-space triangles of its own, as an inline
-        // copy would be (see PlaceStillShapes in scene.h).
-        shape.mesh = *shape.sharedMesh;
-        shape.sharedMesh.reset();
-        shape.meshRef.clear();
-      }
+      // A still placement is built into world-space triangles of its own, as an inline
+      // copy would be (see PlaceStillShapes in scene.h).
+      OwnMesh(shape);
       for (Vec3& v : shape.mesh.vertices) v = placement.Apply(v);
       return true;
   }
@@ -174,8 +188,23 @@ bool PlaceStillShape(Shape& shape, const Affine& placement) {
 
 }  // namespace
 
+namespace {
+
+// A skin or morph that never changes is applied once, and the shape becomes a rigid mesh.
+void BakeStillDeformation(Shape& shape, int frame) {
+  if (!shape.deformation || shape.deformation->IsAnimated()) return;
+  DeformedVertices deformed = Deform(shape.Mesh(), *shape.deformation, frame);
+  OwnMesh(shape);
+  shape.mesh.vertices = std::move(deformed.positions);
+  shape.mesh.normals = std::move(deformed.normals);
+  shape.deformation.reset();
+}
+
+}  // namespace
+
 void PlaceStillShapes(Scene& scene) {
   for (Shape& shape : scene.shapes) {
+    BakeStillDeformation(shape, scene.render.firstFrame);
     if (shape.Moves() || shape.motion.IsNone()) continue;
     if (PlaceStillShape(shape, shape.motion.WorldFromObject(scene.render.firstFrame))) shape.motion = Motion{};
   }

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "scene/animated_vec3.h"
+#include "scene/deformation.h"
 #include "scene/transform.h"
 
 namespace tcfarm {
@@ -146,6 +147,9 @@ struct Shape {
   // tree): its name there, and the mesh itself, held by the scene's table as well.
   std::string meshRef;
   std::shared_ptr<const TriangleMesh> sharedMesh;
+  // kMesh: morph targets and/or a skin that move its vertices (deformation.h); none for a
+  // rigid mesh. A skinned shape's motion is the identity: its joints place it.
+  std::shared_ptr<const Deformation> deformation;
   // kTerrain parameters, kept so the scene can be written back
   struct Terrain {
     Vec3 origin;               // the minimum x/z corner at height 0
@@ -155,7 +159,9 @@ struct Shape {
     uint64_t seed = 1;
   } terrain;
 
-  bool Moves() const { return motion.IsAnimated(); }
+  bool Moves() const { return motion.IsAnimated() || Deforms(); }
+  // Whether its vertices move relative to one another over the frames.
+  bool Deforms() const { return deformation && deformation->IsAnimated(); }
   bool SharesMesh() const { return sharedMesh != nullptr; }
   // The triangles the shape places, its own or the shared ones: what every consumer reads.
   const TriangleMesh& Mesh() const { return sharedMesh ? *sharedMesh : mesh; }

@@ -476,6 +476,10 @@ bool IsTransformObject(const Node& node) {
   return false;
 }
 
+// Joints of one skin: far more than any character rig has (glTF's own limits are those of
+// its index types), few enough that a scene's skin matrices stay small.
+constexpr size_t kMaxJoints = 4096;
+
 // Parents nest one object deep per level; a hierarchy deeper than this is refused (the
 // JSON parser's own nesting limit is 128 levels).
 constexpr int kMaxMotionDepth = 32;
@@ -946,13 +950,134 @@ class SceneReader {
   }
 
   void ReadMesh(const Node& node, Shape& shape) {
-    ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "file", "mesh_ref"}), "a mesh");
+    ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "file", "mesh_ref", "skin", "morph"}),
+                 "a mesh");
     shape.type = Shape::Type::kMesh;
     if (node.Has("mesh_ref")) {
       ReadMeshRef(node, shape);
-      return;
+    } else {
+      shape.mesh = ReadMeshGeometry(node);
     }
-    shape.mesh = ReadMeshGeometry(node);
+    ReadDeformation(node, shape);
+  }
+
+  // --- deforming meshes (deformation.h) ---
+
+  void ReadDeformation(const Node& node, Shape& shape) const {
+    if (!node.Has("skin") && !node.Has("morph")) return;
+    auto deformation = std::make_shared<Deformation>();
+    if (node.Has("morph")) {
+      deformation->hasMorph = true;
+      deformation->morph = ReadMorph(node.Member("morph"));
+    }
+    if (node.Has("skin")) {
+      if (node.Has("motion")) {
+        Fail(node.MemberPointer("motion"), "a motion on a skinned mesh",
+             "no motion: a skinned mesh is placed by its joints alone");
+      }
+      deformation->hasSkin = true;
+      deformation->skin = ReadSkin(node.Member("skin"));
+    }
+    for (const DeformationProblem& problem : CheckDeformation(*deformation, shape.Mesh().vertices.size())) {
+      Fail(node.pointer + problem.where, problem.problem, problem.expected);
+    }
+    shape.deformation = std::move(deformation);
+  }
+
+  static std::vector<Vec3> ReadVec3List(const Node& node, const std::string& what) {
+    if (!node.value.is_array()) FailType(node, "an array of " + what + " [x, y, z]");
+    std::vector<Vec3> values;
+    values.reserve(node.value.size());
+    for (size_t i = 0; i < node.value.size(); ++i) values.push_back(ReadVec3(node.Element(i)));
+    return values;
+  }
+
+  static std::vector<double> ReadWeightList(const Node& node, size_t count, const std::string& expected) {
+    if (!node.value.is_array() || (count != 0 && node.value.size() != count)) FailType(node, expected);
+    std::vector<double> values;
+    for (size_t i = 0; i < node.value.size(); ++i) values.push_back(ReadNumber(node.Element(i), expected));
+    return values;
+  }
+
+  static MorphTargets ReadMorph(const Node& node) {
+    ExpectObject(node, {"targets", "weights"}, "morph targets {\"targets\": [...], \"weights\": ...}");
+    MorphTargets morph;
+    Node targets = Required(node, "targets", "an array of morph targets {\"positions\", \"normals\"}");
+    if (!targets.value.is_array() || targets.value.empty()) {
+      FailType(targets, "a non-empty array of morph targets {\"positions\": [...], \"normals\": [...]}");
+    }
+    for (size_t t = 0; t < targets.value.size(); ++t) {
+      Node target = targets.Element(t);
+      ExpectObject(target, {"positions", "normals"}, "a morph target {\"positions\": [...], \"normals\": [...]}");
+      morph.positionDeltas.push_back(
+          ReadVec3List(Required(target, "positions", "position deltas, one per vertex"), "position deltas"));
+      morph.normalDeltas.push_back(target.Has("normals") ? ReadVec3List(target.Member("normals"), "normal deltas")
+                                                         : std::vector<Vec3>{});
+    }
+    const size_t count = morph.positionDeltas.size();
+    const std::string expected = "an array of " + std::to_string(count) + " weights (one per target)";
+    Node weights = Required(node, "weights", "the targets' weights: [w, ...] or {\"keyframes\": [...]}");
+    if (weights.value.is_array()) {
+      morph.weights = AnimatedWeights::Constant(ReadWeightList(weights, count, expected));
+    } else {
+      if (!weights.value.is_object()) FailType(weights, "[w, ...] or {\"keyframes\": [...]}");
+      ExpectObject(weights, {"keyframes", "interpolation"}, "weight keyframes {\"keyframes\": [...]}");
+      auto read = [&](const Node& value) { return ReadWeightList(value, count, expected); };
+      morph.weights = AnimatedWeights::Keyframes(ReadKeys<AnimatedWeights::Keyframe>(weights, "[w, ...]", read, read),
+                                                 ReadInterpolation(weights));
+    }
+    return morph;
+  }
+
+  Skin ReadSkin(const Node& node) const {
+    ExpectObject(node, {"joints", "inverse_bind_matrices", "vertex_joints", "vertex_weights", "offset"},
+                 "a skin {\"joints\", \"inverse_bind_matrices\", \"vertex_joints\", \"vertex_weights\"}");
+    Skin skin;
+    Node joints = Required(node, "joints", "an array of joint transforms");
+    if (!joints.value.is_array() || joints.value.empty() || joints.value.size() > kMaxJoints) {
+      FailType(joints, "an array of 1 to " + std::to_string(kMaxJoints) + " joint transforms");
+    }
+    for (size_t j = 0; j < joints.value.size(); ++j) skin.joints.push_back(ReadMotion(joints.Element(j), range_));
+    const std::string matrixExpected = "a 3x4 matrix [m00, m01, m02, m03, m10, ..., m23] (row-major, finite)";
+    Node matrices = Required(node, "inverse_bind_matrices", "one inverse bind matrix per joint");
+    if (!matrices.value.is_array()) FailType(matrices, "an array of " + matrixExpected);
+    for (size_t j = 0; j < matrices.value.size(); ++j) {
+      Node matrix = matrices.Element(j);
+      ExpectArray(matrix, 12, matrixExpected);
+      Affine affine;
+      for (int row = 0; row < 3; ++row) {
+        for (int column = 0; column < 3; ++column) affine.linear[row][column] = ReadNumber(matrix.Element(4 * row + column), matrixExpected);
+        affine.offset[row] = ReadNumber(matrix.Element(4 * row + 3), matrixExpected);
+      }
+      skin.inverseBind.push_back(affine);
+    }
+    ReadInfluences(node, skin);
+    if (node.Has("offset")) skin.worldOffset = ReadVec3(node.Member("offset"));
+    return skin;
+  }
+
+  // Per vertex, 4 or 8 joint indices and as many weights.
+  static void ReadInfluences(const Node& node, Skin& skin) {
+    Node joints = Required(node, "vertex_joints", "per vertex, an array of 4 or 8 joint indices");
+    Node weights = Required(node, "vertex_weights", "per vertex, an array of 4 or 8 weights");
+    if (!joints.value.is_array() || joints.value.empty()) FailType(joints, "a non-empty array, one entry per vertex");
+    if (!weights.value.is_array()) FailType(weights, "an array, one entry per vertex");
+    const Node first = joints.Element(0);
+    skin.influencesPerVertex = first.value.is_array() && first.value.size() == 8 ? 8 : 4;
+    const size_t k = static_cast<size_t>(skin.influencesPerVertex);
+    const std::string jointsExpected = "an array of " + std::to_string(k) + " joint indices (as the first vertex has)";
+    const std::string weightsExpected = "an array of " + std::to_string(k) + " weights >= 0";
+    for (size_t v = 0; v < joints.value.size(); ++v) {
+      Node entry = joints.Element(v);
+      ExpectArray(entry, k, jointsExpected);
+      for (size_t i = 0; i < k; ++i) {
+        skin.vertexJoints.push_back(static_cast<uint32_t>(ReadInteger(entry.Element(i), 0, kMaxJoints - 1)));
+      }
+    }
+    for (size_t v = 0; v < weights.value.size(); ++v) {
+      const std::vector<double> values = ReadWeightList(weights.Element(v), k, weightsExpected);
+      skin.vertexWeights.insert(skin.vertexWeights.end(), values.begin(), values.end());
+    }
   }
 
   // A mesh's own triangles, inline or from an OBJ file: a mesh shape's, or a shared one's.
@@ -1332,11 +1457,65 @@ json ShapeGeometryJson(const Shape& shape) {
   return json::object();
 }
 
+json WeightsJson(const AnimatedWeights& weights) {
+  if (weights.IsConstant()) return weights.constant();
+  const bool cubic = weights.interpolation() == Interpolation::kCubicSpline;
+  json keys = json::array();
+  for (const auto& key : weights.keys()) {
+    json entry{{"frame", key.frame}, {"value", key.values}};
+    if (cubic) entry["in_tangent"] = key.inTangent, entry["out_tangent"] = key.outTangent;
+    keys.push_back(std::move(entry));
+  }
+  return WithInterpolation(json{{"keyframes", keys}}, weights.interpolation());
+}
+
+json Vec3ListJson(const std::vector<Vec3>& values) {
+  json list = json::array();
+  for (const Vec3& v : values) list.push_back(Vec3Json(v));
+  return list;
+}
+
+json MorphJson(const MorphTargets& morph) {
+  json targets = json::array();
+  for (size_t t = 0; t < morph.TargetCount(); ++t) {
+    json target{{"positions", Vec3ListJson(morph.positionDeltas[t])}};
+    if (!morph.normalDeltas[t].empty()) target["normals"] = Vec3ListJson(morph.normalDeltas[t]);
+    targets.push_back(std::move(target));
+  }
+  return json{{"targets", std::move(targets)}, {"weights", WeightsJson(morph.weights)}};
+}
+
+json SkinJson(const Skin& skin) {
+  json joints = json::array(), matrices = json::array(), vertexJoints = json::array(), vertexWeights = json::array();
+  for (const Motion& joint : skin.joints) joints.push_back(MotionJson(joint));
+  for (const Affine& m : skin.inverseBind) {
+    json matrix = json::array();
+    for (int row = 0; row < 3; ++row) {
+      matrix.insert(matrix.end(), {m.linear[row][0], m.linear[row][1], m.linear[row][2], m.offset[row]});
+    }
+    matrices.push_back(std::move(matrix));
+  }
+  const size_t k = static_cast<size_t>(skin.influencesPerVertex);
+  for (size_t v = 0; v * k < skin.vertexJoints.size(); ++v) {
+    vertexJoints.push_back(std::vector<uint32_t>(skin.vertexJoints.begin() + v * k, skin.vertexJoints.begin() + (v + 1) * k));
+    vertexWeights.push_back(std::vector<double>(skin.vertexWeights.begin() + v * k, skin.vertexWeights.begin() + (v + 1) * k));
+  }
+  json result{{"joints", std::move(joints)},
+              {"inverse_bind_matrices", std::move(matrices)},
+              {"vertex_joints", std::move(vertexJoints)},
+              {"vertex_weights", std::move(vertexWeights)}};
+  if (skin.worldOffset != Vec3{}) result["offset"] = Vec3Json(skin.worldOffset);
+  return result;
+}
+
 json ShapeJson(const Shape& shape, const std::vector<Material>& materials) {
   json result = ShapeGeometryJson(shape);
+  if (shape.deformation && shape.deformation->hasMorph) result["morph"] = MorphJson(shape.deformation->morph);
+  if (shape.deformation && shape.deformation->hasSkin) result["skin"] = SkinJson(shape.deformation->skin);
   if (!shape.name.empty()) result["name"] = shape.name;
   result["material"] = materials.at(static_cast<size_t>(shape.material)).name;
-  result["motion"] = MotionJson(shape.motion);
+  // A skinned mesh has no motion of its own (its joints place it), and the parser refuses one.
+  if (!(shape.deformation && shape.deformation->hasSkin)) result["motion"] = MotionJson(shape.motion);
   return result;
 }
 

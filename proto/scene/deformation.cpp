@@ -1,0 +1,227 @@
+#include "scene/deformation.h"
+
+#include <cmath>
+#include <string>
+
+#include "scene/scene.h"
+
+namespace tcfarm {
+namespace {
+
+// a + (b - a) * t, as AnimatedVec3 joins keys: a weight that does not change between two
+// keys stays exactly the key's.
+double Lerp(double a, double b, double t) { return a + (b - a) * t; }
+
+Vec3 Add(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+Vec3 Scaled(const Vec3& v, double s) { return {v.x * s, v.y * s, v.z * s}; }
+
+// The cofactor matrix of a linear map: the inverse transpose times the determinant, which
+// carries normals (their length is of no matter; its sign keeps a mirror's outside out).
+void Cofactor(const double m[3][3], double out[3][3]) {
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 3; ++column) {
+      const int r1 = (row + 1) % 3, r2 = (row + 2) % 3, c1 = (column + 1) % 3, c2 = (column + 2) % 3;
+      out[row][column] = m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1];
+    }
+  }
+}
+
+Vec3 ApplyMatrix(const double m[3][3], const Vec3& v) {
+  return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z, m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+          m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
+}
+
+void Morph(const MorphTargets& morph, double frame, DeformedVertices& out) {
+  const std::vector<double> weights = morph.weights.Evaluate(frame);
+  for (size_t target = 0; target < morph.TargetCount(); ++target) {
+    const double weight = weights[target];
+    if (weight == 0) continue;  // adds nothing, and a zero weight leaves the bits as they are
+    const auto& positions = morph.positionDeltas[target];
+    for (size_t v = 0; v < out.positions.size(); ++v) out.positions[v] = Add(out.positions[v], Scaled(positions[v], weight));
+    const auto& normals = morph.normalDeltas[target];
+    if (normals.empty() || out.normals.empty()) continue;
+    for (size_t v = 0; v < out.normals.size(); ++v) out.normals[v] = Add(out.normals[v], Scaled(normals[v], weight));
+  }
+}
+
+void SkinVertices(const Skin& skin, double frame, DeformedVertices& out) {
+  const std::vector<Affine> matrices = SkinMatrices(skin, frame);
+  const size_t k = static_cast<size_t>(skin.influencesPerVertex);
+  for (size_t v = 0; v < out.positions.size(); ++v) {
+    // The vertex's blended skin matrix, then one product: the same sum of the same terms in
+    // the same order wherever the vertex is skinned.
+    Affine blended;
+    for (auto& row : blended.linear) {
+      for (double& value : row) value = 0;
+    }
+    for (size_t i = 0; i < k; ++i) {
+      const double weight = skin.vertexWeights[v * k + i];
+      if (weight == 0) continue;
+      const Affine& m = matrices[skin.vertexJoints[v * k + i]];
+      for (int row = 0; row < 3; ++row) {
+        for (int column = 0; column < 3; ++column) blended.linear[row][column] += weight * m.linear[row][column];
+      }
+      blended.offset = Add(blended.offset, Scaled(m.offset, weight));
+    }
+    out.positions[v] = Add(blended.Apply(out.positions[v]), skin.worldOffset);
+    if (!out.normals.empty()) {
+      double cofactor[3][3];
+      Cofactor(blended.linear, cofactor);
+      out.normals[v] = ApplyMatrix(cofactor, out.normals[v]);
+    }
+  }
+}
+
+}  // namespace
+
+AnimatedWeights AnimatedWeights::Constant(std::vector<double> values) {
+  AnimatedWeights weights;
+  weights.constant_ = std::move(values);
+  return weights;
+}
+
+AnimatedWeights AnimatedWeights::Keyframes(std::vector<Keyframe> keys, Interpolation interpolation) {
+  AnimatedWeights weights;
+  weights.interpolation_ = interpolation;
+  if (keys.size() == 1) {
+    weights.constant_ = keys.front().values;
+    return weights;
+  }
+  for (Keyframe& key : keys) {
+    // A tangent left out is flat; a spline reads one per weight.
+    key.inTangent.resize(key.values.size(), 0.0);
+    key.outTangent.resize(key.values.size(), 0.0);
+  }
+  weights.keys_ = std::move(keys);
+  return weights;
+}
+
+std::vector<double> AnimatedWeights::Evaluate(double frame) const {
+  if (keys_.empty()) return constant_;
+  const KeySpan<Keyframe> span = FindKeySpan(keys_, frame);
+  const Keyframe& previous = *span.previous;
+  const Keyframe& next = *span.next;
+  if (span.t == 0 || interpolation_ == Interpolation::kStep) return previous.values;
+  std::vector<double> values(previous.values.size());
+  for (size_t i = 0; i < values.size(); ++i) {
+    values[i] = interpolation_ == Interpolation::kCubicSpline
+                    ? Hermite(previous.values[i], previous.outTangent[i], next.values[i], next.inTangent[i],
+                              next.frame - previous.frame, span.t)
+                    : Lerp(previous.values[i], next.values[i], span.t);
+  }
+  return values;
+}
+
+bool AnimatedWeights::IsAnimated() const {
+  for (const Keyframe& key : keys_) {
+    if (key.values != keys_.front().values) return true;
+    // A curve through equal keys still moves between them when it leaves with a slope.
+    if (interpolation_ == Interpolation::kCubicSpline) {
+      for (const auto* tangents : {&key.inTangent, &key.outTangent}) {
+        for (double tangent : *tangents) {
+          if (tangent != 0) return true;
+        }
+      }
+    }
+  }
+  return false;
+}
+
+std::vector<Affine> SkinMatrices(const Skin& skin, double frame) {
+  std::vector<Affine> matrices;
+  matrices.reserve(skin.joints.size());
+  for (size_t j = 0; j < skin.joints.size(); ++j) {
+    matrices.push_back(Compose(skin.joints[j].WorldFromObject(frame), skin.inverseBind[j]));
+  }
+  return matrices;
+}
+
+bool Skin::SameAt(double a, double b) const {
+  for (const Motion& joint : joints) {
+    if (!joint.SameAt(a, b)) return false;
+  }
+  return true;
+}
+
+bool Skin::IsAnimated() const {
+  for (const Motion& joint : joints) {
+    if (joint.IsAnimated()) return true;
+  }
+  return false;
+}
+
+bool Deformation::SameAt(double a, double b) const {
+  if (hasMorph && morph.weights.Evaluate(a) != morph.weights.Evaluate(b)) return false;
+  return !hasSkin || skin.SameAt(a, b);
+}
+
+DeformedVertices Deform(const TriangleMesh& rest, const Deformation& deformation, double frame) {
+  DeformedVertices out{rest.vertices, rest.normals};
+  if (deformation.hasMorph) Morph(deformation.morph, frame, out);
+  if (deformation.hasSkin) SkinVertices(deformation.skin, frame, out);
+  return out;
+}
+
+std::vector<DeformationProblem> CheckDeformation(const Deformation& deformation, size_t vertexCount) {
+  std::vector<DeformationProblem> problems;
+  auto problem = [&](std::string where, std::string what, std::string expected) {
+    problems.push_back({std::move(where), std::move(what), std::move(expected)});
+  };
+  if (deformation.hasMorph) {
+    const MorphTargets& morph = deformation.morph;
+    const std::string vertices = std::to_string(vertexCount) + " (one per vertex of the mesh)";
+    for (size_t t = 0; t < morph.TargetCount(); ++t) {
+      const std::string at = "/morph/targets/" + std::to_string(t);
+      if (morph.positionDeltas[t].size() != vertexCount) {
+        problem(at + "/positions", std::to_string(morph.positionDeltas[t].size()) + " position deltas", vertices);
+      }
+      if (!morph.normalDeltas[t].empty() && morph.normalDeltas[t].size() != vertexCount) {
+        problem(at + "/normals", std::to_string(morph.normalDeltas[t].size()) + " normal deltas", vertices);
+      }
+    }
+    if (morph.weights.size() != morph.TargetCount()) {
+      problem("/morph/weights", std::to_string(morph.weights.size()) + " weights",
+              std::to_string(morph.TargetCount()) + " (one per morph target)");
+    }
+  }
+  if (deformation.hasSkin) {
+    const Skin& skin = deformation.skin;
+    const size_t k = static_cast<size_t>(skin.influencesPerVertex);
+    if (skin.inverseBind.size() != skin.joints.size()) {
+      problem("/skin/inverse_bind_matrices", std::to_string(skin.inverseBind.size()) + " matrices",
+              std::to_string(skin.joints.size()) + " (one per joint)");
+    }
+    if (skin.vertexJoints.size() != vertexCount * k || skin.vertexWeights.size() != vertexCount * k) {
+      problem("/skin/vertex_weights", std::to_string(skin.vertexJoints.size()) + " joint indices and " +
+                           std::to_string(skin.vertexWeights.size()) + " weights",
+              std::to_string(vertexCount * k) + " of each (" + std::to_string(k) + " per vertex)");
+      return problems;
+    }
+    for (size_t v = 0; v < vertexCount; ++v) {
+      double sum = 0;
+      for (size_t i = 0; i < k; ++i) {
+        const double weight = skin.vertexWeights[v * k + i];
+        if (!(weight >= 0)) {
+          problem("/skin/vertex_weights/" + std::to_string(v), "weight " + std::to_string(weight), "weights >= 0");
+          return problems;
+        }
+        if (weight > 0 && skin.vertexJoints[v * k + i] >= skin.joints.size()) {
+          problem("/skin/vertex_joints/" + std::to_string(v),
+                  "joint index " + std::to_string(skin.vertexJoints[v * k + i]) + " with weight " +
+                      std::to_string(weight),
+                  "joint indices below " + std::to_string(skin.joints.size()) + " (the skin's joint count)");
+          return problems;
+        }
+        sum += weight;
+      }
+      if (std::fabs(sum - 1) > kWeightSumTolerance) {
+        problem("/skin/vertex_weights/" + std::to_string(v), "weights summing to " + std::to_string(sum),
+                "weights summing to 1 (within " + std::to_string(kWeightSumTolerance) + ")");
+        return problems;
+      }
+    }
+  }
+  return problems;
+}
+
+}  // namespace tcfarm
