@@ -47,6 +47,7 @@ constexpr double kPi = 3.14159265358979323846;
 // with its own pointer rather than the pointer of the JSON it would become.
 constexpr int kMaxFrameCount = 100000;
 constexpr int kMaxMotionDepth = 32;
+constexpr size_t kMaxJoints = 4096;
 constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
 // glTF's defaults for what a file leaves out.
 constexpr int kDefaultWidth = 640, kDefaultHeight = 480;
@@ -230,7 +231,11 @@ const std::map<std::string, std::vector<Field>>& Schemas() {
         {"type", K::kString},
         {"max", K::kArray, "", K::kNumber},
         {"min", K::kArray, "", K::kNumber},
-        {"sparse", K::kObject}}},
+        {"sparse", K::kObject, "sparse"}}},
+      {"sparse",
+       {{"count", K::kIndex}, {"indices", K::kObject, "sparseIndices"}, {"values", K::kObject, "sparseValues"}}},
+      {"sparseIndices", {{"bufferView", K::kIndex}, {"byteOffset", K::kIndex}, {"componentType", K::kIndex}}},
+      {"sparseValues", {{"bufferView", K::kIndex}, {"byteOffset", K::kIndex}}},
       {"bufferView",
        {{"buffer", K::kIndex},
         {"byteOffset", K::kIndex},
@@ -546,7 +551,8 @@ class GltfReader {
   };
 
   // An accessor's elements as doubles. `types` are the allowed TINYGLTF_TYPE_*; integer
-  // components of a normalized accessor become [0, 1] (or [-1, 1]) as the spec says.
+  // components of a normalized accessor become [0, 1] (or [-1, 1]) as the spec says. A
+  // sparse accessor's substitutions are applied over its buffer view's elements (or zeros).
   AccessorData ReadAccessor(int index, const std::string& referencedAt, const std::vector<int>& types,
                             const std::vector<int>& componentTypes, const std::string& expected) const {
     if (index < 0 || static_cast<size_t>(index) >= model_.accessors.size()) {
@@ -564,10 +570,6 @@ class GltfReader {
                " refers to it",
            expected);
     }
-    if (accessor.sparse.isSparse) {
-      Fail(pointer + "/sparse", "sparse accessors are not supported (tinygltf 2.7 does not resolve them)",
-           "an accessor without sparse");
-    }
     const int componentSize = tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(accessor.componentType));
     const int components = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(accessor.type));
     AccessorData data;
@@ -577,13 +579,35 @@ class GltfReader {
       Fail(pointer + "/count", std::to_string(accessor.count) + " elements", "at most 2^32 - 1 elements");
     }
     data.values.assign(accessor.count * static_cast<size_t>(components), 0.0);
-    if (accessor.bufferView < 0) return data;  // no buffer view: all zeros, as the spec says
-    if (static_cast<size_t>(accessor.bufferView) >= model_.bufferViews.size()) {
-      Fail(pointer + "/bufferView", "buffer view " + std::to_string(accessor.bufferView) + " does not exist",
+    const size_t elementSize = static_cast<size_t>(componentSize) * static_cast<size_t>(components);
+    if (accessor.bufferView >= 0) {  // without one, all zeros, as the spec says
+      const ViewElements elements = InView(accessor.bufferView, accessor.byteOffset, accessor.count, elementSize,
+                                           true, pointer);
+      for (size_t element = 0; element < accessor.count; ++element) {
+        ReadElement(elements.base + element * elements.stride, accessor, componentSize,
+                    &data.values[element * static_cast<size_t>(components)]);
+      }
+    }
+    if (accessor.sparse.isSparse) ApplySparse(accessor, pointer, componentSize, elementSize, data);
+    return data;
+  }
+
+  // Where `count` elements of `elementSize` bytes start in buffer view `viewIndex`, from
+  // byteOffset, and how far apart they lie (the view's byteStride, when `strided`, else
+  // packed): checked to lie inside the view and the view inside its buffer. `pointer` is
+  // the object referring to the view (an accessor, or a sparse accessor's indices or values).
+  struct ViewElements {
+    const unsigned char* base;
+    size_t stride;
+  };
+  ViewElements InView(int viewIndex, size_t byteOffset, size_t count, size_t elementSize, bool strided,
+                      const std::string& pointer) const {
+    if (viewIndex < 0 || static_cast<size_t>(viewIndex) >= model_.bufferViews.size()) {
+      Fail(pointer + "/bufferView", "buffer view " + std::to_string(viewIndex) + " does not exist",
            "the index of a buffer view");
     }
-    const tinygltf::BufferView& view = model_.bufferViews[static_cast<size_t>(accessor.bufferView)];
-    const std::string viewPointer = Pointer("bufferViews", static_cast<size_t>(accessor.bufferView));
+    const tinygltf::BufferView& view = model_.bufferViews[static_cast<size_t>(viewIndex)];
+    const std::string viewPointer = Pointer("bufferViews", static_cast<size_t>(viewIndex));
     if (view.buffer < 0 || static_cast<size_t>(view.buffer) >= model_.buffers.size()) {
       Fail(viewPointer + "/buffer", "buffer " + std::to_string(view.buffer) + " does not exist",
            "the index of a buffer");
@@ -595,32 +619,76 @@ class GltfReader {
                " of a buffer of " + std::to_string(buffer.size()) + " bytes",
            "a buffer view inside its buffer");
     }
-    const size_t elementSize = static_cast<size_t>(componentSize) * static_cast<size_t>(components);
-    const size_t stride = view.byteStride != 0 ? view.byteStride : elementSize;
+    const size_t stride = strided && view.byteStride != 0 ? view.byteStride : elementSize;
     if (stride < elementSize) {
       Fail(viewPointer + "/byteStride",
            "a stride of " + std::to_string(stride) + " bytes for elements of " + std::to_string(elementSize),
            "a stride at least the element size");
     }
-    if (accessor.count > 0 && (accessor.byteOffset > view.byteLength ||
-                               (accessor.count - 1) > (view.byteLength - accessor.byteOffset) / stride ||
-                               accessor.byteOffset + (accessor.count - 1) * stride + elementSize > view.byteLength)) {
+    if (count > 0 && (byteOffset > view.byteLength || (count - 1) > (view.byteLength - byteOffset) / stride ||
+                      byteOffset + (count - 1) * stride + elementSize > view.byteLength)) {
       Fail(pointer,
-           std::to_string(accessor.count) + " elements from byte " + std::to_string(accessor.byteOffset) +
-               " run past the end of buffer view " + std::to_string(accessor.bufferView) + " (" +
+           std::to_string(count) + " elements from byte " + std::to_string(byteOffset) +
+               " run past the end of buffer view " + std::to_string(viewIndex) + " (" +
                std::to_string(view.byteLength) + " bytes)",
            "an accessor inside its buffer view");
     }
-    const unsigned char* base = buffer.data() + view.byteOffset + accessor.byteOffset;
-    for (size_t element = 0; element < accessor.count; ++element) {
-      const unsigned char* at = base + element * stride;
-      for (int c = 0; c < components; ++c) {
-        data.values[element * components + static_cast<size_t>(c)] =
-            Component(at + static_cast<size_t>(c) * static_cast<size_t>(componentSize), accessor.componentType,
-                      accessor.normalized);
-      }
+    return {buffer.data() + view.byteOffset + byteOffset, stride};
+  }
+
+  static void ReadElement(const unsigned char* at, const tinygltf::Accessor& accessor, int componentSize,
+                          double* out) {
+    const int components = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(accessor.type));
+    for (int c = 0; c < components; ++c) {
+      out[c] = Component(at + static_cast<size_t>(c) * static_cast<size_t>(componentSize), accessor.componentType,
+                         accessor.normalized);
     }
-    return data;
+  }
+
+  // A sparse accessor's substitutions: `count` strictly increasing element indices, and as
+  // many packed elements of the accessor's own type that replace those elements.
+  void ApplySparse(const tinygltf::Accessor& accessor, const std::string& pointer, int componentSize,
+                   size_t elementSize, AccessorData& data) const {
+    const std::string at = pointer + "/sparse";
+    const auto& sparse = accessor.sparse;
+    if (sparse.count < 1 || static_cast<size_t>(sparse.count) > accessor.count) {
+      Fail(at + "/count", std::to_string(sparse.count) + " substitutions in an accessor of " +
+                              std::to_string(accessor.count) + " elements",
+           "1 to the accessor's count");
+    }
+    const int indexType = sparse.indices.componentType;
+    if (indexType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && indexType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        indexType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
+      Fail(at + "/indices/componentType", ComponentTypeName(indexType),
+           "UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT indices");
+    }
+    const size_t count = static_cast<size_t>(sparse.count);
+    const size_t indexSize = static_cast<size_t>(tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(indexType)));
+    if (sparse.indices.byteOffset < 0 || sparse.values.byteOffset < 0) {
+      Fail(at + (sparse.indices.byteOffset < 0 ? "/indices" : "/values") + "/byteOffset", "a negative offset",
+           "a byte offset >= 0");
+    }
+    const ViewElements indices = InView(sparse.indices.bufferView, static_cast<size_t>(sparse.indices.byteOffset),
+                                        count, indexSize, false, at + "/indices");
+    const ViewElements values = InView(sparse.values.bufferView, static_cast<size_t>(sparse.values.byteOffset), count,
+                                       elementSize, false, at + "/values");
+    const size_t components = static_cast<size_t>(data.components);
+    for (size_t k = 0; k < count; ++k) {
+      const double index = Component(indices.base + k * indexSize, indexType, false);
+      if (!(index < static_cast<double>(accessor.count))) {
+        Fail(at + "/indices",
+             "substitution " + std::to_string(k) + " names element " +
+                 std::to_string(static_cast<uint64_t>(index)) + " of " + std::to_string(accessor.count),
+             "indices below the accessor's count");
+      }
+      if (k > 0 && !(index > Component(indices.base + (k - 1) * indexSize, indexType, false))) {
+        Fail(at + "/indices", "substitution " + std::to_string(k) + " names element " +
+                                  std::to_string(static_cast<uint64_t>(index)) + ", not after the one before it",
+             "strictly increasing indices");
+      }
+      ReadElement(values.base + k * values.stride, accessor, componentSize,
+                  &data.values[static_cast<size_t>(index) * components]);
+    }
   }
 
   static std::string TypeName(int type) {
@@ -1018,11 +1086,42 @@ class GltfReader {
     return frames;
   }
 
+  // A sampler's keys: their frames, interpolation and values, `perKey` elements per key
+  // (per in-tangent, value and out-tangent for CUBICSPLINE), checked to be as many as that.
+  Channel ReadChannel(const tinygltf::AnimationSampler& sampler, const std::string& samplerPointer, int type,
+                      const std::vector<int>& componentTypes, const std::string& expected, size_t perKey) const {
+    Channel channel;
+    channel.present = true;
+    channel.times = ReadTimes(sampler.input, samplerPointer + "/input");
+    if (sampler.interpolation == "STEP") {
+      channel.interpolation = Interpolation::kStep;
+    } else if (sampler.interpolation == "CUBICSPLINE") {
+      channel.interpolation = Interpolation::kCubicSpline;
+    } else if (sampler.interpolation == "LINEAR" || sampler.interpolation.empty()) {
+      channel.interpolation = Interpolation::kLinear;
+    } else {
+      Fail(samplerPointer + "/interpolation", QuoteInput(sampler.interpolation), "LINEAR, STEP or CUBICSPLINE");
+    }
+    channel.values = ReadAccessor(sampler.output, samplerPointer + "/output", {type}, componentTypes, expected);
+    CheckFinite(channel.values, sampler.output, "key value");
+    const bool cubic = channel.interpolation == Interpolation::kCubicSpline;
+    const size_t wanted = channel.times.size() * perKey * (cubic ? 3 : 1);
+    if (channel.values.count != wanted) {
+      const std::string what = perKey > 1 ? std::to_string(perKey) + " weights (one per morph target) " : "one value ";
+      Fail(Pointer("accessors", static_cast<size_t>(sampler.output)) + "/count",
+           std::to_string(channel.values.count) + " values for " + std::to_string(channel.times.size()) + " key times",
+           std::to_string(wanted) + " values (" + what +
+               (cubic ? "per in-tangent, value and out-tangent of each key)" : "per key)"));
+    }
+    return channel;
+  }
+
   // Node i's local translation, rotation and scale over frames, from the node and the
-  // chosen animation's channels.
+  // chosen animation's channels; the channels of morph target weights are kept for the
+  // shapes.
   void BuildMotions() {
     const size_t count = model_.nodes.size();
-    std::vector<std::map<std::string, Channel>> channels(count);
+    channels_.assign(count, {});
     double lastFrame = 0;
     if (animation_ >= 0) {
       const auto& animation = model_.animations[static_cast<size_t>(animation_)];
@@ -1036,11 +1135,7 @@ class GltfReader {
                "the index of a node");
         }
         const std::string& path = channel.target_path;
-        if (path == "weights") {
-          Warn(pointer, "morph target weights are not supported; the channel is skipped");
-          continue;
-        }
-        if (path != "translation" && path != "rotation" && path != "scale") {
+        if (path != "translation" && path != "rotation" && path != "scale" && path != "weights") {
           Fail(pointer + "/target/path", "path " + QuoteInput(path), "translation, rotation, scale or weights");
         }
         if (channel.sampler < 0 || static_cast<size_t>(channel.sampler) >= animation.samplers.size()) {
@@ -1052,40 +1147,30 @@ class GltfReader {
           Fail(pointer + "/target/node", "node " + std::to_string(channel.target_node) + " has a matrix",
                "animated nodes with translation, rotation and scale (the glTF rule)");
         }
-        Channel& target = channels[static_cast<size_t>(channel.target_node)][path];
+        Channel& target = channels_[static_cast<size_t>(channel.target_node)][path];
         if (target.present)
           Fail(pointer, "a second channel for " + path + " of the same node", "one channel per node and path");
         const std::string samplerPointer = animationPointer + "/samplers/" + std::to_string(channel.sampler);
         const auto& sampler = animation.samplers[static_cast<size_t>(channel.sampler)];
-        target.present = true;
-        target.times = ReadTimes(sampler.input, samplerPointer + "/input");
-        if (sampler.interpolation == "STEP") {
-          target.interpolation = Interpolation::kStep;
-        } else if (sampler.interpolation == "CUBICSPLINE") {
-          target.interpolation = Interpolation::kCubicSpline;
-        } else if (sampler.interpolation == "LINEAR" || sampler.interpolation.empty()) {
-          target.interpolation = Interpolation::kLinear;
+        // Rotations and weights may be floats or normalized integers.
+        const std::vector<int> floatsOrIntegers = {
+            TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+            TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT};
+        if (path == "weights") {
+          const size_t targets = MorphTargetCount(static_cast<size_t>(channel.target_node));
+          if (targets == 0) {
+            Fail(pointer + "/target/node",
+                 "node " + std::to_string(channel.target_node) + " has no mesh with morph targets",
+                 "a weights channel on a node whose mesh has morph targets");
+          }
+          target = ReadChannel(sampler, samplerPointer, TINYGLTF_TYPE_SCALAR, floatsOrIntegers,
+                               "a SCALAR accessor of morph target weights", targets);
+        } else if (path == "rotation") {
+          target = ReadChannel(sampler, samplerPointer, TINYGLTF_TYPE_VEC4, floatsOrIntegers,
+                               "a VEC4 accessor of quaternions", 1);
         } else {
-          Fail(samplerPointer + "/interpolation", QuoteInput(sampler.interpolation), "LINEAR, STEP or CUBICSPLINE");
-        }
-        bool rotation = path == "rotation";
-        std::vector<int> componentTypes = {TINYGLTF_COMPONENT_TYPE_FLOAT};
-        if (rotation) {
-          componentTypes.insert(componentTypes.end(),
-                                {TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
-                                 TINYGLTF_COMPONENT_TYPE_SHORT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT});
-        }
-        target.values = ReadAccessor(sampler.output, samplerPointer + "/output",
-                                     {rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3}, componentTypes,
-                                     rotation ? "a VEC4 accessor of quaternions" : "a VEC3 FLOAT accessor");
-        CheckFinite(target.values, sampler.output, "key value");
-        size_t perKey = target.interpolation == Interpolation::kCubicSpline ? 3 : 1;
-        if (target.values.count != target.times.size() * perKey) {
-          Fail(
-              Pointer("accessors", static_cast<size_t>(sampler.output)) + "/count",
-              std::to_string(target.values.count) + " values for " + std::to_string(target.times.size()) + " key times",
-              std::to_string(target.times.size() * perKey) + " values (" +
-                  (perKey == 3 ? "in-tangent, value, out-tangent per key)" : "one per key)"));
+          target = ReadChannel(sampler, samplerPointer, TINYGLTF_TYPE_VEC3, {TINYGLTF_COMPONENT_TYPE_FLOAT},
+                               "a VEC3 FLOAT accessor", 1);
         }
         lastFrame = std::max(lastFrame, target.times.back());
       }
@@ -1102,7 +1187,7 @@ class GltfReader {
     motions_.assign(count, nullptr);
     for (int node : order_) {
       auto motion =
-          std::make_shared<Motion>(LocalMotion(static_cast<size_t>(node), channels[static_cast<size_t>(node)]));
+          std::make_shared<Motion>(LocalMotion(static_cast<size_t>(node), channels_[static_cast<size_t>(node)]));
       int parent = parent_[static_cast<size_t>(node)];
       if (parent >= 0 && !motions_[static_cast<size_t>(parent)]->IsNone()) {
         motion->parent = motions_[static_cast<size_t>(parent)];
@@ -1351,7 +1436,9 @@ class GltfReader {
       if (static_cast<size_t>(source.mesh) >= model_.meshes.size()) {
         Fail(nodePointer + "/mesh", "mesh " + std::to_string(source.mesh) + " does not exist", "the index of a mesh");
       }
-      if (source.skin >= 0) Warn(nodePointer, "skins are not supported yet; the mesh is placed by its node alone");
+      // A skinned mesh is placed by its joints alone: glTF ignores its node's transform.
+      const SkinJoints* skin = source.skin >= 0 ? &ReadSkin(static_cast<size_t>(node)) : nullptr;
+      MorphTargetCount(static_cast<size_t>(node));  // refuses primitives with different target counts
       const auto& mesh = model_.meshes[static_cast<size_t>(source.mesh)];
       for (size_t p = 0; p < mesh.primitives.size(); ++p) {
         const auto& primitive = mesh.primitives[p];
@@ -1365,9 +1452,6 @@ class GltfReader {
           }
           Warn(pointer, "points and lines are not rendered; the primitive is skipped");
           continue;
-        }
-        if (!primitive.targets.empty()) {
-          Warn(pointer, "morph targets are not supported yet; the primitive is imported in its base shape");
         }
         Shape shape;
         shape.type = Shape::Type::kMesh;
@@ -1390,10 +1474,328 @@ class GltfReader {
         if (triangles > kMaxSceneTriangles) {
           Fail(pointer, "more than " + std::to_string(kMaxSceneTriangles) + " triangles in all", "a smaller scene");
         }
-        shape.motion = *motions_[static_cast<size_t>(node)];
+        shape.deformation =
+            PrimitiveDeformation(static_cast<size_t>(node), skin, primitive, pointer, shape.Mesh());
+        if (skin == nullptr) shape.motion = *motions_[static_cast<size_t>(node)];
         scene.shapes.push_back(std::move(shape));
       }
     }
+  }
+
+  // ---- skins and morph targets ----------------------------------------------------------
+
+  // How many morph targets node i's mesh has (0 without a mesh): the same in every
+  // primitive and as many as the mesh's default weights, or refused.
+  size_t MorphTargetCount(size_t node) const {
+    const int meshIndex = model_.nodes[node].mesh;
+    if (meshIndex < 0) return 0;
+    if (static_cast<size_t>(meshIndex) >= model_.meshes.size()) {
+      Fail(Pointer("nodes", node) + "/mesh", "mesh " + std::to_string(meshIndex) + " does not exist",
+           "the index of a mesh");
+    }
+    const tinygltf::Mesh& mesh = model_.meshes[static_cast<size_t>(meshIndex)];
+    const std::string pointer = Pointer("meshes", static_cast<size_t>(meshIndex));
+    const size_t targets = mesh.primitives.empty() ? 0 : mesh.primitives[0].targets.size();
+    for (size_t p = 1; p < mesh.primitives.size(); ++p) {
+      if (mesh.primitives[p].targets.size() != targets) {
+        Fail(pointer + "/primitives/" + std::to_string(p) + "/targets",
+             std::to_string(mesh.primitives[p].targets.size()) + " morph targets where primitive 0 has " +
+                 std::to_string(targets),
+             "the same number of morph targets in every primitive of a mesh");
+      }
+    }
+    CheckWeights(mesh.weights, targets, pointer + "/weights");
+    return targets;
+  }
+
+  // Default weights (a mesh's or a node's): none, or one finite weight per morph target.
+  void CheckWeights(const std::vector<double>& weights, size_t targets, const std::string& pointer) const {
+    if (weights.empty()) return;
+    if (weights.size() != targets) {
+      Fail(pointer, std::to_string(weights.size()) + " weights for " + std::to_string(targets) + " morph targets",
+           "one weight per morph target");
+    }
+    for (size_t i = 0; i < weights.size(); ++i) {
+      if (!(std::fabs(weights[i]) <= kMaxMagnitude)) {
+        Fail(pointer + "/" + std::to_string(i), std::to_string(weights[i]), "finite weights");
+      }
+    }
+  }
+
+  // Node i's morph target weights over frame time: its animation's weights channel, else
+  // the node's `weights`, else its mesh's, else zeros.
+  AnimatedWeights MorphWeights(size_t node, size_t targets) const {
+    const tinygltf::Node& source = model_.nodes[node];
+    const tinygltf::Mesh& mesh = model_.meshes[static_cast<size_t>(source.mesh)];
+    CheckWeights(source.weights, targets, Pointer("nodes", node) + "/weights");
+    if (auto found = channels_[node].find("weights"); found != channels_[node].end()) {
+      const Channel& channel = found->second;
+      const bool cubic = channel.interpolation == Interpolation::kCubicSpline;
+      const double fps = options_.framesPerSecond;
+      auto values = [&](size_t element) {
+        auto first = channel.values.values.begin() + static_cast<std::ptrdiff_t>(element * targets);
+        return std::vector<double>(first, first + static_cast<std::ptrdiff_t>(targets));
+      };
+      std::vector<AnimatedWeights::Keyframe> keys;
+      for (size_t k = 0; k < channel.times.size(); ++k) {
+        AnimatedWeights::Keyframe key{channel.times[k], values(cubic ? 3 * k + 1 : k)};
+        if (cubic) {
+          // glTF's tangents are per second; the scene's per frame.
+          key.inTangent = values(3 * k);
+          key.outTangent = values(3 * k + 2);
+          for (double& tangent : key.inTangent) tangent /= fps;
+          for (double& tangent : key.outTangent) tangent /= fps;
+        }
+        keys.push_back(std::move(key));
+      }
+      return AnimatedWeights::Keyframes(std::move(keys), channel.interpolation);
+    }
+    const std::vector<double>& weights = source.weights.empty() ? mesh.weights : source.weights;
+    return AnimatedWeights::Constant(weights.empty() ? std::vector<double>(targets, 0.0) : weights);
+  }
+
+  // A primitive's morph targets: POSITION and NORMAL deltas, one per vertex (a target
+  // without POSITION moves nothing; NORMAL deltas are kept only for a mesh with normals).
+  MorphTargets ReadMorphTargets(const tinygltf::Primitive& primitive, const std::string& pointer,
+                                const TriangleMesh& mesh) const {
+    MorphTargets morph;
+    const size_t vertices = mesh.vertices.size();
+    auto deltas = [&](int accessor, const std::string& at, const std::vector<int>& componentTypes,
+                      const std::string& what) {
+      AccessorData data = ReadAccessor(accessor, at, {TINYGLTF_TYPE_VEC3}, componentTypes,
+                                       "a VEC3 accessor of " + what);
+      CheckFinite(data, accessor, what);
+      if (data.count != vertices) {
+        Fail(Pointer("accessors", static_cast<size_t>(accessor)) + "/count",
+             std::to_string(data.count) + " " + what + " for a primitive of " + std::to_string(vertices) + " vertices",
+             "one per vertex of the primitive");
+      }
+      std::vector<Vec3> out(vertices);
+      for (size_t v = 0; v < vertices; ++v) out[v] = {data.At(v, 0), data.At(v, 1), data.At(v, 2)};
+      return out;
+    };
+    // Floats, or KHR_mesh_quantization's signed integers.
+    const std::vector<int> deltaTypes = {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE,
+                                         TINYGLTF_COMPONENT_TYPE_SHORT};
+    for (size_t t = 0; t < primitive.targets.size(); ++t) {
+      const auto& target = primitive.targets[t];
+      const std::string at = pointer + "/targets/" + std::to_string(t);
+      auto position = target.find("POSITION");
+      morph.positionDeltas.push_back(position == target.end()
+                                         ? std::vector<Vec3>(vertices)
+                                         : deltas(position->second, at + "/POSITION", deltaTypes, "position deltas"));
+      auto normal = target.find("NORMAL");
+      morph.normalDeltas.push_back(normal == target.end() || mesh.normals.empty()
+                                       ? std::vector<Vec3>{}
+                                       : deltas(normal->second, at + "/NORMAL", deltaTypes, "normal deltas"));
+    }
+    return morph;
+  }
+
+  // What a skin gives every primitive it binds: its joints' world motions and inverse
+  // bind matrices, read and checked once.
+  struct SkinJoints {
+    std::vector<Motion> joints;
+    std::vector<Affine> inverseBind;
+  };
+
+  const SkinJoints& ReadSkin(size_t node) {
+    const int index = model_.nodes[node].skin;
+    if (static_cast<size_t>(index) >= model_.skins.size()) {
+      Fail(Pointer("nodes", node) + "/skin",
+           "skin " + std::to_string(index) + " does not exist (the file has " + std::to_string(model_.skins.size()) +
+               ")",
+           "the index of a skin");
+    }
+    auto [entry, isNew] = skins_.try_emplace(static_cast<size_t>(index));
+    if (!isNew) return entry->second;
+    const tinygltf::Skin& skin = model_.skins[static_cast<size_t>(index)];
+    const std::string pointer = Pointer("skins", static_cast<size_t>(index));
+    if (skin.joints.empty() || skin.joints.size() > kMaxJoints) {
+      Fail(pointer + "/joints", std::to_string(skin.joints.size()) + " joints",
+           "1 to " + std::to_string(kMaxJoints) + " joints");
+    }
+    auto inScene = [&](int node, const std::string& at, const std::string& what) {
+      if (node < 0 || static_cast<size_t>(node) >= model_.nodes.size()) {
+        Fail(at, what + " names node " + std::to_string(node) + ", which does not exist (the file has " +
+                     std::to_string(model_.nodes.size()) + ")",
+             "the index of a node of the rendered scene");
+      }
+      if (!inScene_[static_cast<size_t>(node)]) {
+        Fail(at, what + " names node " + std::to_string(node) + ", which is not in the rendered scene",
+             "a node of the rendered scene");
+      }
+    };
+    if (skin.skeleton >= 0) inScene(skin.skeleton, pointer + "/skeleton", "the skeleton");
+    SkinJoints& out = entry->second;
+    for (size_t j = 0; j < skin.joints.size(); ++j) {
+      const int joint = skin.joints[j];
+      const std::string at = pointer + "/joints/" + std::to_string(j);
+      inScene(joint, at, "joint " + std::to_string(j));
+      if (skin.skeleton >= 0) {
+        int up = joint;
+        while (up >= 0 && up != skin.skeleton) up = parent_[static_cast<size_t>(up)];
+        if (up != skin.skeleton) {
+          Fail(at, "joint " + std::to_string(j) + " (node " + std::to_string(joint) +
+                       ") is not the skeleton node " + std::to_string(skin.skeleton) + " or below it",
+               "joints in the hierarchy under the skin's skeleton");
+        }
+      }
+      out.joints.push_back(*motions_[static_cast<size_t>(joint)]);
+    }
+    out.inverseBind.assign(skin.joints.size(), Affine{});  // none given: identities
+    if (skin.inverseBindMatrices >= 0) {
+      AccessorData matrices = ReadAccessor(skin.inverseBindMatrices, pointer + "/inverseBindMatrices",
+                                           {TINYGLTF_TYPE_MAT4}, {TINYGLTF_COMPONENT_TYPE_FLOAT},
+                                           "a MAT4 FLOAT accessor of inverse bind matrices");
+      const std::string at = Pointer("accessors", static_cast<size_t>(skin.inverseBindMatrices));
+      CheckFinite(matrices, skin.inverseBindMatrices, "matrix");
+      if (matrices.count != skin.joints.size()) {
+        Fail(at + "/count",
+             std::to_string(matrices.count) + " inverse bind matrices for " + std::to_string(skin.joints.size()) +
+                 " joints",
+             "one per joint");
+      }
+      for (size_t j = 0; j < matrices.count; ++j) {
+        // Column-major: element (row, column) is at 4 * column + row.
+        auto m = [&](int row, int column) { return matrices.At(j, 4 * column + row); };
+        if (m(3, 0) != 0 || m(3, 1) != 0 || m(3, 2) != 0 || m(3, 3) != 1) {
+          Fail(at, "matrix " + std::to_string(j) + " has the last row " + Row(m(3, 0), m(3, 1), m(3, 2), m(3, 3)),
+               "affine matrices (last row 0, 0, 0, 1)");
+        }
+        Affine& affine = out.inverseBind[j];
+        for (int row = 0; row < 3; ++row) {
+          for (int column = 0; column < 3; ++column) affine.linear[row][column] = m(row, column);
+          affine.offset[row] = m(row, 3);
+        }
+      }
+    }
+    return out;
+  }
+
+  static std::string Row(double a, double b, double c, double d) {
+    std::string text;
+    for (double v : {a, b, c, d}) text += (text.empty() ? "" : ", ") + nlohmann::json(v).dump();
+    return text;
+  }
+
+  // A primitive's skin: JOINTS_0/WEIGHTS_0 (and _1 for 8 influences), each vertex's weights
+  // divided by their sum (refused when it is further than kWeightSumTolerance from 1), and
+  // only the joints that move some vertex of the primitive, renumbered in the skin's order.
+  Skin BindPrimitive(const SkinJoints& joints, size_t node, const tinygltf::Primitive& primitive,
+                     const std::string& pointer, size_t vertices) const {
+    struct Set {
+      AccessorData joints, weights;
+      int jointsAccessor, weightsAccessor;
+    };
+    std::vector<Set> sets;
+    for (int set = 0; set < 2; ++set) {
+      const std::string suffix = "_" + std::to_string(set);
+      auto jointAttribute = primitive.attributes.find("JOINTS" + suffix);
+      auto weightAttribute = primitive.attributes.find("WEIGHTS" + suffix);
+      const bool hasJoints = jointAttribute != primitive.attributes.end();
+      const bool hasWeights = weightAttribute != primitive.attributes.end();
+      if (!hasJoints && !hasWeights && set == 1) break;
+      if (!hasJoints || !hasWeights) {
+        Fail(pointer + "/attributes",
+             std::string(hasJoints ? "JOINTS" : hasWeights ? "WEIGHTS" : "neither JOINTS nor WEIGHTS") +
+                 (hasJoints || hasWeights ? suffix + " alone" : suffix) + ", though node " + std::to_string(node) +
+                 " binds the mesh to skin " + std::to_string(model_.nodes[node].skin),
+             "JOINTS_0 and WEIGHTS_0 (and JOINTS_1 with WEIGHTS_1, or neither) on each primitive of a skinned mesh");
+      }
+      Set read{ReadAccessor(jointAttribute->second, pointer + "/attributes/JOINTS" + suffix, {TINYGLTF_TYPE_VEC4},
+                            {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+                            "a VEC4 accessor of UNSIGNED_BYTE or UNSIGNED_SHORT joint indices"),
+               ReadAccessor(weightAttribute->second, pointer + "/attributes/WEIGHTS" + suffix, {TINYGLTF_TYPE_VEC4},
+                            {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE,
+                             TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+                            "a VEC4 accessor of FLOAT or normalized UNSIGNED_BYTE or UNSIGNED_SHORT weights"),
+               jointAttribute->second, weightAttribute->second};
+      for (const auto& [accessor, count] :
+           {std::pair{read.jointsAccessor, read.joints.count}, std::pair{read.weightsAccessor, read.weights.count}}) {
+        if (count != vertices) {
+          Fail(Pointer("accessors", static_cast<size_t>(accessor)) + "/count",
+               std::to_string(count) + " elements for a primitive of " + std::to_string(vertices) + " vertices",
+               "one per vertex of the primitive");
+        }
+      }
+      const tinygltf::Accessor& weightAccessor = model_.accessors[static_cast<size_t>(read.weightsAccessor)];
+      if (weightAccessor.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !weightAccessor.normalized) {
+        Fail(Pointer("accessors", static_cast<size_t>(read.weightsAccessor)) + "/normalized",
+             "integer weights that are not normalized", "normalized: true on integer weights");
+      }
+      CheckFinite(read.weights, read.weightsAccessor, "vertex");
+      sets.push_back(std::move(read));
+    }
+    Skin skin;
+    skin.influencesPerVertex = static_cast<int>(4 * sets.size());
+    const size_t k = static_cast<size_t>(skin.influencesPerVertex);
+    skin.vertexJoints.resize(vertices * k);
+    skin.vertexWeights.resize(vertices * k);
+    std::vector<bool> used(joints.joints.size(), false);
+    for (size_t v = 0; v < vertices; ++v) {
+      double sum = 0;
+      for (size_t i = 0; i < k; ++i) {
+        const Set& set = sets[i / 4];
+        const double joint = set.joints.At(v, static_cast<int>(i % 4));
+        const double weight = set.weights.At(v, static_cast<int>(i % 4));
+        if (!(joint < static_cast<double>(joints.joints.size()))) {
+          Fail(Pointer("accessors", static_cast<size_t>(set.jointsAccessor)),
+               "vertex " + std::to_string(v) + " names joint " + std::to_string(static_cast<uint64_t>(joint)) +
+                   " (weight " + nlohmann::json(weight).dump() + ") of skin " +
+                   std::to_string(model_.nodes[node].skin) + ", which has " + std::to_string(joints.joints.size()),
+               "joint indices below the skin's joint count");
+        }
+        if (!(weight >= 0)) {
+          Fail(Pointer("accessors", static_cast<size_t>(set.weightsAccessor)),
+               "vertex " + std::to_string(v) + " has the weight " + nlohmann::json(weight).dump(), "weights >= 0");
+        }
+        skin.vertexWeights[v * k + i] = weight;
+        sum += weight;
+        if (weight == 0) continue;  // its joint does not move the vertex: index 0 will do
+        used[static_cast<size_t>(joint)] = true;
+        skin.vertexJoints[v * k + i] = static_cast<uint32_t>(joint);
+      }
+      if (!(std::fabs(sum - 1) <= kWeightSumTolerance)) {
+        Fail(Pointer("accessors", static_cast<size_t>(sets[0].weightsAccessor)),
+             "vertex " + std::to_string(v) + "'s weights sum to " + nlohmann::json(sum).dump() +
+                 (sets.size() > 1 ? " (with WEIGHTS_1)" : ""),
+             "weights summing to 1 within " + nlohmann::json(kWeightSumTolerance).dump() +
+                 " (closer sums are divided by their sum)");
+      }
+      if (sum != 1) {
+        for (size_t i = 0; i < k; ++i) skin.vertexWeights[v * k + i] /= sum;
+      }
+    }
+    std::vector<uint32_t> renumbered(used.size(), 0);  // per joint of the skin, its index here
+    for (size_t j = 0; j < used.size(); ++j) {
+      if (!used[j]) continue;
+      renumbered[j] = static_cast<uint32_t>(skin.joints.size());
+      skin.joints.push_back(joints.joints[j]);
+      skin.inverseBind.push_back(joints.inverseBind[j]);
+    }
+    for (size_t i = 0; i < skin.vertexJoints.size(); ++i) {
+      skin.vertexJoints[i] = renumbered[skin.vertexJoints[i]];
+    }
+    return skin;
+  }
+
+  // The morph targets and skin of node i's primitive p, or none when it has neither.
+  std::shared_ptr<const Deformation> PrimitiveDeformation(size_t node, const SkinJoints* skin,
+                                                          const tinygltf::Primitive& primitive,
+                                                          const std::string& pointer, const TriangleMesh& mesh) const {
+    if (primitive.targets.empty() && skin == nullptr) return nullptr;
+    auto deformation = std::make_shared<Deformation>();
+    if (!primitive.targets.empty()) {
+      deformation->hasMorph = true;
+      deformation->morph = ReadMorphTargets(primitive, pointer, mesh);
+      deformation->morph.weights = MorphWeights(node, primitive.targets.size());
+    }
+    if (skin != nullptr) {
+      deformation->hasSkin = true;
+      deformation->skin = BindPrimitive(*skin, node, primitive, pointer, mesh.vertices.size());
+    }
+    return deformation;
   }
 
   // ---- lights and camera ----------------------------------------------------------------
@@ -1516,8 +1918,10 @@ class GltfReader {
     Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
     Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
     for (const Shape& shape : scene.shapes) {
-      Affine worldFromObject = shape.motion.WorldFromObject(0);
-      for (const Vec3& vertex : shape.Mesh().vertices) {
+      Affine worldFromObject = shape.motion.WorldFromObject(0);  // the identity for a skinned mesh
+      const std::vector<Vec3> vertices =
+          shape.deformation ? Deform(shape.Mesh(), *shape.deformation, 0).positions : shape.Mesh().vertices;
+      for (const Vec3& vertex : vertices) {
         Vec3 v = worldFromObject.Apply(vertex);
         for (int axis = 0; axis < 3; ++axis) {
           low[axis] = std::min(low[axis], v[axis]);
@@ -1558,6 +1962,8 @@ class GltfReader {
   int animation_ = -1;
   int frameCount_ = 1;
   std::vector<std::shared_ptr<const Motion>> motions_;  // per node, its world motion
+  std::vector<std::map<std::string, Channel>> channels_;  // per node, its channels by path
+  std::map<size_t, SkinJoints> skins_;                    // by skin, once a node binds it
 };
 
 class GltfImporter : public SceneImporter {

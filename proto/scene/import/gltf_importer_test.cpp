@@ -68,15 +68,32 @@ class GltfBuilder {
   }
   json& doc() { return doc_; }
 
-  // An accessor of floats ("SCALAR", "VEC2", "VEC3", "VEC4"), returning its index.
+  static size_t Components(const std::string& type) {
+    return type == "SCALAR" ? 1 : type == "MAT4" ? 16 : static_cast<size_t>(type[3] - '0');
+  }
+  // An accessor of floats ("SCALAR", "VEC2", "VEC3", "VEC4", "MAT4"), returning its index.
   int Floats(const std::vector<double>& values, const std::string& type) {
     std::string bytes;
     for (double v : values) {
       float f = static_cast<float>(v);
       bytes.append(reinterpret_cast<const char*>(&f), 4);
     }
-    int components = type == "SCALAR" ? 1 : type[3] - '0';
-    return Add(bytes, 5126, type, values.size() / static_cast<size_t>(components));
+    return Add(bytes, 5126, type, values.size() / Components(type));
+  }
+  // An accessor of integers of a component type (5121 unsigned byte, 5123 unsigned short).
+  int Integers(const std::vector<int>& values, int componentType, const std::string& type, bool normalized = false) {
+    std::string bytes;
+    for (int v : values) {
+      if (componentType == 5121) {
+        bytes += static_cast<char>(static_cast<uint8_t>(v));
+      } else {
+        uint16_t u = static_cast<uint16_t>(v);
+        bytes.append(reinterpret_cast<const char*>(&u), 2);
+      }
+    }
+    int index = Add(bytes, componentType, type, values.size() / Components(type));
+    if (normalized) doc_["accessors"][index]["normalized"] = true;
+    return index;
   }
   int Indices(const std::vector<uint16_t>& values) {
     std::string bytes;
@@ -438,12 +455,12 @@ TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
             std::string::npos)
       << what;
   accessors[both]["count"] = 3;
-  accessors[both]["sparse"] = json::parse(R"({"count": 1, "indices": {"bufferView": 0, "componentType": 5123},
+  accessors[both]["sparse"] = json::parse(R"({"count": 1, "indices": {"bufferView": 0, "componentType": 5126},
                                               "values": {"bufferView": 0}})");
   what = ErrorOf([&] { gltf.Import(); });
   EXPECT_NE(what.find("scene/accessors/" + std::to_string(both) +
-                      "/sparse: the gltf scene: sparse accessors are not "
-                      "supported"),
+                      "/sparse/indices/componentType: the gltf scene: FLOAT; expected UNSIGNED_BYTE, UNSIGNED_SHORT or "
+                      "UNSIGNED_INT indices"),
             std::string::npos)
       << what;
 }
@@ -641,10 +658,457 @@ TEST(GltfImporterTest, GoodTestModelsImportAndReadBack) {
     EXPECT_FALSE(scene.shapes.empty()) << file;
     ExpectRoundTrip(scene);
   }
-  // A morph animation: the weights channel is skipped (with a warning), the base cube kept.
-  Scene morph = ImportScene(kTestModels / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf");
-  EXPECT_EQ(morph.shapes.size(), 1u);
-  EXPECT_FALSE(morph.AnyShapeMoves());
+}
+
+// --- skins and morph targets ------------------------------------------------------------
+
+// Every shape's vertices at `frame`, deformed where the shape deforms, in world space.
+std::vector<Vec3> WorldVertices(const Shape& shape, double frame) {
+  std::vector<Vec3> vertices =
+      shape.deformation ? Deform(shape.Mesh(), *shape.deformation, frame).positions : shape.Mesh().vertices;
+  const Affine worldFromObject = shape.motion.WorldFromObject(frame);
+  for (Vec3& v : vertices) v = worldFromObject.Apply(v);
+  return vertices;
+}
+
+// The round trip keeps every bit, and the scene read back deforms to the same bits.
+void ExpectDeformedRoundTrip(const Scene& scene, const std::vector<double>& frames) {
+  ExpectRoundTrip(scene);
+  Scene back = ParseScene(SerializeScene(scene));
+  ASSERT_EQ(back.shapes.size(), scene.shapes.size());
+  for (size_t s = 0; s < scene.shapes.size(); ++s) {
+    ASSERT_EQ(!back.shapes[s].deformation, !scene.shapes[s].deformation);
+    for (double frame : frames) {
+      const std::vector<Vec3> a = WorldVertices(scene.shapes[s], frame), b = WorldVertices(back.shapes[s], frame);
+      ASSERT_EQ(a.size(), b.size());
+      for (size_t v = 0; v < a.size(); ++v) {
+        EXPECT_EQ(std::memcmp(&a[v], &b[v], sizeof(Vec3)), 0) << "shape " << s << " vertex " << v << " frame " << frame;
+      }
+    }
+  }
+}
+
+// A strip of two quads up the y axis (x 0..1, y 0..2) bound to two joints: the bottom row
+// to the hip at (0.5, 0, 0), the middle row half and half, the top row to the knee, 1 above
+// the hip, which turns 90 degrees about z over one second. The mesh's node is moved by
+// 100 along x, which glTF ignores for a skinned mesh.
+struct SkinnedStrip {
+  GltfBuilder gltf;
+  int joints, weights, inverseBind, meshNode, hip, knee;
+
+  explicit SkinnedStrip(const std::vector<double>& vertexWeights = {1, 0, 0, 0, 1, 0, 0, 0, 0.5, 0.5, 0, 0,
+                                                                     0.5, 0.5, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0}) {
+    const std::vector<double> positions = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 2, 0, 1, 2, 0};
+    int mesh = gltf.Mesh(positions, {0, 1, 2, 1, 3, 2, 2, 3, 4, 3, 5, 4});
+    joints = gltf.Integers(std::vector<int>{0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0},
+                           5123, "VEC4");
+    weights = gltf.Floats(vertexWeights, "VEC4");
+    json& attributes = gltf.doc()["meshes"][mesh]["primitives"][0]["attributes"];
+    attributes["JOINTS_0"] = joints;
+    attributes["WEIGHTS_0"] = weights;
+    inverseBind = gltf.Floats({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, -0.5, 0, 0, 1,  //
+                               1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, -0.5, -1, 0, 1},
+                              "MAT4");
+    meshNode = gltf.Node({{"mesh", mesh}, {"skin", 0}, {"translation", {100, 0, 0}}, {"name", "strip"}}, true);
+    knee = gltf.Node({{"translation", {0, 1, 0}}, {"name", "knee"}}, false);
+    hip = gltf.Node({{"translation", {0.5, 0, 0}}, {"children", {knee}}, {"name", "hip"}}, true);
+    gltf.doc()["skins"] = json::array({json{{"joints", {hip, knee}}, {"inverseBindMatrices", inverseBind}}});
+    const double s = std::sqrt(0.5);
+    gltf.Animate(knee, "rotation", gltf.Floats({0, 1}, "SCALAR"), gltf.Floats({0, 0, 0, 1, 0, 0, s, s}, "VEC4"));
+  }
+};
+
+TEST(GltfImporterTest, SkinBendsTheStripAtTheKnee) {
+  SkinnedStrip strip;
+  Scene scene = strip.gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 1u);
+  const Shape& shape = scene.shapes[0];
+  ASSERT_TRUE(shape.deformation && shape.deformation->hasSkin && !shape.deformation->hasMorph);
+  EXPECT_TRUE(shape.Deforms());
+  EXPECT_TRUE(shape.motion.IsNone());  // the node's own move along x is ignored
+  const Skin& skin = shape.deformation->skin;
+  EXPECT_EQ(skin.influencesPerVertex, 4);
+  EXPECT_EQ(skin.joints.size(), 2u);
+  // Frame 0: the bind pose, every skin matrix the identity.
+  const std::vector<Vec3> rest = WorldVertices(shape, 0);
+  ExpectNear(rest[2], {0, 1, 0});
+  ExpectNear(rest[5], {1, 2, 0});
+  // Frame 24 (1 s): the knee at (0.5, 1, 0) has turned a quarter about z.
+  // Top row: about the knee, (1, 2) - (0.5, 1) = (0.5, 1) turns to (-1, 0.5).
+  const std::vector<Vec3> bent = WorldVertices(shape, 24);
+  ExpectNear(bent[5], {-0.5, 1.5, 0});
+  ExpectNear(bent[4], {-0.5, 0.5, 0});
+  ExpectNear(bent[0], {0, 0, 0});  // the hip's row stays
+  // The middle row half and half: (0, 1) and, about the knee, (0.5, 0.5).
+  ExpectNear(bent[2], {0.25, 0.75, 0});
+  EXPECT_FALSE(skin.SameAt(0, 24));
+  EXPECT_TRUE(skin.SameAt(24, 30));  // held after the last key
+  ExpectDeformedRoundTrip(scene, {0, 7.5, 24});
+}
+
+TEST(GltfImporterTest, SkinWeightsAreNormalisedOrRefused) {
+  // Vertex 2's weights sum to 1.01 (within the tolerance): divided by their sum.
+  SkinnedStrip near({1, 0, 0, 0, 1, 0, 0, 0, 0.5, 0.51, 0, 0, 0.5, 0.5, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0});
+  const Skin& skin = near.gltf.Import().shapes[0].deformation->skin;
+  EXPECT_DOUBLE_EQ(skin.vertexWeights[8], 0.5 / (0.5 + static_cast<double>(0.51f)));
+  EXPECT_DOUBLE_EQ(skin.vertexWeights[8] + skin.vertexWeights[9], 1.0);
+  EXPECT_EQ(skin.vertexWeights[12], 0.5);  // a sum of exactly 1 keeps its bits
+
+  // Vertex 3's weights sum to 0.5: refused, naming the WEIGHTS_0 accessor and the vertex.
+  SkinnedStrip far({1, 0, 0, 0, 1, 0, 0, 0, 0.5, 0.5, 0, 0, 0.25, 0.25, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0});
+  std::string what = ErrorOf([&] { far.gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(far.weights) +
+                      ": the gltf scene: vertex 3's weights sum to 0.5; expected weights summing to 1 within 0.02"),
+            std::string::npos)
+      << what;
+  SkinnedStrip negative({1, 0, 0, 0, 1, 0, 0, 0, 1.5, -0.5, 0, 0, 0.5, 0.5, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0});
+  what = ErrorOf([&] { negative.gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(negative.weights) +
+                      ": the gltf scene: vertex 2 has the weight -0.5; expected weights >= 0"),
+            std::string::npos)
+      << what;
+
+  // Normalized unsigned bytes: 128 + 127 of 255 is 1.
+  SkinnedStrip bytes;
+  json& attributes = bytes.gltf.doc()["meshes"][0]["primitives"][0]["attributes"];
+  attributes["WEIGHTS_0"] = bytes.gltf.Integers(
+      {255, 0, 0, 0, 255, 0, 0, 0, 128, 127, 0, 0, 128, 127, 0, 0, 0, 255, 0, 0, 0, 255, 0, 0}, 5121, "VEC4", true);
+  const Skin& fromBytes = bytes.gltf.Import().shapes[0].deformation->skin;
+  EXPECT_DOUBLE_EQ(fromBytes.vertexWeights[8], 128.0 / 255);
+  bytes.gltf.doc()["accessors"][attributes["WEIGHTS_0"].get<int>()].erase("normalized");
+  what = ErrorOf([&] { bytes.gltf.Import(); });
+  EXPECT_NE(what.find("/normalized: the gltf scene: integer weights that are not normalized"), std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, EightInfluencesAndOnlyTheJointsAPrimitiveUses) {
+  SkinnedStrip strip;
+  // A third joint that no vertex of the strip leans on, and a second set of influences
+  // (JOINTS_1, WEIGHTS_1) holding the knee's share of the middle row.
+  int toe = strip.gltf.Node({{"translation", {0, 1, 0}}}, false);
+  strip.gltf.doc()["nodes"][strip.knee]["children"] = {toe};
+  strip.gltf.doc()["skins"][0]["joints"].push_back(toe);
+  strip.gltf.doc()["skins"][0].erase("inverseBindMatrices");  // identities
+  json& attributes = strip.gltf.doc()["meshes"][0]["primitives"][0]["attributes"];
+  attributes["WEIGHTS_0"] = strip.gltf.Floats(
+      {1, 0, 0, 0, 1, 0, 0, 0, 0.5, 0, 0, 0, 0.5, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0}, "VEC4");
+  attributes["JOINTS_1"] = strip.gltf.Integers(std::vector<int>(24, 1), 5121, "VEC4");
+  attributes["WEIGHTS_1"] = strip.gltf.Floats(
+      {0, 0, 0, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0.5, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}, "VEC4");
+  Scene scene = strip.gltf.Import();
+  const Skin& skin = scene.shapes[0].deformation->skin;
+  EXPECT_EQ(skin.influencesPerVertex, 8);
+  EXPECT_EQ(skin.joints.size(), 2u);  // the toe moves none of its vertices
+  EXPECT_EQ(skin.vertexJoints[2 * 8 + 4], 1u);
+  EXPECT_EQ(skin.vertexWeights[2 * 8 + 4], 0.5);
+  // Identity inverse binds: the skin matrices are the joints' world transforms.
+  ExpectNear(WorldVertices(scene.shapes[0], 0)[0], {0.5, 0, 0});
+  ExpectDeformedRoundTrip(scene, {0, 12, 24});
+
+  attributes.erase("WEIGHTS_1");
+  std::string what = ErrorOf([&] { strip.gltf.Import(); });
+  EXPECT_NE(what.find("scene/meshes/0/primitives/0/attributes: the gltf scene: JOINTS_1 alone"), std::string::npos)
+      << what;
+  attributes.erase("JOINTS_1");
+  attributes.erase("JOINTS_0");
+  what = ErrorOf([&] { strip.gltf.Import(); });
+  EXPECT_NE(what.find("scene/meshes/0/primitives/0/attributes: the gltf scene: WEIGHTS_0 alone, though node 0 binds "
+                      "the mesh to skin 0"),
+            std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, BadSkinsAreRefusedWithTheirPointers) {
+  struct Case {
+    std::function<void(SkinnedStrip&)> spoil;
+    std::function<std::string(const SkinnedStrip&)> message;
+  };
+  const Case cases[] = {
+      {[](SkinnedStrip& s) {
+         json& attributes = s.gltf.doc()["meshes"][0]["primitives"][0]["attributes"];
+         attributes["JOINTS_0"] = s.joints = s.gltf.Integers(
+             std::vector<int>{0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 5, 0, 0, 0, 1, 0, 0}, 5121, "VEC4");
+       },
+       [](const SkinnedStrip& s) {
+         return "scene/accessors/" + std::to_string(s.joints) +
+                ": the gltf scene: vertex 4 names joint 5 (weight 1.0) of skin 0, which has 2; expected joint "
+                "indices below the skin's joint count";
+       }},
+      {[](SkinnedStrip& s) { s.gltf.doc()["skins"][0]["joints"][1] = s.gltf.Node(json::object(), false); },
+       [](const SkinnedStrip&) {
+         return "scene/skins/0/joints/1: the gltf scene: joint 1 names node 3, which is not in the rendered scene";
+       }},
+      {[](SkinnedStrip& s) { s.gltf.doc()["skins"][0]["joints"][1] = 42; },
+       [](const SkinnedStrip&) {
+         return "scene/skins/0/joints/1: the gltf scene: joint 1 names node 42, which does not exist";
+       }},
+      {[](SkinnedStrip& s) { s.gltf.doc()["skins"][0]["skeleton"] = s.gltf.Node(json::object(), false); },
+       [](const SkinnedStrip&) {
+         return "scene/skins/0/skeleton: the gltf scene: the skeleton names node 3, which is not in the rendered "
+                "scene";
+       }},
+      {[](SkinnedStrip& s) { s.gltf.doc()["skins"][0]["skeleton"] = s.knee; },
+       [](const SkinnedStrip&) {
+         return "scene/skins/0/joints/0: the gltf scene: joint 0 (node 2) is not the skeleton node 1 or below it";
+       }},
+      {[](SkinnedStrip& s) { s.gltf.doc()["nodes"][s.meshNode]["skin"] = 1; },
+       [](const SkinnedStrip&) { return "scene/nodes/0/skin: the gltf scene: skin 1 does not exist"; }},
+      {[](SkinnedStrip& s) { s.gltf.doc()["accessors"][s.inverseBind]["count"] = 1; },
+       [](const SkinnedStrip& s) {
+         return "scene/accessors/" + std::to_string(s.inverseBind) +
+                "/count: the gltf scene: 1 inverse bind matrices for 2 joints; expected one per joint";
+       }},
+      {[](SkinnedStrip& s) {
+         s.gltf.doc()["accessors"][s.inverseBind]["type"] = "VEC4";
+         s.gltf.doc()["accessors"][s.inverseBind]["count"] = 8;
+       },
+       [](const SkinnedStrip& s) {
+         return "scene/accessors/" + std::to_string(s.inverseBind) +
+                ": the gltf scene: VEC4 of FLOAT where /skins/0/inverseBindMatrices refers to it";
+       }},
+      {[](SkinnedStrip& s) {
+         // Matrix 1's first column ends in 0.5: a projective last row.
+         s.gltf.doc()["skins"][0]["inverseBindMatrices"] = s.inverseBind = s.gltf.Floats(
+             {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1,  //
+              1, 0, 0, 0.5, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1},
+             "MAT4");
+       },
+       [](const SkinnedStrip& s) {
+         return "scene/accessors/" + std::to_string(s.inverseBind) +
+                ": the gltf scene: matrix 1 has the last row 0.5, 0.0, 0.0, 1.0";
+       }},
+      {[](SkinnedStrip& s) { s.gltf.doc()["accessors"][s.weights]["count"] = 5; },
+       [](const SkinnedStrip& s) {
+         return "scene/accessors/" + std::to_string(s.weights) +
+                "/count: the gltf scene: 5 elements for a primitive of 6 vertices";
+       }},
+  };
+  for (const Case& c : cases) {
+    SkinnedStrip strip;
+    c.spoil(strip);
+    std::string what = ErrorOf([&] { strip.gltf.Import(); });
+    EXPECT_NE(what.find(c.message(strip)), std::string::npos) << what;
+  }
+}
+
+// A square of 4 vertices whose morph targets lift its right edge (target 0) and its top
+// edge (target 1), as two primitives of one mesh sharing the accessors.
+struct MorphingSquare {
+  GltfBuilder gltf;
+  int right, top, times, node, mesh;
+
+  MorphingSquare() {
+    mesh = gltf.Mesh({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, {0, 1, 2, 0, 2, 3});
+    right = gltf.Floats({0, 0, 0, 0, 0, 1, 0, 0, 1, 0, 0, 0}, "VEC3");
+    top = gltf.Floats({0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 2}, "VEC3");
+    json& primitives = gltf.doc()["meshes"][mesh]["primitives"];
+    primitives[0]["targets"] = json::array({json{{"POSITION", right}}, json{{"POSITION", top}}});
+    primitives.push_back(primitives[0]);
+    node = gltf.Node({{"mesh", mesh}, {"translation", {0, 0, -1}}}, true);
+    times = gltf.Floats({0, 0.5, 1}, "SCALAR");
+  }
+};
+
+TEST(GltfImporterTest, MorphTargetsFollowTheirWeights) {
+  MorphingSquare square;
+  // LINEAR: target 0 rises to 1 and falls back, target 1 follows half a second behind.
+  square.gltf.Animate(square.node, "weights", square.times, square.gltf.Floats({0, 0, 1, 0, 0, 1}, "SCALAR"));
+  Scene scene = square.gltf.Import();
+  ASSERT_EQ(scene.shapes.size(), 2u);
+  EXPECT_EQ(scene.render.frameCount, 25);
+  const Shape& shape = scene.shapes[1];
+  ASSERT_TRUE(shape.deformation && shape.deformation->hasMorph && !shape.deformation->hasSkin);
+  EXPECT_TRUE(shape.Deforms());
+  EXPECT_EQ(shape.deformation->morph.TargetCount(), 2u);
+  // Placed by its node (morph targets move vertices in the mesh's own space).
+  ExpectNear(WorldVertices(shape, 0)[2], {1, 1, -1});
+  // Frame 6 (0.25 s): weights (0.5, 0); frame 18 (0.75 s): (0.5, 0.5).
+  ExpectNear(WorldVertices(shape, 6)[2], {1, 1, -0.5});
+  ExpectNear(WorldVertices(shape, 18)[2], {1, 1, 0.5});
+  ExpectNear(WorldVertices(shape, 18)[3], {0, 1, 0});
+  ExpectNear(WorldVertices(shape, 18)[0], {0, 0, -1});
+  ExpectDeformedRoundTrip(scene, {0, 6, 18, 24});
+
+  // The mesh's default weights, and a node's own that override them; neither animated.
+  square.gltf.doc().erase("animations");
+  square.gltf.doc()["meshes"][0]["weights"] = {0.25, 0};
+  Scene still = square.gltf.Import();
+  EXPECT_FALSE(still.shapes[0].Deforms());
+  ExpectNear(WorldVertices(still.shapes[0], 0)[1], {1, 0, -0.75});
+  square.gltf.doc()["nodes"][0]["weights"] = {0, 1};
+  ExpectNear(WorldVertices(square.gltf.Import().shapes[0], 0)[2], {1, 1, 1});
+}
+
+TEST(GltfImporterTest, CubicSplineAndStepWeights) {
+  MorphingSquare square;
+  // CUBICSPLINE over 2 keys (0 s, 1 s): per key the in-tangents, values, out-tangents of
+  // both targets; target 0 leaves 0 with a slope of 2 per second, target 1 stays 1.
+  int spline = square.gltf.Floats({0, 0, 0, 1, 2, 0, /* key 1: */ 0, 0, 1, 1, 0, 0}, "SCALAR");
+  square.gltf.Animate(square.node, "weights", square.gltf.Floats({0, 1}, "SCALAR"), spline, "CUBICSPLINE");
+  Scene scene = square.gltf.Import();
+  const AnimatedWeights& weights = scene.shapes[0].deformation->morph.weights;
+  EXPECT_EQ(weights.interpolation(), Interpolation::kCubicSpline);
+  ASSERT_EQ(weights.keys().size(), 2u);
+  EXPECT_DOUBLE_EQ(weights.keys()[0].outTangent[0], 2.0 / 24);  // per second / fps
+  // Half way (frame 12): h01(0.5) * 1 + h10(0.5) * (2 / 24 per frame) * 24 frames = 0.5 + 0.25.
+  EXPECT_NEAR(weights.Evaluate(12)[0], 0.75, 1e-12);
+  EXPECT_EQ(weights.Evaluate(12)[1], 1.0);
+  ExpectNear(WorldVertices(scene.shapes[0], 12)[1], {1, 0, -0.25}, 1e-12);
+  ExpectDeformedRoundTrip(scene, {0, 5, 12, 24});
+
+  MorphingSquare stepped;
+  stepped.gltf.Animate(stepped.node, "weights", stepped.times, stepped.gltf.Floats({0, 0, 1, 0, 0, 1}, "SCALAR"),
+                       "STEP");
+  Scene step = stepped.gltf.Import();
+  EXPECT_EQ(step.shapes[0].deformation->morph.weights.Evaluate(11.9), (std::vector<double>{0, 0}));
+  EXPECT_EQ(step.shapes[0].deformation->morph.weights.Evaluate(12), (std::vector<double>{1, 0}));
+  ExpectDeformedRoundTrip(step, {0, 12, 24});
+}
+
+TEST(GltfImporterTest, SparseAccessorsAreResolved) {
+  MorphingSquare square;
+  // Target 0 as a sparse accessor without a buffer view: zeros but for vertices 1 and 2.
+  json& accessors = square.gltf.doc()["accessors"];
+  int indices = square.gltf.Integers({1, 2}, 5123, "SCALAR");
+  int values = square.gltf.Floats({0, 0, 3, 0, 0, 4}, "VEC3");
+  auto viewOf = [&](int accessor) { return accessors[accessor]["bufferView"]; };
+  accessors[square.right] = {
+      {"componentType", 5126},
+      {"type", "VEC3"},
+      {"count", 4},
+      {"sparse",
+       {{"count", 2},
+        {"indices", {{"bufferView", viewOf(indices)}, {"componentType", 5123}}},
+        {"values", {{"bufferView", viewOf(values)}}}}}};
+  // Target 1 over its buffer view, with vertex 2's delta replaced by the second value.
+  accessors[square.top]["sparse"] = {
+      {"count", 1},
+      {"indices", {{"bufferView", viewOf(indices)}, {"byteOffset", 2}, {"componentType", 5123}}},
+      {"values", {{"bufferView", viewOf(values)}, {"byteOffset", 12}}}};
+  square.gltf.doc()["meshes"][0]["weights"] = {1, 1};
+  Scene scene = square.gltf.Import();
+  const MorphTargets& morph = scene.shapes[0].deformation->morph;
+  ExpectNear(morph.positionDeltas[0][0], {0, 0, 0}, 0);
+  ExpectNear(morph.positionDeltas[0][1], {0, 0, 3}, 0);
+  ExpectNear(morph.positionDeltas[0][2], {0, 0, 4}, 0);
+  ExpectNear(morph.positionDeltas[1][2], {0, 0, 4}, 0);
+  ExpectNear(morph.positionDeltas[1][3], {0, 0, 2}, 0);  // as its buffer view has it
+
+  accessors[square.right]["sparse"]["count"] = 5;
+  std::string what = ErrorOf([&] { square.gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(square.right) +
+                      "/sparse/count: the gltf scene: 5 substitutions in an accessor of 4 elements"),
+            std::string::npos)
+      << what;
+  accessors[square.right]["sparse"]["count"] = 2;
+  accessors[square.top]["sparse"]["indices"]["byteOffset"] = 0;
+  accessors[square.top]["sparse"]["count"] = 2;
+  accessors[square.top]["sparse"]["values"]["byteOffset"] = 0;
+  // Indices 1, 2 read as bytes: 1, 0 (not increasing).
+  accessors[square.top]["sparse"]["indices"]["componentType"] = 5121;
+  what = ErrorOf([&] { square.gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(square.top) +
+                      "/sparse/indices: the gltf scene: substitution 1 names element 0, not after the one before it"),
+            std::string::npos)
+      << what;
+  accessors[square.top]["sparse"]["indices"]["componentType"] = 5123;
+  accessors[square.top]["sparse"]["values"]["byteOffset"] = 16;  // 2 VEC3s from byte 16 of a 24-byte view
+  what = ErrorOf([&] { square.gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(square.top) +
+                      "/sparse/values: the gltf scene: 2 elements from byte 16 run past the end of buffer view"),
+            std::string::npos)
+      << what;
+}
+
+TEST(GltfImporterTest, BadMorphTargetsAreRefusedWithTheirPointers) {
+  struct Case {
+    std::function<void(MorphingSquare&)> spoil;
+    std::function<std::string(const MorphingSquare&)> message;
+  };
+  const Case cases[] = {
+      {[](MorphingSquare& m) { m.gltf.doc()["meshes"][0]["primitives"][1]["targets"].erase(1); },
+       [](const MorphingSquare&) {
+         return "scene/meshes/0/primitives/1/targets: the gltf scene: 1 morph targets where primitive 0 has 2";
+       }},
+      {[](MorphingSquare& m) { m.gltf.doc()["meshes"][0]["weights"] = {0.5}; },
+       [](const MorphingSquare&) {
+         return "scene/meshes/0/weights: the gltf scene: 1 weights for 2 morph targets; expected one weight per "
+                "morph target";
+       }},
+      {[](MorphingSquare& m) { m.gltf.doc()["nodes"][0]["weights"] = {0.5, 0.5, 0.5}; },
+       [](const MorphingSquare&) { return "scene/nodes/0/weights: the gltf scene: 3 weights for 2 morph targets"; }},
+      {[](MorphingSquare& m) {
+         m.gltf.Animate(m.node, "weights", m.times, m.gltf.Floats({0, 1, 0}, "SCALAR"));
+       },
+       [](const MorphingSquare&) {
+         return "/count: the gltf scene: 3 values for 3 key times; expected 6 values (2 weights (one per morph "
+                "target) per key)";
+       }},
+      {[](MorphingSquare& m) {
+         int other = m.gltf.Node({{"mesh", m.gltf.Mesh(kTriangle)}}, true);
+         m.gltf.Animate(other, "weights", m.times, m.gltf.Floats({0, 1, 0}, "SCALAR"));
+       },
+       [](const MorphingSquare&) {
+         return "scene/animations/0/channels/0/target/node: the gltf scene: node 1 has no mesh with morph targets";
+       }},
+      {[](MorphingSquare& m) { m.gltf.doc()["accessors"][m.top]["count"] = 3; },
+       [](const MorphingSquare& m) {
+         return "scene/accessors/" + std::to_string(m.top) +
+                "/count: the gltf scene: 3 position deltas for a primitive of 4 vertices";
+       }},
+  };
+  for (const Case& c : cases) {
+    MorphingSquare square;
+    c.spoil(square);
+    std::string what = ErrorOf([&] { square.gltf.Import(); });
+    EXPECT_NE(what.find(c.message(square)), std::string::npos) << what;
+  }
+}
+
+// Debian's assimp-testmodels: a skin and a morph that nobody in the project wrote.
+TEST(GltfImporterTest, SimpleSkinBendsAsItsFileSays) {
+  const fs::path path = kTestModels / "simple_skin/simple_skin.gltf";
+  if (!fs::exists(path)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  Scene scene = ImportScene(path);
+  ASSERT_EQ(scene.shapes.size(), 1u);
+  const Shape& shape = scene.shapes[0];
+  ASSERT_TRUE(shape.deformation && shape.deformation->hasSkin);
+  EXPECT_TRUE(shape.Deforms());
+  EXPECT_EQ(scene.render.frameCount, 133);  // 5.5 s at 24 per second
+  // Both inverse binds are T(-0.5, -1, 0); joint 0 is node 1 at (0, 1, 0), joint 1 its child,
+  // turned about z by the quaternion (0, 0, 0.707, 0.707) at 1 s: a quarter turn.
+  const std::vector<Vec3> rest = WorldVertices(shape, 0), bent = WorldVertices(shape, 24);
+  ExpectNear(rest[4], {-0.5, 1, 0});  // (0, 1, 0) moved by T(0, 1, 0) T(-0.5, -1, 0)
+  ExpectNear(rest[9], {0.5, 2, 0});
+  // Vertex 9 (1, 2, 0), all joint 1: (0.5, 1, 0) turned to (-1, 0.5, 0), then up 1.
+  ExpectNear(bent[9], {-1, 1.5, 0}, 1e-6);
+  // Vertex 4 (0, 1, 0), half and half: (-0.5, 1, 0) and (0, -0.5, 0) + (0, 1, 0).
+  ExpectNear(bent[4], {-0.25, 0.75, 0}, 1e-6);
+  ExpectNear(bent[0], rest[0]);  // all joint 0, which stands still
+  ExpectDeformedRoundTrip(scene, {0, 5, 24, 100});
+}
+
+TEST(GltfImporterTest, AnimatedMorphCubeMorphsAsItsFileSays) {
+  const fs::path path = kTestModels / "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf";
+  if (!fs::exists(path)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  Scene scene = ImportScene(path);
+  ASSERT_EQ(scene.shapes.size(), 1u);
+  const Shape& shape = scene.shapes[0];
+  ASSERT_TRUE(shape.deformation && shape.deformation->hasMorph);
+  EXPECT_TRUE(shape.Deforms());
+  EXPECT_EQ(shape.deformation->morph.TargetCount(), 2u);
+  EXPECT_EQ(shape.deformation->morph.weights.keys().size(), 127u);
+  // Key 60 of the weights channel, at 1.9999994 s: weights 0.8055561 and 0.1944439 (from
+  // AnimatedMorphCube.bin). Vertex 5's y: -0.01 + w0 * 0.0189325 + w1 * 0.0198908.
+  const double frame = static_cast<double>(1.9999994039535522f) * 24;
+  const double y = -0.01000000536441803 + 0.8055561184883118 * 0.018932528793811798 +
+                   0.19444391131401062 * 0.019890835508704185;
+  const DeformedVertices morphed = Deform(shape.Mesh(), *shape.deformation, frame);
+  ExpectNear(morphed.positions[5], {-0.00999999325722456, y, -0.009999999776482582}, 1e-9);
+  ExpectNear(morphed.positions[4], shape.Mesh().vertices[4], 0);  // no target moves it
+  ExpectNear(Deform(shape.Mesh(), *shape.deformation, 0).positions[5], shape.Mesh().vertices[5], 0);
+  EXPECT_FALSE(shape.deformation->SameAt(0, frame));
+  ExpectDeformedRoundTrip(scene, {0, 30, frame});
 }
 
 }  // namespace
