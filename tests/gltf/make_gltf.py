@@ -16,7 +16,7 @@ import zlib
 FLOAT, UNSIGNED_BYTE, UNSIGNED_SHORT, UNSIGNED_INT = 5126, 5121, 5123, 5125
 TRIANGLES, TRIANGLE_STRIP, TRIANGLE_FAN = 4, 5, 6
 _FORMATS = {FLOAT: "f", UNSIGNED_BYTE: "B", UNSIGNED_SHORT: "H", UNSIGNED_INT: "I"}
-_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 
 
 def png_bytes(rows):
@@ -115,8 +115,11 @@ class Gltf:
             self._use("KHR_materials_ior")
         return self._add("materials", material)
 
-    def mesh(self, primitives, name=None):
-        """primitives: dicts of positions (flat), indices, mode, material, normals, uvs."""
+    def mesh(self, primitives, name=None, weights=None):
+        """primitives: dicts of positions (flat), indices, mode, material, normals, uvs,
+        joints and weights (flat, 4 per vertex: JOINTS_0 as unsigned bytes, WEIGHTS_0 as
+        floats) and targets (morph targets: dicts of positions and normals, flat deltas);
+        weights: the mesh's default morph target weights."""
         out = []
         for p in primitives:
             primitive = {"attributes": {"POSITION": self.accessor(p["positions"], "VEC3", target=34962,
@@ -127,6 +130,14 @@ class Gltf:
                 primitive["attributes"]["TEXCOORD_0"] = self.accessor(
                     [round(u * 65535) for u in p["uvs"]], "VEC2", UNSIGNED_SHORT, normalized=True,
                     target=34962)
+            if p.get("joints"):
+                primitive["attributes"]["JOINTS_0"] = self.accessor(p["joints"], "VEC4", UNSIGNED_BYTE, target=34962)
+                primitive["attributes"]["WEIGHTS_0"] = self.accessor(p["weights"], "VEC4", target=34962)
+            if p.get("targets"):
+                primitive["targets"] = [
+                    {**{"POSITION": self.accessor(t["positions"], "VEC3", target=34962, bounds=True)},
+                     **({"NORMAL": self.accessor(t["normals"], "VEC3", target=34962)} if t.get("normals") else {})}
+                    for t in p["targets"]]
             if p.get("indices"):
                 primitive["indices"] = self.accessor(p["indices"], "SCALAR", UNSIGNED_SHORT, target=34963)
             if p.get("mode", TRIANGLES) != TRIANGLES:
@@ -137,7 +148,14 @@ class Gltf:
         mesh = {"primitives": out}
         if name:
             mesh["name"] = name
+        if weights:
+            mesh["weights"] = list(weights)
         return self._add("meshes", mesh)
+
+    def skin(self, joints, inverse_binds):
+        """A skin of joint nodes, each with its inverse bind matrix (16 numbers, column-major)."""
+        return self._add("skins", {"joints": list(joints), "inverseBindMatrices": self.accessor(
+            [v for matrix in inverse_binds for v in matrix], "MAT4")})
 
     def node(self, parent=None, **properties):
         """A node (name, mesh, camera, translation, rotation, scale, matrix, light); a root
@@ -167,14 +185,15 @@ class Gltf:
 
     def animate(self, node, path, times, values, interpolation="LINEAR", animation=0, name=None):
         """A channel of animation `animation`; values flat (for CUBICSPLINE: in-tangent,
-        value, out-tangent per key, tangents per second)."""
+        value, out-tangent per key, tangents per second; for weights, one value per morph
+        target for each)."""
         animations = self.doc.setdefault("animations", [])
         while len(animations) <= animation:
             animations.append({"channels": [], "samplers": []})
         if name:
             animations[animation]["name"] = name
         samplers = animations[animation]["samplers"]
-        type_ = "VEC4" if path == "rotation" else "VEC3"
+        type_ = {"rotation": "VEC4", "weights": "SCALAR"}.get(path, "VEC3")
         samplers.append({"input": self.accessor(times, "SCALAR", bounds=True),
                          "output": self.accessor(values, type_), "interpolation": interpolation})
         animations[animation]["channels"].append(
@@ -443,13 +462,160 @@ def seen_in_a_mirror():
     return g
 
 
+def translation_matrix(x, y, z):
+    """glTF's column-major 4x4 matrix of a translation."""
+    return [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, x, y, z, 1]
+
+
+def tube(length, radius, sides, rings, blend):
+    """A tube along +x from 0 to length with capped ends, smooth: positions, normals,
+    indices, and per vertex the joints and weights that bind its first half to joint 0 and
+    its second half to joint 1, blended over `blend` either side of the middle;
+    2 * sides * (rings + 1) triangles."""
+    positions, normals, joints, weights, indices = [], [], [], [], []
+
+    def vertex(x, y, z, normal):
+        t = min(1.0, max(0.0, (x - (length / 2 - blend)) / (2 * blend)))
+        positions.extend((x, y, z))
+        normals.extend(normal)
+        # A joint with no weight is numbered 0, as the validator asks.
+        joints.extend((0, 1 if t > 0 else 0, 0, 0))
+        weights.extend((1 - t, t, 0, 0))
+        return len(positions) // 3 - 1
+
+    ring_start = []
+    for ring in range(rings + 1):
+        ring_start.append(len(positions) // 3)
+        for side in range(sides):
+            angle = 2 * math.pi * side / sides
+            c, s = math.cos(angle), math.sin(angle)
+            vertex(length * ring / rings, radius * c, radius * s, (0, c, s))
+    for ring in range(rings):
+        for side in range(sides):
+            a, b = ring_start[ring] + side, ring_start[ring] + (side + 1) % sides
+            c, d = a + sides, b + sides
+            indices += [a, b, d, a, d, c]
+    for x, facing in ((0.0, -1), (length, 1)):  # the caps: fans with normals along the axis
+        centre = vertex(x, 0, 0, (facing, 0, 0))
+        rim = [vertex(x, radius * math.cos(2 * math.pi * k / sides), radius * math.sin(2 * math.pi * k / sides),
+                      (facing, 0, 0)) for k in range(sides)]
+        for k in range(sides):
+            pair = (rim[k], rim[(k + 1) % sides]) if facing > 0 else (rim[(k + 1) % sides], rim[k])
+            indices += [centre, *pair]
+    return positions, normals, indices, joints, weights
+
+
+def add_arm(g, material, shoulder, length=2.0, radius=0.25, sides=8, rings=24, degrees=(0, 60, 100)):
+    """A skinned arm: a tube of `length` along +x from `shoulder`, bound to a still shoulder
+    joint and an elbow joint half way, which bends it up about z by `degrees` at 0, 0.5 and
+    1 s. Returns the nodes (mesh, shoulder, elbow)."""
+    positions, normals, indices, joints, weights = tube(length, radius, sides, rings, blend=0.15 * length)
+    x0, y0, z0 = shoulder
+    positions = [v + (x0, y0, z0)[i % 3] for i, v in enumerate(positions)]  # bind pose in world space
+    mesh = g.mesh([{"positions": positions, "normals": normals, "indices": indices, "material": material,
+                    "joints": joints, "weights": weights}], name="arm")
+    shoulder_node = g.node(name="shoulder", translation=list(shoulder))
+    elbow = g.node(shoulder_node, name="elbow", translation=[length / 2, 0, 0])
+    skin = g.skin([shoulder_node, elbow], [translation_matrix(-x0, -y0, -z0),
+                                           translation_matrix(-x0 - length / 2, -y0, -z0)])
+    # The skinned mesh's node is a root without a transform of its own (glTF ignores it).
+    arm = g.node(name="arm", mesh=mesh, skin=skin)
+    g.animate(elbow, "rotation", [0.0, 0.5, 1.0], [q for d in degrees for q in axis_angle([0, 0, 1], d)])
+    return arm, shoulder_node, elbow
+
+
+def skinned_arm(detail=0):
+    """The issue's first proof: a skinned arm (a tube of 400 triangles, or at least `detail`)
+    bending at the elbow in front of a still wall, lit by a point light. One second: 13
+    frames at 12 per second.
+
+        python3 -c "import make_gltf; make_gltf.skinned_arm(detail=50000).write('arm50k.gltf')"
+
+    writes a skinned mesh of 50,000 triangles and more for benchmarks."""
+    g = Gltf()
+    skin = g.material("skin", (0.8, 0.45, 0.3), roughness=0.5)
+    wall = g.material("wall", (0.7, 0.7, 0.65), roughness=0.9)
+    g.node(name="wall", mesh=g.mesh([{"positions": [-4, -1, -1.5, 4, -1, -1.5, 4, 4, -1.5, -4, 4, -1.5],
+                                      "indices": [0, 1, 2, 0, 2, 3], "material": wall}]))
+    sides, rings = 8, 24
+    if detail > 0:
+        sides = 64
+        rings = max(1, math.ceil(detail / (2 * sides)) - 1)
+    add_arm(g, skin, (-1.0, 0.8, 0.0), sides=sides, rings=rings)
+    g.node(name="eye", camera=g.camera(0.8), translation=[0, 1.2, 5])
+    g.node(name="bulb", light=g.light("point", 30.0, (1.0, 0.95, 0.9)), translation=[2, 3, 3])
+    return g
+
+
+def blob_targets(positions, normals):
+    """Two morph targets of a unit-ish sphere: `tall` (stretched along y, squeezed across,
+    with its normals' deltas) and `bumpy` (three bulges round its waist, positions only
+    moved along the normal, normal deltas zero)."""
+    tall_positions, tall_normals, bumpy = [], [], []
+    for i in range(0, len(positions), 3):
+        x, y, z = positions[i:i + 3]
+        nx, ny, nz = normals[i:i + 3]
+        tall_positions += [-0.25 * x, 0.6 * y, -0.25 * z]
+        # The normal of the stretched sphere: n scaled by the inverse stretch, renormalised.
+        m = (nx / 0.75, ny / 1.6, nz / 0.75)
+        length = math.sqrt(sum(c * c for c in m)) or 1.0
+        tall_normals += [m[0] / length - nx, m[1] / length - ny, m[2] / length - nz]
+        bulge = 0.25 * math.sin(3 * math.atan2(nz, nx)) * math.sqrt(max(0.0, 1 - ny * ny))
+        bumpy += [bulge * nx, bulge * ny, bulge * nz]
+    return [{"positions": tall_positions, "normals": tall_normals},
+            {"positions": bumpy, "normals": [0.0] * len(bumpy)}]
+
+
+def morphing_blob():
+    """The issue's second proof: a sphere-ish blob of 768 triangles with two morph targets
+    (tall, bumpy) animated by one CUBICSPLINE weights channel, above a floor it casts a
+    shadow on, under a point light. One second: 13 frames at 12 per second."""
+    g = Gltf()
+    clay = g.material("clay", (0.3, 0.5, 0.8), roughness=0.4)
+    floor = g.material("floor", (0.6, 0.6, 0.6), roughness=0.9)
+    g.node(name="floor", mesh=g.mesh([{"positions": [-5, 0, -5, -5, 0, 5, 5, 0, -5, 5, 0, 5],
+                                       "mode": TRIANGLE_STRIP, "material": floor}]))
+    positions, normals, _, indices = uv_sphere(0.6, 16, 24)
+    blob = g.node(name="blob", translation=[0, 1.1, 0], mesh=g.mesh(
+        [{"positions": positions, "normals": normals, "indices": indices, "material": clay,
+          "targets": blob_targets(positions, normals)}], name="blob", weights=[0, 0]))
+    # Per key: in-tangents (tall, bumpy), values, out-tangents; tangents per second.
+    g.animate(blob, "weights", [0.0, 0.5, 1.0],
+              [0, 0, 0, 0, 2, 0,
+               0, 2, 1, 0.5, 0, 2,
+               -1, 1, 0.3, 1, 0, 0], "CUBICSPLINE")
+    g.node(name="eye", camera=g.camera(0.8), translation=[0, 2.2, 4.5], rotation=axis_angle([1, 0, 0], -15))
+    g.node(name="bulb", light=g.light("point", 40.0), translation=[1.5, 4, 1])
+    return g
+
+
+def skinned_in_a_mirror():
+    """The issue's third proof: the skinned arm bends behind the camera, seen only in a
+    mirror (a smooth metal, reflectivity 1) that faces the camera over a still floor. One
+    second, 13 frames at 12 per second."""
+    g = Gltf()
+    mirror = g.material("mirror", (0.95, 0.95, 0.95), metallic=1.0, roughness=0.0)
+    skin = g.material("skin", (0.8, 0.45, 0.3), roughness=0.5)
+    floor = g.material("floor", (0.5, 0.5, 0.5), roughness=0.9)
+    g.node(name="floor", mesh=g.mesh([{"positions": [-6, 0, -6, -6, 0, 6, 6, 0, -6, 6, 0, 6],
+                                       "mode": TRIANGLE_STRIP, "material": floor}]))
+    g.node(name="mirror", mesh=g.mesh([{"positions": quad(1.5), "indices": [0, 1, 2, 0, 2, 3],
+                                        "material": mirror}]), translation=[0, 1.6, -2])
+    add_arm(g, skin, (-0.6, 1.2, 3.5), length=1.2, radius=0.15)
+    g.node(name="eye", camera=g.camera(0.7), translation=[0, 1.6, 2])
+    g.node(name="bulb", light=g.light("point", 25.0), translation=[1, 4, 2])
+    return g
+
+
 EXAMPLES = {"red_quad.gltf": red_quad, "red_quad.glb": red_quad,
             "animated_hierarchy.gltf": animated_hierarchy,
             "textured_quad.gltf": textured_quad, "textured_quad.glb": lambda: textured_quad("view"),
             "textured_turntable.gltf": textured_turntable,
             "textured_turntable.glb": lambda: textured_turntable("view"),
             "forest.gltf": forest, "forest_flattened.gltf": lambda: forest(flattened=True),
-            "seen_in_a_mirror.gltf": seen_in_a_mirror}
+            "seen_in_a_mirror.gltf": seen_in_a_mirror,
+            "skinned_arm.gltf": skinned_arm, "morphing_blob.gltf": morphing_blob,
+            "skinned_in_a_mirror.gltf": skinned_in_a_mirror}
 
 
 def main(argv):
