@@ -1,7 +1,10 @@
 """The standalone renderer through its real entry point: a process, files, exit codes."""
 import json
+import re
 import struct
 import subprocess
+
+from deforming_scenes import deforming_set
 
 
 def run(binary, *args):
@@ -80,3 +83,17 @@ def test_bad_obj_names_the_file_and_line(worker_binary, tmp_path):
     result = run(worker_binary, "render", path, "--out", tmp_path / "out")
     assert result.returncode == 1
     assert "bad.obj line 3: vertex reference 3" in result.stderr
+
+
+def test_deforming_work_is_counted_and_left_out_for_rigid_scenes(worker_binary, scenes_dir, tmp_path):
+    scene = tmp_path / "deforming.json"
+    scene.write_text(json.dumps(deforming_set(32, 24, frames=12)))
+    result = run(worker_binary, "render", scene, "--out", tmp_path / "deforming", "--no-png")
+    assert result.returncode == 0, result.stderr
+    counts = re.search(r"deforming meshes: (\d+) poses computed, (\d+) shared, (\d+) vertices deformed",
+                       result.stdout)
+    # The arm holds still over frames 4..7: 9 of its 12 frames are posed; the blob all 12.
+    assert counts and [int(n) for n in counts.groups()] == [9 + 12, 3, 9 * 20 + 12 * 6], result.stdout
+    rigid = run(worker_binary, "render", small(scenes_dir / "paper_a_one_sphere.json", tmp_path, 32, 24, 3),
+                "--out", tmp_path / "rigid", "--no-png")
+    assert "deforming meshes: 0 poses computed, 0 shared, 0 vertices deformed" in rigid.stdout

@@ -5,6 +5,7 @@ import os
 
 import pytest
 
+from deforming_scenes import deforming_set
 from farm_harness import LocalFarm, compare, render_reference, small_scene
 from tcfarm.client import ApiError
 
@@ -179,3 +180,16 @@ def test_bad_verification_requests_are_rejected(farm, scenes_dir):
     with pytest.raises(ApiError) as error:
         farm.client.submit(scene, spot_check_share=0.5)
     assert error.value.pointer == "/spot_check_share"
+
+
+@pytest.mark.parametrize("mirror", [False, True], ids=["before a still wall", "in a mirror"])
+def test_exact_is_bit_identical_on_deforming_meshes(farm, tmp_path_factory, mirror):
+    """A skinned arm bending and a morphing blob with its shadow: whichever worker poses a
+    frame, in whatever order, exact's frames are brute force's, bit for bit, and the still
+    set around the character is copied."""
+    scene = deforming_set(mirror=mirror)
+    reference = reference_of(scene, tmp_path_factory, "deforming")
+    job = farm.run_job(scene, strategy="exact", bin_width=12)
+    assert compare(reference, farm.store / str(job["id"]))["differing_pixels"] == 0
+    print(f"deforming ({'mirror' if mirror else 'wall'}) exact: traced ratio {job['traced_pixel_ratio']:.4f}")
+    assert job["traced_pixel_ratio"] < 0.6

@@ -338,6 +338,7 @@ void WorkerDaemon::TraceNext() {
   result.rgb.resize(indices.size() * 3);
   if (task.window > 0) result.horizons.resize(indices.size());
   RayCounts before = tracer->Counts();
+  const SceneGeometry::DeformationWork deformedBefore = tracer->DeformationCounts();
   const double cpuBefore = tracer->CpuSeconds();
   auto start = std::chrono::steady_clock::now();
   tracer->TracePixels(task.frame, indices.data(), indices.size(), result.rgb.data(), task.window,
@@ -353,6 +354,10 @@ void WorkerDaemon::TraceNext() {
   result.reflectionRays = rays.reflection;
   result.refractionRays = rays.refraction;
   metrics_.RecordTask(indices.size(), rays, result.traceSeconds, *result.traceCpuSeconds);
+  const SceneGeometry::DeformationWork deformedAfter = tracer->DeformationCounts();
+  metrics_.RecordDeformation({deformedAfter.posesComputed - deformedBefore.posesComputed,
+                              deformedAfter.posesShared - deformedBefore.posesShared,
+                              deformedAfter.verticesDeformed - deformedBefore.verticesDeformed});
   Send(result);
 }
 

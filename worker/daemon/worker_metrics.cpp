@@ -39,11 +39,23 @@ WorkerMetrics::WorkerMetrics()
                             "Reconnections after the coordinator went silent")),
       handshakesRefused(NewCounter(*registry, "tcfarm_worker_handshakes_refused_total",
                                    "Connections whose handshake the coordinator refused (keys, CURVE)")),
+      posesComputed(NewCounter(*registry, "tcfarm_worker_poses_total",
+                               "Poses of deforming meshes computed: vertices skinned or morphed, tree refit")),
+      posesShared(NewCounter(*registry, "tcfarm_worker_poses_shared_total",
+                             "Frames whose deforming mesh reused a pose: joints and weights unchanged")),
+      verticesDeformed(NewCounter(*registry, "tcfarm_worker_vertices_deformed_total",
+                                  "Vertices skinned or morphed")),
       raysPerSecond(NewGauge(*registry, "tcfarm_worker_rays_per_second",
                              "Rays per second of tracing time, last task")),
       coordinatorUp(NewGauge(*registry, "tcfarm_worker_coordinator_up",
                              "1 while the coordinator answers, 0 while it is silent")),
       threads(NewGauge(*registry, "tcfarm_worker_threads", "Tracing threads")) {}
+
+void WorkerMetrics::RecordDeformation(const SceneGeometry::DeformationWork& work) {
+  posesComputed.Increment(static_cast<double>(work.posesComputed));
+  posesShared.Increment(static_cast<double>(work.posesShared));
+  verticesDeformed.Increment(static_cast<double>(work.verticesDeformed));
+}
 
 void WorkerMetrics::RecordTask(size_t pixelCount, const RayCounts& rays, double seconds,
                                double cpuSeconds) {

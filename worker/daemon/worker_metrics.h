@@ -19,6 +19,8 @@ struct WorkerMetrics {
   // One finished task: its pixels, the rays it cast by type, its tracing time elapsed and
   // the CPU time of its tracing threads.
   void RecordTask(size_t pixels, const RayCounts& rays, double traceSeconds, double traceCpuSeconds);
+  // Deforming meshes' work a task caused (posing is per frame, so most tasks add nothing).
+  void RecordDeformation(const SceneGeometry::DeformationWork& work);
 
   std::shared_ptr<prometheus::Registry> registry;
   prometheus::Counter& tasks;
@@ -37,6 +39,9 @@ struct WorkerMetrics {
   prometheus::Counter& messagesMalformed;
   prometheus::Counter& reconnects;
   prometheus::Counter& handshakesRefused;  // connections the coordinator refused (CURVE keys)
+  prometheus::Counter& posesComputed;     // deforming meshes posed (vertices deformed, tree refit)
+  prometheus::Counter& posesShared;       // frames that reused a pose: joints and weights unchanged
+  prometheus::Counter& verticesDeformed;  // vertices skinned or morphed
   prometheus::Gauge& raysPerSecond;  // rays / tracing second of the last task
   prometheus::Gauge& coordinatorUp;  // 1 while the coordinator answers
   prometheus::Gauge& threads;

@@ -1,5 +1,9 @@
 #include "embree/scene_geometry.h"
 
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
 #include "embree/closest_hit.h"
 #include "embree/tie_candidates.h"
 #include "shapes/shape_kind.h"
@@ -9,8 +13,23 @@ namespace {
 
 // Frames kept placed: a worker's in-flight tasks rarely span more frames than this, and
 // an `exact` task re-tests blocked shadow rays on the frames ahead of its own. A placed
-// frame is a top-level tree over one instance per moving shape: small.
+// frame is a top-level tree over one instance per moving shape: small, unless it holds
+// deforming meshes, whose every frame is a posed copy of the mesh and its tree; then as
+// many frames as the budget holds, and at least a few.
 constexpr size_t kCachedFrames = 64;
+constexpr size_t kMinCachedFrames = 4;
+constexpr double kPoseBudgetBytes = 512.0 * 1024 * 1024;
+constexpr double kPoseBytesPerTriangle = 120;  // Embree's tree (~100) and the vertices
+
+size_t CachedFrames(const Scene& scene) {
+  double deformingTriangles = 0;
+  for (const Shape& shape : scene.shapes) {
+    if (shape.Deforms()) deformingTriangles += static_cast<double>(shape.Mesh().triangles.size());
+  }
+  if (deformingTriangles == 0) return kCachedFrames;
+  const double fits = kPoseBudgetBytes / (deformingTriangles * kPoseBytesPerTriangle);
+  return static_cast<size_t>(std::clamp(fits, double(kMinCachedFrames), double(kCachedFrames)));
+}
 
 // Attaches the shape to `scene` and returns its geometry id. Only a scene whose surfaces may
 // tie over an area pays for the tie rule (tie_candidates.h).
@@ -84,14 +103,18 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
 
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())),
-      settlesTies_(SceneMayTie(scene)) {
+      settlesTies_(SceneMayTie(scene)), cachedFrames_(CachedFrames(scene)) {
+  std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
+    AddSurfaceNormals(shape, firstShapeOfMesh);
     // A shape whose motion is not the identity is placed by an instance: at each frame
     // when it moves, or held at one place when it never does (PrepareForTracing builds
     // the latter in place where it can, sparing the per-frame placement).
-    if (!shape.motion.IsNone()) {
-      movers_.push_back({static_cast<int>(i), ObjectScene(shape)});
+    if (shape.Deforms()) {
+      movers_.push_back({static_cast<int>(i), SceneHandle(), std::make_unique<DeformingMesh>(device, shape, settlesTies_)});
+    } else if (!shape.motion.IsNone()) {
+      movers_.push_back({static_cast<int>(i), ObjectScene(shape), nullptr});
     } else {
       unsigned id = AttachShape(device.get(), staticScene_.get(), shape, settlesTies_);
       if (staticShapeOfGeometry_.size() <= id) staticShapeOfGeometry_.resize(id + 1, -1);
@@ -107,7 +130,21 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     staticFrame_->top_ = SceneHandle(staticScene_.get());
     staticFrame_->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
     staticFrame_->settlesTies_ = settlesTies_;
+    staticFrame_->normals_ = normals_;
   }
+}
+
+void SceneGeometry::AddSurfaceNormals(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh) {
+  // Normals are in object space, so every placement of a shared mesh reads the same.
+  if (shape.SharesMesh()) {
+    auto [first, isNew] = firstShapeOfMesh.emplace(shape.sharedMesh.get(), normals_.size());
+    if (!isNew) {
+      normals_.push_back(normals_[first->second]);
+      return;
+    }
+  }
+  normals_.push_back(std::make_shared<const SurfaceNormals>(
+      SurfaceNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)}));
 }
 
 SceneHandle SceneGeometry::ObjectScene(const Shape& shape) {
@@ -136,6 +173,7 @@ std::shared_ptr<FrameGeometry> SceneGeometry::BuildFrame(int frame) const {
   placed->top_ = SceneHandle(top);
   placed->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
   placed->settlesTies_ = settlesTies_;
+  placed->normals_ = normals_;
   auto recordInstance = [&](unsigned id, int shape) {
     if (placed->shapeOfInstance_.size() <= id) placed->shapeOfInstance_.resize(id + 1, -1);
     placed->shapeOfInstance_[id] = shape;
@@ -146,7 +184,14 @@ std::shared_ptr<FrameGeometry> SceneGeometry::BuildFrame(int frame) const {
   for (const Mover& mover : movers_) {
     const Motion& motion = scene_.shapes[mover.shape].motion;
     const Affine worldFromObject = motion.WorldFromObject(frame);
-    recordInstance(AttachInstance(device_.get(), top, mover.scene.get(), worldFromObject), mover.shape);
+    RTCScene object = mover.scene.get();
+    if (mover.deforming) {
+      std::shared_ptr<const DeformingMesh::Pose> pose = mover.deforming->AtFrame(frame);
+      object = pose->scene.get();
+      placed->normals_[static_cast<size_t>(mover.shape)] = pose->normals;
+      placed->poses_.push_back(std::move(pose));
+    }
+    recordInstance(AttachInstance(device_.get(), top, object, worldFromObject), mover.shape);
     if (!motion.IsTranslationOnly()) placed->SetNormalTransform(mover.shape, worldFromObject);
   }
   rtcCommitScene(top);
@@ -165,8 +210,26 @@ std::shared_ptr<const FrameGeometry> SceneGeometry::ForFrame(int frame) {
   }
   recentFrames_.emplace_front(frame, BuildFrame(frame));
   ++frameBuilds_;
-  if (recentFrames_.size() > kCachedFrames) recentFrames_.pop_back();
+  if (recentFrames_.size() > cachedFrames_) recentFrames_.pop_back();
   return recentFrames_.front().second;
+}
+
+BoundingSphere SceneGeometry::DeformedBounds(size_t shape, int frame) const {
+  for (const Mover& mover : movers_) {
+    if (static_cast<size_t>(mover.shape) == shape && mover.deforming) return mover.deforming->BoundsAt(frame);
+  }
+  throw std::logic_error("shape " + std::to_string(shape) + " is not a deforming mesh");
+}
+
+SceneGeometry::DeformationWork SceneGeometry::DeformationCounts() const {
+  DeformationWork work;
+  for (const Mover& mover : movers_) {
+    if (!mover.deforming) continue;
+    work.posesComputed += mover.deforming->PosesComputed();
+    work.posesShared += mover.deforming->PosesShared();
+    work.verticesDeformed += mover.deforming->VerticesDeformed();
+  }
+  return work;
 }
 
 uint64_t SceneGeometry::FrameBuilds() const {

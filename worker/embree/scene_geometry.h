@@ -5,8 +5,10 @@
 // its transform (translation, rotation, scale) at that frame; moving shapes placing one
 // shared mesh (Scene::meshes) instance one scene between them. A still placement of a
 // shared mesh is built in place (PlaceStillShapes) like any still shape: an instance
-// would trace other bits than the same mesh written inline. When nothing moves, every frame shares the static scene
-// and no per-frame work happens at all (FrameBuilds() stays 0).
+// would trace other bits than the same mesh written inline. A deforming mesh (skin, morph
+// targets) is posed per frame by a DeformingMesh and instanced like any mover. When
+// nothing moves, every frame shares the static scene and no per-frame work happens at all
+// (FrameBuilds() stays 0).
 #pragma once
 
 #include <cstdint>
@@ -16,6 +18,7 @@
 #include <mutex>
 #include <vector>
 
+#include "embree/deforming_mesh.h"
 #include "embree/device.h"
 #include "scene/scene.h"
 
@@ -41,6 +44,8 @@ class FrameGeometry {
     return static_cast<size_t>(shape) < normalFromObject_.size() && normalFromObject_[shape].present;
   }
   Vec3 NormalToWorld(int shape, const Vec3& objectNormal) const;
+  // The shape's normals at this frame (SurfaceNormals), in its object space.
+  const SurfaceNormals& Normals(int shape) const { return *normals_[static_cast<size_t>(shape)]; }
 
  private:
   friend class SceneGeometry;
@@ -54,6 +59,8 @@ class FrameGeometry {
   const std::vector<int>* staticShapeOfGeometry_ = nullptr;
   bool settlesTies_ = false;
   std::vector<int> shapeOfInstance_;  // -1: the instance of the static scene
+  std::vector<std::shared_ptr<const SurfaceNormals>> normals_;  // by shape
+  std::vector<std::shared_ptr<const DeformingMesh::Pose>> poses_;  // held while the frame lives
 };
 
 class SceneGeometry {
@@ -64,12 +71,22 @@ class SceneGeometry {
   std::shared_ptr<const FrameGeometry> ForFrame(int frame);
   // Top-level scenes built for individual frames (0 when nothing moves).
   uint64_t FrameBuilds() const;
+  // Deforming meshes' work: poses computed and vertices deformed (0 without deformation),
+  // poses shared by frames whose joints and weights did not change.
+  struct DeformationWork {
+    uint64_t posesComputed = 0, posesShared = 0, verticesDeformed = 0;
+  };
+  DeformationWork DeformationCounts() const;
+  // Thread-safe. A deforming shape's bounds at a frame, in its object space.
+  BoundingSphere DeformedBounds(size_t shape, int frame) const;
 
  private:
   struct Mover {
     int shape;
-    SceneHandle scene;
+    SceneHandle scene;                        // a rigid mover's rest pose
+    std::unique_ptr<DeformingMesh> deforming;  // or a deforming mesh's poses
   };
+  void AddSurfaceNormals(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh);
   std::shared_ptr<FrameGeometry> BuildFrame(int frame) const;
   // The shape in its rest pose, as a scene of its own to instance: shapes placing one
   // shared mesh get one scene between them.
@@ -85,6 +102,10 @@ class SceneGeometry {
   std::vector<Mover> movers_;
   std::map<const TriangleMesh*, SceneHandle> sharedMeshScenes_;
   std::shared_ptr<FrameGeometry> staticFrame_;  // used for every frame when nothing moves
+  // Per shape, its normals as the scene gives them; shapes placing one shared mesh share
+  // them. A deforming mesh's are replaced per frame by its pose's.
+  std::vector<std::shared_ptr<const SurfaceNormals>> normals_;
+  size_t cachedFrames_;
 
   mutable std::mutex cacheMutex_;
   std::list<std::pair<int, std::shared_ptr<FrameGeometry>>> recentFrames_;

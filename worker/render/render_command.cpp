@@ -176,6 +176,11 @@ int RunRender(const RenderOptions& requested) {
               static_cast<unsigned long long>(rays.shadow),
               static_cast<unsigned long long>(rays.reflection),
               static_cast<unsigned long long>(rays.refraction));
+  const SceneGeometry::DeformationWork deformed = tracer.DeformationCounts();
+  std::printf("deforming meshes: %llu poses computed, %llu shared, %llu vertices deformed\n",
+              static_cast<unsigned long long>(deformed.posesComputed),
+              static_cast<unsigned long long>(deformed.posesShared),
+              static_cast<unsigned long long>(deformed.verticesDeformed));
   std::printf("%s\n", coherence.Summary().c_str());
   return 0;
 }

@@ -26,6 +26,23 @@ BoundingSphere BoundsOf(const std::vector<Vec3>& points);
 // span none.
 Float3 UnitNormal(const Vec3& a, const Vec3& b);
 
+// A shape's normals as the tracer shades with them. faces: per primitive, the unit face
+// normal computed in double from the scene (Embree's robust intersector derives Ng from
+// ray-relative vertices, so its last bits change with the ray origin, while a still
+// surface must shade to the same bits from any viewpoint); empty for spheres, whose
+// normal comes from the hit point. vertices: the unit shading normals a smooth mesh
+// interpolates (zero where the scene gives none); empty for flat shapes.
+struct SurfaceNormals {
+  std::vector<Float3> faces;
+  std::vector<Float3> vertices;
+};
+
+// Per triangle over `vertices`, its unit normal (UnitNormal of its edges).
+std::vector<Float3> TriangleFaceNormals(const std::vector<Vec3>& vertices,
+                                        const std::vector<std::array<uint32_t, 3>>& triangles);
+// Each normal at unit length, in float; zero stays zero.
+std::vector<Float3> UnitVertexNormals(const std::vector<Vec3>& normals);
+
 class ShapeKind {
  public:
   virtual ~ShapeKind() = default;

@@ -25,27 +25,35 @@ class TriangleMeshShape final : public ShapeKind {
     return geometry;
   }
   std::vector<Float3> FaceNormals(const Shape& shape) const override {
-    std::vector<Float3> normals;
-    normals.reserve(shape.Mesh().triangles.size());
-    const auto& v = shape.Mesh().vertices;
-    for (const auto& t : shape.Mesh().triangles) {
-      normals.push_back(UnitNormal(Sub(v[t[1]], v[t[0]]), Sub(v[t[2]], v[t[0]])));
-    }
-    return normals;
+    return TriangleFaceNormals(shape.Mesh().vertices, shape.Mesh().triangles);
   }
   std::vector<Float3> VertexNormals(const Shape& shape) const override {
-    std::vector<Float3> normals;
-    normals.reserve(shape.Mesh().normals.size());
-    for (const Vec3& n : shape.Mesh().normals) {
-      const double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
-      normals.push_back(length > 0 ? ToFloat3({n.x / length, n.y / length, n.z / length}) : Float3{});
-    }
-    return normals;
+    return UnitVertexNormals(shape.Mesh().normals);
   }
   BoundingSphere Bounds(const Shape& shape) const override { return BoundsOf(shape.Mesh().vertices); }
 };
 
 }  // namespace
+
+std::vector<Float3> TriangleFaceNormals(const std::vector<Vec3>& vertices,
+                                        const std::vector<std::array<uint32_t, 3>>& triangles) {
+  std::vector<Float3> normals;
+  normals.reserve(triangles.size());
+  for (const auto& t : triangles) {
+    normals.push_back(UnitNormal(Sub(vertices[t[1]], vertices[t[0]]), Sub(vertices[t[2]], vertices[t[0]])));
+  }
+  return normals;
+}
+
+std::vector<Float3> UnitVertexNormals(const std::vector<Vec3>& normals) {
+  std::vector<Float3> unit;
+  unit.reserve(normals.size());
+  for (const Vec3& n : normals) {
+    const double length = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+    unit.push_back(length > 0 ? ToFloat3({n.x / length, n.y / length, n.z / length}) : Float3{});
+  }
+  return unit;
+}
 
 const ShapeKind& TriangleMeshKind() {
   static const TriangleMeshShape kind;

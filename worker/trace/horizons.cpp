@@ -79,7 +79,7 @@ void BoxesMet(const SlabRay& ray, const std::vector<float> (&boxLo)[3], const st
 
 }  // namespace
 
-HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window)
+HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds)
     : frame_(frame), window_(window), all_(EmptyBox()) {
   const Camera& camera = scene.camera;
   cameraCap_ = FirstChange(frame, window, [&](int f) {
@@ -91,8 +91,17 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window)
     });
   });
   int last = std::min(frame + window, scene.render.LastFrame());
-  for (const Shape& shape : scene.shapes) {
-    if (shape.Moves()) AddMover(shape, last);
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& shape = scene.shapes[i];
+    if (!shape.Moves()) continue;
+    if (shape.Deforms()) {
+      // Bounds of the posed vertices at each frame: a deforming mesh is a mover whose
+      // proxies enclose every vertex it has at that frame.
+      AddMover(shape, last, [&](int f) { return deformedBounds(i, f); });
+    } else {
+      const BoundingSphere rest = KindOf(shape).Bounds(shape);
+      AddMover(shape, last, [&](int) { return rest; });
+    }
   }
   std::vector<Box> swept;
   for (const Mover& mover : movers_) swept.push_back(mover.swept);
@@ -127,12 +136,12 @@ static BoundingSphere PlacedBounds(const Shape& shape, const BoundingSphere& obj
   return {worldFromObject.Apply(object.center), object.radius * worldFromObject.MaxStretch()};
 }
 
-void HorizonOracle::AddMover(const Shape& shape, int lastFrame) {
-  const BoundingSphere object = KindOf(shape).Bounds(shape);
+void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
+                             const std::function<BoundingSphere(int frame)>& objectBounds) {
   Mover mover;
   mover.swept = EmptyBox();
   for (int f = frame_; f <= lastFrame; ++f) {
-    const BoundingSphere placed = PlacedBounds(shape, object, f);
+    const BoundingSphere placed = PlacedBounds(shape, objectBounds(f), f);
     const Vec3& c = placed.center;
     double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)}) + placed.radius;
     // Padded, and rounded up again for the float conversion.

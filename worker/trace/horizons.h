@@ -27,9 +27,11 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "scene/scene.h"
+#include "shapes/shape_kind.h"
 #include "trace/float3.h"
 
 namespace tcfarm {
@@ -44,7 +46,10 @@ class HorizonOracle {
  public:
   // window: frames after `frame` to look at; horizons are capped at frame + window + 1,
   // meaning "valid through the whole window".
-  HorizonOracle(const Scene& scene, int frame, int window);
+  // The object-space bounds of a deforming shape (by index) at a frame: the tracer's
+  // posed meshes know them. Rigid shapes' bounds are their rest pose's.
+  using DeformedBounds = std::function<BoundingSphere(size_t shape, int frame)>;
+  HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds = {});
 
   int frame() const { return frame_; }
   int window() const { return window_; }
@@ -97,7 +102,7 @@ class HorizonOracle {
   static Box EmptyBox();
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);
   static uint32_t LaneMask(size_t chunkBegin, size_t from, size_t to);
-  void AddMover(const Shape& shape, int lastFrame);
+  void AddMover(const Shape& shape, int lastFrame, const std::function<BoundingSphere(int frame)>& objectBounds);
   bool SphereSurelyBlocks(const MovingSphere& sphere, const RaySegment& segment, int frame) const;
 
   int frame_, window_;

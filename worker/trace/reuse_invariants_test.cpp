@@ -50,9 +50,73 @@ struct Variant {
   std::string json;
 };
 
-std::vector<Variant> Variants() {
+// A bar of four segments along x from `x0` at height 1, bound to two joints: the first
+// holds its left half, the second (the elbow, at x0 + 1) bends the right half about z,
+// with a pause (frames 4..7) where the pose does not change. Vertices at the elbow blend.
+std::string SkinnedArm(double x0) {
+  std::string vertices, joints, weights, triangles;
+  auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
+  for (int ring = 0; ring < 5; ++ring) {
+    const double x = x0 + 0.5 * ring;
+    const double second = ring < 2 ? 0 : (ring == 2 ? 0.5 : 1);
+    for (int corner = 0; corner < 4; ++corner) {
+      const double y = corner < 2 ? 0.8 : 1.2, z = (corner == 0 || corner == 3) ? -0.2 : 0.2;
+      add(vertices, "[" + std::to_string(x) + ", " + std::to_string(y) + ", " + std::to_string(z) + "]");
+      add(joints, "[0, 1, 0, 0]");
+      add(weights, "[" + std::to_string(1 - second) + ", " + std::to_string(second) + ", 0, 0]");
+    }
+  }
+  auto index = [](int ring, int corner) { return std::to_string(4 * ring + corner % 4); };
+  for (int ring = 0; ring < 4; ++ring) {
+    for (int corner = 0; corner < 4; ++corner) {
+      const std::string a = index(ring, corner), b = index(ring, corner + 1), c = index(ring + 1, corner + 1),
+                        d = index(ring + 1, corner);
+      add(triangles, "[" + a + ", " + b + ", " + c + "], [" + a + ", " + c + ", " + d + "]");
+    }
+  }
+  add(triangles, "[0, 2, 1], [0, 3, 2], [16, 17, 18], [16, 18, 19]");
+  const std::string elbow = std::to_string(x0 + 1);
+  return R"({"type": "mesh", "material": "red", "vertices": [)" + vertices + R"(], "triangles": [)" + triangles +
+         R"(], "skin": {"joints": [[0, 0, 0], {"translation": [)" + elbow + R"(, 1, 0], "rotation": {"keyframes": [
+             {"frame": 0, "value": [0, 0, 0, 1]}, {"frame": 4, "value": [0, 0, 0.2588190, 0.9659258]},
+             {"frame": 7, "value": [0, 0, 0.2588190, 0.9659258]}, {"frame": 11, "value": [0, 0, 0.5, 0.8660254]}]}}],
+           "inverse_bind_matrices": [[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0], [1, 0, 0, -)" + elbow +
+         R"(, 0, 1, 0, -1, 0, 0, 1, 0]],
+           "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}})";
+}
+
+// A smooth octahedron whose top rises and sides swell by one morph target, its weight
+// on a cubic spline, casting a shadow on the floor.
+const char* kMorphingBlob = R"({"type": "mesh", "material": "blue",
+    "vertices": [[-2, 1.6, 0.5], [-1.4, 1, 0.5], [-2, 1, 1.1], [-2.6, 1, 0.5], [-2, 1, -0.1], [-2, 0.4, 0.5]],
+    "normals": [[0, 1, 0], [1, 0, 0], [0, 0, 1], [-1, 0, 0], [0, 0, -1], [0, -1, 0]],
+    "triangles": [[0, 2, 1], [0, 3, 2], [0, 4, 3], [0, 1, 4], [5, 1, 2], [5, 2, 3], [5, 3, 4], [5, 4, 1]],
+    "morph": {"targets": [{"positions": [[0, 0.5, 0], [0.2, 0, 0], [0, 0, 0.2], [-0.2, 0, 0], [0, 0, -0.2], [0, 0, 0]],
+                           "normals": [[0, 0, 0], [0, 0.3, 0], [0, 0.3, 0], [0, 0.3, 0], [0, 0.3, 0], [0, 0, 0]]}],
+              "weights": {"interpolation": "cubicspline", "keyframes": [
+                  {"frame": 0, "value": [0], "in_tangent": [0], "out_tangent": [0.1]},
+                  {"frame": 6, "value": [1], "in_tangent": [0], "out_tangent": [0]},
+                  {"frame": 11, "value": [0.2], "in_tangent": [-0.1], "out_tangent": [0]}]}}})";
+
+const char* kWall =
+    R"({"type": "quad", "corner": [-6, 0, -3], "edge_u": [12, 0, 0], "edge_v": [0, 6, 0], "material": "blue"})";
+const char* kMirror =
+    R"({"type": "quad", "corner": [-6, 0, -3], "edge_u": [12, 0, 0], "edge_v": [0, 6, 0.5], "material": "mirror"})";
+
+// Meshes that deform: a skinned arm bending before a still wall, a morphing blob and its
+// shadow, a skinned arm seen in a mirror.
+std::vector<Variant> DeformingVariants() {
   const std::string floor = kFloor;
   return {
+      {"a skinned arm bending in front of a still wall", CoplanarScene(floor + ", " + kWall + ", " + SkinnedArm(-1))},
+      {"a morphing blob casting a shadow", CoplanarScene(floor + ", " + kMorphingBlob)},
+      {"a skinned arm seen in a mirror", CoplanarScene(floor + ", " + kMirror + ", " + SkinnedArm(0.5))},
+  };
+}
+
+std::vector<Variant> Variants() {
+  const std::string floor = kFloor;
+  std::vector<Variant> variants{
       {"moving quad on the floor",
        CoplanarScene(floor + R"(, {"type": "quad", "corner": [-3, 0, -1], "edge_u": [0, 0, 2],
            "edge_v": [2, 0, 0], "material": "red", "motion": {"polynomial": [[0, 0.4], [0], [0]]}})")},
@@ -120,6 +184,8 @@ std::vector<Variant> Variants() {
            {"type": "quad", "corner": [-6, 0, -3.0001], "edge_u": [12, 0, 0], "edge_v": [0, 6, 0.5],
             "material": "blue"})")},
   };
+  for (Variant& deforming : DeformingVariants()) variants.push_back(std::move(deforming));
+  return variants;
 }
 
 std::vector<float> TraceFull(Tracer& tracer, int frame) {
@@ -188,6 +254,44 @@ TEST(ReuseInvariantsTest, CopiesUpToTheHorizonEqualFullTraces) {
     EXPECT_EQ(wrong, 0u) << variant.name << ": " << wrong << " of " << copies << " copies differ";
     EXPECT_GT(copies, pixelCount) << variant.name << ": horizons should let still pixels be copied";
   }
+}
+
+// A deforming mesh is posed by refitting a tree built from its rest pose: whatever frames
+// a worker posed before, in whatever order, a frame traces to the same bits. And a pause
+// in the animation poses nothing new.
+TEST(ReuseInvariantsTest, DeformingMeshesTraceTheSameBitsInAnyFrameOrder) {
+  EmbreeDevice device;
+  for (const Variant& variant : DeformingVariants()) {
+    Scene scene = ParseScene(variant.json);
+    TracingThreads pool(2);
+    Tracer forward(device, scene, pool), backward(device, scene, pool);
+    std::vector<std::vector<float>> frames;
+    for (int frame = 0; frame < kFrames; ++frame) frames.push_back(TraceFull(forward, frame));
+    size_t differing = 0, changed = 0;
+    for (int frame = kFrames - 1; frame >= 0; --frame) {
+      const std::vector<float> again = TraceFull(backward, frame);
+      for (size_t p = 0; p < again.size() / 3; ++p) {
+        differing += !SamePixel(&again[3 * p], &frames[frame][3 * p]);
+        if (frame > 0) changed += !SamePixel(&frames[frame][3 * p], &frames[frame - 1][3 * p]);
+      }
+    }
+    EXPECT_EQ(differing, 0u) << variant.name;
+    EXPECT_GT(changed, 0u) << variant.name << ": the mesh should visibly deform";
+    const SceneGeometry::DeformationWork work = forward.DeformationCounts();
+    EXPECT_GT(work.posesComputed, 0u) << variant.name;
+    EXPECT_GT(work.verticesDeformed, 0u) << variant.name;
+  }
+}
+
+TEST(ReuseInvariantsTest, APauseInASkinPosesNothingNew) {
+  EmbreeDevice device;
+  Scene scene = ParseScene(CoplanarScene(std::string(kFloor) + ", " + SkinnedArm(-1)));
+  TracingThreads pool(2);
+  Tracer tracer(device, scene, pool);
+  for (int frame = 0; frame < kFrames; ++frame) TraceFull(tracer, frame);
+  // Frames 4..7 hold one pose: 12 frames, 9 poses.
+  EXPECT_EQ(tracer.DeformationCounts().posesComputed, 9u);
+  EXPECT_EQ(tracer.DeformationCounts().posesShared, 3u);
 }
 
 }  // namespace

@@ -62,7 +62,6 @@ struct Tracer::FrameContext {
   PerspectiveCamera camera;
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
-  const std::vector<std::shared_ptr<const ShapeNormals>>* normals;  // by shape
   const std::vector<std::unique_ptr<TextureImage>>* textures;        // by material
   const std::vector<std::shared_ptr<const ShapeUvs>>* uvs;           // by shape
   const std::vector<uint8_t>* shapeMoves;  // per shape, precomputed: asked at every hit
@@ -168,7 +167,7 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
   int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
   hit.shape = shape;
   hit.material = scene_.shapes[shape].material;
-  const std::vector<Float3>& faces = (*frame_.normals)[shape]->faces;
+  const std::vector<Float3>& faces = frame_.geometry->Normals(shape).faces;
   // The face's normal (unit, computed in double from the scene), or Embree's for shapes
   // without faces; in object space for a shape that turns or scales.
   Float3 face = faces.empty() ? ToWorld(shape, raw.geometricNormal) : ToWorld(shape, faces[raw.primitiveId], true);
@@ -198,7 +197,7 @@ Float3 Tracer::PixelTracer::SurfaceDiffuse(int shape, int material, const RawHit
 }
 
 Float3 Tracer::PixelTracer::SmoothNormal(int shape, const RawHit& raw) const {
-  const std::vector<Float3>& vertices = (*frame_.normals)[shape]->vertices;
+  const std::vector<Float3>& vertices = frame_.geometry->Normals(shape).vertices;
   if (vertices.empty()) return {};
   const auto& corner = scene_.shapes[shape].Mesh().triangles[raw.primitiveId];
   const Float3 &a = vertices[corner[0]], &b = vertices[corner[1]], &c = vertices[corner[2]];
@@ -466,7 +465,7 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
     : device_(device), scene_(scene), geometry_(device, scene), threads_(threads) {
   std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
   for (const Shape& shape : scene.shapes) {
-    AddShapeSurfaces(shape, firstShapeOfMesh);
+    AddShapeUvs(shape, firstShapeOfMesh);
     shapeMoves_.push_back(shape.Moves());
   }
   // Materials never change over frames: converted for shading once, not per task.
@@ -477,18 +476,15 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
   }
 }
 
-void Tracer::AddShapeSurfaces(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh) {
-  // Normals and uvs are in object space, so every placement of a shared mesh reads the same.
+void Tracer::AddShapeUvs(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh) {
+  // Every placement of a shared mesh reads the same texture coordinates.
   if (shape.SharesMesh()) {
-    auto [first, isNew] = firstShapeOfMesh.emplace(shape.sharedMesh.get(), normals_.size());
+    auto [first, isNew] = firstShapeOfMesh.emplace(shape.sharedMesh.get(), uvs_.size());
     if (!isNew) {
-      normals_.push_back(normals_[first->second]);
       uvs_.push_back(uvs_[first->second]);
       return;
     }
   }
-  normals_.push_back(std::make_shared<const ShapeNormals>(
-      ShapeNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)}));
   auto uvs = std::make_shared<ShapeUvs>();
   for (const auto& uv : shape.Mesh().uvs) uvs->push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
   uvs_.push_back(std::move(uvs));
@@ -498,7 +494,8 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                          int window, int32_t* horizons) {
   std::unique_ptr<HorizonOracle> oracle;
   if (window > 0 && horizons) {
-    oracle = std::make_unique<HorizonOracle>(scene_, frame, window);
+    oracle = std::make_unique<HorizonOracle>(
+        scene_, frame, window, [this](size_t shape, int f) { return geometry_.DeformedBounds(shape, f); });
     // A moving camera changes every pixel next frame: no ray tree can say otherwise.
     if (oracle->CameraCap() == frame + 1) {
       std::fill(horizons, horizons + pixelCount, frame + 1);
@@ -511,7 +508,6 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        MakeCamera(scene_, frame),
                        MakeLights(scene_, frame),
                        &materials_,
-                       &normals_,
                        &textures_,
                        &uvs_,
                        &shapeMoves_,

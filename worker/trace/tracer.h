@@ -61,6 +61,8 @@ class Tracer {
   double CpuSeconds() const { return cpuNanoseconds_ * 1e-9; }
   // Per-frame top-level scenes built (0 for a scene where nothing moves).
   uint64_t FrameBuilds() const { return geometry_.FrameBuilds(); }
+  // Deforming meshes' poses and vertices (all 0 in a scene without skins or morphs).
+  SceneGeometry::DeformationWork DeformationCounts() const { return geometry_.DeformationCounts(); }
   const Scene& scene() const { return scene_; }
 
  private:
@@ -70,23 +72,14 @@ class Tracer {
   const EmbreeDevice& device_;
   const Scene& scene_;
   SceneGeometry geometry_;
-  // Per shape: unit face normals per primitive computed in double from the scene (Embree's
-  // robust intersector derives Ng from ray-relative vertices, so its last bits change
-  // with the ray origin; a still surface must shade to the same bits from any viewpoint;
-  // empty for spheres, whose normal comes from the hit point), and the vertex normals a
-  // smooth mesh is shaded with (empty for flat shapes).
-  // Shapes placing one shared mesh share them, computed once.
-  struct ShapeNormals {
-    std::vector<Float3> faces;
-    std::vector<Float3> vertices;
-  };
+  // Per shape, texture coordinates (shapes placing one shared mesh share them). Normals
+  // change with a deforming mesh's pose: the frame's geometry holds them.
   using ShapeUvs = std::vector<std::array<float, 2>>;
-  std::vector<std::shared_ptr<const ShapeNormals>> normals_;
   std::vector<ShadingMaterial> materials_;
-  // Per material: its decoded texture, if it has one. Per shape: texture coordinates.
+  // Per material: its decoded texture, if it has one.
   std::vector<std::unique_ptr<TextureImage>> textures_;
   std::vector<std::shared_ptr<const ShapeUvs>> uvs_;
-  void AddShapeSurfaces(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh);
+  void AddShapeUvs(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh);
   std::vector<uint8_t> shapeMoves_;
   TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};

@@ -1,0 +1,114 @@
+#include "embree/deforming_mesh.h"
+
+#include "embree/closest_hit.h"
+
+namespace tcfarm {
+
+DeformingMesh::DeformingMesh(const EmbreeDevice& device, const Shape& shape, bool settleTies)
+    : device_(device), shape_(shape), settleTies_(settleTies) {
+  // The first pose is made now, so that a mesh Embree cannot build fails the scene at once.
+  poses_.push_back(NewRestPose());
+}
+
+std::shared_ptr<DeformingMesh::Pose> DeformingMesh::NewRestPose() const {
+  auto pose = std::make_shared<Pose>();
+  RTCScene scene = rtcNewScene(device_.get());
+  pose->scene = SceneHandle(scene);
+  // A two-level structure, so that the geometry's own tree is refit rather than rebuilt.
+  rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
+  rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  RTCGeometry geometry = KindOf(shape_).NewGeometry(device_.get(), shape_);  // the rest pose
+  rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
+  if (settleTies_) rtcSetGeometryIntersectFilterFunction(geometry, SettleTies);
+  rtcCommitGeometry(geometry);
+  rtcAttachGeometry(scene, geometry);
+  rtcReleaseGeometry(geometry);
+  pose->geometry = geometry;
+  rtcCommitScene(scene);
+  device_.ThrowIfError("building a deforming mesh");
+  pose->frame = -1;  // no frame's pose yet
+  return pose;
+}
+
+DeformingMesh::PoseKey DeformingMesh::KeyAt(int frame) const {
+  const Deformation& deformation = *shape_.deformation;
+  PoseKey key;
+  if (deformation.hasSkin) key.skinMatrices = SkinMatrices(deformation.skin, frame);
+  if (deformation.hasMorph) key.morphWeights = deformation.morph.weights.Evaluate(frame);
+  return key;
+}
+
+void DeformingMesh::Refit(Pose& pose, int frame, PoseKey key) const {
+  const DeformedVertices deformed = Deform(shape_.Mesh(), *shape_.deformation, frame);
+  auto* vertex = static_cast<float*>(rtcGetGeometryBufferData(pose.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
+  for (size_t i = 0; i < deformed.positions.size(); ++i) {
+    for (int axis = 0; axis < 3; ++axis) vertex[3 * i + axis] = static_cast<float>(deformed.positions[i][axis]);
+  }
+  rtcUpdateGeometryBuffer(pose.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+  rtcCommitGeometry(pose.geometry);
+  rtcCommitScene(pose.scene.get());
+  device_.ThrowIfError("refitting a deforming mesh");
+  pose.normals = std::make_shared<const SurfaceNormals>(SurfaceNormals{
+      TriangleFaceNormals(deformed.positions, shape_.Mesh().triangles), UnitVertexNormals(deformed.normals)});
+  pose.frame = frame;
+  pose.key = std::move(key);
+}
+
+std::shared_ptr<const DeformingMesh::Pose> DeformingMesh::AtFrame(int frame) {
+  PoseKey key = KeyAt(frame);
+  std::lock_guard<std::mutex> lock(mutex_);
+  // A pose with the same joint matrices and weights is this frame's pose already, held or
+  // not: its vertices would be deformed to the same bits.
+  for (const auto& pose : poses_) {
+    if (pose->frame >= 0 && (pose->frame == frame || pose->key == key)) {
+      ++posesShared_;
+      return pose;
+    }
+  }
+  std::shared_ptr<Pose> free;
+  for (const auto& pose : poses_) {
+    if (pose.use_count() == 1) {
+      free = pose;
+      break;
+    }
+  }
+  if (!free) {
+    free = NewRestPose();
+    poses_.push_back(free);
+  }
+  // Refit under the lock: poses are few and a frame's tasks arrive together, so callers
+  // would mostly wait for this very pose anyway.
+  Refit(*free, frame, std::move(key));
+  ++posesComputed_;
+  verticesDeformed_ += shape_.Mesh().vertices.size();
+  return free;
+}
+
+BoundingSphere DeformingMesh::BoundsAt(int frame) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto found = bounds_.find(frame);
+    if (found != bounds_.end()) return found->second;
+  }
+  const BoundingSphere bounds = BoundsOf(Deform(shape_.Mesh(), *shape_.deformation, frame).positions);
+  std::lock_guard<std::mutex> lock(mutex_);
+  bounds_.emplace(frame, bounds);
+  return bounds;
+}
+
+uint64_t DeformingMesh::PosesComputed() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return posesComputed_;
+}
+
+uint64_t DeformingMesh::PosesShared() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return posesShared_;
+}
+
+uint64_t DeformingMesh::VerticesDeformed() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return verticesDeformed_;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,74 @@
+// A mesh whose vertices move relative to one another (skins, morph targets: see
+// scene/deformation.h), posed frame by frame.
+//
+// Each pose is a small Embree scene holding the mesh's one triangle geometry. Its tree is
+// built once, from the rest pose, and afterwards only refit to each frame's vertices
+// (RTC_BUILD_QUALITY_REFIT): the topology never depends on which frames a worker posed
+// before, so a frame traces to the same bits on any worker, in any order.
+//
+// Poses are recycled: a pose no placed frame holds any more is refit to the next frame
+// asked for. A frame whose pose equals one already made (its joints and morph weights
+// unchanged, bit for bit) shares it and costs nothing.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "embree/device.h"
+#include "scene/scene.h"
+#include "shapes/shape_kind.h"
+
+namespace tcfarm {
+
+class DeformingMesh {
+ public:
+  // The shape's mesh at one frame: a committed scene to instance, and its normals.
+  // What a frame's vertices are made of: two frames with equal keys pose the same bits.
+  struct PoseKey {
+    std::vector<Affine> skinMatrices;
+    std::vector<double> morphWeights;
+    bool operator==(const PoseKey& o) const { return skinMatrices == o.skinMatrices && morphWeights == o.morphWeights; }
+  };
+  struct Pose {
+    int frame = 0;
+    PoseKey key;
+    SceneHandle scene;
+    RTCGeometry geometry = nullptr;  // owned by `scene`
+    std::shared_ptr<const SurfaceNormals> normals;
+  };
+
+  // Throws EmbreeError when Embree cannot build the rest pose.
+  DeformingMesh(const EmbreeDevice& device, const Shape& shape, bool settleTies);
+
+  // Thread-safe. The pose stays valid, and unchanged, while the caller holds it.
+  std::shared_ptr<const Pose> AtFrame(int frame);
+
+  // Thread-safe. The bounds of the mesh's vertices at a frame, in its object space (the
+  // world's for a skin), for the horizons of `exact`; computed once per frame.
+  BoundingSphere BoundsAt(int frame);
+
+  // Work counters: poses computed (vertices deformed and the tree refit), poses shared
+  // because nothing changed, and vertices deformed in all.
+  uint64_t PosesComputed() const;
+  uint64_t PosesShared() const;
+  uint64_t VerticesDeformed() const;
+
+ private:
+  std::shared_ptr<Pose> NewRestPose() const;
+  PoseKey KeyAt(int frame) const;
+  void Refit(Pose& pose, int frame, PoseKey key) const;
+
+  const EmbreeDevice& device_;
+  const Shape& shape_;
+  bool settleTies_;
+
+  mutable std::mutex mutex_;
+  std::vector<std::shared_ptr<Pose>> poses_;  // every pose made; a use count of 1 means free
+  std::map<int, BoundingSphere> bounds_;      // by frame
+  uint64_t posesComputed_ = 0, posesShared_ = 0, verticesDeformed_ = 0;
+};
+
+}  // namespace tcfarm
