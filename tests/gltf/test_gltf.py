@@ -1,14 +1,17 @@
 """glTF files through `tcfarm-worker render` and through the farm: generated files render
 with closed-form pixels, the render flags choose what they say, broken files are refused
-naming where, and exact equals brute force on an animated hierarchy."""
+naming where, and exact equals brute force on an animated hierarchy and on skinned and
+morphing meshes."""
 import base64
 import hashlib
 import json
 import pathlib
 import re
+import struct
 import subprocess
 import sys
 
+import jsonschema
 import pytest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
@@ -18,6 +21,9 @@ from farm_harness import LocalFarm, compare, render_reference, submit_file_and_c
 
 # Debian's assimp-testmodels (scripts/bootstrap installs it), read where it lies.
 TEST_MODELS = pathlib.Path("/usr/share/assimp/models/glTF2")
+# A skin and a morph that nobody in the project wrote.
+SIMPLE_SKIN = "simple_skin/simple_skin.gltf"
+MORPH_CUBE = "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf"
 
 
 def run(binary, *args):
@@ -119,13 +125,11 @@ def test_a_textured_quad_shows_its_texels_where_its_coordinates_put_them(worker_
 
 @pytest.mark.skipif(not TEST_MODELS.exists(), reason="assimp-testmodels is not installed (scripts/bootstrap)")
 def test_good_models_render(worker_binary, tmp_path):
-    for model in ("BoxTextured-glTF-Binary/BoxTextured.glb", "cameras/Cameras.gltf",
-                  "glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf"):
+    for model in ("BoxTextured-glTF-Binary/BoxTextured.glb", "cameras/Cameras.gltf", SIMPLE_SKIN, MORPH_CUBE):
         result = run(worker_binary, "render", TEST_MODELS / model, "--size", "32x24", "--frames", "0",
                      "--out", tmp_path / pathlib.Path(model).stem, "--no-exr")
         assert result.returncode == 0, (model, result.stderr)
-    # The morph's weights are skipped, and said to be.
-    assert "morph target weights are not supported" in result.stderr
+        assert "warning" not in result.stderr, (model, result.stderr)
 
 
 def farm_exact_equals_reference(scene, reference_scene, tmp_path):
@@ -210,14 +214,19 @@ def test_farm_exact_equals_brute_force_on_a_cube_seen_only_in_a_mirror(worker_bi
 VALIDATOR = pathlib.Path(__file__).resolve().parent / "node_modules" / "gltf-validator"
 
 
-@pytest.mark.skipif(not VALIDATOR.exists(), reason="gltf-validator is not installed (scripts/bootstrap)")
-def test_generated_files_pass_the_khronos_validator(files):
-    result = subprocess.run(["node", str(VALIDATOR.parent.parent / "validate.js"), *map(str, files.values())],
-                            capture_output=True, text=True, timeout=120)
+def assert_valid(paths):
+    """The Khronos validator finds no error and no warning in any of the files."""
+    result = subprocess.run(["node", str(VALIDATOR.parent.parent / "validate.js"), *map(str, paths)],
+                            capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     for report in json.loads(result.stdout):
         issues = report["issues"]
         assert (issues["numErrors"], issues["numWarnings"]) == (0, 0), (report["uri"], issues["messages"])
+
+
+@pytest.mark.skipif(not VALIDATOR.exists(), reason="gltf-validator is not installed (scripts/bootstrap)")
+def test_generated_files_pass_the_khronos_validator(files):
+    assert_valid(files.values())
 
 
 def submit_and_compare(farm, path, flags, reference):
@@ -339,3 +348,155 @@ def test_a_moving_glTF_camera_makes_auto_pick_guarded_and_say_why(tmp_path):
     strategy = job["stats"]["strategy"]
     assert strategy["name"] == "guarded", strategy
     assert "camera" in strategy["reason"], strategy
+
+
+# --- skins and morph targets ---------------------------------------------------------------
+
+DEFORMING = ("skinned_arm.gltf", "morphing_blob.gltf", "skinned_in_a_mirror.gltf")
+SCENE_SCHEMA = json.loads((pathlib.Path(__file__).resolve().parents[2] / "proto" / "scene.schema.json").read_text())
+DEFORMING_FLAGS = ("--fps", "12", "--size", "96x72")
+
+
+@pytest.mark.parametrize("name", DEFORMING)
+def test_a_deforming_file_becomes_a_skinned_or_morphing_mesh(worker_binary, files, name):
+    """The skin (two joints, weights summing to 1, no motion of its own) or the morph (two
+    targets, a cubic spline of weights) as scene JSON that the scene schema accepts."""
+    scene = printed_scene(worker_binary, files[name], *DEFORMING_FLAGS)
+    jsonschema.Draft202012Validator(SCENE_SCHEMA).validate(scene)
+    assert scene["render"]["frames"]["count"] == 13
+    deforming = [shape for shape in scene["shapes"] if "skin" in shape or "morph" in shape]
+    assert len(deforming) == 1 and all("motion" in s for s in scene["shapes"] if s not in deforming)
+    shape = deforming[0]
+    if "skin" in shape:
+        skin = shape["skin"]
+        assert "motion" not in shape and len(skin["joints"]) == 2 and len(shape["triangles"]) == 400
+        assert len(skin["vertex_joints"]) == len(skin["vertex_weights"]) == len(shape["vertices"])
+        assert all(abs(sum(w) - 1) < 1e-6 for w in skin["vertex_weights"])
+        assert "keyframes" in skin["joints"][1]["rotation"]  # the elbow bends
+    else:
+        morph = shape["morph"]
+        assert len(morph["targets"]) == 2 and all(len(t["normals"]) == len(shape["vertices"]) for t in morph["targets"])
+        assert morph["weights"]["interpolation"] == "cubicspline" and len(morph["weights"]["keyframes"]) == 3
+        # glTF's per-second tangents, per frame at 12 frames per second.
+        assert morph["weights"]["keyframes"][0]["out_tangent"] == [2 / 12, 0]
+
+
+def test_a_skinned_mesh_of_50000_triangles_is_generated_valid(worker_binary, tmp_path):
+    """The benchmark's skinned mesh, generated on demand: at least 50,000 triangles, valid."""
+    path = make_gltf.skinned_arm(detail=50000).write(tmp_path / "arm50k.gltf")
+    scene = printed_scene(worker_binary, path, "--fps", "12")
+    arm = next(shape for shape in scene["shapes"] if "skin" in shape)
+    assert len(arm["triangles"]) >= 50000
+    if VALIDATOR.exists():
+        assert_valid([path])
+
+
+def accessor_values(gltf, index):
+    """An accessor's values as make_gltf.Gltf packed them (tightly, in its one buffer)."""
+    accessor = gltf.doc["accessors"][index]
+    view = gltf.doc["bufferViews"][accessor["bufferView"]]
+    count = accessor["count"] * make_gltf._COMPONENTS[accessor["type"]]
+    return list(struct.unpack_from("<%d%s" % (count, make_gltf._FORMATS[accessor["componentType"]]),
+                                   gltf.buffer, view["byteOffset"]))
+
+
+def skinned_attribute(gltf, name):
+    node = next(n for n in gltf.doc["nodes"] if "skin" in n)
+    return gltf.doc["meshes"][node["mesh"]]["primitives"][0]["attributes"], name
+
+
+def weights_halved(gltf):
+    attributes, name = skinned_attribute(gltf, "WEIGHTS_0")
+    attributes[name] = gltf.accessor([w / 2 for w in accessor_values(gltf, attributes[name])], "VEC4")
+    return f"/accessors/{attributes[name]}", "vertex 0's weights sum to 0.5"
+
+
+def joint_out_of_range(gltf):
+    attributes, name = skinned_attribute(gltf, "JOINTS_0")
+    joints = accessor_values(gltf, attributes[name])
+    joints[0] = 2
+    attributes[name] = gltf.accessor(joints, "VEC4", make_gltf.UNSIGNED_BYTE)
+    return f"/accessors/{attributes[name]}", "vertex 0 names joint 2 (weight 1.0) of skin 0, which has 2"
+
+
+def skeleton_outside_the_scene(gltf):
+    gltf.doc["skins"][0]["skeleton"] = gltf._add("nodes", {"name": "elsewhere"})
+    return "/skins/0/skeleton", "which is not in the rendered scene"
+
+
+def inverse_binds_short(gltf):
+    accessor = gltf.doc["skins"][0]["inverseBindMatrices"]
+    gltf.doc["accessors"][accessor]["count"] = 1
+    return f"/accessors/{accessor}/count", "1 inverse bind matrices for 2 joints"
+
+
+def weights_unlike_targets(gltf):
+    mesh = next(i for i, m in enumerate(gltf.doc["meshes"]) if m.get("name") == "blob")
+    gltf.doc["meshes"][mesh]["weights"] = [0.5]
+    return f"/meshes/{mesh}/weights", "1 weights for 2 morph targets"
+
+
+def target_short(gltf):
+    mesh = next(m for m in gltf.doc["meshes"] if m.get("name") == "blob")
+    accessor = mesh["primitives"][0]["targets"][1]["POSITION"]
+    gltf.doc["accessors"][accessor]["count"] -= 1
+    return f"/accessors/{accessor}/count", "position deltas for a primitive of"
+
+
+BAD_DEFORMATIONS = [("skinned_arm.gltf", weights_halved), ("skinned_arm.gltf", joint_out_of_range),
+                    ("skinned_arm.gltf", skeleton_outside_the_scene), ("skinned_arm.gltf", inverse_binds_short),
+                    ("morphing_blob.gltf", weights_unlike_targets), ("morphing_blob.gltf", target_short)]
+
+
+def test_bad_skins_and_morphs_are_refused_naming_the_file_and_pointer(worker_binary, tmp_path):
+    """Weights that cannot be normalised, a joint index out of range, a skeleton outside
+    the scene, too few inverse bind matrices, weights or deltas whose counts differ: the
+    standalone render exits 1 and the API answers 400, both naming the file and the glTF
+    pointer."""
+    broken = []
+    for example, spoil in BAD_DEFORMATIONS:
+        gltf = make_gltf.EXAMPLES[example]()
+        pointer, problem = spoil(gltf)
+        path = gltf.write(tmp_path / f"{spoil.__name__}.gltf")
+        result = run(worker_binary, "render", path, "--out", tmp_path / "out")
+        assert result.returncode == 1, (path.name, result.stderr)
+        assert f"scene{pointer}: {path.name}: " in result.stderr and problem in result.stderr, result.stderr
+        broken.append((path, pointer, problem))
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=1) as farm:
+        for path, pointer, problem in broken:
+            result = tcfarm_cli(farm, "submit", path)
+            assert result.returncode != 0
+            assert "invalid_scene (400) at /scene_file" in result.stderr, result.stderr
+            assert f"{pointer}: {path.name}: " in result.stderr and problem in result.stderr, result.stderr
+        assert farm.client.jobs() == []
+
+
+@pytest.fixture(scope="module")
+def deforming_farm(tmp_path_factory):
+    with LocalFarm(tmp_path_factory.mktemp("deforming_farm"), workers=2) as farm:
+        farm.wait_for_workers(2)
+        yield farm
+
+
+@pytest.mark.parametrize("name,flags,frames", [
+    *((name, DEFORMING_FLAGS, 13) for name in DEFORMING),
+    # 5.5 s and 4.2 s sampled 4 times a second.
+    (TEST_MODELS / SIMPLE_SKIN, ("--fps", "4", "--size", "64x48"), 23),
+    (TEST_MODELS / MORPH_CUBE, ("--fps", "4", "--size", "64x48"), 18),
+], ids=lambda value: pathlib.Path(value).stem if isinstance(value, (str, pathlib.Path)) else None)
+def test_farm_exact_equals_brute_force_on_deforming_meshes(deforming_farm, files, tmp_path, name, flags, frames):
+    """The issue's proof: each file submitted (with its buffers) and rendered by the farm
+    with exact, against `tcfarm-worker render` of the same file (every pixel traced): no
+    pixel differs. Prints the share of pixels exact copied instead of tracing."""
+    path = files[name] if name in files else pathlib.Path(name)
+    if not path.exists():
+        pytest.skip("assimp-testmodels is not installed (scripts/bootstrap)")
+    job, error = submit_file_and_compare(deforming_farm, path, flags, tmp_path / "reference")
+    assert error["differing_pixels"] == 0 and error["frames"] == frames, (path.name, error)
+    copied = 1 - job["traced_pixel_ratio"]
+    print(f"{path.name}: exact copied {copied:.1%} of the pixels, 0 differ from brute force")
+    # The still set around the character is copied (64 %, 72 % and 29 % when written: the
+    # mirror sends its rays back past the camera, through the arm's swept bounds).
+    least = {"skinned_arm.gltf": 0.5, "morphing_blob.gltf": 0.5, "skinned_in_a_mirror.gltf": 0.2}
+    assert copied > least.get(path.name, 0), copied
