@@ -578,8 +578,16 @@ class GltfReader {
     if (accessor.count > std::numeric_limits<uint32_t>::max()) {
       Fail(pointer + "/count", std::to_string(accessor.count) + " elements", "at most 2^32 - 1 elements");
     }
-    data.values.assign(accessor.count * static_cast<size_t>(components), 0.0);
     const size_t elementSize = static_cast<size_t>(componentSize) * static_cast<size_t>(components);
+    if (accessor.bufferView < 0 && accessor.count * elementSize > BufferBytes()) {
+      // All zeros, as the spec says; but a few bytes of JSON must not ask for gigabytes.
+      Fail(pointer + "/count",
+           std::to_string(accessor.count) + " elements without a buffer view (" +
+               std::to_string(accessor.count * elementSize) + " bytes of zeros)",
+           "an accessor without a buffer view no larger than the file's buffers (" + std::to_string(BufferBytes()) +
+               " bytes)");
+    }
+    data.values.assign(accessor.count * static_cast<size_t>(components), 0.0);
     if (accessor.bufferView >= 0) {  // without one, all zeros, as the spec says
       const ViewElements elements = InView(accessor.bufferView, accessor.byteOffset, accessor.count, elementSize,
                                            true, pointer);
@@ -590,6 +598,12 @@ class GltfReader {
     }
     if (accessor.sparse.isSparse) ApplySparse(accessor, pointer, componentSize, elementSize, data);
     return data;
+  }
+
+  size_t BufferBytes() const {
+    size_t bytes = 0;
+    for (const tinygltf::Buffer& buffer : model_.buffers) bytes += buffer.data.size();
+    return bytes;
   }
 
   // Where `count` elements of `elementSize` bytes start in buffer view `viewIndex`, from

@@ -994,8 +994,17 @@ TEST(GltfImporterTest, SparseAccessorsAreResolved) {
   ExpectNear(morph.positionDeltas[1][2], {0, 0, 4}, 0);
   ExpectNear(morph.positionDeltas[1][3], {0, 0, 2}, 0);  // as its buffer view has it
 
-  accessors[square.right]["sparse"]["count"] = 5;
+  // Without a buffer view, no more zeros than the file's buffers could have held.
+  accessors[square.right]["count"] = 2000000000;
   std::string what = ErrorOf([&] { square.gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(square.right) +
+                      "/count: the gltf scene: 2000000000 elements without a buffer view (24000000000 bytes of zeros)"),
+            std::string::npos)
+      << what;
+  accessors[square.right]["count"] = 4;
+
+  accessors[square.right]["sparse"]["count"] = 5;
+  what = ErrorOf([&] { square.gltf.Import(); });
   EXPECT_NE(what.find("scene/accessors/" + std::to_string(square.right) +
                       "/sparse/count: the gltf scene: 5 substitutions in an accessor of 4 elements"),
             std::string::npos)
