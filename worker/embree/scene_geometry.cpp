@@ -17,18 +17,22 @@ namespace {
 // deforming meshes, whose every frame is a posed copy of the mesh and its tree; then as
 // many frames as the budget holds, and at least a few.
 constexpr size_t kCachedFrames = 64;
+// With deforming meshes each placed frame holds a pose, and a pose is made once by a full
+// build of the rest pose and from then on refit: few frames kept means few builds (the
+// first ones) and refits after, and the memory of a few copies of the mesh.
+constexpr size_t kDeformingCachedFrames = 12;
 constexpr size_t kMinCachedFrames = 4;
 constexpr double kPoseBudgetBytes = 512.0 * 1024 * 1024;
 constexpr double kPoseBytesPerTriangle = 120;  // Embree's tree (~100) and the vertices
 
-size_t CachedFrames(const Scene& scene) {
+size_t FramesToCache(const Scene& scene) {
   double deformingTriangles = 0;
   for (const Shape& shape : scene.shapes) {
     if (shape.Deforms()) deformingTriangles += static_cast<double>(shape.Mesh().triangles.size());
   }
   if (deformingTriangles == 0) return kCachedFrames;
   const double fits = kPoseBudgetBytes / (deformingTriangles * kPoseBytesPerTriangle);
-  return static_cast<size_t>(std::clamp(fits, double(kMinCachedFrames), double(kCachedFrames)));
+  return static_cast<size_t>(std::clamp(fits, double(kMinCachedFrames), double(kDeformingCachedFrames)));
 }
 
 // Attaches the shape to `scene` and returns its geometry id. Only a scene whose surfaces may
@@ -103,7 +107,7 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
 
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())),
-      settlesTies_(SceneMayTie(scene)), cachedFrames_(CachedFrames(scene)) {
+      settlesTies_(SceneMayTie(scene)), cachedFrames_(FramesToCache(scene)) {
   std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
@@ -212,6 +216,10 @@ std::shared_ptr<const FrameGeometry> SceneGeometry::ForFrame(int frame) {
   ++frameBuilds_;
   if (recentFrames_.size() > cachedFrames_) recentFrames_.pop_back();
   return recentFrames_.front().second;
+}
+
+bool SceneGeometry::HasDeformingMeshes() const {
+  return std::any_of(movers_.begin(), movers_.end(), [](const Mover& mover) { return mover.deforming != nullptr; });
 }
 
 BoundingSphere SceneGeometry::DeformedBounds(size_t shape, int frame) const {

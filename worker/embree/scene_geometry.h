@@ -69,6 +69,9 @@ class SceneGeometry {
 
   // Thread-safe. The last few frames are cached: tasks of one frame arrive together.
   std::shared_ptr<const FrameGeometry> ForFrame(int frame);
+  // How many frames are kept placed: placing one more may evict another.
+  size_t CachedFrames() const { return cachedFrames_; }
+  bool HasDeformingMeshes() const;
   // Top-level scenes built for individual frames (0 when nothing moves).
   uint64_t FrameBuilds() const;
   // Deforming meshes' work: poses computed and vertices deformed (0 without deformation),

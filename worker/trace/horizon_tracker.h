@@ -35,8 +35,11 @@ struct HorizonTracker {
   // Not needed when the horizon is the next frame already, nor when no moving shape's
   // bounds come near the ray at the traced frame: what blocks it never moves, so it
   // stays blocked.
-  bool BlockedShadowMayClear(int forLane, const RaySegment& segment) const {
-    return horizon[forLane] > oracle->frame() + 1 && oracle->MayBeBlockedByMover(segment);
+  // A walk goes no further than the oracle's WalkEnd: the horizon is capped there first.
+  bool BlockedShadowMayClear(int forLane, const RaySegment& segment) {
+    if (horizon[forLane] <= oracle->frame() + 1 || !oracle->MayBeBlockedByMover(segment)) return false;
+    horizon[forLane] = std::min(horizon[forLane], oracle->WalkEnd());
+    return true;
   }
 };
 

@@ -79,8 +79,11 @@ void BoxesMet(const SlabRay& ray, const std::vector<float> (&boxLo)[3], const st
 
 }  // namespace
 
-HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds)
-    : frame_(frame), window_(window), all_(EmptyBox()) {
+HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds,
+                             int walkFrames)
+    : frame_(frame), window_(window),
+      walkEnd_(walkFrames < 0 ? frame + window + 1 : std::min(frame + window + 1, frame + walkFrames + 1)),
+      all_(EmptyBox()) {
   const Camera& camera = scene.camera;
   cameraCap_ = FirstChange(frame, window, [&](int f) {
     return !(camera.At(frame) == camera.At(f));

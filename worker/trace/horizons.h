@@ -49,11 +49,19 @@ class HorizonOracle {
   // The object-space bounds of a deforming shape (by index) at a frame: the tracer's
   // posed meshes know them. Rigid shapes' bounds are their rest pose's.
   using DeformedBounds = std::function<BoundingSphere(size_t shape, int frame)>;
-  HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds = {});
+  // walkFrames: how far ahead a blocked shadow ray may be followed (see WalkEnd); the
+  // whole window by default.
+  HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds = {},
+                int walkFrames = -1);
 
   int frame() const { return frame_; }
   int window() const { return window_; }
   int Unbounded() const { return frame_ + window_ + 1; }
+  // The first frame a blocked shadow ray is not followed to: a pixel whose shadow ray is
+  // followed gets a horizon no later than this. Following a ray asks the scene at every
+  // frame ahead; a scene whose frames are dear to place (deforming meshes, posed per
+  // frame) follows rays only over the frames its worker keeps placed.
+  int WalkEnd() const { return walkEnd_; }
   // Cap for every pixel (the camera moves).
   int CameraCap() const { return cameraCap_; }
   // Cap for a pixel whose ray tree reaches a surface (a light changes).
@@ -106,6 +114,7 @@ class HorizonOracle {
   bool SphereSurelyBlocks(const MovingSphere& sphere, const RaySegment& segment, int frame) const;
 
   int frame_, window_;
+  int walkEnd_;
   int cameraCap_, lightCap_;
   std::vector<Mover> movers_;
   // The movers' swept boxes again, one array per coordinate, padded with empty boxes to

@@ -494,8 +494,12 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                          int window, int32_t* horizons) {
   std::unique_ptr<HorizonOracle> oracle;
   if (window > 0 && horizons) {
+    // Blocked shadow rays are followed only over frames the geometry keeps placed, when
+    // placing one is dear (deforming meshes): the frame and those ahead of it stay cached.
+    const int walkFrames = geometry_.HasDeformingMeshes() ? static_cast<int>(geometry_.CachedFrames()) - 1 : -1;
     oracle = std::make_unique<HorizonOracle>(
-        scene_, frame, window, [this](size_t shape, int f) { return geometry_.DeformedBounds(shape, f); });
+        scene_, frame, window, [this](size_t shape, int f) { return geometry_.DeformedBounds(shape, f); },
+        walkFrames);
     // A moving camera changes every pixel next frame: no ray tree can say otherwise.
     if (oracle->CameraCap() == frame + 1) {
       std::fill(horizons, horizons + pixelCount, frame + 1);
