@@ -440,25 +440,33 @@ def forest(flattened=False, trees=50, detail=0):
     return g
 
 
-def seen_in_a_mirror():
-    """A cube that spins and hops behind the camera, seen only in a mirror (a smooth metal,
-    reflectivity 1) that faces the camera over a still floor. One second, 13 frames at 12
-    per second."""
+def mirror_set():
+    """A mirror (a smooth metal, reflectivity 1) standing on a still floor, facing a camera
+    2 in front of it at eye height, and a point light over the camera: what moves behind
+    the camera is seen only in the mirror."""
     g = Gltf()
     mirror = g.material("mirror", (0.95, 0.95, 0.95), metallic=1.0, roughness=0.0)
-    red = g.material("red", (0.8, 0.1, 0.1), roughness=0.6)
     floor = g.material("floor", (0.5, 0.5, 0.5), roughness=0.9)
     g.node(name="floor", mesh=g.mesh([{"positions": [-6, 0, -6, -6, 0, 6, 6, 0, -6, 6, 0, 6],
                                        "mode": TRIANGLE_STRIP, "material": floor}]))
     g.node(name="mirror", mesh=g.mesh([{"positions": quad(1.5), "indices": [0, 1, 2, 0, 2, 3],
                                         "material": mirror}]), translation=[0, 1.6, -2])
+    g.node(name="eye", camera=g.camera(0.7), translation=[0, 1.6, 2])
+    g.node(name="bulb", light=g.light("point", 25.0), translation=[1, 4, 2])
+    return g
+
+
+def seen_in_a_mirror():
+    """A cube that spins and hops behind the camera, seen only in a mirror (a smooth metal,
+    reflectivity 1) that faces the camera over a still floor. One second, 13 frames at 12
+    per second."""
+    g = mirror_set()
+    red = g.material("red", (0.8, 0.1, 0.1), roughness=0.6)
     positions, indices = cube(0.3)
     cube_node = g.node(name="cube", mesh=g.mesh([{"positions": positions, "indices": indices, "material": red}]),
                        translation=[0, 1.4, 3.5])
     g.animate(cube_node, "rotation", [0.0, 1.0], axis_angle([0, 1, 0], 0) + axis_angle([0, 1, 0], 120))
     g.animate(cube_node, "translation", [0.0, 0.5, 1.0], [0, 1.4, 3.5, 0.3, 2.0, 3.5, 0, 1.4, 3.5], "STEP")
-    g.node(name="eye", camera=g.camera(0.7), translation=[0, 1.6, 2])
-    g.node(name="bulb", light=g.light("point", 25.0), translation=[1, 4, 2])
     return g
 
 
@@ -615,17 +623,8 @@ def skinned_in_a_mirror():
     """The issue's third proof: the skinned arm bends behind the camera, seen only in a
     mirror (a smooth metal, reflectivity 1) that faces the camera over a still floor. One
     second, 13 frames at 12 per second."""
-    g = Gltf()
-    mirror = g.material("mirror", (0.95, 0.95, 0.95), metallic=1.0, roughness=0.0)
-    skin = g.material("skin", (0.8, 0.45, 0.3), roughness=0.5)
-    floor = g.material("floor", (0.5, 0.5, 0.5), roughness=0.9)
-    g.node(name="floor", mesh=g.mesh([{"positions": [-6, 0, -6, -6, 0, 6, 6, 0, -6, 6, 0, 6],
-                                       "mode": TRIANGLE_STRIP, "material": floor}]))
-    g.node(name="mirror", mesh=g.mesh([{"positions": quad(1.5), "indices": [0, 1, 2, 0, 2, 3],
-                                        "material": mirror}]), translation=[0, 1.6, -2])
-    add_arm(g, skin, (-1.0, 1.2, 3.0))
-    g.node(name="eye", camera=g.camera(0.7), translation=[0, 1.6, 2])
-    g.node(name="bulb", light=g.light("point", 25.0), translation=[1, 4, 2])
+    g = mirror_set()
+    add_arm(g, g.material("skin", (0.8, 0.45, 0.3), roughness=0.5), (-1.0, 1.2, 3.0))
     return g
 
 

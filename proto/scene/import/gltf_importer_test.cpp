@@ -688,6 +688,24 @@ void ExpectDeformedRoundTrip(const Scene& scene, const std::vector<double>& fram
   }
 }
 
+// A way to spoil a fresh fixture (a SkinnedStrip, a MorphingSquare) and what importing it
+// must then say.
+template <typename Fixture>
+struct Refusal {
+  std::function<void(Fixture&)> spoil;
+  std::function<std::string(const Fixture&)> message;
+};
+
+template <typename Fixture>
+void ExpectRefusals(const std::vector<Refusal<Fixture>>& refusals) {
+  for (const Refusal<Fixture>& refusal : refusals) {
+    Fixture fixture;
+    refusal.spoil(fixture);
+    std::string what = ErrorOf([&] { fixture.gltf.Import(); });
+    EXPECT_NE(what.find(refusal.message(fixture)), std::string::npos) << what;
+  }
+}
+
 // A strip of two quads up the y axis (x 0..1, y 0..2) bound to two joints: the bottom row
 // to the hip at (0.5, 0, 0), the middle row half and half, the top row to the knee, 1 above
 // the hip, which turns 90 degrees about z over one second. The mesh's node is moved by
@@ -819,11 +837,7 @@ TEST(GltfImporterTest, EightInfluencesAndOnlyTheJointsAPrimitiveUses) {
 }
 
 TEST(GltfImporterTest, BadSkinsAreRefusedWithTheirPointers) {
-  struct Case {
-    std::function<void(SkinnedStrip&)> spoil;
-    std::function<std::string(const SkinnedStrip&)> message;
-  };
-  const Case cases[] = {
+  ExpectRefusals<SkinnedStrip>({
       {[](SkinnedStrip& s) {
          json& attributes = s.gltf.doc()["meshes"][0]["primitives"][0]["attributes"];
          attributes["JOINTS_0"] = s.joints = s.gltf.Integers(
@@ -882,13 +896,7 @@ TEST(GltfImporterTest, BadSkinsAreRefusedWithTheirPointers) {
          return "scene/accessors/" + std::to_string(s.weights) +
                 "/count: the gltf scene: 5 elements for a primitive of 6 vertices";
        }},
-  };
-  for (const Case& c : cases) {
-    SkinnedStrip strip;
-    c.spoil(strip);
-    std::string what = ErrorOf([&] { strip.gltf.Import(); });
-    EXPECT_NE(what.find(c.message(strip)), std::string::npos) << what;
-  }
+  });
 }
 
 // A square of 4 vertices whose morph targets lift its right edge (target 0) and its top
@@ -1030,11 +1038,7 @@ TEST(GltfImporterTest, SparseAccessorsAreResolved) {
 }
 
 TEST(GltfImporterTest, BadMorphTargetsAreRefusedWithTheirPointers) {
-  struct Case {
-    std::function<void(MorphingSquare&)> spoil;
-    std::function<std::string(const MorphingSquare&)> message;
-  };
-  const Case cases[] = {
+  ExpectRefusals<MorphingSquare>({
       {[](MorphingSquare& m) { m.gltf.doc()["meshes"][0]["primitives"][1]["targets"].erase(1); },
        [](const MorphingSquare&) {
          return "scene/meshes/0/primitives/1/targets: the gltf scene: 1 morph targets where primitive 0 has 2";
@@ -1065,13 +1069,7 @@ TEST(GltfImporterTest, BadMorphTargetsAreRefusedWithTheirPointers) {
          return "scene/accessors/" + std::to_string(m.top) +
                 "/count: the gltf scene: 3 position deltas for a primitive of 4 vertices";
        }},
-  };
-  for (const Case& c : cases) {
-    MorphingSquare square;
-    c.spoil(square);
-    std::string what = ErrorOf([&] { square.gltf.Import(); });
-    EXPECT_NE(what.find(c.message(square)), std::string::npos) << what;
-  }
+  });
 }
 
 // Debian's assimp-testmodels: a skin and a morph that nobody in the project wrote.
