@@ -267,53 +267,41 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
   before = std::min(before, Unbounded());
   if (movers_.empty() || before <= frame_ + 1) return before;
   const SlabRay ray(segment);
-  auto meets = [&](const Box& box) {
-    const float lo[3] = {box.lo.x, box.lo.y, box.lo.z}, hi[3] = {box.hi.x, box.hi.y, box.hi.z};
-    return Meets(ray, lo, hi);
-  };
-  if (!meets(all_)) return before;
-  // The movers whose whole path comes near the segment; usually one or two.
-  thread_local std::vector<const Mover*> near;
-  near.clear();
-  size_t frames = 0;  // frame offsets searched: 1 .. frames - 1
-  const size_t lanes = sweptLo_[0].size();
-  thread_local std::vector<uint8_t> nearLane;
-  nearLane.resize(lanes);
-  BoxesMet(ray, sweptLo_, sweptHi_, nearLane.data());
-  // Per near mover, which of its chunks the segment meets: one byte per padded chunk.
-  thread_local std::vector<uint8_t> chunksMet;
-  chunksMet.clear();
-  for (size_t i = 0; i < movers_.size(); ++i) {
-    if (!nearLane[i]) continue;
-    const Mover& mover = movers_[i];
-    near.push_back(&mover);
-    frames = std::max(frames, mover.frames);
-    const size_t at = chunksMet.size();
-    chunksMet.resize(at + mover.chunkLo[0].size());
-    BoxesMet(ray, mover.chunkLo, mover.chunkHi, chunksMet.data() + at);
+  {
+    const float lo[3] = {all_.lo.x, all_.lo.y, all_.lo.z}, hi[3] = {all_.hi.x, all_.hi.y, all_.hi.z};
+    if (!Meets(ray, lo, hi)) return before;
   }
-  frames = std::min(frames, static_cast<size_t>(before - frame_));
-  // Chunk by chunk in time, every near mover at once: the first chunk with a meeting
-  // holds the answer, and later chunks are never looked at.
-  for (size_t chunk = 0; chunk * kFramesPerChunk < frames; ++chunk) {
-    size_t earliest = std::min(frames, (chunk + 1) * kFramesPerChunk);  // as a frame offset
-    bool found = false;
-    size_t metAt = 0;  // where this mover's chunk bytes start in chunksMet
-    for (const Mover* mover : near) {
-      const bool chunkMet = chunk < mover->chunks.size() && chunksMet[metAt + chunk];
-      metAt += mover->chunkLo[0].size();
-      if (!chunkMet) continue;
+  // Bytes of box tests: on the stack for the usual few movers and chunks.
+  constexpr size_t kStackLanes = 256;
+  uint8_t stackNear[kStackLanes], stackChunks[kStackLanes];
+  thread_local std::vector<uint8_t> heapNear, heapChunks;
+  auto scratch = [](size_t lanes, uint8_t* stack, std::vector<uint8_t>& heap) {
+    if (lanes <= kStackLanes) return stack;
+    heap.resize(lanes);
+    return heap.data();
+  };
+  uint8_t* near = scratch(sweptLo_[0].size(), stackNear, heapNear);
+  BoxesMet(ray, sweptLo_, sweptHi_, near);
+  // Mover by mover, the first chunk its path meets the segment in, then the first frame in
+  // it: each mover is searched only before the earliest meeting found so far.
+  size_t earliest = static_cast<size_t>(before - frame_);  // as a frame offset; none found yet
+  for (size_t m = 0; m < movers_.size(); ++m) {
+    if (!near[m]) continue;
+    const Mover& mover = movers_[m];
+    uint8_t* chunkMet = scratch(mover.chunkLo[0].size(), stackChunks, heapChunks);
+    BoxesMet(ray, mover.chunkLo, mover.chunkHi, chunkMet);
+    for (size_t chunk = 0; chunk < mover.chunks.size() && chunk * kFramesPerChunk < earliest; ++chunk) {
+      if (!chunkMet[chunk]) continue;
       const size_t begin = chunk * kFramesPerChunk;
-      const size_t end = std::min(earliest, mover->frames);
-      const uint32_t met = ChunkSpheresMet(segment, *mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
+      const size_t end = std::min(earliest, mover.frames);
+      const uint32_t met = ChunkSpheresMet(segment, mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
       if (met != 0) {
         earliest = begin + static_cast<size_t>(__builtin_ctz(met));
-        found = true;
+        break;
       }
     }
-    if (found) return frame_ + static_cast<int>(earliest);
   }
-  return before;
+  return std::min(before, frame_ + static_cast<int>(earliest));
 }
 
 bool HorizonOracle::MayBeBlockedByMover(const RaySegment& segment) const {
