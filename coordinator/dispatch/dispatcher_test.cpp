@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <map>
 #include <memory>
 #include <optional>
@@ -52,13 +54,26 @@ class DispatcherTest : public ::testing::Test {
       dispatcher_.Poll(Milliseconds(5), sink_);
     }
   }
+  // Polls until `done` holds, for at most 10 s: messages cross real sockets, and a loaded
+  // machine may take longer than a few polls to connect a worker.
+  void PumpUntil(const std::function<bool()>& done) {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+    do {
+      Pump(1);
+    } while (!done() && std::chrono::steady_clock::now() < deadline);
+  }
   // A fresh worker connects, takes the tasks still owed and answers them; how many it got.
   size_t AnotherWorkerFinishesWhatIsOwed() {
+    const size_t owedCount = dispatcher_.PendingTasks();
     FakeWorker honest(context_, dispatcher_.BoundEndpoint(), 2);
-    Pump();
-    const std::vector<wire::Task> owed = honest.Tasks();
+    std::vector<wire::Task> owed;
+    PumpUntil([&] {
+      for (auto& task : honest.Tasks()) owed.push_back(std::move(task));
+      return owed.size() >= owedCount;
+    });
+    const size_t resultsBefore = sink_.results.size();
     for (const auto& task : owed) honest.Answer(task);
-    Pump();
+    PumpUntil([&] { return sink_.results.size() >= resultsBefore + owed.size(); });
     return owed.size();
   }
   void EnqueueTasks(uint64_t job, int count) {

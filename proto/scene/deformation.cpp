@@ -1,7 +1,10 @@
 #include "scene/deformation.h"
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <string>
+#include <utility>
 
 #include "scene/scene.h"
 
@@ -160,6 +163,47 @@ DeformedVertices Deform(const TriangleMesh& rest, const Deformation& deformation
   if (deformation.hasMorph) Morph(deformation.morph, frame, out);
   if (deformation.hasSkin) SkinVertices(deformation.skin, frame, out);
   return out;
+}
+
+DeformationParts SplitIntoParts(const TriangleMesh& mesh, const Deformation& deformation) {
+  DeformationParts parts;
+  const size_t vertexCount = mesh.vertices.size();
+  std::map<std::pair<std::vector<uint32_t>, std::vector<uint32_t>>, uint32_t> groupOf;
+  parts.groupOfVertex.reserve(vertexCount);
+  for (size_t v = 0; v < vertexCount; ++v) {
+    std::vector<uint32_t> joints, targets;
+    if (deformation.hasSkin) {
+      const Skin& skin = deformation.skin;
+      const size_t k = static_cast<size_t>(skin.influencesPerVertex);
+      for (size_t i = 0; i < k; ++i) {
+        if (skin.vertexWeights[v * k + i] != 0) joints.push_back(skin.vertexJoints[v * k + i]);
+      }
+    }
+    if (deformation.hasMorph) {
+      const MorphTargets& morph = deformation.morph;
+      for (size_t t = 0; t < morph.TargetCount(); ++t) {
+        const bool moves = morph.positionDeltas[t][v] != Vec3{} ||
+                           (!morph.normalDeltas[t].empty() && morph.normalDeltas[t][v] != Vec3{});
+        if (moves) targets.push_back(static_cast<uint32_t>(t));
+      }
+    }
+    std::sort(joints.begin(), joints.end());
+    joints.erase(std::unique(joints.begin(), joints.end()), joints.end());
+    auto [entry, isNew] = groupOf.try_emplace({joints, targets}, static_cast<uint32_t>(parts.groups.size()));
+    if (isNew) parts.groups.push_back({std::move(joints), std::move(targets), {}});
+    parts.groupOfVertex.push_back(entry->second);
+  }
+  for (const auto& triangle : mesh.triangles) {
+    for (uint32_t corner : triangle) {
+      auto& reach = parts.groups[parts.groupOfVertex[corner]].reach;
+      reach.insert(reach.end(), triangle.begin(), triangle.end());
+    }
+  }
+  for (auto& group : parts.groups) {
+    std::sort(group.reach.begin(), group.reach.end());
+    group.reach.erase(std::unique(group.reach.begin(), group.reach.end()), group.reach.end());
+  }
+  return parts;
 }
 
 std::vector<DeformationProblem> CheckDeformation(const Deformation& deformation, size_t vertexCount) {

@@ -98,6 +98,22 @@ struct DeformedVertices {
 
 DeformedVertices Deform(const TriangleMesh& rest, const Deformation& deformation, double frame);
 
+// A deforming mesh's vertices grouped by what moves them: the joints they are weighted to
+// and the morph targets that move them. A group holds still while its joints' matrices
+// and its targets' weights do, so the parts of a character that do not move between two
+// frames are known to be still (its torso while an arm waves).
+struct DeformationParts {
+  struct Group {
+    std::vector<uint32_t> joints, targets;  // what moves the group's vertices
+    // Every vertex of every triangle that has a vertex in the group: what the group's
+    // bounds must hold, since a triangle is moved by any of its corners.
+    std::vector<uint32_t> reach;
+  };
+  std::vector<uint32_t> groupOfVertex;
+  std::vector<Group> groups;
+};
+DeformationParts SplitIntoParts(const TriangleMesh& mesh, const Deformation& deformation);
+
 // The skin matrices of every joint at a frame: jointWorld(frame) * inverseBind.
 std::vector<Affine> SkinMatrices(const Skin& skin, double frame);
 

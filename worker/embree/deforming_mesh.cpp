@@ -5,7 +5,8 @@
 namespace tcfarm {
 
 DeformingMesh::DeformingMesh(const EmbreeDevice& device, const Shape& shape, bool settleTies)
-    : device_(device), shape_(shape), settleTies_(settleTies) {
+    : device_(device), shape_(shape), settleTies_(settleTies),
+      parts_(SplitIntoParts(shape.Mesh(), *shape.deformation)) {
   // The first pose is made now, so that a mesh Embree cannot build fails the scene at once.
   poses_.push_back(NewRestPose());
 }
@@ -95,6 +96,35 @@ BoundingSphere DeformingMesh::BoundsAt(int frame) {
   std::lock_guard<std::mutex> lock(mutex_);
   bounds_.emplace(frame, bounds);
   return bounds;
+}
+
+std::shared_ptr<const std::vector<BoundingSphere>> DeformingMesh::PartBoundsAt(int frame) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto found = partBounds_.find(frame);
+    if (found != partBounds_.end()) return found->second;
+  }
+  const std::vector<Vec3> positions = Deform(shape_.Mesh(), *shape_.deformation, frame).positions;
+  auto bounds = std::make_shared<std::vector<BoundingSphere>>();
+  std::vector<Vec3> points;
+  for (const DeformationParts::Group& group : parts_.groups) {
+    points.clear();
+    for (uint32_t v : group.reach) points.push_back(positions[v]);
+    bounds->push_back(BoundsOf(points));
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  return partBounds_.emplace(frame, std::move(bounds)).first->second;
+}
+
+std::shared_ptr<const DeformingMesh::PoseKey> DeformingMesh::KeyOf(int frame) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto found = keys_.find(frame);
+    if (found != keys_.end()) return found->second;
+  }
+  auto key = std::make_shared<const PoseKey>(KeyAt(frame));
+  std::lock_guard<std::mutex> lock(mutex_);
+  return keys_.emplace(frame, std::move(key)).first->second;
 }
 
 uint64_t DeformingMesh::PosesComputed() const {

@@ -46,9 +46,13 @@ class DeformingMesh {
   // Thread-safe. The pose stays valid, and unchanged, while the caller holds it.
   std::shared_ptr<const Pose> AtFrame(int frame);
 
-  // Thread-safe. The bounds of the mesh's vertices at a frame, in its object space (the
-  // world's for a skin), for the horizons of `exact`; computed once per frame.
+  // For the horizons of `exact`, thread-safe, each computed once per frame: the bounds of
+  // the mesh's vertices at a frame, in its object space (the world's for a skin); the
+  // bounds of each part's reach (DeformationParts); what the frame's pose is made of.
   BoundingSphere BoundsAt(int frame);
+  std::shared_ptr<const std::vector<BoundingSphere>> PartBoundsAt(int frame);
+  std::shared_ptr<const PoseKey> KeyOf(int frame);
+  const DeformationParts& Parts() const { return parts_; }
 
   // Work counters: poses computed (vertices deformed and the tree refit), poses shared
   // because nothing changed, and vertices deformed in all.
@@ -67,7 +71,10 @@ class DeformingMesh {
 
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<Pose>> poses_;  // every pose made; a use count of 1 means free
+  DeformationParts parts_;
   std::map<int, BoundingSphere> bounds_;      // by frame
+  std::map<int, std::shared_ptr<const std::vector<BoundingSphere>>> partBounds_;
+  std::map<int, std::shared_ptr<const PoseKey>> keys_;
   uint64_t posesComputed_ = 0, posesShared_ = 0, verticesDeformed_ = 0;
 };
 

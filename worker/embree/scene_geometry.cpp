@@ -1,8 +1,6 @@
 #include "embree/scene_geometry.h"
 
 #include <algorithm>
-#include <stdexcept>
-#include <string>
 
 #include "embree/closest_hit.h"
 #include "embree/tie_candidates.h"
@@ -222,11 +220,11 @@ bool SceneGeometry::HasDeformingMeshes() const {
   return std::any_of(movers_.begin(), movers_.end(), [](const Mover& mover) { return mover.deforming != nullptr; });
 }
 
-BoundingSphere SceneGeometry::DeformedBounds(size_t shape, int frame) const {
+DeformingMesh* SceneGeometry::Deforming(size_t shape) const {
   for (const Mover& mover : movers_) {
-    if (static_cast<size_t>(mover.shape) == shape && mover.deforming) return mover.deforming->BoundsAt(frame);
+    if (static_cast<size_t>(mover.shape) == shape) return mover.deforming.get();
   }
-  throw std::logic_error("shape " + std::to_string(shape) + " is not a deforming mesh");
+  return nullptr;
 }
 
 SceneGeometry::DeformationWork SceneGeometry::DeformationCounts() const {

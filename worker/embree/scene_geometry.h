@@ -80,8 +80,8 @@ class SceneGeometry {
     uint64_t posesComputed = 0, posesShared = 0, verticesDeformed = 0;
   };
   DeformationWork DeformationCounts() const;
-  // Thread-safe. A deforming shape's bounds at a frame, in its object space.
-  BoundingSphere DeformedBounds(size_t shape, int frame) const;
+  // A deforming shape's posed meshes (null for any other shape): for the horizons.
+  DeformingMesh* Deforming(size_t shape) const;
 
  private:
   struct Mover {

@@ -25,8 +25,10 @@ struct HorizonTracker {
     if (horizon[forLane] == oracle->frame() + 1) return;  // cannot get any earlier
     horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
   }
-  void Surface(int forLane, bool moves) {
-    horizon[forLane] = std::min(horizon[forLane], moves ? oracle->frame() + 1 : oracle->LightCap());
+  // A surface seen: the pixel may change when the surface does (a deforming mesh's parts
+  // that hold still do not), or when a light does.
+  void Surface(int forLane, int shape, uint32_t primitive) {
+    horizon[forLane] = std::min({horizon[forLane], oracle->SurfaceChange(shape, primitive), oracle->LightCap()});
   }
   // A shadow ray found blocked at the traced frame: the light adds nothing, and keeps
   // adding nothing for as long as the ray stays blocked, whoever blocks it. Such a ray is

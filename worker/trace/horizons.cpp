@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <map>
 
 #include "shapes/shape_kind.h"
 
@@ -79,7 +80,7 @@ void BoxesMet(const SlabRay& ray, const std::vector<float> (&boxLo)[3], const st
 
 }  // namespace
 
-HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds,
+HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const DeformingMeshes& deforming,
                              int walkFrames)
     : frame_(frame), window_(window),
       walkEnd_(walkFrames < 0 ? frame + window + 1 : std::min(frame + window + 1, frame + walkFrames + 1)),
@@ -94,13 +95,14 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const De
     });
   });
   int last = std::min(frame + window, scene.render.LastFrame());
+  shapeChange_.assign(scene.shapes.size(), 0);
+  partChanges_.resize(scene.shapes.size());
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
     if (!shape.Moves()) continue;
+    shapeChange_[i] = 1;
     if (shape.Deforms()) {
-      // Bounds of the posed vertices at each frame: a deforming mesh is a mover whose
-      // proxies enclose every vertex it has at that frame.
-      AddMover(shape, last, [&](int f) { return deformedBounds(i, f); });
+      AddDeformingMesh(shape, i, last, *deforming(i));
     } else {
       const BoundingSphere rest = KindOf(shape).Bounds(shape);
       AddMover(shape, last, [&](int) { return rest; });
@@ -139,28 +141,138 @@ static BoundingSphere PlacedBounds(const Shape& shape, const BoundingSphere& obj
   return {worldFromObject.Apply(object.center), object.radius * worldFromObject.MaxStretch()};
 }
 
+namespace {
+
+// A proxy as the tests read it: the placed bounds padded beyond the tracer's rounding.
+struct Proxy {
+  float x, y, z, radius;
+  float grow;  // what boxes around it add on each side
+};
+
+Proxy Padded(const BoundingSphere& placed) {
+  const Vec3& c = placed.center;
+  double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)}) + placed.radius;
+  // Padded, and rounded up again for the float conversion.
+  double radius = (placed.radius + kRelativeProxyPad * magnitude) * (1 + 1e-6);
+  return {float(c.x), float(c.y), float(c.z), float(radius), float(radius) * (1 + 1e-5f) + 1e-6f * float(magnitude)};
+}
+
+// The bounding sphere of spheres: around their box's centre; a negative radius for none.
+BoundingSphere Union(const std::vector<BoundingSphere>& spheres) {
+  if (spheres.empty()) return {{}, -1};
+  Vec3 lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+  for (const BoundingSphere& s : spheres) {
+    for (int axis = 0; axis < 3; ++axis) {
+      lo[axis] = std::min(lo[axis], s.center[axis] - s.radius);
+      hi[axis] = std::max(hi[axis], s.center[axis] + s.radius);
+    }
+  }
+  const Vec3 center{(lo.x + hi.x) / 2, (lo.y + hi.y) / 2, (lo.z + hi.z) / 2};
+  double radius = 0;
+  for (const BoundingSphere& s : spheres) {
+    const double dx = s.center.x - center.x, dy = s.center.y - center.y, dz = s.center.z - center.z;
+    radius = std::max(radius, std::sqrt(dx * dx + dy * dy + dz * dz) + s.radius);
+  }
+  return {center, radius * (1 + 1e-12)};
+}
+
+}  // namespace
+
+void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastFrame, DeformingMesh& mesh) {
+  if (shape.motion.IsAnimated()) {
+    // Carried as a whole too: every part may move, at every frame.
+    AddMover(shape, lastFrame, [&](int f) { return mesh.BoundsAt(f); });
+    return;
+  }
+  shapeChange_[index] = 2;
+  const DeformationParts& parts = mesh.Parts();
+  // The first frame each joint's matrix and each target's weight differs from frame()'s.
+  const std::shared_ptr<const DeformingMesh::PoseKey> base = mesh.KeyOf(frame_);
+  std::vector<int> jointChange(base->skinMatrices.size(), Unbounded());
+  std::vector<int> targetChange(base->morphWeights.size(), Unbounded());
+  for (int f = frame_ + 1; f <= lastFrame; ++f) {
+    const std::shared_ptr<const DeformingMesh::PoseKey> key = mesh.KeyOf(f);
+    for (size_t j = 0; j < jointChange.size(); ++j) {
+      if (jointChange[j] == Unbounded() && !(key->skinMatrices[j] == base->skinMatrices[j])) jointChange[j] = f;
+    }
+    for (size_t t = 0; t < targetChange.size(); ++t) {
+      if (targetChange[t] == Unbounded() && key->morphWeights[t] != base->morphWeights[t]) targetChange[t] = f;
+    }
+  }
+  PartChanges& changes = partChanges_[index];
+  changes.parts = &parts;
+  changes.mesh = &shape.Mesh();
+  std::map<int, std::vector<size_t>> groupsChangingAt;
+  for (size_t g = 0; g < parts.groups.size(); ++g) {
+    int change = Unbounded();
+    for (uint32_t j : parts.groups[g].joints) change = std::min(change, jointChange[j]);
+    for (uint32_t t : parts.groups[g].targets) change = std::min(change, targetChange[t]);
+    changes.groupChange.push_back(change);
+    if (change < Unbounded()) groupsChangingAt[change].push_back(g);
+  }
+  // One mover per frame at which some parts start to change: from then on, the bounds of
+  // those parts; before, nothing (they are as at frame(), where the trace saw them). Parts
+  // that hold still over the window are no mover at all.
+  for (const auto& [start, groups] : groupsChangingAt) {
+    auto boundsAt = [&mesh, &groups = groups](int f) {
+      std::vector<BoundingSphere> spheres;
+      const std::shared_ptr<const std::vector<BoundingSphere>> all = mesh.PartBoundsAt(f);
+      for (size_t g : groups) spheres.push_back((*all)[g]);
+      return Union(spheres);
+    };
+    const BoundingSphere atFrame = boundsAt(frame_);
+    const int from = start;
+    AddMover(shape, lastFrame, [&](int f) { return f < from ? BoundingSphere{{}, -1} : boundsAt(f); }, &atFrame);
+  }
+}
+
+int HorizonOracle::SurfaceChange(int shape, uint32_t primitive) const {
+  switch (shapeChange_[static_cast<size_t>(shape)]) {
+    case 0:
+      return Unbounded();
+    case 1:
+      return frame_ + 1;
+    default: {
+      const PartChanges& changes = partChanges_[static_cast<size_t>(shape)];
+      int change = Unbounded();
+      for (uint32_t corner : changes.mesh->triangles[primitive]) {
+        change = std::min(change, changes.groupChange[changes.parts->groupOfVertex[corner]]);
+      }
+      return change;
+    }
+  }
+}
+
 void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
-                             const std::function<BoundingSphere(int frame)>& objectBounds) {
+                             const std::function<BoundingSphere(int frame)>& objectBounds,
+                             const BoundingSphere* atFrame) {
   Mover mover;
   mover.swept = EmptyBox();
+  {
+    const BoundingSphere object = atFrame ? *atFrame : objectBounds(frame_);
+    const Proxy at = Padded(PlacedBounds(shape, object, frame_));
+    mover.atFrame[0] = at.x, mover.atFrame[1] = at.y, mover.atFrame[2] = at.z;
+    mover.atFrame[3] = object.radius >= 0 ? at.radius : -1.0f;
+  }
   for (int f = frame_; f <= lastFrame; ++f) {
-    const BoundingSphere placed = PlacedBounds(shape, objectBounds(f), f);
-    const Vec3& c = placed.center;
-    double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)}) + placed.radius;
-    // Padded, and rounded up again for the float conversion.
-    double radius = (placed.radius + kRelativeProxyPad * magnitude) * (1 + 1e-6);
-    mover.x.push_back(float(c.x));
-    mover.y.push_back(float(c.y));
-    mover.z.push_back(float(c.z));
-    mover.radius.push_back(float(radius));
-    float grow = float(radius) * (1 + 1e-5f) + 1e-6f * float(magnitude);
+    const BoundingSphere object = objectBounds(f);
     size_t chunk = (f - frame_) / kFramesPerChunk;
     if (mover.chunks.size() <= chunk) mover.chunks.push_back(EmptyBox());
+    if (object.radius < 0) {  // nothing of it changed by f: meets nothing
+      mover.x.push_back(0), mover.y.push_back(0), mover.z.push_back(0), mover.radius.push_back(-1);
+      continue;
+    }
+    const Proxy proxy = Padded(PlacedBounds(shape, object, f));
+    mover.x.push_back(proxy.x);
+    mover.y.push_back(proxy.y);
+    mover.z.push_back(proxy.z);
+    mover.radius.push_back(proxy.radius);
+    const float grow = proxy.grow;
     for (Box* box : {&mover.swept, &mover.chunks.back(), &all_}) {
-      box->lo = {std::min(box->lo.x, float(c.x) - grow), std::min(box->lo.y, float(c.y) - grow),
-                 std::min(box->lo.z, float(c.z) - grow)};
-      box->hi = {std::max(box->hi.x, float(c.x) + grow), std::max(box->hi.y, float(c.y) + grow),
-                 std::max(box->hi.z, float(c.z) + grow)};
+      box->lo = {std::min(box->lo.x, proxy.x - grow), std::min(box->lo.y, proxy.y - grow),
+                 std::min(box->lo.z, proxy.z - grow)};
+      box->hi = {std::max(box->hi.x, proxy.x + grow), std::max(box->hi.y, proxy.y + grow),
+                 std::max(box->hi.z, proxy.z + grow)};
     }
   }
   mover.frames = mover.x.size();
@@ -267,59 +379,46 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
   before = std::min(before, Unbounded());
   if (movers_.empty() || before <= frame_ + 1) return before;
   const SlabRay ray(segment);
-  auto meets = [&](const Box& box) {
-    const float lo[3] = {box.lo.x, box.lo.y, box.lo.z}, hi[3] = {box.hi.x, box.hi.y, box.hi.z};
-    return Meets(ray, lo, hi);
-  };
-  if (!meets(all_)) return before;
-  // The movers whose whole path comes near the segment; usually one or two.
-  thread_local std::vector<const Mover*> near;
-  near.clear();
-  size_t frames = 0;  // frame offsets searched: 1 .. frames - 1
-  const size_t lanes = sweptLo_[0].size();
-  thread_local std::vector<uint8_t> nearLane;
-  nearLane.resize(lanes);
-  BoxesMet(ray, sweptLo_, sweptHi_, nearLane.data());
-  // Per near mover, which of its chunks the segment meets: one byte per padded chunk.
-  thread_local std::vector<uint8_t> chunksMet;
-  chunksMet.clear();
-  for (size_t i = 0; i < movers_.size(); ++i) {
-    if (!nearLane[i]) continue;
-    const Mover& mover = movers_[i];
-    near.push_back(&mover);
-    frames = std::max(frames, mover.frames);
-    const size_t at = chunksMet.size();
-    chunksMet.resize(at + mover.chunkLo[0].size());
-    BoxesMet(ray, mover.chunkLo, mover.chunkHi, chunksMet.data() + at);
+  {
+    const float lo[3] = {all_.lo.x, all_.lo.y, all_.lo.z}, hi[3] = {all_.hi.x, all_.hi.y, all_.hi.z};
+    if (!Meets(ray, lo, hi)) return before;
   }
-  frames = std::min(frames, static_cast<size_t>(before - frame_));
-  // Chunk by chunk in time, every near mover at once: the first chunk with a meeting
-  // holds the answer, and later chunks are never looked at.
-  for (size_t chunk = 0; chunk * kFramesPerChunk < frames; ++chunk) {
-    size_t earliest = std::min(frames, (chunk + 1) * kFramesPerChunk);  // as a frame offset
-    bool found = false;
-    size_t metAt = 0;  // where this mover's chunk bytes start in chunksMet
-    for (const Mover* mover : near) {
-      const bool chunkMet = chunk < mover->chunks.size() && chunksMet[metAt + chunk];
-      metAt += mover->chunkLo[0].size();
-      if (!chunkMet) continue;
+  // Bytes of box tests: on the stack for the usual few movers and chunks.
+  constexpr size_t kStackLanes = 256;
+  uint8_t stackNear[kStackLanes], stackChunks[kStackLanes];
+  thread_local std::vector<uint8_t> heapNear, heapChunks;
+  auto scratch = [](size_t lanes, uint8_t* stack, std::vector<uint8_t>& heap) {
+    if (lanes <= kStackLanes) return stack;
+    heap.resize(lanes);
+    return heap.data();
+  };
+  uint8_t* near = scratch(sweptLo_[0].size(), stackNear, heapNear);
+  BoxesMet(ray, sweptLo_, sweptHi_, near);
+  // Mover by mover, the first chunk its path meets the segment in, then the first frame in
+  // it: each mover is searched only before the earliest meeting found so far.
+  size_t earliest = static_cast<size_t>(before - frame_);  // as a frame offset; none found yet
+  for (size_t m = 0; m < movers_.size(); ++m) {
+    if (!near[m]) continue;
+    const Mover& mover = movers_[m];
+    uint8_t* chunkMet = scratch(mover.chunkLo[0].size(), stackChunks, heapChunks);
+    BoxesMet(ray, mover.chunkLo, mover.chunkHi, chunkMet);
+    for (size_t chunk = 0; chunk < mover.chunks.size() && chunk * kFramesPerChunk < earliest; ++chunk) {
+      if (!chunkMet[chunk]) continue;
       const size_t begin = chunk * kFramesPerChunk;
-      const size_t end = std::min(earliest, mover->frames);
-      const uint32_t met = ChunkSpheresMet(segment, *mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
+      const size_t end = std::min(earliest, mover.frames);
+      const uint32_t met = ChunkSpheresMet(segment, mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
       if (met != 0) {
         earliest = begin + static_cast<size_t>(__builtin_ctz(met));
-        found = true;
+        break;
       }
     }
-    if (found) return frame_ + static_cast<int>(earliest);
   }
-  return before;
+  return std::min(before, frame_ + static_cast<int>(earliest));
 }
 
 bool HorizonOracle::MayBeBlockedByMover(const RaySegment& segment) const {
   return std::any_of(movers_.begin(), movers_.end(), [&](const Mover& mover) {
-    const float sphere[4] = {mover.x[0], mover.y[0], mover.z[0], mover.radius[0]};  // its bounds at frame()
-    return SegmentMeetsSphere(segment, sphere);
+    return mover.atFrame[3] >= 0 && SegmentMeetsSphere(segment, mover.atFrame);
   });
 }
 

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "scene/scene.h"
+#include "embree/deforming_mesh.h"
 #include "shapes/shape_kind.h"
 #include "trace/float3.h"
 
@@ -46,12 +47,12 @@ class HorizonOracle {
  public:
   // window: frames after `frame` to look at; horizons are capped at frame + window + 1,
   // meaning "valid through the whole window".
-  // The object-space bounds of a deforming shape (by index) at a frame: the tracer's
-  // posed meshes know them. Rigid shapes' bounds are their rest pose's.
-  using DeformedBounds = std::function<BoundingSphere(size_t shape, int frame)>;
+  // A deforming shape's posed meshes, by shape index: they know its bounds and its parts
+  // at every frame. Rigid shapes' bounds are their rest pose's.
+  using DeformingMeshes = std::function<DeformingMesh*(size_t shape)>;
   // walkFrames: how far ahead a blocked shadow ray may be followed (see WalkEnd); the
   // whole window by default.
-  HorizonOracle(const Scene& scene, int frame, int window, const DeformedBounds& deformedBounds = {},
+  HorizonOracle(const Scene& scene, int frame, int window, const DeformingMeshes& deforming = {},
                 int walkFrames = -1);
 
   int frame() const { return frame_; }
@@ -73,6 +74,11 @@ class HorizonOracle {
   // beyond it cannot lower it, and most of the search is skipped.
   int FirstMeeting(const RaySegment& segment, int before) const;
   int FirstMeeting(const RaySegment& segment) const { return FirstMeeting(segment, Unbounded()); }
+  // For a surface seen at frame(): the first frame after it at which the surface may
+  // look different. A rigid shape that moves changes at frame() + 1; a deforming mesh
+  // that only deforms changes when its triangle's corners are posed differently (the
+  // parts of it that hold still stay still); a still shape never (Unbounded()).
+  int SurfaceChange(int shape, uint32_t primitive) const;
   // Whether a moving shape's bounds meet the segment at frame() itself: for a blocked
   // shadow ray, whether what blocks it may be a shape that moves. When none may, a still
   // shape blocks it, and keeps blocking it at every frame.
@@ -92,6 +98,7 @@ class HorizonOracle {
   // frames' spheres, so a miss costs a few box tests instead of one test per frame.
   static constexpr size_t kFramesPerChunk = 8;
   struct Mover {
+    float atFrame[4];             // its bounds at frame(), moving later or not: x, y, z, radius
     Box swept;                    // bounds of all its proxies over the window
     std::vector<Box> chunks;      // bounds of its proxies in frames [k * kFramesPerChunk, ...)
     // The chunks' boxes again, one array per coordinate, padded with empty boxes to a
@@ -110,7 +117,23 @@ class HorizonOracle {
   static Box EmptyBox();
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);
   static uint32_t LaneMask(size_t chunkBegin, size_t from, size_t to);
-  void AddMover(const Shape& shape, int lastFrame, const std::function<BoundingSphere(int frame)>& objectBounds);
+  // objectBounds(f): the shape's object-space bounds at frame f, a negative radius where
+  // it has nothing that changed by f; atFrame: its bounds at frame(), objectBounds's
+  // by default.
+  void AddMover(const Shape& shape, int lastFrame, const std::function<BoundingSphere(int frame)>& objectBounds,
+                const BoundingSphere* atFrame = nullptr);
+  // A deforming mesh: as one mover, or as one per set of its parts that start to change
+  // at one frame, leaving out the parts that hold still over the window.
+  void AddDeformingMesh(const Shape& shape, size_t index, int lastFrame, DeformingMesh& mesh);
+  // Per shape: 0 still, 1 moves rigidly (changes next frame), 2 deforms in parts.
+  std::vector<uint8_t> shapeChange_;
+  // Per shape deforming in parts: its vertices' group and each group's first change.
+  struct PartChanges {
+    const DeformationParts* parts = nullptr;
+    const TriangleMesh* mesh = nullptr;
+    std::vector<int> groupChange;
+  };
+  std::vector<PartChanges> partChanges_;  // by shape, empty for the others
   bool SphereSurelyBlocks(const MovingSphere& sphere, const RaySegment& segment, int frame) const;
 
   int frame_, window_;

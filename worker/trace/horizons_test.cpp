@@ -7,7 +7,10 @@
 #include <algorithm>
 #include <numeric>
 #include <random>
+#include <string>
 
+#include "embree/scene_geometry.h"
+#include "trace/horizons.h"
 #include "trace/scaled_scene.h"
 #include "trace/tracer.h"
 
@@ -289,6 +292,67 @@ TEST(HorizonsTest, PaperAnimationsKeepEveryPromise) {
     EXPECT_EQ(check.broken, 0u) << file;
     EXPECT_GT(check.unbounded, check.pixels / 2) << file;
   }
+}
+
+}  // namespace
+}  // namespace tcfarm
+
+namespace tcfarm {
+namespace {
+
+// A bar bound to two joints: triangles 0..7 (its first ring segment) weigh only on joint
+// 0, which never moves; triangles 24..31 only on joint 1, which turns from frame 3 on.
+Scene TwoJointBar() {
+  std::string vertices, joints, weights, triangles;
+  auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
+  for (int ring = 0; ring < 5; ++ring) {
+    const double second = ring < 2 ? 0 : (ring == 2 ? 0.5 : 1);
+    for (int corner = 0; corner < 4; ++corner) {
+      add(vertices, "[" + std::to_string(0.5 * ring) + ", " + (corner < 2 ? "0" : "0.4") + ", " +
+                        ((corner == 0 || corner == 3) ? "-0.2" : "0.2") + "]");
+      add(joints, "[0, 1, 0, 0]");
+      add(weights, "[" + std::to_string(1 - second) + ", " + std::to_string(second) + ", 0, 0]");
+    }
+  }
+  for (int ring = 0; ring < 4; ++ring) {
+    for (int corner = 0; corner < 4; ++corner) {
+      const int a = 4 * ring + corner, b = 4 * ring + (corner + 1) % 4;
+      add(triangles, "[" + std::to_string(a) + ", " + std::to_string(b) + ", " + std::to_string(b + 4) + "], [" +
+                         std::to_string(a) + ", " + std::to_string(b + 4) + ", " + std::to_string(a + 4) + "]");
+    }
+  }
+  Scene scene = ParseScene(R"({"camera": {"position": [1, 0.2, 6], "look_at": [1, 0.2, 0]},
+    "shapes": [{"type": "mesh", "vertices": [)" + vertices + R"(], "triangles": [)" + triangles + R"(],
+      "skin": {"joints": [[0, 0, 0], {"translation": [1, 0, 0], "rotation": {"keyframes": [
+                 {"frame": 0, "value": [0, 0, 0, 1]}, {"frame": 2, "value": [0, 0, 0, 1]},
+                 {"frame": 9, "value": [0, 0, 0.5, 0.8660254]}]}}],
+               "inverse_bind_matrices": [[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0], [1, 0, 0, -1, 0, 1, 0, 0, 0, 0, 1, 0]],
+               "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}}],
+    "render": {"width": 32, "height": 24, "frames": {"start": 0, "count": 10}}})");
+  PrepareForTracing(scene);
+  return scene;
+}
+
+// The parts of a skin that hold still are still: a surface on them is valid through the
+// window; one on the turning part changes when its joint starts to turn, not before.
+TEST(HorizonsTest, APartOfASkinThatHoldsStillIsStill) {
+  const Scene scene = TwoJointBar();
+  EmbreeDevice device;
+  SceneGeometry geometry(device, scene);
+  HorizonOracle oracle(scene, 0, 9, [&](size_t shape) { return geometry.Deforming(shape); });
+  EXPECT_EQ(oracle.SurfaceChange(0, 0), oracle.Unbounded());
+  EXPECT_EQ(oracle.SurfaceChange(0, 7), oracle.Unbounded());
+  EXPECT_EQ(oracle.SurfaceChange(0, 24), 3);
+  EXPECT_EQ(oracle.SurfaceChange(0, 31), 3);
+  // Traced at frame 3, when the joint turns every frame: the next frame.
+  HorizonOracle later(scene, 3, 6, [&](size_t shape) { return geometry.Deforming(shape); });
+  EXPECT_EQ(later.SurfaceChange(0, 24), 4);
+  EXPECT_EQ(later.SurfaceChange(0, 0), later.Unbounded());
+  // A ray down through the still end meets nothing that moves; one through the turning
+  // end does, once it turns (the scene is rebased: the camera at the origin).
+  const Float3 camera{1, 0.2f, 6};
+  EXPECT_EQ(oracle.FirstMeeting({Float3{0.1f, 3, 0} - camera, {0, -1, 0}, 10}), oracle.Unbounded());
+  EXPECT_EQ(oracle.FirstMeeting({Float3{1.9f, 3, 0} - camera, {0, -1, 0}, 10}), 3);
 }
 
 }  // namespace

@@ -64,7 +64,6 @@ struct Tracer::FrameContext {
   const std::vector<ShadingMaterial>* materials;
   const std::vector<std::unique_ptr<TextureImage>>* textures;        // by material
   const std::vector<std::shared_ptr<const ShapeUvs>>* uvs;           // by shape
-  const std::vector<uint8_t>* shapeMoves;  // per shape, precomputed: asked at every hit
   Float3 background;
   int maxDepth;
   int samplesPerPixel;
@@ -99,6 +98,7 @@ class Tracer::PixelTracer {
     bool fromInside;   // arrived against the geometric normal (leaving a solid)
     float offset;      // distance that clears the hit point's rounding error
     int shape;
+    uint32_t primitive;  // of a mesh: the triangle hit
     int material;
   };
 
@@ -166,6 +166,7 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
   hit.offset = kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t);
   int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
   hit.shape = shape;
+  hit.primitive = raw.primitiveId;
   hit.material = scene_.shapes[shape].material;
   const std::vector<Float3>& faces = frame_.geometry->Normals(shape).faces;
   // The face's normal (unit, computed in double from the scene), or Embree's for shapes
@@ -458,7 +459,7 @@ void Tracer::PixelTracer::ShadowHorizons(const RTCRay8& query, const int* valid,
 }
 
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
-  horizons_->Surface(lane, (*frame_.shapeMoves)[hit.shape] != 0);
+  horizons_->Surface(lane, hit.shape, hit.primitive);
 }
 
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads)
@@ -466,7 +467,6 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
   std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
   for (const Shape& shape : scene.shapes) {
     AddShapeUvs(shape, firstShapeOfMesh);
-    shapeMoves_.push_back(shape.Moves());
   }
   // Materials never change over frames: converted for shading once, not per task.
   materials_ = MakeMaterials(scene);
@@ -498,8 +498,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     // placing one is dear (deforming meshes): the frame and those ahead of it stay cached.
     const int walkFrames = geometry_.HasDeformingMeshes() ? static_cast<int>(geometry_.CachedFrames()) - 1 : -1;
     oracle = std::make_unique<HorizonOracle>(
-        scene_, frame, window, [this](size_t shape, int f) { return geometry_.DeformedBounds(shape, f); },
-        walkFrames);
+        scene_, frame, window, [this](size_t shape) { return geometry_.Deforming(shape); }, walkFrames);
     // A moving camera changes every pixel next frame: no ray tree can say otherwise.
     if (oracle->CameraCap() == frame + 1) {
       std::fill(horizons, horizons + pixelCount, frame + 1);
@@ -514,7 +513,6 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        &materials_,
                        &textures_,
                        &uvs_,
-                       &shapeMoves_,
                        ToFloat3(scene_.background),
                        scene_.render.maxDepth,
                        scene_.render.samplesPerPixel,

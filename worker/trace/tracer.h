@@ -80,7 +80,6 @@ class Tracer {
   std::vector<std::unique_ptr<TextureImage>> textures_;
   std::vector<std::shared_ptr<const ShapeUvs>> uvs_;
   void AddShapeUvs(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh);
-  std::vector<uint8_t> shapeMoves_;
   TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
   std::atomic<uint64_t> cpuNanoseconds_{0};
