@@ -496,7 +496,7 @@ def test_farm_exact_equals_brute_force_on_deforming_meshes(deforming_farm, files
     assert error["differing_pixels"] == 0 and error["frames"] == frames, (path.name, error)
     copied = 1 - job["traced_pixel_ratio"]
     print(f"{path.name}: exact copied {copied:.1%} of the pixels, 0 differ from brute force")
-    # The still set around the character is copied (64 %, 72 % and 29 % when written: the
-    # mirror sends its rays back past the camera, through the arm's swept bounds).
-    least = {"skinned_arm.gltf": 0.5, "morphing_blob.gltf": 0.5, "skinned_in_a_mirror.gltf": 0.2}
-    assert copied > least.get(path.name, 0), copied
+    # The still set around the character is copied: 74 %, 72 % and 81 % when written (the
+    # arm's upper half, which its shoulder holds still, counting as still).
+    if path.name in DEFORMING:
+        assert copied > 0.5, copied
