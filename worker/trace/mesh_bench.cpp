@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -79,8 +80,8 @@ const Scene& SharedScene() {
   return scene;
 }
 
-void TraceMovingMeshes(benchmark::State& state) {
-  const Scene& scene = SharedScene();
+// One full frame per iteration, the scene's frames in turn; `report` reads the tracer after.
+void TraceFramesInTurn(benchmark::State& state, const Scene& scene, const std::function<void(const Tracer&)>& report) {
   EmbreeDevice device;
   TracingThreads threads;
   Tracer tracer(device, scene, threads);
@@ -91,6 +92,12 @@ void TraceMovingMeshes(benchmark::State& state) {
     benchmark::DoNotOptimize(rgb.data());
     frame = (frame + 1) % scene.render.frameCount;
   }
+  report(tracer);
+}
+
+void TraceMovingMeshes(benchmark::State& state) {
+  const Scene& scene = SharedScene();
+  TraceFramesInTurn(state, scene, [](const Tracer&) {});
   size_t triangles = 0;
   for (const Shape& shape : scene.shapes) triangles += shape.Mesh().triangles.size();
   state.counters["triangles"] = static_cast<double>(triangles);
@@ -221,18 +228,9 @@ void PoseSkinnedMesh(benchmark::State& state) {
 
 // The whole frame: posing and tracing, 640x480.
 void TraceSkinnedMesh(benchmark::State& state) {
-  const Scene& scene = SkinnedScene();
-  EmbreeDevice device;
-  TracingThreads threads;
-  Tracer tracer(device, scene, threads);
-  std::vector<float> rgb(static_cast<size_t>(scene.render.width) * scene.render.height * 3);
-  int frame = 0;
-  for (auto _ : state) {
-    tracer.TraceFrame(frame, rgb.data());
-    benchmark::DoNotOptimize(rgb.data());
-    frame = (frame + 1) % kSkinnedFrames;
-  }
-  state.counters["poses"] = static_cast<double>(tracer.DeformationCounts().posesComputed);
+  TraceFramesInTurn(state, SkinnedScene(), [&](const Tracer& tracer) {
+    state.counters["poses"] = static_cast<double>(tracer.DeformationCounts().posesComputed);
+  });
 }
 
 BENCHMARK(PoseSkinnedMesh)->Name("SkinnedMeshPose")->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
