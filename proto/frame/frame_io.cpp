@@ -1,5 +1,9 @@
 #include "frame/frame_io.h"
 
+#include <unistd.h>
+
+#include <atomic>
+
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
@@ -24,8 +28,7 @@ void WritePixels(const std::filesystem::path& path, int width, int height, int c
   if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", exrCompression);
   if (format == OIIO::TypeDesc::UINT8) spec.attribute("png:compressionLevel", kPngCompressionLevel);
   // Write to a temporary name and rename, so a reader never sees half a frame.
-  std::filesystem::path partial = path;
-  partial += ".partial";
+  const std::filesystem::path partial = PartialPathFor(path);
   if (!out->open(partial.string(), spec) || !out->write_image(format, pixels) || !out->close()) {
     std::string error = out->geterror();
     std::filesystem::remove(partial);
@@ -35,6 +38,17 @@ void WritePixels(const std::filesystem::path& path, int width, int height, int c
   std::filesystem::rename(partial, path, ec);
   if (ec) throw FrameIoError("cannot move " + partial.string() + " into place: " + ec.message());
 }
+
+}  // namespace
+
+std::filesystem::path PartialPathFor(const std::filesystem::path& path) {
+  static std::atomic<uint64_t> calls{0};
+  std::filesystem::path partial = path;
+  partial += ".partial-" + std::to_string(::getpid()) + "-" + std::to_string(calls.fetch_add(1));
+  return partial;
+}
+
+namespace {
 
 void CheckShape(const std::filesystem::path& path, const Image& image) {
   if (image.width <= 0 || image.height <= 0 || image.rgb.size() != image.PixelCount() * 3) {

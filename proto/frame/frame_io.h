@@ -45,6 +45,11 @@ void WriteMaskPng(const std::filesystem::path& path, int width, int height,
 // a greyscale image's one channel fills all three).
 Image ReadImage(const std::filesystem::path& path);
 
+// A temporary name beside `path` for writing it and renaming it into place, unique to the
+// call: two writers of one file at once (a job rewriting a frame while it is recompressed,
+// two requests for one preview) never write into one temporary file.
+std::filesystem::path PartialPathFor(const std::filesystem::path& path);
+
 // "frame_0042" for frame 42: frames sort by name.
 std::string FrameFileStem(int frame);
 // "mask_0042" / "change_0042" for frame 42's traced mask and change mask (kind: "mask"
