@@ -31,8 +31,7 @@ std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, 
   if (!std::filesystem::is_regular_file(exr, missing)) return std::nullopt;
   std::string png = EncodePng(ReadImage(exr));
   const std::filesystem::path path = store.FramePath(job, frame, "png");
-  std::filesystem::path partial = path;
-  partial += ".partial";
+  const std::filesystem::path partial = PartialPathFor(path);
   // Kept when the disk takes it; served from memory all the same when it does not.
   std::error_code ignored;
   if (std::ofstream out{partial, std::ios::binary}; out.write(png.data(), std::streamsize(png.size())) && out.flush()) {

@@ -2,8 +2,10 @@
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -24,8 +26,7 @@ void WritePixels(const std::filesystem::path& path, int width, int height, int c
   if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", exrCompression);
   if (format == OIIO::TypeDesc::UINT8) spec.attribute("png:compressionLevel", kPngCompressionLevel);
   // Write to a temporary name and rename, so a reader never sees half a frame.
-  std::filesystem::path partial = path;
-  partial += ".partial";
+  const std::filesystem::path partial = PartialPathFor(path);
   if (!out->open(partial.string(), spec) || !out->write_image(format, pixels) || !out->close()) {
     std::string error = out->geterror();
     std::filesystem::remove(partial);
@@ -194,6 +195,13 @@ Image ReadImage(const std::filesystem::path& path) {
     for (float& v : image.rgb) v = SrgbToLinear(v);
   }
   return image;
+}
+
+std::filesystem::path PartialPathFor(const std::filesystem::path& path) {
+  static std::atomic<uint64_t> writes{0};
+  std::filesystem::path partial = path;
+  partial += "." + std::to_string(::getpid()) + "-" + std::to_string(++writes) + ".partial";
+  return partial;
 }
 
 std::string FrameFileStem(int frame) {
