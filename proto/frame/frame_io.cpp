@@ -1,13 +1,11 @@
 #include "frame/frame_io.h"
 
-#include <unistd.h>
-
-#include <atomic>
-
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -38,17 +36,6 @@ void WritePixels(const std::filesystem::path& path, int width, int height, int c
   std::filesystem::rename(partial, path, ec);
   if (ec) throw FrameIoError("cannot move " + partial.string() + " into place: " + ec.message());
 }
-
-}  // namespace
-
-std::filesystem::path PartialPathFor(const std::filesystem::path& path) {
-  static std::atomic<uint64_t> calls{0};
-  std::filesystem::path partial = path;
-  partial += ".partial-" + std::to_string(::getpid()) + "-" + std::to_string(calls.fetch_add(1));
-  return partial;
-}
-
-namespace {
 
 void CheckShape(const std::filesystem::path& path, const Image& image) {
   if (image.width <= 0 || image.height <= 0 || image.rgb.size() != image.PixelCount() * 3) {
@@ -208,6 +195,13 @@ Image ReadImage(const std::filesystem::path& path) {
     for (float& v : image.rgb) v = SrgbToLinear(v);
   }
   return image;
+}
+
+std::filesystem::path PartialPathFor(const std::filesystem::path& path) {
+  static std::atomic<uint64_t> writes{0};
+  std::filesystem::path partial = path;
+  partial += "." + std::to_string(::getpid()) + "-" + std::to_string(++writes) + ".partial";
+  return partial;
 }
 
 std::string FrameFileStem(int frame) {

@@ -45,9 +45,10 @@ void WriteMaskPng(const std::filesystem::path& path, int width, int height,
 // a greyscale image's one channel fills all three).
 Image ReadImage(const std::filesystem::path& path);
 
-// A temporary name beside `path` for writing it and renaming it into place, unique to the
-// call: two writers of one file at once (a job rewriting a frame while it is recompressed,
-// two requests for one preview) never write into one temporary file.
+// Where a file is written before it is renamed into place: "<path>.<pid>-<n>.partial",
+// a name of its own for every write, so that two writers of the same file at once (a frame
+// rendered again while the frame finisher compresses it, a preview made on request while
+// the finisher makes it) never write into each other's bytes; the last rename wins, whole.
 std::filesystem::path PartialPathFor(const std::filesystem::path& path);
 
 // "frame_0042" for frame 42: frames sort by name.
