@@ -72,6 +72,8 @@ function timeOf(iso) {
 }
 
 const FINAL_STATES = ["completed", "failed", "canceled"];
+// The coordinator's strategies (proto/openapi.yaml), offered by every <select data-strategies>.
+const STRATEGIES = ["auto", "exact", "guarded", "search", "brute"];
 
 // --- API token -------------------------------------------------------------------------
 
@@ -809,6 +811,9 @@ function init() {
   });
   $("token-button").addEventListener("click", () => showSignIn(true, "A token of the farm's --api-tokens file."));
   $("sign-out").addEventListener("click", signOut);
+  for (const select of document.querySelectorAll("select[data-strategies]")) {
+    select.append(...STRATEGIES.map((name) => el("option", { value: name, text: name })));
+  }
   initCharts();
   initActions();
   initFilters();

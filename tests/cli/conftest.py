@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from farm_harness import ROOT
+from installed_client import run_installed
 
 
 @pytest.fixture(scope="session")
@@ -24,3 +25,11 @@ def installed_tcfarm(tmp_path_factory):
     if result.returncode != 0:
         pytest.fail(f"pip install services/client failed:\n{result.stderr[-3000:]}")
     return venv / "bin" / "tcfarm"
+
+
+@pytest.fixture
+def tcfarm(installed_tcfarm):
+    """tcfarm(farm, ARGS..., env=, cwd=, stdin=): the installed command against that farm."""
+    def run(farm, *args, **options):
+        return run_installed(installed_tcfarm, "--url", farm.url, *args, **options)
+    return run

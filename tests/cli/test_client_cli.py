@@ -5,8 +5,8 @@ import re
 
 import pytest
 
-from installed_client import run_installed
 from farm_harness import BUILD, ROOT, LocalFarm, small_scene
+from installed_client import run_installed
 
 
 @pytest.fixture(scope="module")
@@ -14,14 +14,6 @@ def farm(tmp_path_factory):
     with LocalFarm(tmp_path_factory.mktemp("cli-farm"), workers=1) as farm:
         farm.wait_for_workers(1)
         yield farm
-
-
-@pytest.fixture
-def tcfarm(installed_tcfarm):
-    """tcfarm(farm, ARGS...): the installed command against that farm."""
-    def run(farm, *args, **options):
-        return run_installed(installed_tcfarm, "--url", farm.url, *args, **options)
-    return run
 
 
 @pytest.fixture(scope="module")
@@ -33,8 +25,8 @@ def scene_file(scenes_dir, tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def finished_job(farm, scene_file, installed_tcfarm):
-    result = run_installed(installed_tcfarm, "--url", farm.url, "--json", "submit", scene_file, "--strategy", "search", "--bin-width", "3",
-                    "--wait")
+    result = run_installed(installed_tcfarm, "--url", farm.url, "--json", "submit", scene_file,
+                           "--strategy", "search", "--bin-width", "3", "--wait")
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout)
 

@@ -4,6 +4,7 @@ a real local farm. Screenshots at 1280 and 420 px wide are kept in tests/artifac
 import base64
 import hashlib
 import json
+import re
 import pathlib
 import sys
 
@@ -109,6 +110,21 @@ def test_a_mask_not_written_yet_is_tried_again_instead_of_shown_broken(tmp_path,
 
 # --- submitting ----------------------------------------------------------------------------------
 
+def submit_through_the_form(page, fields):
+    """Fills the form's fields ({selector: value}; a <select> is chosen, the rest typed),
+    clicks submit, waits for the farm's answer and returns the new job's id."""
+    for selector, value in fields.items():
+        if page.evaluate(f"document.querySelector({js(selector)}).tagName") == "SELECT":
+            page.choose(selector, value)
+        else:
+            page.type(selector, value)
+    before = page.evaluate("document.getElementById('submit-status').dataset.job || ''")
+    page.click("#submit-button")
+    page.wait_for(f"document.getElementById('submit-status').dataset.kind === 'ok' && "
+                  f"document.getElementById('submit-status').dataset.job !== {js(before)}")
+    return int(page.evaluate("document.getElementById('submit-status').dataset.job"))
+
+
 def test_a_json_scene_submitted_through_the_form_runs_with_the_chosen_options(tmp_path, scenes_dir):
     scene_path = tmp_path / "tiny sphere.json"
     scene_path.write_text(json.dumps(tiny_scene(scenes_dir, frames=6)))
@@ -118,16 +134,10 @@ def test_a_json_scene_submitted_through_the_form_runs_with_the_chosen_options(tm
             page.goto(farm.url + "/")
             page.click("#submit-panel summary")
             page.set_files("#submit-scene", [scene_path])
-            page.type("#submit-name", "from the form")
-            page.choose("#submit-strategy", "search")
-            page.type("#submit-bin-width", "2")
-            page.type("#submit-frame-start", "1")
-            page.type("#submit-frame-end", "4")
-            page.type("#submit-priority", "-20")
-            page.choose("#submit-verify", "all")
-            page.click("#submit-button")
-            page.wait_for("document.getElementById('submit-status').dataset.kind === 'ok'")
-            job_id = int(page.evaluate("document.getElementById('submit-status').dataset.job"))
+            job_id = submit_through_the_form(page, {
+                "#submit-name": "from the form", "#submit-strategy": "search", "#submit-bin-width": "2",
+                "#submit-frame-start": "1", "#submit-frame-end": "4", "#submit-priority": "-20",
+                "#submit-verify": "all"})
             assert page.text("#submit-status") == f"submitted job {job_id}"
             # The page selects the new job and shows it.
             page.wait_for(f"document.getElementById('job-title').textContent === 'Job {job_id}: from the form'")
@@ -160,15 +170,10 @@ def test_a_gltf_with_its_buffer_and_image_is_uploaded_and_rendered(tmp_path):
             page.set_files("#submit-files", [shot / "turntable.bin", shot / "floor.png"])
             page.wait_for("document.getElementById('submit-status').textContent.startsWith('references 2 files')")
             assert page.evaluate("document.getElementById('submit-import').hidden") is False
-            page.type("#submit-size", "48x36")
-            page.type("#submit-fps", "12")
-            page.type("#submit-frame-start", "0")
-            page.type("#submit-frame-end", "2")
-            page.choose("#submit-strategy", "exact")
-            page.click("#submit-button")
-            page.wait_for("document.getElementById('submit-status').dataset.kind === 'ok'")
+            job_id = submit_through_the_form(page, {
+                "#submit-size": "48x36", "#submit-fps": "12", "#submit-frame-start": "0",
+                "#submit-frame-end": "2", "#submit-strategy": "exact"})
             assert "3 files, 3 uploaded" in page.text("#submit-status")
-            job_id = int(page.evaluate("document.getElementById('submit-status').dataset.job"))
             job = farm.client.wait(job_id, timeout=120)
             assert job["state"] == "completed", job
             assert (job["width"], job["height"], job["frames"]["count"]) == (48, 36, 3)
@@ -176,9 +181,7 @@ def test_a_gltf_with_its_buffer_and_image_is_uploaded_and_rendered(tmp_path):
                 digest = hashlib.sha256((shot / name).read_bytes()).hexdigest()
                 assert (farm.store / "assets" / digest).exists(), name
             # The same files again: the farm has them all, nothing is uploaded twice.
-            page.click("#submit-button")
-            page.wait_for(f"document.getElementById('submit-status').dataset.job !== '{job_id}' && "
-                          "document.getElementById('submit-status').dataset.kind === 'ok'")
+            submit_through_the_form(page, {})
             assert "3 files, 0 uploaded, the rest already on the farm" in page.text("#submit-status")
             no_page_errors(page)
 
@@ -287,3 +290,12 @@ def test_with_tokens_the_page_signs_in_remembers_and_acts_with_the_tokens_role(t
             assert farm.client.job(job["id"])["state"] == "canceled"
             assert ADMIN_TOKEN not in page.evaluate("document.documentElement.outerHTML")
             no_page_errors(page)
+
+
+def test_the_pages_strategies_are_the_apis():
+    yaml = pytest.importorskip("yaml")
+    spec = yaml.safe_load((ROOT / "proto" / "openapi.yaml").read_text())
+    enum = spec["components"]["schemas"]["JobSubmission"]["properties"]["strategy"]["enum"]
+    source = (DASHBOARD / "app.js").read_text()
+    listed = json.loads(re.search(r"const STRATEGIES = (\[[^\]]*\]);", source).group(1))
+    assert sorted(listed) == sorted(enum)
