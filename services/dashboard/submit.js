@@ -101,8 +101,7 @@ async function sceneFiles(sceneFile, chosen) {
     const relative = canonical(name, from, what);
     const file = chosenFile(relative, chosen);
     if (!file) {
-      throw new SceneFileError(`${from} references ${what} "${relative}": choose it among "the files it ` +
-                               `references" (or choose the scene's whole folder)`);
+      throw new SceneFileError(`${from} references ${what} "${relative}": choose it among "the files it references"`);
     }
     assets.set(relative, file);
     return relative;

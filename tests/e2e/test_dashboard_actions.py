@@ -5,7 +5,6 @@ import base64
 import hashlib
 import json
 import re
-import pathlib
 import sys
 
 import pytest

@@ -458,11 +458,10 @@ def _print_job(job, args, verb=None):
 
 
 def _event_line(event):
-    extra = {key: value for key, value in event.items()
-             if key not in ("seq", "job", "time", "type", "message")}
-    details = (" " + " ".join(f"{key}={value}" for key, value in extra.items())) if extra else ""
-    return (f"{_when(event.get('time'))}  job {event.get('job')}  {event.get('type', ''):<16} "
-            f"{event.get('message', '')}{details}").rstrip()
+    """time, job, type and the farm's message (or, without one, the event's own fields)."""
+    said = event.get("message") or " ".join(
+        f"{key}={value}" for key, value in event.items() if key not in ("seq", "job", "time", "type"))
+    return f"{_when(event.get('time'))}  job {event.get('job')}  {event.get('type', ''):<16} {said}".rstrip()
 
 
 def _print_event(event, args):
