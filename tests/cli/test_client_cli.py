@@ -102,6 +102,7 @@ def test_status_shows_the_spot_checks(farm, finished_job, tcfarm):
             f"{spot['mismatches']:,} wrong; estimated {spot['estimated_error_percent']:.4f} % of all "
             f"pixels wrong (95 % CI {low:.4f}-{high:.4f} %)") in status.stdout, status.stdout
     assert "brute force" not in status.stdout  # not asked for
+    assert "\n  frames: 6 written\n    ######   (# written, + tracing, . queued, x failed)" in status.stdout
 
 
 def test_status_of_a_job_not_measured_yet_says_so(tmp_path, scene_file, installed_tcfarm):
@@ -110,7 +111,10 @@ def test_status_of_a_job_not_measured_yet_says_so(tmp_path, scene_file, installe
                                  bin_width=3, verify={"frames": "all"})
         status = run_installed(installed_tcfarm, "--url", idle.url, "status", job["id"])
     assert status.returncode == 0, status.stderr
-    assert f"job {job['id']} queued, frames 0/6" in status.stdout
+    assert re.search(rf"job {job['id']} (queued|running), frames 0/6", status.stdout), status.stdout
+    # Nothing written: each frame queued, or tracing (handed out, with no worker to take it).
+    assert re.search(r"\n  frames: (\d (queued|tracing)(, )?)+\n    [.+]{6}   \(# written", status.stdout), \
+        status.stdout
     assert "spot checks: not measured yet" in status.stdout
     assert "PSNR" not in status.stdout and "SSIM" not in status.stdout
     assert "traced-pixel ratio" not in status.stdout  # no frame, no ratio

@@ -483,7 +483,7 @@ def cmd_events(client, args):
         sys.stderr.write(f"job {args.job} is {job['state']}: nothing more to follow\n")
         return 0
     last = max((event["seq"] for event in past), default=None)
-    for event in client.stream_events(after=last, read_timeout=args.read_timeout):
+    for event in client.stream_events(after=last, read_timeout=args.read_timeout, job=args.job):
         if event.get("job") != args.job:
             continue
         _print_event(event, args)
@@ -497,7 +497,7 @@ def _follow(client, job_id, on_job, read_timeout):
     reaches a final state; returns its last record. Follows the farm's event stream, and
     polls instead where the farm refuses it."""
     try:
-        events = client.stream_events(read_timeout=read_timeout)
+        events = client.stream_events(read_timeout=read_timeout, job=job_id)
     except ApiError as e:
         if e.status == 0:
             raise  # unreachable: polling would not do better

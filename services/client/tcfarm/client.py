@@ -156,16 +156,16 @@ class Client:
         query = "" if after is None else f"?after={int(after)}"
         return self._request("GET", f"/api/v1/jobs/{int(job_id)}/events{query}")["events"]
 
-    def stream_events(self, after=None, read_timeout=None):
+    def stream_events(self, after=None, read_timeout=None, job=None):
         """The farm's live events, every job's, from GET /api/v1/events (Server-Sent
         Events), as dicts with "seq", "job", "time", "type" and "message". The stream is
         opened at once, so a farm that refuses it raises ApiError here (404 or 405 from a
         farm without it); iterating then yields each event as it comes, for as long as the
-        caller goes on. after: the sequence number to start after (None: from now). A
-        connection that drops, or stays silent for read_timeout seconds, is opened again
-        with Last-Event-ID, so no event is missed or repeated."""
+        caller goes on. after: the sequence number to start after (None: from now); job:
+        only that job's events. A connection that drops, or stays silent for read_timeout
+        seconds, is opened again with Last-Event-ID, so no event is missed or repeated."""
         read_timeout = read_timeout or self.timeout
-        response = self._open_stream(after, read_timeout)
+        response = self._open_stream(after, read_timeout, job)
 
         def events():
             nonlocal response
@@ -181,15 +181,16 @@ class Client:
                 finally:
                     response.close()
                 time.sleep(_STREAM_REOPEN_SECONDS)
-                response = self._open_stream(last, read_timeout)
+                response = self._open_stream(last, read_timeout, job)
 
         return events()
 
-    def _open_stream(self, after, read_timeout):
+    def _open_stream(self, after, read_timeout, job):
         headers = {"Accept": "text/event-stream"}
         if after is not None:
             headers["Last-Event-ID"] = str(after)
-        return self._open("GET", "/api/v1/events", headers=headers, timeout=read_timeout)
+        query = "" if job is None else f"?job={int(job)}"
+        return self._open("GET", "/api/v1/events" + query, headers=headers, timeout=read_timeout)
 
     def workers(self):
         return self._request("GET", "/api/v1/workers")
