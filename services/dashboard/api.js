@@ -140,6 +140,9 @@ class EventStreamParser {
   }
 }
 
+// Cuts the back-off short: the next try is now (a token was just given, say).
+let retryEventsNow = () => {};
+
 // Follows the stream for as long as the page lives. handlers: onEvent(event),
 // onState("live" | "connecting" | "absent" | "error", detail).
 async function followEvents(handlers) {
@@ -174,6 +177,13 @@ async function followEvents(handlers) {
         handlers.onState("error", error.plain || String(error.message || error));
       }
     }
-    await new Promise((resolve) => setTimeout(resolve, wait));
+    await new Promise((resolve) => {
+      const timer = setTimeout(resolve, wait);
+      retryEventsNow = () => {
+        clearTimeout(timer);
+        resolve();
+      };
+    });
+    retryEventsNow = () => {};
   }
 }

@@ -88,6 +88,7 @@ function signIn(token, remember) {
   storeToken(token, remember);
   showSignIn(false);
   refreshSoon();
+  retryEventsNow();
 }
 
 function signOut() {
@@ -750,12 +751,16 @@ function onFarmEvent(event) {
 function onStreamState(stream, detail) {
   const was = state.stream;
   state.stream = stream;
-  if (stream === "live" && was !== "live" && state.jobId !== null) {
-    loadEvents(state.jobId).catch(() => {});  // what happened while it was down
-  }
   const node = $("connection");
-  if (node.dataset.state !== "error") setConnection(true);
+  node.dataset.stream = stream;
   node.dataset.streamDetail = detail || "";
+  if (stream === "live" && was !== "live") {
+    // Back: fetch what changed while the stream was down (the events too), and say so.
+    if (state.jobId !== null) loadEvents(state.jobId).catch(() => {});
+    refreshSoon();
+  } else if (node.dataset.state !== "error") {
+    setConnection(true);
+  }
 }
 
 function selectJob(id) {

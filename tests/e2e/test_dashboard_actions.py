@@ -263,6 +263,8 @@ def test_with_tokens_the_page_signs_in_remembers_and_acts_with_the_tokens_role(t
             page.click("#sign-in button[type=submit]")
             page.wait_for(f"document.querySelector('tr[data-job-id=\"{job['id']}\"]') !== null")
             assert page.evaluate("localStorage.getItem('tcfarm-api-token')") == READ_TOKEN
+            # The event stream, refused before, is opened with the token at once.
+            page.wait_for("document.getElementById('connection').dataset.stream === 'live'", timeout=3)
             # A read token may look, not act: the farm's refusal, in its words.
             page.wait_for("!document.getElementById('action-cancel').disabled")
             page.click("#action-cancel")

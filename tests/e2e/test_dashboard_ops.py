@@ -2,6 +2,8 @@
 with its confirmation, retry, priority, filtering and paging among 1,000 jobs, the per-frame
 strip, the job's events, and live events from the farm's stream, without a reload."""
 import json
+import socket
+import threading
 
 import pytest
 
@@ -172,3 +174,85 @@ def test_frames_events_and_live_updates_without_a_reload(tmp_path, scenes_dir):
                           "document.getElementById('mask-image').dataset.loaded === '1'")
             page.screenshot(ARTIFACTS / "dashboard-events.png")
             assert page.exceptions == []
+
+
+class DroppingProxy:
+    """A TCP proxy in front of the farm whose connections can all be cut at once, as a
+    network that fails for a moment cuts them."""
+
+    def __init__(self, upstream_port):
+        self.upstream = ("127.0.0.1", upstream_port)
+        self.listener = socket.create_server(("127.0.0.1", 0))
+        self.port = self.listener.getsockname()[1]
+        self.open = []
+        self.lock = threading.Lock()
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self):
+        while True:
+            try:
+                client, _ = self.listener.accept()
+            except OSError:
+                return
+            server = socket.create_connection(self.upstream)
+            with self.lock:
+                self.open += [client, server]
+            for source, sink in ((client, server), (server, client)):
+                threading.Thread(target=self._pump, args=(source, sink), daemon=True).start()
+
+    @staticmethod
+    def _pump(source, sink):
+        try:
+            while True:
+                data = source.recv(65536)
+                if not data:
+                    break
+                sink.sendall(data)
+        except OSError:
+            pass
+        finally:
+            for end in (source, sink):
+                try:
+                    end.shutdown(socket.SHUT_RDWR)
+                except OSError:
+                    pass
+
+    def drop(self):
+        with self.lock:
+            cut, self.open = self.open, []
+        for end in cut:
+            try:
+                end.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def close(self):
+        self.listener.close()
+        self.drop()
+
+
+def test_the_event_stream_comes_back_after_the_connection_drops(tmp_path, scenes_dir):
+    with LocalFarm(tmp_path, workers=0) as farm:
+        job = farm.client.submit(tiny(scenes_dir), name="first")
+        proxy = DroppingProxy(int(farm.url.rsplit(":", 1)[1]))
+        try:
+            with Browser(tmp_path / "profile") as page:
+                page.goto(f"http://127.0.0.1:{proxy.port}/#job={job['id']}")
+                page.wait_for("document.getElementById('connection').dataset.stream === 'live'")
+                page.wait_for("document.querySelector('#events li[data-type=\"submitted\"]') !== null")
+                page.evaluate("window.notReloaded = true")
+                proxy.drop()
+                farm.client.update(job["id"], name="second")  # while the page is cut off
+                page.wait_for("document.getElementById('connection').dataset.stream !== 'live'", timeout=5)
+                page.wait_for("document.getElementById('connection').dataset.stream === 'live'", timeout=20)
+                page.wait_for("document.querySelector('#events li[data-type=\"renamed\"]') !== null", timeout=10)
+                farm.client.update(job["id"], name="third")  # and after: live again, from the stream
+                page.wait_for("document.querySelectorAll('#events li[data-type=\"renamed\"]').length === 2", timeout=10)
+                assert page.evaluate("document.querySelector('#events li[data-type=\"renamed\"]').dataset.via") == "stream"
+                page.wait_for("document.getElementById('job-title').textContent.endsWith('third')", timeout=10)
+                page.pump(1)
+                assert page.evaluate("document.querySelectorAll('#events li[data-type=\"renamed\"]').length") == 2
+                assert page.evaluate("window.notReloaded") is True
+                assert page.exceptions == []
+        finally:
+            proxy.close()
