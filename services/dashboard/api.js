@@ -95,6 +95,9 @@ async function sendJson(method, path, body) {
 
 const STREAM_RETRY_MS = [500, 1000, 2000, 5000, 10000];
 const STREAM_ABSENT_RETRY_MS = 30000;
+// The farm says something (": keepalive") at least every 15 s; a stream silent for longer
+// than this is a connection that died without a word, and is opened again.
+const STREAM_SILENCE_MS = 40000;
 
 // Parses "field: value" lines; a blank line ends an event (WHATWG's text/event-stream).
 class EventStreamParser {
@@ -150,10 +153,17 @@ async function followEvents(handlers) {
   let failures = 0;
   for (;;) {
     let wait = STREAM_RETRY_MS[Math.min(failures, STREAM_RETRY_MS.length - 1)];
+    const abort = new AbortController();
+    let silence = null;
+    const listen = () => {
+      clearTimeout(silence);
+      silence = setTimeout(() => abort.abort(), STREAM_SILENCE_MS);
+    };
     try {
       const headers = { Accept: "text/event-stream" };
       if (lastSeq !== null) headers["Last-Event-ID"] = String(lastSeq);
-      const response = await apiFetch(`${API}/events`, { headers });
+      listen();
+      const response = await apiFetch(`${API}/events`, { headers, signal: abort.signal });
       handlers.onState("live");
       failures = 0;
       const parser = new EventStreamParser((event) => {
@@ -163,6 +173,7 @@ async function followEvents(handlers) {
       const reader = response.body.getReader();
       const decoder = new TextDecoder();
       for (;;) {
+        listen();
         const { value, done } = await reader.read();
         if (done) break;
         parser.push(decoder.decode(value, { stream: true }));
@@ -176,6 +187,8 @@ async function followEvents(handlers) {
       } else {
         handlers.onState("error", error.plain || String(error.message || error));
       }
+    } finally {
+      clearTimeout(silence);
     }
     await new Promise((resolve) => {
       const timer = setTimeout(resolve, wait);

@@ -711,36 +711,59 @@ async function refreshJob() {
 }
 
 async function refresh() {
-  const [page, farm] = await Promise.all([getJson(`${API}/jobs?${listQuery()}`), getJson(`${API}/workers`)]);
-  if (state.jobId === null && state.autoSelect && page.jobs.length && state.offset === 0 &&
-      !Object.values(state.filters).some(Boolean)) {
-    selectJob(page.jobs[0].id);
+  const query = listQuery();
+  const [page, farm] = await Promise.all([getJson(`${API}/jobs?${query}`), getJson(`${API}/workers`)]);
+  // Filters or the page changed meanwhile: this answer is of a list no longer asked for,
+  // and the refresh they asked for comes next.
+  if (query === listQuery()) {
+    if (state.jobId === null && state.autoSelect && page.jobs.length && state.offset === 0 &&
+        !Object.values(state.filters).some(Boolean)) {
+      selectJob(page.jobs[0].id);
+    }
+    renderJobs(page);
   }
-  renderJobs(page);
   renderWorkers(farm);
   await refreshJob();
 }
 
 let refreshTimer = null;
-let refreshing = null;
+let refreshAt = Infinity;   // when refreshTimer fires
+let refreshing = false;
+let refreshWanted = false;  // asked for while one ran: another follows it at once
 
-// One refresh now (or right after the one under way), then again after the poll interval.
+// A refresh after `delay` ms, unless one is due sooner; the page then polls on its own.
 function refreshSoon(delay = 0) {
+  const at = Date.now() + delay;
+  if (refreshTimer !== null && at >= refreshAt) return;
   clearTimeout(refreshTimer);
-  refreshTimer = setTimeout(async () => {
-    if (refreshing) await refreshing.catch(() => {});
-    refreshing = refresh();
-    try {
-      await refreshing;
-      setConnection(true);
-    } catch (error) {
-      setConnection(false, error.plain || String(error.message || error));
-    } finally {
-      refreshing = null;
-      clearTimeout(refreshTimer);
-      refreshTimer = setTimeout(() => refreshSoon(), state.stream === "live" ? LIVE_POLL_MS : POLL_MS);
-    }
+  refreshAt = at;
+  refreshTimer = setTimeout(() => {
+    refreshTimer = null;
+    refreshAt = Infinity;
+    runRefresh();
   }, delay);
+}
+
+async function runRefresh() {
+  if (refreshing) {
+    refreshWanted = true;
+    return;
+  }
+  refreshing = true;
+  try {
+    await refresh();
+    setConnection(true);
+  } catch (error) {
+    setConnection(false, error.plain || String(error.message || error));
+  } finally {
+    refreshing = false;
+    if (refreshWanted) {
+      refreshWanted = false;
+      refreshSoon(0);
+    } else {
+      refreshSoon(state.stream === "live" ? LIVE_POLL_MS : POLL_MS);
+    }
+  }
 }
 
 function onFarmEvent(event) {
@@ -784,8 +807,12 @@ function selectJob(id) {
 
 function initFilters() {
   let typing = null;
+  // Reads every filter at once; only a change of them goes back to the first page.
   const apply = () => {
-    state.filters = { state: $("filter-state").value, strategy: $("filter-strategy").value, name: $("filter-name").value.trim() };
+    clearTimeout(typing);
+    const filters = { state: $("filter-state").value, strategy: $("filter-strategy").value, name: $("filter-name").value.trim() };
+    if (JSON.stringify(filters) === JSON.stringify(state.filters)) return;
+    state.filters = filters;
     state.offset = 0;
     refreshSoon();
   };
