@@ -1,12 +1,12 @@
-"""The tcfarm CLI against a live local farm: real processes, real HTTP."""
+"""The tcfarm CLI against a live local farm: real processes, real HTTP, and the command as
+`pip install` leaves it (tests/cli/conftest.py)."""
 import json
-import os
-import subprocess
-import sys
+import re
 
 import pytest
 
-from farm_harness import ROOT, LocalFarm, small_scene
+from farm_harness import BUILD, ROOT, LocalFarm, small_scene
+from installed_client import run_installed
 
 
 @pytest.fixture(scope="module")
@@ -14,12 +14,6 @@ def farm(tmp_path_factory):
     with LocalFarm(tmp_path_factory.mktemp("cli-farm"), workers=1) as farm:
         farm.wait_for_workers(1)
         yield farm
-
-
-def tcfarm(farm, *args):
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "services" / "client"))
-    return subprocess.run([sys.executable, "-m", "tcfarm.cli", "--url", farm.url, *map(str, args)],
-                          capture_output=True, text=True, env=env, timeout=300)
 
 
 @pytest.fixture(scope="module")
@@ -30,14 +24,14 @@ def scene_file(scenes_dir, tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def finished_job(farm, scene_file):
-    result = tcfarm(farm, "--json", "submit", scene_file, "--strategy", "search", "--bin-width", "3",
-                    "--wait")
+def finished_job(farm, scene_file, installed_tcfarm):
+    result = run_installed(installed_tcfarm, "--url", farm.url, "--json", "submit", scene_file,
+                           "--strategy", "search", "--bin-width", "3", "--wait")
     assert result.returncode == 0, result.stderr
     return json.loads(result.stdout)
 
 
-def test_submit_and_wait_shows_progress_and_the_result(farm, scene_file):
+def test_submit_and_wait_shows_progress_and_the_result(farm, scene_file, tcfarm):
     result = tcfarm(farm, "submit", scene_file, "--strategy", "exact", "--wait")
     assert result.returncode == 0, result.stderr
     assert "completed" in result.stdout and "traced-pixel ratio" in result.stdout
@@ -45,16 +39,99 @@ def test_submit_and_wait_shows_progress_and_the_result(farm, scene_file):
     assert "ETA" in result.stderr and "frames" in result.stderr
 
 
-def test_status_watch_and_workers(farm, finished_job):
+def test_status_watch_and_workers(farm, finished_job, tcfarm):
     status = tcfarm(farm, "status", finished_job["id"])
     assert status.returncode == 0 and f"job {finished_job['id']} completed" in status.stdout
     watch = tcfarm(farm, "watch", finished_job["id"])
     assert watch.returncode == 0 and "6/6 frames" in watch.stderr
-    workers = tcfarm(farm, "workers")
-    assert workers.returncode == 0 and json.loads(workers.stdout)["workers"]
 
 
-def test_frames_are_downloaded(farm, finished_job, tmp_path):
+def test_workers_is_a_table_and_json_on_request(farm, finished_job, tcfarm):
+    table = tcfarm(farm, "workers")
+    assert table.returncode == 0, table.stderr
+    lines = table.stdout.splitlines()
+    assert lines[0].split()[:3] == ["name", "threads", "capacity"], table.stdout
+    assert "throughput" in lines[0] and "last heard" in lines[0]
+    row = next(line for line in lines if line.startswith("test-0"))
+    assert re.search(r"\bs ago$", row) and "px/s" in row, row  # it has traced, so a throughput
+    assert re.match(r"1 workers, \d+ tasks queued, \d+ in flight", lines[-1]), lines[-1]
+    for args in (("--json", "workers"), ("workers", "--json")):
+        raw = tcfarm(farm, *args)
+        assert raw.returncode == 0 and json.loads(raw.stdout)["workers"][0]["name"] == "test-0"
+
+
+def test_version_is_the_installed_packages(farm, tcfarm):
+    result = tcfarm(farm, "--version")
+    assert result.returncode == 0
+    source = (ROOT / "services" / "client" / "tcfarm" / "__init__.py").read_text()
+    version = re.search(r'__version__ = "([^"]+)"', source).group(1)
+    assert result.stdout.strip() == f"tcfarm {version}"
+
+
+@pytest.fixture(scope="module")
+def verified_job(farm, scene_file, installed_tcfarm):
+    result = run_installed(installed_tcfarm, "--url", farm.url, "--json", "submit", scene_file,
+                           "--strategy", "search", "--bin-width", "3", "--verify", "all", "--wait")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+def test_status_shows_the_verification_figures(farm, verified_job, tcfarm):
+    reference = verified_job["stats"]["error"]["reference"]
+    spot = verified_job["stats"]["error"]["spot_checks"]
+    status = tcfarm(farm, "status", verified_job["id"])
+    assert status.returncode == 0, status.stderr
+    text = status.stdout
+    assert "against brute force (6/6 frames compared): " in text, text
+    assert f"{reference['percent_differing']:.4f} % of pixels differ" in text
+    assert f"max error {reference['max_abs_error']:.6g}" in text
+    psnr = "infinite (identical)" if reference["psnr_db"] is None else f"{reference['psnr_db']:.2f} dB"
+    assert f"PSNR {psnr}, SSIM {reference['ssim']:.4f}" in text
+    # Every frame was compared, so none was spot checked.
+    assert spot["pixels_checked"] == 0 and "spot checks: none made" in text
+    assert "strategy search n=3, priority 0" in text and "not measured yet" not in text
+
+
+def test_status_shows_the_spot_checks(farm, finished_job, tcfarm):
+    spot = finished_job["stats"]["error"]["spot_checks"]
+    assert spot["pixels_checked"] > 0
+    status = tcfarm(farm, "status", finished_job["id"])
+    assert status.returncode == 0, status.stderr
+    low, high = spot["ci95_percent"]
+    assert (f"spot checks: {spot['pixels_checked']:,} copied pixels traced again, "
+            f"{spot['mismatches']:,} wrong; estimated {spot['estimated_error_percent']:.4f} % of all "
+            f"pixels wrong (95 % CI {low:.4f}-{high:.4f} %)") in status.stdout, status.stdout
+    assert "brute force" not in status.stdout  # not asked for
+    assert "\n  frames: 6 written\n    ######   (# written, + tracing, . queued, x failed)" in status.stdout
+
+
+def test_status_of_a_job_not_measured_yet_says_so(tmp_path, scene_file, installed_tcfarm):
+    with LocalFarm(tmp_path, workers=0) as idle:  # no worker: the job stays queued
+        job = idle.client.submit(json.loads(scene_file.read_text()), strategy="search",
+                                 bin_width=3, verify={"frames": "all"})
+        status = run_installed(installed_tcfarm, "--url", idle.url, "status", job["id"])
+    assert status.returncode == 0, status.stderr
+    assert re.search(rf"job {job['id']} (queued|running), frames 0/6", status.stdout), status.stdout
+    # Nothing written: each frame queued, or tracing (handed out, with no worker to take it).
+    assert re.search(r"\n  frames: (\d (queued|tracing)(, )?)+\n    [.+]{6}   \(# written", status.stdout), \
+        status.stdout
+    assert "spot checks: not measured yet" in status.stdout
+    assert "PSNR" not in status.stdout and "SSIM" not in status.stdout
+    assert "traced-pixel ratio" not in status.stdout  # no frame, no ratio
+
+
+def test_a_running_jobs_comparison_not_made_yet_is_not_a_result():
+    from tcfarm.cli import _verification_lines  # farm_harness put the client on the path
+    running = {"state": "running", "stats": {"error": {
+        "spot_checks": {"pixels_checked": 0, "mismatches": 0, "estimated_error_percent": 0.0,
+                        "ci95_percent": [0.0, 51.0]},
+        "reference": {"frames_requested": 6, "frames_compared": 0, "pixels_differing": 0,
+                      "percent_differing": 0.0, "max_abs_error": 0.0, "psnr_db": None, "ssim": 1.0}}}}
+    assert _verification_lines(running) == [
+        "spot checks: not measured yet", "against brute force: not measured yet (0/6 frames compared)"]
+
+
+def test_frames_are_downloaded(farm, finished_job, tmp_path, tcfarm):
     result = tcfarm(farm, "frames", finished_job["id"], "--out", tmp_path)
     assert result.returncode == 0, result.stderr
     pngs = sorted(tmp_path.glob("frame_*.png"))
@@ -62,16 +139,38 @@ def test_frames_are_downloaded(farm, finished_job, tmp_path):
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in pngs)
 
 
-def test_analyze_a_job_and_a_folder(farm, finished_job):
+def test_analyze_a_job_and_a_folder(farm, finished_job, tcfarm, tmp_path):
     job = tcfarm(farm, "analyze", finished_job["id"])
     assert job.returncode == 0, job.stderr
     assert "frame-to-frame coherence" in job.stdout and "n=3:" in job.stdout
-    folder = tcfarm(farm, "--json", "analyze", farm.store / str(finished_job["id"]))
+    coordinator = BUILD / "coordinator" / "tcfarm-coordinator"
+    folder = tcfarm(farm, "--json", "analyze", farm.store / str(finished_job["id"]),
+                    env={"TCFARM_COORDINATOR": str(coordinator)}, cwd=tmp_path)
     assert folder.returncode == 0, folder.stderr
     assert json.loads(folder.stdout)["frames"] == 6
 
 
-def test_bad_input_is_one_clear_line_and_a_nonzero_exit(farm, scene_file, tmp_path):
+def test_analyze_a_folder_after_pip_install_alone_says_what_it_needs(farm, finished_job, tcfarm,
+                                                                     tmp_path):
+    # Outside any checkout, with nothing on PATH but the system's: the command cannot find the
+    # coordinator program, and says what it is, where it looked and how to get it.
+    env = {"PATH": "/usr/bin:/bin"}
+    result = tcfarm(farm, "analyze", farm.store / str(finished_job["id"]), env=env, cwd=tmp_path)
+    assert result.returncode == 1
+    message = result.stderr
+    assert len(message.strip().splitlines()) == 1, message
+    for needed in ("tcfarm-coordinator", "$TCFARM_COORDINATOR (not set)", "on PATH",
+                   f"build/coordinator/tcfarm-coordinator in {tmp_path}", "bash scripts/build",
+                   "TCFARM_COORDINATOR=/path/to/build/coordinator/tcfarm-coordinator",
+                   "`tcfarm analyze JOB_ID` needs only the farm"):
+        assert needed in message, (needed, message)
+    wrong = tcfarm(farm, "analyze", farm.store / str(finished_job["id"]), cwd=tmp_path,
+                   env={**env, "TCFARM_COORDINATOR": str(tmp_path / "nope")})
+    assert wrong.returncode == 1 and f"TCFARM_COORDINATOR={tmp_path / 'nope'}, which is not an " \
+                                      "executable file" in wrong.stderr
+
+
+def test_bad_input_is_one_clear_line_and_a_nonzero_exit(farm, scene_file, tmp_path, tcfarm):
     missing = tcfarm(farm, "submit", tmp_path / "nope.json")
     assert missing.returncode == 1 and "cannot read scene" in missing.stderr
     bad = json.loads(scene_file.read_text())
@@ -87,7 +186,7 @@ def test_bad_input_is_one_clear_line_and_a_nonzero_exit(farm, scene_file, tmp_pa
     assert usage.returncode == 2
 
 
-def test_cancel_of_a_finished_job_is_refused(farm, finished_job):
+def test_cancel_of_a_finished_job_is_refused(farm, finished_job, tcfarm):
     result = tcfarm(farm, "cancel", finished_job["id"])
     assert result.returncode == 1 and "job_finished (409)" in result.stderr
 

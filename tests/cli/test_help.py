@@ -92,3 +92,70 @@ def test_unknown_command_is_named():
         result = run(program, "frobnicate")
         assert result.returncode == 2
         assert "frobnicate" in result.stderr
+
+
+# The tcfarm client, installed as a user installs it (tests/cli/conftest.py): each command
+# and what its help must show.
+TCFARM_COMMANDS = {
+    (): ["--version", "--url", "--token", "--cacert", "--json", "submit", "list", "status", "watch",
+         "wait", "events", "frames", "cancel", "retry", "delete", "priority", "rename", "workers",
+         "analyze"],
+    ("submit",): ["scene", "--name", "--frames", "--strategy", "--bin-width", "--tolerance",
+                  "--priority", "--verify", "--wait", "--fps", "--size", "--animation", "--camera",
+                  "--spp"],
+    ("list",): ["--state", "--strategy", "--name", "--limit", "--page", "--offset"],
+    ("status",): ["job"],
+    ("watch",): ["job", "--read-timeout"],
+    ("wait",): ["job"],
+    ("events",): ["job", "--follow", "--read-timeout"],
+    ("frames",): ["job", "--out", "--format"],
+    ("cancel",): ["job"],
+    ("retry",): ["job"],
+    ("delete",): ["job", "--yes"],
+    ("priority",): ["job", "priority", "-100..100"],
+    ("rename",): ["job", "name"],
+    ("workers",): ["--json"],
+    ("analyze",): ["target", "TCFARM_COORDINATOR"],
+}
+
+
+def argparse_items(help_text):
+    """(item, description) of each argument and command line of an argparse help: an item line
+    is indented, its description follows after two spaces or on the next, deeper line."""
+    lines = help_text.splitlines()
+    items = []
+    for index, line in enumerate(lines):
+        indent = len(line) - len(line.lstrip())
+        if indent not in (2, 4) or not line.strip() or line.strip() == "COMMAND":
+            continue
+        name, gap, rest = line.strip().partition("  ")
+        following = lines[index + 1] if index + 1 < len(lines) else ""
+        if not rest.strip() and len(following) - len(following.lstrip()) > indent + 2:
+            rest = following
+        items.append((name, rest.strip()))
+    return items
+
+
+@pytest.mark.parametrize("words", list(TCFARM_COMMANDS), ids=lambda w: " ".join(("tcfarm", *w)))
+def test_tcfarm_help_describes_every_command_and_flag(installed_tcfarm, words):
+    from installed_client import run_installed
+    result = run_installed(installed_tcfarm, *words, "--help")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("usage: tcfarm")
+    for text in TCFARM_COMMANDS[words]:
+        assert text in result.stdout, f"{text!r} missing from:\n{result.stdout}"
+    items = argparse_items(result.stdout)
+    assert len(items) >= len(TCFARM_COMMANDS[words])
+    for name, description in items:
+        assert description, f"tcfarm {' '.join(words)}: {name} has no description:\n{result.stdout}"
+
+
+def test_tcfarm_names_a_bad_flag_or_command(installed_tcfarm):
+    from installed_client import run_installed
+    for args, named in ((["list", "--no-such-flag"], "--no-such-flag"),
+                        (["frobnicate"], "frobnicate"),
+                        (["list", "--state", "done"], "'done' is not a job state"),
+                        (["priority", "3", "high"], "invalid int value: 'high'")):
+        result = run_installed(installed_tcfarm, *args)
+        assert result.returncode == 2, (args, result.stderr)
+        assert named in result.stderr, (args, result.stderr)

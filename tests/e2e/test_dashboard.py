@@ -15,19 +15,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from browser import chromium_binary
 from farm_harness import ROOT, LocalFarm, small_scene
 
 ARTIFACTS = ROOT / "tests" / "artifacts"
 DASHBOARD = ROOT / "services" / "dashboard"
 WIDTH, HEIGHT, FRAMES = 160, 120, 20
-
-
-def chromium_binary():
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        path = shutil.which(name)
-        if path:
-            return path
-    pytest.fail("no chromium: run scripts/bootstrap (installs Debian's chromium)")
 
 
 def chromium(url, profile, *mode):

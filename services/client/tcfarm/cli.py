@@ -1,16 +1,19 @@
 """tcfarm: drive a render farm from the command line.
 
-  tcfarm submit SCENE.json|MODEL.obj [--frames A:B] [--strategy S] [--bin-width N] [--verify all|K] [--wait]
-  tcfarm status JOB
+  tcfarm submit SCENE.json|MODEL.obj|SHOT.glb [--frames A:B] [--strategy S] [--bin-width N] [--verify all|K] [--wait]
+  tcfarm list [--state S[,S]] [--strategy S] [--name TEXT] [--limit N] [--page P|--offset O]
+  tcfarm status JOB           the job, its verification figures and each frame's state
   tcfarm watch JOB            progress bar with ETA and the live traced-pixel ratio
   tcfarm wait JOB
+  tcfarm events JOB [--follow]
   tcfarm frames JOB --out DIR [--format png|exr]
-  tcfarm cancel JOB
+  tcfarm cancel JOB | retry JOB | delete JOB [--yes] | priority JOB N | rename JOB NAME
   tcfarm workers
   tcfarm analyze JOB|DIR      coherence of a job's frames (from the farm) or of a folder
 
 Global options: --url (TCFARM_URL), --token (TCFARM_TOKEN) for a farm with API tokens,
---cacert (TCFARM_CACERT) for an https farm whose certificate authority is its own.
+--cacert (TCFARM_CACERT) for an https farm whose certificate authority is its own,
+--json for machine-readable output, --version.
 """
 import argparse
 import json
@@ -21,7 +24,8 @@ import subprocess
 import sys
 import time
 
-from tcfarm.client import ApiError, Client
+from tcfarm import __version__
+from tcfarm.client import FINAL_STATES, ApiError, Client
 from tcfarm.scene_files import SceneFileError, scene_files
 
 # The coordinator's strategies (proto/openapi.yaml; tests/cli/test_client_cli.py keeps them equal).
@@ -41,7 +45,7 @@ def _summary(job):
     ratio = job.get("traced_pixel_ratio")
     parts = [f"job {job['id']} {job['state']}",
              f"frames {job['frames']['done']}/{job['frames']['count']}"]
-    if ratio is not None:
+    if ratio is not None and job["frames"]["done"] > 0:  # 0 before any frame is no figure
         parts.append(f"traced-pixel ratio {ratio:.4f}")
     if "wall_seconds" in stats:
         parts.append(f"wall {stats['wall_seconds']:.2f} s")
@@ -52,11 +56,6 @@ def _summary(job):
     if job.get("error"):
         parts.append(f"error: {job['error']}")
     return ", ".join(parts)
-
-
-def _progress(job):
-    sys.stderr.write("\r" + _summary(job) + " " * 8)
-    sys.stderr.flush()
 
 
 class _ProgressBar:
@@ -158,27 +157,53 @@ def cmd_frames(client, args):
     return 0
 
 
+# Where a source checkout builds the coordinator (scripts/build), relative to the checkout.
+_BUILT_COORDINATOR = pathlib.Path("build") / "coordinator" / "tcfarm-coordinator"
+COORDINATOR_ENV = "TCFARM_COORDINATOR"
+
+
 def _native_analyzer():
-    """tcfarm-coordinator, for reading a folder of EXR frames exactly."""
+    """(path of tcfarm-coordinator, or None; where it was looked for). It reads a folder of
+    EXR frames exactly; `pip install` brings only this client, so it is found at
+    $TCFARM_COORDINATOR when that is set, else on PATH, else in the build/ folder of a
+    checkout around the current folder or around this package (an editable or PYTHONPATH
+    install)."""
+    named = os.environ.get(COORDINATOR_ENV)
+    if named:  # said outright: that one or none
+        if os.path.isfile(named) and os.access(named, os.X_OK):
+            return named, []
+        return None, [f"${COORDINATOR_ENV}={named}, which is not an executable file"]
+    looked = [f"${COORDINATOR_ENV} (not set)"]
     found = shutil.which("tcfarm-coordinator")
     if found:
-        return found
-    here = pathlib.Path(__file__).resolve()
-    for parent in here.parents:
-        candidate = parent / "build" / "coordinator" / "tcfarm-coordinator"
-        if candidate.exists():
-            return str(candidate)
-    return None
+        return found, looked
+    looked.append("tcfarm-coordinator on PATH")
+    starts = [pathlib.Path.cwd(), pathlib.Path(__file__).resolve().parent]
+    for start in starts:
+        for folder in [start, *start.parents]:
+            candidate = folder / _BUILT_COORDINATOR
+            if candidate.is_file() and os.access(candidate, os.X_OK):
+                return str(candidate), looked
+    looked.append(f"{_BUILT_COORDINATOR} in {starts[0]} and the folders above it")
+    return None, looked
+
+
+def _missing_analyzer_message(looked):
+    return ("analyzing a folder of frames needs the coordinator program tcfarm-coordinator, which "
+            "reads the EXR frames exactly; `pip install` brings only this client. Looked for "
+            + "; ".join(looked) + ". Build it from the tcfarm source (bash scripts/bootstrap && "
+            "bash scripts/build, which makes build/coordinator/tcfarm-coordinator), then set "
+            f"{COORDINATOR_ENV}=/path/to/build/coordinator/tcfarm-coordinator or put it on PATH. "
+            "`tcfarm analyze JOB_ID` needs only the farm")
 
 
 def cmd_analyze(client, args):
     if not args.target.isdigit():
         if not pathlib.Path(args.target).is_dir():
             raise ApiError(0, "bad_input", f"{args.target} is neither a job id nor a folder")
-        analyzer = _native_analyzer()
+        analyzer, looked = _native_analyzer()
         if not analyzer:
-            raise ApiError(0, "missing_tool", "analyzing a folder needs tcfarm-coordinator on "
-                                              "PATH (build the project); a job id works anywhere")
+            raise ApiError(0, "missing_tool", _missing_analyzer_message(looked))
         command = [analyzer, "analyze", args.target] + (["--json"] if args.json else [])
         return subprocess.run(command).returncode
     job = client.job(int(args.target))
@@ -199,25 +224,342 @@ def cmd_analyze(client, args):
     return 0
 
 
-def main(argv=None):
-    parser = argparse.ArgumentParser(prog="tcfarm", description="Drive a tcfarm render farm.")
-    parser.add_argument("--url", default=os.environ.get("TCFARM_URL", "http://127.0.0.1:8080"))
+# --- tables and figures ---------------------------------------------------------------
+
+def _table(headers, rows, right=()):
+    """Columns as wide as their widest cell; the columns named in `right` (numbers) aligned
+    right. Returns the lines."""
+    cells = [list(map(str, headers))] + [[str(cell) for cell in row] for row in rows]
+    widths = [max(len(row[i]) for row in cells) for i in range(len(headers))]
+
+    def line(row):
+        return "  ".join(cell.rjust(width) if headers[i] in right else cell.ljust(width)
+                         for i, (cell, width) in enumerate(zip(row, widths))).rstrip()
+
+    return [line(cells[0])] + [line(row) for row in cells[1:]]
+
+
+def _bytes(count):
+    for unit, size in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if count >= size:
+            return f"{count / size:.1f} {unit}"
+    return f"{count} bytes"
+
+
+def _rate(pixels_per_second):
+    if pixels_per_second >= 1e6:
+        return f"{pixels_per_second / 1e6:.2f} Mpx/s"
+    if pixels_per_second >= 1e3:
+        return f"{pixels_per_second / 1e3:.1f} kpx/s"
+    return f"{pixels_per_second:.0f} px/s" if pixels_per_second > 0 else "-"
+
+
+def _strategy(job):
+    chosen = (job.get("stats") or {}).get("strategy") or {}
+    name, width = chosen.get("name", job["strategy"]), chosen.get("bin_width", job["bin_width"])
+    if name == "brute":
+        return "brute"
+    if width == 0:
+        return f"{name}, surveying"
+    return f"exact L={width}" if name == "exact" else f"{name} n={width}"
+
+
+def _when(iso):
+    """"2024-05-01T12:34:56.789Z" as "2024-05-01 12:34:56"; "-" for none."""
+    return iso[:19].replace("T", " ") if iso else "-"
+
+
+def cmd_workers(client, args):
+    farm = client.workers()
+    if args.json:
+        print(json.dumps(farm, indent=1))
+        return 0
+    workers = farm.get("workers", [])
+    if workers:
+        rows = [(w["name"], w["threads"], w["capacity"], w["in_flight"], w["tasks_done"],
+                 f"{w['pixels_done']:,}",
+                 _rate(w["pixels_done"] / w["trace_seconds"] if w["trace_seconds"] > 0 else 0),
+                 f"{w['seconds_since_heard']:.1f} s ago") for w in workers]
+        print("\n".join(_table(("name", "threads", "capacity", "in flight", "tasks done",
+                                "pixels done", "throughput", "last heard"), rows,
+                               right=("threads", "capacity", "in flight", "tasks done",
+                                      "pixels done", "throughput"))))
+    else:
+        print("no workers connected")
+    print(f"{len(workers)} workers, {farm.get('queued_tasks', 0)} tasks queued, "
+          f"{farm.get('in_flight_tasks', 0)} in flight")
+    return 0
+
+
+def _verification_lines(job):
+    """The job's error figures in words: spot checks, the comparison with brute force
+    (--verify), and anything suspect. "not measured yet" until there is a measurement."""
+    error = (job.get("stats") or {}).get("error") or {}
+    lines = []
+    spot = error.get("spot_checks")
+    if spot and spot.get("pixels_checked"):
+        low, high = spot.get("ci95_percent", [0, 0])
+        lines.append(f"spot checks: {spot['pixels_checked']:,} copied pixels traced again, "
+                     f"{spot['mismatches']:,} wrong; estimated {spot['estimated_error_percent']:.4f} % "
+                     f"of all pixels wrong (95 % CI {low:.4f}-{high:.4f} %)")
+    elif job["state"] in FINAL_STATES:
+        lines.append("spot checks: none made (a frame compared with brute force, or with "
+                     "nothing copied, needs none)")
+    else:
+        lines.append("spot checks: not measured yet")
+    reference = error.get("reference")
+    if reference is not None:
+        compared, requested = reference.get("frames_compared", 0), reference.get("frames_requested", 0)
+        if compared:
+            psnr = reference.get("psnr_db")
+            psnr = "infinite (identical)" if psnr is None else f"{psnr:.2f} dB"
+            lines.append(f"against brute force ({compared}/{requested} frames compared): "
+                         f"{reference['percent_differing']:.4f} % of pixels differ "
+                         f"({reference['pixels_differing']:,}), max error "
+                         f"{reference['max_abs_error']:.6g}, PSNR {psnr}, SSIM {reference['ssim']:.4f}")
+        else:
+            lines.append(f"against brute force: not measured yet (0/{requested} frames compared)")
+    suspect = error.get("suspect")
+    if suspect:
+        frames = ", ".join(sorted(suspect.get("frames", {}), key=int))
+        lines.append(f"SUSPECT: {suspect['pixels_disagreeing']:,} pixels disagree (frames {frames}): "
+                     f"{suspect.get('why', '')}")
+    audit = error.get("audit")
+    if audit:
+        lines.append("audit: " + ", ".join(f"{key.replace('_', ' ')} {value}"
+                                           for key, value in audit.items()))
+    return lines
+
+
+# One character a frame: what `status` draws of each frame's state.
+FRAME_MARKS = {"written": "#", "tracing": "+", "queued": ".", "failed": "x"}
+
+
+def _frame_strip(states):
+    frames = states.get("frames", [])
+    strip = "".join(FRAME_MARKS.get(frame["state"], "?") for frame in frames)
+    counts = states.get("counts") or {}
+    if not counts:
+        for frame in frames:
+            counts[frame["state"]] = counts.get(frame["state"], 0) + 1
+    legend = ", ".join(f"{counts[state]} {state}" for state in FRAME_MARKS if counts.get(state))
+    return [f"frames: {legend}", "  " + strip + "   (# written, + tracing, . queued, x failed)"]
+
+
+def cmd_status(client, args):
+    job = client.job(args.job)
+    if args.json:
+        print(json.dumps(job))
+        return 0
+    print(_summary(job))
+    cost = (job.get("stats") or {}).get("cost") or {}
+    details = [f"strategy {_strategy(job)}, priority {job['priority']}",
+               f"submitted {_when(job['submitted_at'])}, started {_when(job['started_at'])}, "
+               f"finished {_when(job['finished_at'])}"]
+    if "measured_relative_cost" in cost:
+        details.append(f"relative cost: measured {cost['measured_relative_cost']:.3f}"
+                       + (f", predicted {cost['predicted_relative_cost']:.3f}"
+                          if "predicted_relative_cost" in cost else ""))
+    details += _verification_lines(job)
+    try:
+        details += _frame_strip(client.frame_states(args.job))
+    except ApiError as e:
+        if e.status not in (404, 405):  # a farm without per-frame states says nothing of them
+            raise
+    print("\n".join("  " + line for line in details))
+    return 0
+
+
+# --- the job list and the daily actions ---------------------------------------------------
+
+def _states(text):
+    states = [state.strip() for state in text.split(",") if state.strip()]
+    known = ("queued", "running", "completed", "failed", "canceled")
+    for state in states:
+        if state not in known:
+            raise argparse.ArgumentTypeError(f"{state!r} is not a job state; expected one or more "
+                                             f"of {', '.join(known)}, separated by commas")
+    return ",".join(states)
+
+
+def _positive(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number of at least 1, got {text!r}")
+    return value
+
+
+def _job_row(job):
+    frames = job["frames"]
+    ratio = job.get("traced_pixel_ratio")
+    return (job["id"], job["name"], job["state"], f"{frames['done']}/{frames['count']}",
+            f"{100 * job.get('progress', 0):.0f} %", "-" if not frames["done"] else f"{ratio:.4f}",
+            _strategy(job), job["priority"], _when(job["submitted_at"]))
+
+
+def cmd_list(client, args):
+    offset = args.offset if args.page is None else (args.page - 1) * args.limit
+    page = client.job_page(state=args.state, strategy=args.strategy, name=args.name,
+                           limit=args.limit, offset=offset)
+    if args.json:
+        print(json.dumps(page))
+        return 0
+    jobs, total = page["jobs"], page.get("total", len(page["jobs"]))
+    offset = page.get("offset", offset or 0)
+    if not jobs:
+        print(f"no jobs match (of {total})" if offset == 0 else
+              f"no jobs at offset {offset}: {total} match")
+        return 0
+    headers = ("id", "name", "state", "frames", "done", "traced", "strategy", "priority", "submitted")
+    print("\n".join(_table(headers, [_job_row(job) for job in jobs],
+                           right=("id", "frames", "done", "traced", "priority"))))
+    last = offset + len(jobs)
+    more = ""
+    if last < total:
+        limit = page.get("limit", args.limit)
+        more = (f"; next: --page {offset // limit + 2}" if offset % limit == 0
+                else f"; next: --offset {last}")
+    print(f"showing {offset + 1}-{last} of {total} jobs{more}")
+    return 0
+
+
+def _confirm(question):
+    """Asks on the terminal; anything but y or yes, or no answer at all, is no."""
+    sys.stderr.write(question + " [y/N] ")
+    sys.stderr.flush()
+    answer = sys.stdin.readline()
+    return answer.strip().lower() in ("y", "yes")
+
+
+def cmd_delete(client, args):
+    if not args.yes:
+        job = client.job(args.job)
+        question = (f"delete job {job['id']} {job['name']!r} ({job['state']}, "
+                    f"{job['frames']['done']} frames written), its frames and the assets no "
+                    "other job uses?")
+        if not _confirm(question):
+            print(f"tcfarm: job {args.job} not deleted (answer y, or pass --yes)", file=sys.stderr)
+            return 1
+    deleted = client.delete(args.job)
+    if args.json:
+        print(json.dumps(deleted))
+    else:
+        freed = deleted.get("freed_bytes", 0)
+        print(f"deleted job {deleted.get('deleted', args.job)}, freed {_bytes(freed)} ({freed:,} bytes)")
+    return 0
+
+
+def _print_job(job, args, verb=None):
+    print(json.dumps(job) if args.json else (f"{verb}: " if verb else "") + _summary(job))
+    return 0
+
+
+def _event_line(event):
+    """time, job, type and the farm's message (or, without one, the event's own fields)."""
+    said = event.get("message") or " ".join(
+        f"{key}={value}" for key, value in event.items() if key not in ("seq", "job", "time", "type"))
+    return f"{_when(event.get('time'))}  job {event.get('job')}  {event.get('type', ''):<16} {said}".rstrip()
+
+
+def _print_event(event, args):
+    print(json.dumps(event) if args.json else _event_line(event), flush=True)
+
+
+# Events after which a job does nothing more unless someone acts on it.
+FINAL_EVENTS = ("completed", "failed", "canceled")
+
+
+def cmd_events(client, args):
+    past = client.events(args.job)
+    for event in past:
+        _print_event(event, args)
+    if not args.follow:
+        return 0
+    job = client.job(args.job)
+    if job["state"] in FINAL_STATES:
+        sys.stderr.write(f"job {args.job} is {job['state']}: nothing more to follow\n")
+        return 0
+    last = max((event["seq"] for event in past), default=None)
+    for event in client.stream_events(after=last, read_timeout=args.read_timeout, job=args.job):
+        if event.get("job") != args.job:
+            continue
+        _print_event(event, args)
+        if event.get("type") in FINAL_EVENTS:
+            return 0
+    return 0
+
+
+def _follow(client, job_id, on_job, read_timeout):
+    """Calls on_job with the job's record now and after each of its events, until the job
+    reaches a final state; returns its last record. Follows the farm's event stream, and
+    polls instead where the farm refuses it."""
+    try:
+        events = client.stream_events(read_timeout=read_timeout, job=job_id)
+    except ApiError as e:
+        if e.status == 0:
+            raise  # unreachable: polling would not do better
+        sys.stderr.write(f"the farm's event stream is refused ({e}): polling instead\n")
+        return client.wait(job_id, on_progress=on_job)
+    job = client.job(job_id)  # after the stream opened: nothing between is missed
+    on_job(job)
+    while job["state"] not in FINAL_STATES:
+        event = next(events)
+        if event.get("job") == job_id:
+            job = client.job(job_id)
+            on_job(job)
+    return job
+
+
+def cmd_watch(client, args):
+    job = _follow(client, args.job, _ProgressBar(), args.read_timeout)
+    sys.stderr.write("\n")
+    print(json.dumps(job) if args.json else _summary(job))
+    return 0
+
+
+def _job_argument(parser):
+    parser.add_argument("job", type=int, help="the job's id (tcfarm list shows them)")
+
+
+def _parser():
+    parser = argparse.ArgumentParser(prog="tcfarm", description="Drive a tcfarm render farm: submit "
+                                     "scenes, follow and manage jobs, download frames.")
+    parser.add_argument("--version", action="version", version=f"tcfarm {__version__}",
+                        help="print the client's version and exit")
+    parser.add_argument("--url", default=os.environ.get("TCFARM_URL", "http://127.0.0.1:8080"),
+                        help="the farm's address (default: $TCFARM_URL, else http://127.0.0.1:8080)")
     parser.add_argument("--token", default=os.environ.get("TCFARM_TOKEN"),
                         help="API token of the farm (default: $TCFARM_TOKEN)")
     parser.add_argument("--cacert", default=os.environ.get("TCFARM_CACERT"),
                         help="PEM file of the certificate authority of an https farm with its own "
                              "(default: $TCFARM_CACERT)")
     parser.add_argument("--json", action="store_true", help="print JSON records")
-    sub = parser.add_subparsers(dest="command", required=True)
-    submit = sub.add_parser("submit", help="submit a scene (JSON, or OBJ), uploading the files "
-                                           "it references that the farm lacks")
-    submit.add_argument("scene")
-    submit.add_argument("--name")
-    submit.add_argument("--frames", type=_frames)
-    submit.add_argument("--strategy", choices=STRATEGIES)
-    submit.add_argument("--bin-width", type=int)
-    submit.add_argument("--tolerance", type=float)
-    submit.add_argument("--priority", type=int)
+    # --json may come after the command too; left unsaid there, the global one stands.
+    after = argparse.ArgumentParser(add_help=False)
+    after.add_argument("--json", action="store_true", default=argparse.SUPPRESS,
+                       help="print JSON records")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def command(name, text, description=None):
+        return commands.add_parser(name, help=text, parents=[after],
+                                   description=description or text[0].upper() + text[1:] + ".")
+
+    submit = command("submit", "submit a scene (JSON, glTF/GLB or OBJ), uploading the files it "
+                               "references that the farm lacks")
+    submit.add_argument("scene", help="the scene file: .json, .gltf, .glb or .obj")
+    submit.add_argument("--name", help="the job's name (default: the file's name)")
+    submit.add_argument("--frames", type=_frames, help="A:B, the frames to render, inclusive "
+                                                        "(default: the scene's)")
+    submit.add_argument("--strategy", choices=STRATEGIES, help="how to save tracing "
+                                                                "(default: the farm's, auto)")
+    submit.add_argument("--bin-width", type=int, help="bin width n (search, guarded) or segment "
+                                                      "length (exact)")
+    submit.add_argument("--tolerance", type=float, help="largest difference two pixel values may "
+                                                        "have and count as equal (default 0: bitwise)")
+    submit.add_argument("--priority", type=int, help="-100..100, higher runs first (default 0)")
     submit.add_argument("--verify", type=_verify, help="'all' or K: also render K frames "
                                                         "brute force and report the error")
     submit.add_argument("--wait", action="store_true", help="wait, showing progress")
@@ -226,45 +568,88 @@ def main(argv=None):
     submit.add_argument("--animation", help="the glTF animation to play, by name or index")
     submit.add_argument("--camera", help="the glTF camera to look through, by name or index")
     submit.add_argument("--spp", type=int, help="samples per pixel of a scene file")
-    for name in ("status", "wait", "watch", "cancel"):
-        sub.add_parser(name).add_argument("job", type=int)
-    frames = sub.add_parser("frames", help="download a job's finished frames")
-    frames.add_argument("job", type=int)
-    frames.add_argument("--out", required=True)
-    frames.add_argument("--format", choices=["png", "exr"], default="png")
-    sub.add_parser("workers")
-    sub.add_parser("analyze", help="coherence of a job (id) or a folder of frames").add_argument(
-        "target")
-    args = parser.parse_args(argv)
+
+    listing = command("list", "list jobs, newest first, with filters and pages")
+    listing.add_argument("--state", type=_states, help="only jobs in these states, e.g. "
+                                                       "running or failed,canceled")
+    listing.add_argument("--strategy", choices=STRATEGIES, help="only jobs of this strategy")
+    listing.add_argument("--name", help="only jobs whose name contains this (any case)")
+    listing.add_argument("--limit", type=_positive, default=20, help="jobs a page (default 20)")
+    where = listing.add_mutually_exclusive_group()
+    where.add_argument("--page", type=_positive, help="the page to show, from 1")
+    where.add_argument("--offset", type=int, default=0, help="jobs to skip (default 0)")
+
+    for name, text in (("status", "a job's state, figures, verification and frames"),
+                       ("wait", "wait until a job finishes, quietly; print its summary"),
+                       ("cancel", "cancel a queued or running job"),
+                       ("retry", "queue a failed or canceled job again (frames already written "
+                                 "are kept)")):
+        _job_argument(command(name, text))
+    for name, text in (("watch", "follow a job live: progress bar, ETA, traced-pixel ratio"),
+                       ("events", "a job's events: submitted, started, frames written, ...")):
+        follower = command(name, text)
+        _job_argument(follower)
+        if name == "events":
+            follower.add_argument("--follow", action="store_true",
+                                  help="go on printing its events as they happen, until it finishes")
+        follower.add_argument("--read-timeout", type=float, default=30.0,
+                              help="seconds of silence after which the event stream is opened "
+                                   "again (default 30)")
+    delete = command("delete", "delete a finished job: its frames, the assets no other job "
+                               "uses, and its record",
+                     "Delete a finished job: its frames, the assets no other job uses, and its "
+                     "record. Cancel a running job first.")
+    _job_argument(delete)
+    delete.add_argument("--yes", "-y", action="store_true", help="do not ask for confirmation")
+    priority = command("priority", "change a job's priority",
+                       "Change a job's priority: higher runs first and gets a larger share of "
+                       "the workers.")
+    _job_argument(priority)
+    priority.add_argument("priority", type=int, help="-100..100")
+    rename = command("rename", "change a job's name")
+    _job_argument(rename)
+    rename.add_argument("name", help="the new name")
+
+    frames = command("frames", "download a job's finished frames into a folder")
+    _job_argument(frames)
+    frames.add_argument("--out", required=True, help="the folder to write frame_NNNN files to")
+    frames.add_argument("--format", choices=["png", "exr"], default="png",
+                        help="png (8-bit) or exr (the float frames) (default png)")
+    command("workers", "the workers connected, what each has done, and the tasks queued")
+    analyze = command("analyze", "coherence of a job (id) or a folder of frames",
+                      "Coherence of a job's frames (by id, from the farm) or of a folder of EXR "
+                      f"frames (needs tcfarm-coordinator: ${COORDINATOR_ENV}, PATH or a build/ "
+                      "folder).")
+    analyze.add_argument("target", help="a job id, or a folder of frames")
+    return parser
+
+
+def main(argv=None):
+    args = _parser().parse_args(argv)
     try:
         client = Client(args.url, token=args.token, cacert=args.cacert)
     except (OSError, ValueError) as e:  # an unreadable or malformed --cacert file
         print(f"tcfarm: --cacert {args.cacert}: {e}", file=sys.stderr)
         return 1
+    commands = {
+        "submit": cmd_submit, "frames": cmd_frames, "analyze": cmd_analyze, "workers": cmd_workers,
+        "status": cmd_status, "list": cmd_list, "delete": cmd_delete, "events": cmd_events,
+        "watch": cmd_watch,
+        "wait": lambda client, args: _print_job(client.wait(args.job), args),
+        "cancel": lambda client, args: _print_job(client.cancel(args.job), args),
+        "retry": lambda client, args: _print_job(client.retry(args.job), args, "queued again"),
+        "priority": lambda client, args: _print_job(
+            client.update(args.job, priority=args.priority), args, f"priority {args.priority}"),
+        "rename": lambda client, args: _print_job(
+            client.update(args.job, name=args.name), args, "renamed"),
+    }
     try:
-        if args.command == "submit":
-            return cmd_submit(client, args)
-        if args.command == "frames":
-            return cmd_frames(client, args)
-        if args.command == "analyze":
-            return cmd_analyze(client, args)
-        if args.command == "workers":
-            print(json.dumps(client.workers(), indent=1))
-            return 0
-        if args.command == "cancel":
-            job = client.cancel(args.job)
-        elif args.command == "wait":
-            job = client.wait(args.job)
-        elif args.command == "watch":
-            job = client.wait(args.job, on_progress=_ProgressBar())
-            sys.stderr.write("\n")
-        else:
-            job = client.job(args.job)
-        print(json.dumps(job) if args.json else _summary(job))
-        return 0
+        return commands[args.command](client, args)
     except ApiError as e:
         print(f"tcfarm: {e}{_access_hint(e, args.token)}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        return 130
 
 
 def _access_hint(error, token):

@@ -1,11 +1,13 @@
 """A small, dependency-free client of the coordinator's /api/v1."""
 import collections
 import hashlib
+import http.client
 import json
 import os
 import ssl
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 
 FINAL_STATES = ("completed", "failed", "canceled")
@@ -25,6 +27,9 @@ class ApiError(Exception):
 AssetUpload = collections.namedtuple("AssetUpload", ["hashes", "uploaded"])
 
 _HASH_CHUNK_BYTES = 1 << 20
+# A stream that ended is opened again after this long: soon enough to miss nothing a person
+# would notice, slow enough not to spin against a farm that closes it at once.
+_STREAM_REOPEN_SECONDS = 0.5
 
 
 def sha256_file(path):
@@ -53,14 +58,20 @@ class Client:
         if data is None:
             data = None if body is None else json.dumps(body).encode()
             headers = {"Content-Type": "application/json"}
+        with self._open(method, path, data=data, headers=headers) as response:
+            payload = response.read()
+        return payload if raw else json.loads(payload)
+
+    def _open(self, method, path, data=None, headers=None, timeout=None):
+        """The response, once its headers came; the farm's errors raised as ApiError."""
         headers = dict(headers or {})
         if self.token:
             headers["Authorization"] = f"Bearer {self.token}"
         request = urllib.request.Request(self.url + path, data=data, method=method,
                                          headers=headers)
         try:
-            with urllib.request.urlopen(request, timeout=self.timeout, context=self._tls) as response:
-                payload = response.read()
+            return urllib.request.urlopen(request, timeout=timeout or self.timeout,
+                                          context=self._tls)
         except urllib.error.HTTPError as e:
             raise _api_error(e) from None
         except urllib.error.URLError as e:
@@ -68,7 +79,6 @@ class Client:
             if isinstance(e.reason, ssl.SSLCertVerificationError):
                 hint = " (a farm with its own certificate authority: --cacert FILE or TCFARM_CACERT)"
             raise ApiError(0, "unreachable", f"cannot reach {self.url}: {e.reason}{hint}") from None
-        return payload if raw else json.loads(payload)
 
     def submit(self, scene, **options):
         """Submits a job. options: name, frames={"start","end"}, strategy, bin_width,
@@ -105,12 +115,82 @@ class Client:
     def job(self, job_id):
         return self._request("GET", f"/api/v1/jobs/{int(job_id)}")
 
-    def jobs(self, state=None, limit=None):
-        query = "&".join(f"{k}={v}" for k, v in (("state", state), ("limit", limit)) if v)
-        return self._request("GET", "/api/v1/jobs" + (f"?{query}" if query else ""))["jobs"]
+    def jobs(self, state=None, limit=None, **filters):
+        """The jobs of the first page (newest first), as a list; job_page has the rest."""
+        return self.job_page(state=state, limit=limit, **filters)["jobs"]
+
+    def job_page(self, state=None, strategy=None, name=None, limit=None, offset=None):
+        """One page of the job list, newest first: {"jobs", "total", "offset", "limit"}.
+        state: one state or several (a list, or "a,b"); name: a case-insensitive part of it."""
+        if isinstance(state, (list, tuple)):
+            state = ",".join(state)
+        query = urllib.parse.urlencode([(key, value) for key, value in (
+            ("state", state), ("strategy", strategy), ("name", name), ("limit", limit),
+            ("offset", offset)) if value not in (None, "")])
+        return self._request("GET", "/api/v1/jobs" + (f"?{query}" if query else ""))
 
     def cancel(self, job_id):
         return self._request("POST", f"/api/v1/jobs/{int(job_id)}/cancel")
+
+    def delete(self, job_id):
+        """Deletes a finished job, its frames and the assets no other job uses:
+        {"deleted": id, "freed_bytes": n}. A queued or running job is refused (409 job_active)."""
+        return self._request("DELETE", f"/api/v1/jobs/{int(job_id)}")
+
+    def retry(self, job_id):
+        """Queues a failed or canceled job again (same id; frames already written are kept)."""
+        return self._request("POST", f"/api/v1/jobs/{int(job_id)}/retry")
+
+    def update(self, job_id, priority=None, name=None):
+        """Changes a job's priority (-100..100, higher first) or name; returns the job."""
+        body = {key: value for key, value in (("priority", priority), ("name", name))
+                if value is not None}
+        return self._request("PATCH", f"/api/v1/jobs/{int(job_id)}", body)
+
+    def frame_states(self, job_id):
+        """Each frame's state: {"job", "frames": [{"frame", "state", "traced", "copied"}], "counts"}."""
+        return self._request("GET", f"/api/v1/jobs/{int(job_id)}/frames")
+
+    def events(self, job_id, after=None):
+        """The job's events, oldest first, after the sequence number `after`."""
+        query = "" if after is None else f"?after={int(after)}"
+        return self._request("GET", f"/api/v1/jobs/{int(job_id)}/events{query}")["events"]
+
+    def stream_events(self, after=None, read_timeout=None, job=None):
+        """The farm's live events, every job's, from GET /api/v1/events (Server-Sent
+        Events), as dicts with "seq", "job", "time", "type" and "message". The stream is
+        opened at once, so a farm that refuses it raises ApiError here (404 or 405 from a
+        farm without it); iterating then yields each event as it comes, for as long as the
+        caller goes on. after: the sequence number to start after (None: from now); job:
+        only that job's events. A connection that drops, or stays silent for read_timeout
+        seconds, is opened again with Last-Event-ID, so no event is missed or repeated."""
+        read_timeout = read_timeout or self.timeout
+        response = self._open_stream(after, read_timeout, job)
+
+        def events():
+            nonlocal response
+            last = after
+            while True:
+                try:
+                    for event in _server_sent_events(response):
+                        if event.get("seq") is not None:
+                            last = event["seq"]
+                        yield event
+                except (OSError, http.client.HTTPException):
+                    pass  # dropped, or silent for longer than read_timeout
+                finally:
+                    response.close()
+                time.sleep(_STREAM_REOPEN_SECONDS)
+                response = self._open_stream(last, read_timeout, job)
+
+        return events()
+
+    def _open_stream(self, after, read_timeout, job):
+        headers = {"Accept": "text/event-stream"}
+        if after is not None:
+            headers["Last-Event-ID"] = str(after)
+        query = "" if job is None else f"?job={int(job)}"
+        return self._open("GET", "/api/v1/events" + query, headers=headers, timeout=read_timeout)
 
     def workers(self):
         return self._request("GET", "/api/v1/workers")
@@ -146,3 +226,34 @@ def _api_error(http_error):
                         error.get("message", ""), error.get("pointer"))
     except (ValueError, KeyError, TypeError):
         return ApiError(http_error.code, "http_error", str(http_error))
+
+
+def _server_sent_events(response):
+    """The events of a text/event-stream response (the WHATWG format: "field: value" lines,
+    a blank line ends an event, ":" starts a comment), each as its JSON data with the
+    stream's `id` as "seq" and `event` as "type" where the data lacks them."""
+    fields, data = {}, []
+    for raw in response:
+        line = raw.decode("utf-8").rstrip("\r\n")
+        if not line:
+            if data:
+                try:
+                    event = json.loads("\n".join(data))
+                except ValueError:
+                    event = {"message": "\n".join(data)}
+                if isinstance(event, dict):
+                    if "id" in fields and "seq" not in event:
+                        event["seq"] = int(fields["id"]) if fields["id"].isdigit() else fields["id"]
+                    if "event" in fields and "type" not in event:
+                        event["type"] = fields["event"]
+                    yield event
+            fields, data = {}, []
+            continue
+        if line.startswith(":"):
+            continue  # a comment: the farm's keep-alive
+        name, _, value = line.partition(":")
+        value = value[1:] if value.startswith(" ") else value
+        if name == "data":
+            data.append(value)
+        elif name in ("id", "event", "retry"):
+            fields[name] = value
