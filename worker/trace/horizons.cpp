@@ -366,6 +366,7 @@ uint32_t HorizonOracle::ChunkSpheresMet(const RaySegment& s, const Mover& mover,
 
 // Bits of a chunk starting at frame offset `chunkBegin` for the offsets [from, to).
 uint32_t HorizonOracle::LaneMask(size_t chunkBegin, size_t from, size_t to) {
+  to = std::min(to, chunkBegin + kFramesPerChunk);  // a shift past the mask's width is undefined
   uint32_t mask = 0;
   for (size_t i = from; i < to; ++i) mask |= 1u << (i - chunkBegin);
   return mask;
@@ -405,7 +406,7 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
     for (size_t chunk = 0; chunk < mover.chunks.size() && chunk * kFramesPerChunk < earliest; ++chunk) {
       if (!chunkMet[chunk]) continue;
       const size_t begin = chunk * kFramesPerChunk;
-      const size_t end = std::min(earliest, mover.frames);
+      const size_t end = std::min({earliest, mover.frames, begin + kFramesPerChunk});
       const uint32_t met = ChunkSpheresMet(segment, mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
       if (met != 0) {
         earliest = begin + static_cast<size_t>(__builtin_ctz(met));

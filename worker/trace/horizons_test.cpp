@@ -355,5 +355,26 @@ TEST(HorizonsTest, APartOfASkinThatHoldsStillIsStill) {
   EXPECT_EQ(oracle.FirstMeeting({Float3{1.9f, 3, 0} - camera, {0, -1, 0}, 10}), 3);
 }
 
+
+// A window far longer than a chunk of frames: the meeting found is the real one, late in
+// the window, never an offset past a chunk's end (which once wrapped around to frame 0).
+TEST(HorizonsTest, LateMeetingsInALongWindowAreFoundWhereTheyAre) {
+  Scene scene = ParseScene(R"({"camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},
+    "shapes": [{"type": "sphere", "center": [-40, 0, 0], "radius": 0.5, "motion": {"polynomial": [[0, 1], [0], [0]]}}],
+    "render": {"width": 8, "height": 8, "frames": {"start": 0, "count": 60}}})");
+  HorizonOracle oracle(scene, 0, 59);
+  // A ray down the y axis at x = 0: the ball's proxy (radius 0.5 and its pad) reaches it
+  // at frame 40 - 0.5, so first at frame 40.
+  EXPECT_EQ(oracle.FirstMeeting({{0, 5, 0}, {0, -1, 0}, 10}), 40);
+  EXPECT_EQ(oracle.FirstMeeting({{30, 5, 0}, {0, -1, 0}, 10}), oracle.Unbounded());
+  for (int x = -45; x <= 25; x += 5) {
+    const int meeting = oracle.FirstMeeting({{float(x), 5, 0}, {0, -1, 0}, 10});
+    EXPECT_GT(meeting, 0) << "x " << x;
+    if (x >= -39 && x <= 19) {
+      EXPECT_EQ(meeting, x + 40) << "x " << x;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace tcfarm
