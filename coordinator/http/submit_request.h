@@ -16,8 +16,8 @@ namespace tcfarm::http {
 // has no neighbouring frame to copy from, which "brute" already says more plainly.
 inline constexpr int kMinBinWidth = 2;
 inline constexpr int kMaxBinWidth = 1000;
-inline constexpr int kMinPriority = -100;
-inline constexpr int kMaxPriority = 100;
+inline constexpr int kMinPriority = JobStore::kMinPriority;
+inline constexpr int kMaxPriority = JobStore::kMaxPriority;
 inline constexpr size_t kMaxNameBytes = 256;  // a label for lists, not a document
 // A scene with more files than this is a project tree, not a shot; it also bounds the
 // folder a submission lays out.

@@ -258,7 +258,65 @@ constexpr std::array<const char*, JobStore::kSchemaVersion> kMigrations = {{
         store_id TEXT NOT NULL
       );
     )sql",
+    // Each job's events; the assets each job names, so that an asset goes with the last job
+    // naming it; and the jobs deleted whose folders are still to be removed. Events are not
+    // tied to their job by a foreign key: a job's "deleted" event outlives it.
+    R"sql(
+      CREATE TABLE job_events (
+        seq     INTEGER PRIMARY KEY AUTOINCREMENT,
+        job_id  INTEGER NOT NULL,
+        time_ms INTEGER NOT NULL,
+        type    TEXT    NOT NULL,
+        message TEXT    NOT NULL,
+        fields  TEXT    NOT NULL DEFAULT '{}'
+      );
+      CREATE INDEX job_events_by_job ON job_events (job_id, seq);
+      CREATE TABLE job_assets (
+        job_id INTEGER NOT NULL REFERENCES jobs (id) ON DELETE CASCADE,
+        sha256 TEXT    NOT NULL,
+        PRIMARY KEY (job_id, sha256)
+      ) WITHOUT ROWID;
+      CREATE INDEX job_assets_by_hash ON job_assets (sha256);
+      CREATE TABLE job_deletions (job_id INTEGER PRIMARY KEY);
+      CREATE INDEX jobs_by_finish ON jobs (finished_ms, id)
+        WHERE state IN ('completed', 'failed', 'canceled');
+    )sql",
 }};
+
+// The texture assets a stored scene uses: canonical scenes name them as "asset":"<sha256>".
+// Read from the text, so that a scene of millions of triangles is not parsed for it.
+std::vector<std::string> TextureAssetsOfScene(const std::string& sceneJson) {
+  static const std::string kKey = "\"asset\":\"";
+  constexpr size_t kHashLength = 64;
+  std::vector<std::string> hashes;
+  for (size_t at = sceneJson.find(kKey); at != std::string::npos; at = sceneJson.find(kKey, at + 1)) {
+    const size_t begin = at + kKey.size();
+    if (begin + kHashLength < sceneJson.size() && sceneJson[begin + kHashLength] == '"') {
+      hashes.push_back(sceneJson.substr(begin, kHashLength));
+    }
+  }
+  return hashes;
+}
+
+void InsertAssetNames(Database& db, int64_t id, const std::vector<std::string>& hashes) {
+  Statement insert(db, "INSERT OR IGNORE INTO job_assets (job_id, sha256) VALUES (?1, ?2)");
+  for (const std::string& hash : hashes) {
+    insert.Reset();
+    insert.Bind(1, id).Bind(2, hash);
+    insert.Run();
+  }
+}
+
+// Schema 4 names each job's assets; jobs stored before it name the textures their scenes
+// use (the files they were submitted with are no longer needed by anyone).
+void BackfillAssetNames(Database& db) {
+  std::vector<std::pair<int64_t, std::vector<std::string>>> named;
+  {
+    Statement scenes(db, "SELECT job_id, scene_json FROM job_scenes");
+    while (scenes.Step()) named.emplace_back(scenes.Int64(0), TextureAssetsOfScene(scenes.Text(1)));
+  }
+  for (const auto& [id, hashes] : named) InsertAssetNames(db, id, hashes);
+}
 
 // The scene's render.width/height, read without parsing the rest of the scene (a stored
 // scene may inline millions of triangles). 0x0 when the JSON has no render size, which a
@@ -319,6 +377,7 @@ void MigrateForward(Database& db) {
   }
   for (int next = version; next < JobStore::kSchemaVersion; ++next) db.Exec(kMigrations[next]);
   if (version >= 1 && version < 2) BackfillFrameSizes(db);
+  if (version >= 1 && version < 4) BackfillAssetNames(db);
   if (version != JobStore::kSchemaVersion) WriteSchemaVersion(db, JobStore::kSchemaVersion);
   transaction.Commit();
 }
@@ -434,6 +493,10 @@ void ValidateSpec(const JobSpec& spec) {
     throw std::invalid_argument("job spec: tolerance must be finite and >= 0, got " +
                                 std::to_string(spec.tolerance));
   }
+  if (spec.priority < JobStore::kMinPriority || spec.priority > JobStore::kMaxPriority) {
+    throw std::invalid_argument("job spec: priority must be in [" + std::to_string(JobStore::kMinPriority) + ", " +
+                                std::to_string(JobStore::kMaxPriority) + "], got " + std::to_string(spec.priority));
+  }
   if (spec.frameSize.width < 1 || spec.frameSize.height < 1) {
     throw std::invalid_argument("job spec: frameSize must be at least 1x1, got " +
                                 std::to_string(spec.frameSize.width) + "x" +
@@ -466,6 +529,100 @@ void MergeStats(Database& db, uint64_t id, const nlohmann::json& patch) {
   Statement write(db, "UPDATE jobs SET stats = ?2 WHERE id = ?1");
   write.Bind(1, static_cast<int64_t>(id)).Bind(2, stats.dump());
   write.Run();
+}
+
+// "frames 10..19", "frame 7", "frames 0..1, 4, 8..9": frames as runs, ascending.
+std::vector<std::pair<int, int>> FrameRuns(std::vector<int> frames) {
+  std::sort(frames.begin(), frames.end());
+  frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
+  std::vector<std::pair<int, int>> runs;
+  for (int frame : frames) {
+    if (!runs.empty() && runs.back().second + 1 == frame) {
+      runs.back().second = frame;
+    } else {
+      runs.emplace_back(frame, frame);
+    }
+  }
+  return runs;
+}
+
+std::string RunsText(const std::vector<std::pair<int, int>>& runs) {
+  std::string text;
+  for (const auto& [first, last] : runs) {
+    if (!text.empty()) text += ", ";
+    text += first == last ? std::to_string(first) : std::to_string(first) + ".." + std::to_string(last);
+  }
+  return text;
+}
+
+EventDraft FramesWrittenEvent(const std::vector<int>& frames) {
+  const std::vector<std::pair<int, int>> runs = FrameRuns(frames);
+  size_t count = 0;
+  nlohmann::json ranges = nlohmann::json::array();
+  for (const auto& [first, last] : runs) {
+    count += static_cast<size_t>(last - first + 1);
+    ranges.push_back({first, last});
+  }
+  std::string message;
+  if (runs.size() == 1) {
+    message = runs[0].first == runs[0].second ? "frame " + std::to_string(runs[0].first) + " written"
+                                              : "frames " + RunsText(runs) + " written";
+  } else {
+    message = std::to_string(count) + " frames written: " + RunsText(runs);
+  }
+  return {"frames_written", message,
+          {{"first", runs.front().first}, {"last", runs.back().second}, {"count", count}, {"ranges", ranges}}};
+}
+
+std::string FramesOf(const JobRecord& record) {
+  return std::to_string(record.framesDone) + " of " + std::to_string(record.FrameCount()) + " frames";
+}
+
+// "0.231", "12.4": figures for messages, without trailing noise.
+std::string Figure(double value, int digits) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.*f", digits, value);
+  return text;
+}
+
+JobEvent ReadEvent(const Statement& row) {
+  JobEvent event;
+  event.seq = row.UInt64(0);
+  event.job = row.UInt64(1);
+  event.timeMs = row.Int64(2);
+  event.type = row.Text(3);
+  event.message = row.Text(4);
+  event.fields = nlohmann::json::parse(row.Text(5), nullptr, false);
+  if (!event.fields.is_object()) event.fields = nlohmann::json::object();
+  return event;
+}
+
+// ",queued,running,": a set of names matched in SQL with instr(), so the statement's text
+// stays a literal whatever the number of names; nullopt (SQL NULL) matches all.
+template <typename T, typename Name>
+std::optional<std::string> NameSet(const std::vector<T>& values, Name name) {
+  if (values.empty()) return std::nullopt;
+  std::string set = ",";
+  for (const T& value : values) set += std::string(name(value)) + ",";
+  return set;
+}
+
+// The WHERE clause JobStore::Query pages and counts with: ?1 states, ?2 strategies (as
+// NameSet writes them), ?3 a substring of the name; NULL matches every job. lower() folds
+// ASCII letters only, as SQLite's LIKE does.
+const std::string kJobFilter =
+    "WHERE (?1 IS NULL OR instr(?1, ',' || state || ',') > 0) "
+    "AND (?2 IS NULL OR instr(?2, ',' || strategy || ',') > 0) "
+    "AND (?3 IS NULL OR instr(lower(name), lower(?3)) > 0) ";
+
+void BindJobFilter(Statement& statement, const JobQuery& query) {
+  if (auto states = NameSet(query.states, [](JobState state) { return ToString(state); })) {
+    statement.Bind(1, *states);
+  }
+  if (auto strategies = NameSet(query.strategies, [](Strategy strategy) { return StrategyName(strategy); })) {
+    statement.Bind(2, *strategies);
+  }
+  if (!query.nameContains.empty()) statement.Bind(3, query.nameContains);
 }
 
 }  // namespace
@@ -506,7 +663,20 @@ uint64_t JobStore::Submit(const JobSpec& spec) {
   Statement scene(*db_, "INSERT INTO job_scenes (job_id, scene_json) VALUES (?1, ?2)");
   scene.Bind(1, id).Bind(2, spec.sceneJson);
   scene.Run();
+  InsertAssetNames(*db_, id, spec.assetHashes);
+  std::vector<JobEvent> recorded;
+  const std::string name = spec.name.empty() ? "" : " '" + spec.name + "'";
+  Record(static_cast<uint64_t>(id),
+         {"submitted",
+          "submitted" + name + ": " + std::string(StrategyName(spec.strategy)) + ", frames " + std::to_string(spec.firstFrame) +
+              ".." + std::to_string(spec.lastFrame) + ", priority " + std::to_string(spec.priority),
+          {{"name", spec.name},
+           {"strategy", std::string(StrategyName(spec.strategy))},
+           {"frames", {{"start", spec.firstFrame}, {"end", spec.lastFrame}}},
+           {"priority", spec.priority}}},
+         recorded);
   transaction.Commit();
+  Announce(recorded, {});
   return static_cast<uint64_t>(id);
 }
 
@@ -520,15 +690,27 @@ std::optional<JobRecord> JobStore::Get(uint64_t id) const {
 }
 
 std::vector<JobRecord> JobStore::List(std::optional<JobState> state, int limit) const {
+  JobQuery query;
+  if (state) query.states = {*state};
+  query.limit = limit;
+  return Query(query).records;
+}
+
+JobPage JobStore::Query(const JobQuery& query) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  // ?1 NULL matches every state; SQLite reads a negative LIMIT as no limit.
-  Statement statement(*db_, kSelectJobColumns +
-                                "WHERE ?1 IS NULL OR state = ?1 ORDER BY id DESC LIMIT ?2");
-  if (state) statement.Bind(1, ToString(*state));
-  statement.Bind(2, int64_t{limit > 0 ? limit : -1});
-  std::vector<JobRecord> records;
-  while (statement.Step()) records.push_back(ReadRecord(statement));
-  return records;
+  Transaction snapshot(*db_, Transaction::Mode::kRead);
+  JobPage page;
+  // SQLite reads a negative LIMIT as no limit.
+  Statement select(*db_, kSelectJobColumns + kJobFilter + "ORDER BY id DESC LIMIT ?4 OFFSET ?5");
+  BindJobFilter(select, query);
+  select.Bind(4, query.limit > 0 ? query.limit : int64_t{-1}).Bind(5, std::max<int64_t>(0, query.offset));
+  while (select.Step()) page.records.push_back(ReadRecord(select));
+  Statement count(*db_, "SELECT COUNT(*) FROM jobs " + kJobFilter);
+  BindJobFilter(count, query);
+  count.Step();
+  page.total = count.UInt64(0);
+  snapshot.Commit();
+  return page;
 }
 
 size_t JobStore::CountInState(JobState state) const {
@@ -537,6 +719,20 @@ size_t JobStore::CountInState(JobState state) const {
   statement.Bind(1, ToString(state));
   statement.Step();
   return static_cast<size_t>(statement.Int64(0));
+}
+
+std::optional<JobState> JobStore::StateOf(uint64_t id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return ReadState(*db_, id);
+}
+
+std::vector<RecordedFrame> JobStore::RecordedFrames(uint64_t id) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT frame, traced, copied FROM job_frames WHERE job_id = ?1 ORDER BY frame");
+  statement.Bind(1, static_cast<int64_t>(id));
+  std::vector<RecordedFrame> frames;
+  while (statement.Step()) frames.push_back({statement.Int(0), statement.UInt64(1), statement.UInt64(2)});
+  return frames;
 }
 
 std::optional<JobRecord> JobStore::ClaimNext() {
@@ -553,16 +749,158 @@ std::optional<JobRecord> JobStore::ClaimNext() {
              "WHERE id = ?1 AND state = 'queued'",
              nowMs_());
   std::optional<JobRecord> record = LoadFullRecord(*db_, id);
+  std::vector<JobEvent> recorded;
+  Record(id,
+         {"started",
+          record->framesDone > 0 ? "resumed with " + FramesOf(*record) + " already written" : "started",
+          {{"frames_written", record->framesDone}}},
+         recorded);
   transaction.Commit();
+  Announce(recorded, {});
   return record;
 }
 
 bool JobStore::Cancel(uint64_t id) {
   std::lock_guard<std::mutex> lock(mutex_);
-  return Transition(*db_, id,
-                    "UPDATE jobs SET state = 'canceled', finished_ms = ?2 "
-                    "WHERE id = ?1 AND state IN ('queued', 'running')",
-                    nowMs_());
+  Transaction transaction(*db_);
+  if (!Transition(*db_, id,
+                  "UPDATE jobs SET state = 'canceled', finished_ms = ?2 "
+                  "WHERE id = ?1 AND state IN ('queued', 'running')",
+                  nowMs_())) {
+    return false;
+  }
+  std::vector<JobEvent> recorded;
+  std::vector<uint64_t> told;
+  RecordUntoldFrames(id, recorded, told);
+  const JobRecord record = *LoadRecordRow(*db_, id);
+  Record(id, {"canceled", "canceled with " + FramesOf(record) + " written", {{"frames_written", record.framesDone}}},
+         recorded);
+  transaction.Commit();
+  Announce(recorded, told);
+  return true;
+}
+
+bool JobStore::Retry(uint64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  const std::optional<JobState> before = ReadState(*db_, id);
+  Statement requeue(*db_, "UPDATE jobs SET state = 'queued', finished_ms = 0, error = '' "
+                          "WHERE id = ?1 AND state IN ('failed', 'canceled')");
+  requeue.Bind(1, static_cast<int64_t>(id));
+  requeue.Run();
+  if (db_->Changes() != 1) return false;
+  const JobRecord record = *LoadRecordRow(*db_, id);
+  std::vector<JobEvent> recorded;
+  Record(id,
+         {"retried",
+          "queued again after it " + std::string(before == JobState::kFailed ? "failed" : "was canceled") + "; " +
+              FramesOf(record) + " written are kept",
+          {{"previous_state", ToString(before.value_or(JobState::kFailed))}, {"frames_kept", record.framesDone}}},
+         recorded);
+  transaction.Commit();
+  Announce(recorded, {});
+  return true;
+}
+
+bool JobStore::Change(uint64_t id, const JobChange& change) {
+  if (change.priority && (*change.priority < kMinPriority || *change.priority > kMaxPriority)) {
+    throw std::invalid_argument("job " + std::to_string(id) + ": priority " + std::to_string(*change.priority) +
+                                " is outside [" + std::to_string(kMinPriority) + ", " +
+                                std::to_string(kMaxPriority) + "]");
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  const std::optional<JobRecord> record = LoadRecordRow(*db_, id);
+  if (!record) return false;
+  std::vector<JobEvent> recorded;
+  if (change.priority && *change.priority != record->spec.priority) {
+    Statement update(*db_, "UPDATE jobs SET priority = ?2 WHERE id = ?1");
+    update.Bind(1, static_cast<int64_t>(id)).Bind(2, int64_t{*change.priority});
+    update.Run();
+    Record(id,
+           {"priority_changed",
+            "priority changed from " + std::to_string(record->spec.priority) + " to " +
+                std::to_string(*change.priority),
+            {{"from", record->spec.priority}, {"to", *change.priority}}},
+           recorded);
+  }
+  if (change.name && *change.name != record->spec.name) {
+    Statement update(*db_, "UPDATE jobs SET name = ?2 WHERE id = ?1");
+    update.Bind(1, static_cast<int64_t>(id)).Bind(2, *change.name);
+    update.Run();
+    Record(id,
+           {"renamed", "renamed from '" + record->spec.name + "' to '" + *change.name + "'",
+            {{"from", record->spec.name}, {"to", *change.name}}},
+           recorded);
+  }
+  transaction.Commit();
+  Announce(recorded, {});
+  return true;
+}
+
+DeletedJob JobStore::Delete(uint64_t id) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  DeletedJob deleted;
+  const std::optional<JobState> state = ReadState(*db_, id);
+  if (!state) return deleted;
+  deleted.state = *state;
+  if (*state == JobState::kQueued || *state == JobState::kRunning) {
+    deleted.outcome = DeletedJob::Outcome::kActive;
+    return deleted;
+  }
+  Statement unshared(*db_,
+                     "SELECT sha256 FROM job_assets AS mine WHERE job_id = ?1 AND NOT EXISTS "
+                     "(SELECT 1 FROM job_assets AS other WHERE other.sha256 = mine.sha256 AND other.job_id != ?1) "
+                     "ORDER BY sha256");
+  unshared.Bind(1, static_cast<int64_t>(id));
+  while (unshared.Step()) deleted.unreferencedAssets.push_back(unshared.Text(0));
+  Statement note(*db_, "INSERT OR IGNORE INTO job_deletions (job_id) VALUES (?1)");
+  note.Bind(1, static_cast<int64_t>(id));
+  note.Run();
+  Statement events(*db_, "DELETE FROM job_events WHERE job_id = ?1");
+  events.Bind(1, static_cast<int64_t>(id));
+  events.Run();
+  // Its frames, scene and asset names go with it (ON DELETE CASCADE).
+  Statement job(*db_, "DELETE FROM jobs WHERE id = ?1");
+  job.Bind(1, static_cast<int64_t>(id));
+  job.Run();
+  transaction.Commit();
+  untold_.erase(id);
+  deleted.outcome = DeletedJob::Outcome::kDeleted;
+  return deleted;
+}
+
+std::vector<uint64_t> JobStore::PendingDeletions() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT job_id FROM job_deletions ORDER BY job_id");
+  std::vector<uint64_t> ids;
+  while (statement.Step()) ids.push_back(statement.UInt64(0));
+  return ids;
+}
+
+void JobStore::FinishDeletion(uint64_t id, const EventDraft& deleted) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  Statement statement(*db_, "DELETE FROM job_deletions WHERE job_id = ?1");
+  statement.Bind(1, static_cast<int64_t>(id));
+  statement.Run();
+  std::vector<JobEvent> recorded;
+  if (db_->Changes() == 1) Record(id, deleted, recorded);
+  transaction.Commit();
+  Announce(recorded, {});
+}
+
+std::vector<uint64_t> JobStore::FinishedJobs(std::optional<int64_t> finishedBeforeMs, size_t limit) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_,
+                      "SELECT id FROM jobs WHERE state IN ('completed', 'failed', 'canceled') "
+                      "AND (?1 IS NULL OR finished_ms < ?1) ORDER BY finished_ms, id LIMIT ?2");
+  if (finishedBeforeMs) statement.Bind(1, *finishedBeforeMs);
+  statement.Bind(2, limit > 0 ? static_cast<int64_t>(limit) : int64_t{-1});
+  std::vector<uint64_t> ids;
+  while (statement.Step()) ids.push_back(statement.UInt64(0));
+  return ids;
 }
 
 bool JobStore::RecordFrame(uint64_t id, int frame, uint64_t tracedPixels,
@@ -588,30 +926,72 @@ bool JobStore::RecordFrame(uint64_t id, int frame, uint64_t tracedPixels,
   update.Bind(1, static_cast<int64_t>(id)).Bind(2, static_cast<int64_t>(tracedPixels));
   update.Bind(3, static_cast<int64_t>(copiedPixels));
   update.Run();
+  // The frame joins the job's untold ones; enough of them are told at once, in this
+  // transaction, the others by a later call (or FlushFrameEvents).
+  const int64_t now = nowMs_();
+  const auto untold = untold_.find(id);
+  std::vector<int> frames = untold == untold_.end() ? std::vector<int>{} : untold->second.frames;
+  frames.push_back(frame);
+  std::vector<JobEvent> recorded;
+  if (frames.size() >= kFramesPerEvent) Record(id, FramesWrittenEvent(frames), recorded);
   transaction.Commit();
+  if (!recorded.empty()) {
+    Announce(recorded, {id});
+  } else {
+    UntoldFrames& owed = untold_[id];
+    if (owed.frames.empty()) owed.sinceMs = now;
+    owed.frames.push_back(frame);
+  }
   return true;
 }
 
-bool JobStore::Complete(uint64_t id, const nlohmann::json& stats) {
+bool JobStore::Complete(uint64_t id, const nlohmann::json& stats, const std::vector<EventDraft>& before) {
   std::lock_guard<std::mutex> lock(mutex_);
   Transaction transaction(*db_);
+  const int64_t now = nowMs_();
   const bool completed = Transition(*db_, id,
                                     "UPDATE jobs SET state = 'completed', finished_ms = ?2 "
                                     "WHERE id = ?1 AND state = 'running'",
-                                    nowMs_());
+                                    now);
   if (!completed) return false;
   MergeStats(*db_, id, stats);
+  std::vector<JobEvent> recorded;
+  std::vector<uint64_t> told;
+  RecordUntoldFrames(id, recorded, told);
+  for (const EventDraft& event : before) Record(id, event, recorded);
+  const JobRecord record = *LoadRecordRow(*db_, id);
+  const double ratio = record.TracedPixelRatio(record.spec.frameSize.Pixels());
+  // This run's wall time as the farm measured it; the record's since the first start
+  // for a job completed without figures.
+  const nlohmann::json measured = stats.is_object() ? stats.value("wall_seconds", nlohmann::json()) : nlohmann::json();
+  const double wall = measured.is_number() ? measured.get<double>() : (now - record.startedMs) / 1000.0;
+  Record(id,
+         {"completed",
+          "completed: " + std::to_string(record.framesDone) + " frames, traced-pixel ratio " + Figure(ratio, 3) +
+              ", " + Figure(wall, 1) + " s",
+          {{"traced_pixel_ratio", ratio}, {"wall_seconds", wall}, {"frames_written", record.framesDone}}},
+         recorded);
   transaction.Commit();
+  Announce(recorded, told);
   return true;
 }
 
 bool JobStore::Fail(uint64_t id, const std::string& error) {
   std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
   Statement statement(*db_, "UPDATE jobs SET state = 'failed', finished_ms = ?2, error = ?3 "
                             "WHERE id = ?1 AND state IN ('queued', 'running')");
   statement.Bind(1, static_cast<int64_t>(id)).Bind(2, nowMs_()).Bind(3, error);
   statement.Run();
-  return db_->Changes() == 1;
+  if (db_->Changes() != 1) return false;
+  std::vector<JobEvent> recorded;
+  std::vector<uint64_t> told;
+  RecordUntoldFrames(id, recorded, told);
+  const JobRecord record = *LoadRecordRow(*db_, id);
+  Record(id, {"failed", "failed: " + error, {{"reason", error}, {"frames_written", record.framesDone}}}, recorded);
+  transaction.Commit();
+  Announce(recorded, told);
+  return true;
 }
 
 bool JobStore::SetStats(uint64_t id, const nlohmann::json& stats) {
@@ -630,7 +1010,17 @@ std::vector<uint64_t> JobStore::RequeueInterrupted() {
   Statement running(*db_, "SELECT id FROM jobs WHERE state = 'running' ORDER BY id");
   while (running.Step()) ids.push_back(running.UInt64(0));
   db_->Exec("UPDATE jobs SET state = 'queued' WHERE state = 'running'");
+  std::vector<JobEvent> recorded;
+  for (uint64_t id : ids) {
+    const JobRecord record = *LoadRecordRow(*db_, id);
+    Record(id,
+           {"requeued",
+            "the coordinator stopped while it ran; queued again to resume with " + FramesOf(record) + " written",
+            {{"frames_written", record.framesDone}}},
+           recorded);
+  }
   transaction.Commit();
+  Announce(recorded, {});
   return ids;
 }
 
@@ -663,6 +1053,99 @@ void JobStore::ForgetFrames(uint64_t id, const std::vector<int>& frames) {
     update.Run();
   }
   transaction.Commit();
+  if (auto untold = untold_.find(id); untold != untold_.end()) {
+    std::vector<int>& owed = untold->second.frames;
+    for (int frame : frames) owed.erase(std::remove(owed.begin(), owed.end(), frame), owed.end());
+    if (owed.empty()) untold_.erase(untold);
+  }
+}
+
+uint64_t JobStore::AppendEvent(uint64_t id, const EventDraft& event) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  if (!ReadState(*db_, id)) return 0;  // deleted meanwhile: no event outlives its job but "deleted"
+  std::vector<JobEvent> recorded;
+  Record(id, event, recorded);
+  transaction.Commit();
+  Announce(recorded, {});
+  return recorded.back().seq;
+}
+
+void JobStore::FlushFrameEvents() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const int64_t now = nowMs_();
+  std::vector<uint64_t> due;
+  for (const auto& [id, untold] : untold_) {
+    if (now - untold.sinceMs >= kFrameEventIntervalMs) due.push_back(id);
+  }
+  if (due.empty()) return;
+  Transaction transaction(*db_);
+  std::vector<JobEvent> recorded;
+  std::vector<uint64_t> told;
+  for (uint64_t id : due) RecordUntoldFrames(id, recorded, told);
+  transaction.Commit();
+  Announce(recorded, told);
+}
+
+std::vector<JobEvent> JobStore::Events(const EventQuery& query) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_,
+                      "SELECT seq, job_id, time_ms, type, message, fields FROM job_events "
+                      "WHERE seq > ?1 AND (?2 IS NULL OR job_id = ?2) ORDER BY seq LIMIT ?3");
+  statement.Bind(1, static_cast<int64_t>(std::min<uint64_t>(query.afterSeq, INT64_MAX)));
+  if (query.job) statement.Bind(2, static_cast<int64_t>(*query.job));
+  statement.Bind(3, static_cast<int64_t>(std::min<size_t>(query.limit, INT64_MAX)));
+  std::vector<JobEvent> events;
+  while (statement.Step()) events.push_back(ReadEvent(statement));
+  return events;
+}
+
+uint64_t JobStore::LastEventSeq() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT COALESCE(MAX(seq), 0) FROM job_events");
+  statement.Step();
+  return statement.UInt64(0);
+}
+
+uint64_t JobStore::AddEventListener(EventListener listener) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const uint64_t id = nextListenerId_++;
+  listeners_[id] = std::move(listener);
+  return id;
+}
+
+void JobStore::RemoveEventListener(uint64_t listenerId) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  listeners_.erase(listenerId);
+}
+
+void JobStore::Record(uint64_t id, const EventDraft& event, std::vector<JobEvent>& recorded) {
+  JobEvent written;
+  written.job = id;
+  written.timeMs = nowMs_();
+  written.type = event.type;
+  written.message = event.message;
+  if (event.fields.is_object()) written.fields = event.fields;
+  Statement insert(*db_, "INSERT INTO job_events (job_id, time_ms, type, message, fields) VALUES (?1, ?2, ?3, ?4, ?5)");
+  insert.Bind(1, static_cast<int64_t>(id)).Bind(2, written.timeMs).Bind(3, written.type);
+  insert.Bind(4, written.message).Bind(5, written.fields.dump());
+  insert.Run();
+  written.seq = static_cast<uint64_t>(db_->LastInsertRowId());
+  recorded.push_back(std::move(written));
+}
+
+void JobStore::RecordUntoldFrames(uint64_t id, std::vector<JobEvent>& recorded, std::vector<uint64_t>& told) {
+  const auto untold = untold_.find(id);
+  if (untold == untold_.end() || untold->second.frames.empty()) return;
+  Record(id, FramesWrittenEvent(untold->second.frames), recorded);
+  told.push_back(id);
+}
+
+void JobStore::Announce(const std::vector<JobEvent>& recorded, const std::vector<uint64_t>& told) {
+  for (uint64_t id : told) untold_.erase(id);
+  for (const JobEvent& event : recorded) {
+    for (const auto& [listenerId, listener] : listeners_) listener(event);
+  }
 }
 
 std::optional<std::string> JobStore::StoreId() const {

@@ -4,6 +4,7 @@
 #include <sqlite3.h>
 
 #include <algorithm>
+#include <chrono>
 #include <atomic>
 #include <fstream>
 #include <functional>
@@ -601,6 +602,7 @@ TEST_F(JobStoreTest, SchemaOneFilesGetTheirFrameSizesFromTheirScenes) {
   spec.cameraOrLightsChange = false;
   const uint64_t id = Open()->Submit(spec);
   RawExec(file_,
+          "DROP TABLE job_events; DROP TABLE job_assets; DROP TABLE job_deletions; DROP INDEX jobs_by_finish; "
           "ALTER TABLE jobs DROP COLUMN width; ALTER TABLE jobs DROP COLUMN height; "
           "ALTER TABLE jobs DROP COLUMN camera_or_lights_change; ALTER TABLE jobs DROP COLUMN plan; "
           "DROP TABLE store_identity; PRAGMA user_version = 1");
@@ -629,6 +631,367 @@ TEST_F(JobStoreTest, NewFileGetsTheCurrentSchemaVersion) {
   EXPECT_EQ(sqlite3_column_int(statement, 0), JobStore::kSchemaVersion);
   sqlite3_finalize(statement);
   sqlite3_close(db);
+}
+
+// --- lists: filters, pages, totals ------------------------------------------------------
+
+TEST_F(JobStoreTest, QueryFiltersPagesAndCountsEveryMatch) {
+  auto store = Open();
+  std::vector<uint64_t> ids;
+  const std::vector<std::pair<std::string, Strategy>> jobs{
+      {"Orbit shot", Strategy::kSearch}, {"orbit close-up", Strategy::kExact}, {"teapot", Strategy::kSearch},
+      {"ORBIT wide", Strategy::kAuto},   {"fly-through", Strategy::kBrute},   {"orbit again", Strategy::kSearch}};
+  for (const auto& [name, strategy] : jobs) {
+    JobSpec spec = Spec(0, name);
+    spec.strategy = strategy;
+    ids.push_back(store->Submit(spec));
+  }
+  ASSERT_EQ(store->ClaimNext()->id, ids[0]);
+  ASSERT_TRUE(store->Fail(ids[0], "broken"));
+  ASSERT_TRUE(store->Cancel(ids[2]));
+
+  JobPage all = store->Query({});
+  EXPECT_EQ(all.total, 6u);
+  ASSERT_EQ(all.records.size(), 6u);
+  EXPECT_EQ(all.records.front().id, ids[5]);  // newest first
+  // offset really skips; total counts the matches, not the page.
+  JobQuery page;
+  page.limit = 2;
+  page.offset = 2;
+  all = store->Query(page);
+  EXPECT_EQ(all.total, 6u);
+  ASSERT_EQ(all.records.size(), 2u);
+  EXPECT_EQ(all.records[0].id, ids[3]);
+  EXPECT_EQ(all.records[1].id, ids[2]);
+  page.offset = 6;
+  EXPECT_TRUE(store->Query(page).records.empty());
+  EXPECT_EQ(store->Query(page).total, 6u);
+
+  JobQuery byName;
+  byName.nameContains = "orBIT";  // ASCII letters fold either way
+  JobPage orbits = store->Query(byName);
+  EXPECT_EQ(orbits.total, 4u);
+  byName.strategies = {Strategy::kSearch};
+  orbits = store->Query(byName);
+  ASSERT_EQ(orbits.total, 2u);
+  EXPECT_EQ(orbits.records[0].id, ids[5]);
+  EXPECT_EQ(orbits.records[1].id, ids[0]);
+
+  JobQuery finished;
+  finished.states = {JobState::kFailed, JobState::kCanceled};
+  JobPage ended = store->Query(finished);
+  ASSERT_EQ(ended.total, 2u);
+  EXPECT_EQ(ended.records[0].id, ids[2]);
+  EXPECT_EQ(ended.records[1].id, ids[0]);
+  finished.nameContains = "%";  // no wildcard: only a name holding a '%' would match
+  EXPECT_EQ(store->Query(finished).total, 0u);
+
+  JobQuery autoJobs;
+  autoJobs.strategies = {Strategy::kAuto, Strategy::kBrute};
+  EXPECT_EQ(store->Query(autoJobs).total, 2u);
+}
+
+// A farm that kept every job: a page and its total come from SQL, not from reading every
+// record, so they stay fast whatever the stats each finished job carries.
+TEST_F(JobStoreTest, QueryStaysFastAmongThousandsOfJobs) {
+  auto store = Open();
+  constexpr int kJobs = 3000;
+  const nlohmann::json stats = {{"analysis", std::string(8 << 10, 'a')}};
+  for (int i = 0; i < kJobs; ++i) {
+    // The even ones complete: a higher priority makes each the one ClaimNext takes.
+    const uint64_t id = store->Submit(Spec(i % 2 == 0 ? 1 : 0, i % 3 == 0 ? "shot " + std::to_string(i) : "test"));
+    if (i % 2 == 0) {
+      ASSERT_EQ(store->ClaimNext()->id, id);
+      ASSERT_TRUE(store->Complete(id, stats));
+    }
+  }
+  JobQuery query;
+  query.states = {JobState::kCompleted};
+  query.nameContains = "SHOT";
+  query.limit = 50;
+  query.offset = 400;
+  const auto start = std::chrono::steady_clock::now();
+  const JobPage page = store->Query(query);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(page.total, 500u);  // i divisible by 6
+  ASSERT_EQ(page.records.size(), 50u);
+  EXPECT_EQ(page.records[0].spec.name, "shot " + std::to_string(6 * (500 - 401)));
+  EXPECT_LT(seconds, 0.25) << "a page among " << kJobs << " jobs took " << seconds << " s";
+}
+
+// --- events ------------------------------------------------------------------------------
+
+std::vector<std::string> TypesOf(const std::vector<JobEvent>& events) {
+  std::vector<std::string> types;
+  for (const JobEvent& event : events) types.push_back(event.type);
+  return types;
+}
+
+TEST_F(JobStoreTest, EveryTransitionRecordsItsEventInOrder) {
+  auto store = Open();
+  std::vector<JobEvent> heard;
+  store->AddEventListener([&heard](const JobEvent& event) { heard.push_back(event); });
+  const uint64_t id = store->Submit(Spec(3, "ball"));
+  nowMs_ = 2'000;
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  for (int frame = 1; frame <= 10; ++frame) ASSERT_TRUE(store->RecordFrame(id, frame, 12, 36));
+  nowMs_ = 4'500;
+  ASSERT_TRUE(store->Complete(id, {{"wall_seconds", 2.5}}, {{"verification", "3 frames verified", {{"frames", 3}}}}));
+
+  const std::vector<JobEvent> events = store->Events({id, 0, 100});
+  EXPECT_EQ(TypesOf(events),
+            (std::vector<std::string>{"submitted", "started", "frames_written", "verification", "completed"}));
+  for (size_t i = 1; i < events.size(); ++i) EXPECT_GT(events[i].seq, events[i - 1].seq);
+  EXPECT_EQ(events[0].timeMs, 1'000);
+  EXPECT_EQ(events[0].message, "submitted 'ball': search, frames 1..10, priority 3");
+  EXPECT_EQ(events[0].fields["priority"], 3);
+  EXPECT_EQ(events[1].message, "started");
+  EXPECT_EQ(events[2].message, "frames 1..10 written");
+  EXPECT_EQ(events[2].fields["first"], 1);
+  EXPECT_EQ(events[2].fields["last"], 10);
+  EXPECT_EQ(events[3].fields["frames"], 3);
+  EXPECT_EQ(events[4].fields["wall_seconds"], 2.5);
+  EXPECT_DOUBLE_EQ(events[4].fields["traced_pixel_ratio"].get<double>(), 12.0 / 48.0);
+  EXPECT_EQ(events[4].message, "completed: 10 frames, traced-pixel ratio 0.250, 2.5 s");
+  // Listeners heard the same, once each; the log survives a reopen, and `after` pages it.
+  ASSERT_EQ(heard.size(), events.size());
+  EXPECT_EQ(heard.back().seq, events.back().seq);
+  store.reset();
+  store = Open();
+  EXPECT_EQ(store->Events({id, events[1].seq, 100}).size(), 3u);
+  EXPECT_EQ(store->Events({std::nullopt, 0, 2}).size(), 2u);
+  EXPECT_EQ(store->LastEventSeq(), events.back().seq);
+}
+
+TEST_F(JobStoreTest, FramesWrittenEventsGatherTenFramesOrOneSecond) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec());
+  JobSpec longer = Spec();
+  longer.lastFrame = 100;
+  const uint64_t other = store->Submit(longer);
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  ASSERT_TRUE(store->ClaimNext().has_value());
+  auto framesWritten = [&](uint64_t job) {
+    std::vector<JobEvent> events = store->Events({job, 0, 1000});
+    events.erase(std::remove_if(events.begin(), events.end(),
+                                [](const JobEvent& e) { return e.type != "frames_written"; }),
+                 events.end());
+    return events;
+  };
+  // Twenty-five frames at once, out of order: two events of ten, five frames untold.
+  for (int frame = 100; frame >= 76; --frame) ASSERT_TRUE(store->RecordFrame(other, frame, 1, 47));
+  std::vector<JobEvent> told = framesWritten(other);
+  ASSERT_EQ(told.size(), 2u);
+  EXPECT_EQ(told[0].message, "frames 91..100 written");
+  EXPECT_EQ(told[1].fields["first"], 81);
+  // Frames 3, 4, 7: told once a second has passed since the first of them.
+  ASSERT_TRUE(store->RecordFrame(id, 3, 1, 47));
+  nowMs_ = 1'600;
+  ASSERT_TRUE(store->RecordFrame(id, 7, 1, 47));
+  ASSERT_TRUE(store->RecordFrame(id, 4, 1, 47));
+  store->FlushFrameEvents();
+  EXPECT_TRUE(framesWritten(id).empty());
+  nowMs_ = 1'999;
+  store->FlushFrameEvents();
+  EXPECT_TRUE(framesWritten(id).empty());
+  nowMs_ = 2'000;
+  store->FlushFrameEvents();
+  told = framesWritten(id);
+  ASSERT_EQ(told.size(), 1u);
+  EXPECT_EQ(told[0].message, "3 frames written: 3..4, 7");
+  EXPECT_EQ(told[0].fields["ranges"], (nlohmann::json{{3, 4}, {7, 7}}));
+  EXPECT_EQ(told[0].fields["count"], 3);
+  EXPECT_EQ(framesWritten(other).size(), 3u);  // its five, due as well
+  store->FlushFrameEvents();
+  EXPECT_EQ(framesWritten(id).size(), 1u);
+  // A final transition tells what is untold first: nothing is lost, nothing told twice.
+  ASSERT_TRUE(store->RecordFrame(id, 9, 1, 47));
+  ASSERT_TRUE(store->Cancel(id));
+  const std::vector<JobEvent> events = store->Events({id, 0, 100});
+  ASSERT_GE(events.size(), 2u);
+  EXPECT_EQ(events[events.size() - 2].message, "frame 9 written");
+  EXPECT_EQ(events.back().type, "canceled");
+  EXPECT_EQ(events.back().message, "canceled with 4 of 10 frames written");
+}
+
+// --- retry, change, delete --------------------------------------------------------------
+
+TEST_F(JobStoreTest, RetryQueuesAFailedOrCanceledJobAgainWithItsFrames) {
+  auto store = Open();
+  const uint64_t canceled = store->Submit(Spec());
+  const uint64_t failed = store->Submit(Spec());
+  const uint64_t completed = store->Submit(Spec());
+  const uint64_t queued = store->Submit(Spec());
+  ASSERT_EQ(store->ClaimNext()->id, canceled);
+  ASSERT_TRUE(store->RecordFrame(canceled, 2, 10, 38));
+  ASSERT_TRUE(store->SetPlan(canceled, {{"strategy", "search"}, {"bin_width", 10}}));
+  nowMs_ = 5'000;
+  ASSERT_TRUE(store->Cancel(canceled));
+  ASSERT_TRUE(store->Fail(failed, "a worker could not trace it"));
+  ASSERT_EQ(store->ClaimNext()->id, completed);
+  ASSERT_TRUE(store->Complete(completed, {}));
+
+  EXPECT_FALSE(store->Retry(completed));
+  EXPECT_FALSE(store->Retry(queued));
+  EXPECT_FALSE(store->Retry(999));
+  ASSERT_TRUE(store->Retry(canceled));
+  ASSERT_TRUE(store->Retry(failed));
+  JobRecord record = *store->Get(canceled);
+  EXPECT_EQ(record.state, JobState::kQueued);
+  EXPECT_EQ(record.finishedMs, 0);
+  EXPECT_EQ(record.startedMs, 1'000);  // as after a restart: the job resumes
+  EXPECT_EQ(record.framesDone, 1);
+  EXPECT_EQ(record.tracedPerFrame[1], 10);
+  EXPECT_EQ(record.plan["bin_width"], 10);
+  record = *store->Get(failed);
+  EXPECT_EQ(record.state, JobState::kQueued);
+  EXPECT_TRUE(record.error.empty());
+  const std::vector<JobEvent> events = store->Events({canceled, 0, 100});
+  EXPECT_EQ(events.back().type, "retried");
+  EXPECT_EQ(events.back().message, "queued again after it was canceled; 1 of 10 frames written are kept");
+  EXPECT_EQ(store->Events({failed, 0, 100}).back().fields["previous_state"], "failed");
+  EXPECT_FALSE(store->Retry(canceled));  // queued now
+  // The oldest queued job goes first, as for any job of its priority.
+  EXPECT_EQ(store->ClaimNext()->id, canceled);
+  EXPECT_TRUE(store->RecordFrame(canceled, 3, 10, 38));
+  EXPECT_FALSE(store->RecordFrame(canceled, 2, 10, 38));  // kept, counted once
+}
+
+TEST_F(JobStoreTest, ChangeSetsPriorityAndNameAndTheClaimOrderFollows) {
+  auto store = Open();
+  const uint64_t older = store->Submit(Spec(0, "a"));
+  const uint64_t newer = store->Submit(Spec(0, "b"));
+  ASSERT_TRUE(store->Change(older, {-50, std::nullopt}));
+  ASSERT_TRUE(store->Change(newer, {std::nullopt, std::string("b, renamed")}));
+  ASSERT_TRUE(store->Change(newer, {0, std::string("b, renamed")}));  // nothing changes: no event
+  EXPECT_FALSE(store->Change(999, {1, std::nullopt}));
+  EXPECT_THROW(store->Change(older, {101, std::nullopt}), std::invalid_argument);
+  EXPECT_THROW(store->Change(older, {-101, std::nullopt}), std::invalid_argument);
+  EXPECT_EQ(store->Get(older)->spec.priority, -50);
+  EXPECT_EQ(store->Get(newer)->spec.name, "b, renamed");
+  // A negative priority is lower than 0, whatever the age.
+  EXPECT_EQ(store->ClaimNext()->id, newer);
+  EXPECT_EQ(store->ClaimNext()->id, older);
+  const std::vector<JobEvent> events = store->Events({older, 0, 100});
+  ASSERT_EQ(TypesOf(events), (std::vector<std::string>{"submitted", "priority_changed", "started"}));
+  EXPECT_EQ(events[1].message, "priority changed from 0 to -50");
+  EXPECT_EQ(events[1].fields, (nlohmann::json{{"from", 0}, {"to", -50}}));
+  EXPECT_EQ(TypesOf(store->Events({newer, 0, 100})), (std::vector<std::string>{"submitted", "renamed", "started"}));
+  // Finished jobs may still be renamed.
+  ASSERT_TRUE(store->Complete(newer, {}));
+  EXPECT_TRUE(store->Change(newer, {std::nullopt, std::string("final")}));
+  EXPECT_EQ(store->Get(newer)->spec.name, "final");
+}
+
+TEST_F(JobStoreTest, DeleteRemovesAFinishedJobAndNamesTheAssetsNoOtherJobNames) {
+  auto store = Open();
+  const std::string shared(64, 'a'), mine(64, 'b'), theirs(64, 'c');
+  JobSpec spec = Spec();
+  spec.assetHashes = {shared, mine};
+  const uint64_t id = store->Submit(spec);
+  spec.assetHashes = {shared, theirs};
+  const uint64_t other = store->Submit(spec);
+  ASSERT_EQ(store->ClaimNext()->id, id);
+  ASSERT_TRUE(store->RecordFrame(id, 1, 10, 38));
+
+  DeletedJob deleted = store->Delete(id);
+  EXPECT_EQ(deleted.outcome, DeletedJob::Outcome::kActive);
+  EXPECT_EQ(deleted.state, JobState::kRunning);
+  EXPECT_EQ(store->Delete(other).outcome, DeletedJob::Outcome::kActive);  // queued
+  EXPECT_EQ(store->Delete(999).outcome, DeletedJob::Outcome::kNotFound);
+  EXPECT_TRUE(store->PendingDeletions().empty());
+
+  ASSERT_TRUE(store->Complete(id, {}));
+  deleted = store->Delete(id);
+  ASSERT_EQ(deleted.outcome, DeletedJob::Outcome::kDeleted);
+  EXPECT_EQ(deleted.state, JobState::kCompleted);
+  EXPECT_EQ(deleted.unreferencedAssets, std::vector<std::string>{mine});
+  EXPECT_FALSE(store->Get(id).has_value());
+  EXPECT_TRUE(store->RecordedFrames(id).empty());
+  EXPECT_TRUE(store->Events({id, 0, 100}).empty());
+  EXPECT_EQ(store->Delete(id).outcome, DeletedJob::Outcome::kNotFound);
+  // Until its files are removed, the job is noted, across a restart.
+  store.reset();
+  store = Open();
+  EXPECT_EQ(store->PendingDeletions(), std::vector<uint64_t>{id});
+  store->FinishDeletion(id, {"deleted", "deleted; 1.0 MiB freed", {{"freed_bytes", 1 << 20}}});
+  EXPECT_TRUE(store->PendingDeletions().empty());
+  const std::vector<JobEvent> last = store->Events({id, 0, 100});
+  ASSERT_EQ(TypesOf(last), std::vector<std::string>{"deleted"});
+  EXPECT_EQ(last[0].fields["freed_bytes"], 1 << 20);
+  EXPECT_EQ(store->AppendEvent(id, {"worker_lost", "late", {}}), 0u);  // nothing else outlives it
+
+  // The shared asset goes with the last job naming it; its id is never handed out again.
+  ASSERT_TRUE(store->Fail(other, "no"));
+  EXPECT_EQ(store->Delete(other).unreferencedAssets, (std::vector<std::string>{shared, theirs}));
+  EXPECT_GT(store->Submit(Spec()), other);
+}
+
+TEST_F(JobStoreTest, FinishedJobsComeEarliestFinishedFirst) {
+  auto store = Open();
+  const uint64_t first = store->Submit(Spec());
+  const uint64_t second = store->Submit(Spec());
+  const uint64_t third = store->Submit(Spec());
+  const uint64_t queued = store->Submit(Spec());
+  nowMs_ = 3'000;
+  ASSERT_TRUE(store->Cancel(second));
+  nowMs_ = 4'000;
+  ASSERT_TRUE(store->Fail(third, "x"));
+  nowMs_ = 5'000;
+  ASSERT_EQ(store->ClaimNext()->id, first);
+  ASSERT_TRUE(store->Complete(first, {}));
+  EXPECT_EQ(store->FinishedJobs(std::nullopt), (std::vector<uint64_t>{second, third, first}));
+  EXPECT_EQ(store->FinishedJobs(4'000), std::vector<uint64_t>{second});
+  EXPECT_EQ(store->FinishedJobs(std::nullopt, 2), (std::vector<uint64_t>{second, third}));
+  EXPECT_TRUE(store->FinishedJobs(3'000).empty());
+  (void)queued;
+}
+
+// A file of schema 3 opens: its jobs name the texture assets their scenes use, and it has
+// an event log from then on.
+TEST_F(JobStoreTest, SchemaThreeFilesNameTheTexturesTheirScenesUse) {
+  const std::string texture(64, 'e');
+  JobSpec spec = Spec();
+  spec.sceneJson = R"({"materials":{"wood":{"diffuse_texture":{"asset":")" + texture + R"("}}}})";
+  const uint64_t id = Open()->Submit(spec);
+  RawExec(file_,
+          "DROP TABLE job_events; DROP TABLE job_assets; DROP TABLE job_deletions; DROP INDEX jobs_by_finish; "
+          "PRAGMA user_version = 3");
+  auto store = Open();
+  ASSERT_TRUE(store->Cancel(id));
+  EXPECT_EQ(TypesOf(store->Events({id, 0, 10})), std::vector<std::string>{"canceled"});
+  EXPECT_EQ(store->Delete(id).unreferencedAssets, std::vector<std::string>{texture});
+}
+
+TEST_F(JobStoreTest, NewTransitionsOfAFullDatabaseAreRefusedWhole) {
+  auto store = Open();
+  const uint64_t id = store->Submit(Spec(0, "before"));
+  ASSERT_TRUE(store->Cancel(id));
+  JobSpec large = Spec();
+  large.sceneJson = "{\"pad\": \"" + std::string(256 << 10, 'x') + "\"}";
+  const uint64_t padding = store->Submit(large);
+  ASSERT_TRUE(store->Cancel(padding));
+  const uint64_t seq = store->LastEventSeq();
+  store->CapFilePages(1);
+  int refused = 0;
+  for (const std::function<void()>& write : std::vector<std::function<void()>>{
+           [&] { store->Change(id, {5, std::string(64 << 10, 'n')}); },
+           [&] { store->AppendEvent(id, {"worker_lost", std::string(64 << 10, 'm'), {}}); },
+       }) {
+    try {
+      write();
+    } catch (const JobStoreFullError&) {
+      ++refused;
+    }
+  }
+  EXPECT_EQ(refused, 2);
+  EXPECT_EQ(store->LastEventSeq(), seq);
+  const JobRecord record = *store->Get(id);
+  EXPECT_EQ(record.state, JobState::kCanceled);
+  EXPECT_EQ(record.spec.name, "before");
+  EXPECT_EQ(record.spec.priority, 0);
+  store->CapFilePages(1 << 30);
+  EXPECT_TRUE(store->Retry(id));
 }
 
 }  // namespace
