@@ -17,8 +17,6 @@ constexpr int kMaxMessagesPerPoll = 4096;
 // How long closing the socket may wait for goodbyes to leave: long enough for loopback
 // and a LAN, short enough that a worker that stopped reading cannot hold up a shutdown.
 constexpr Milliseconds kGoodbyeLinger{1000};
-// A job of priority p gets (1 + p) shares of the workers; negative priorities get one.
-double WeightOf(int priority) { return 1.0 + std::max(0, priority); }
 // Log lines per kind of wrong message: enough to see what a broken or hostile peer
 // does, few enough that a flood of them does not flood the log.
 constexpr uint64_t kLoggedSamples = 10;
@@ -56,6 +54,25 @@ Dispatcher::~Dispatcher() = default;
 
 std::string Dispatcher::BoundEndpoint() const {
   return socket_.get(zmq::sockopt::last_endpoint);
+}
+
+// Symmetric around 0 on a log scale: 100 against 0 is what 0 is against -100. A weight
+// of 1 + max(0, p) once made every negative priority run like 0.
+double Dispatcher::WeightOf(int priority) {
+  return priority >= 0 ? 1.0 + priority : 1.0 / (1.0 - priority);
+}
+
+void Dispatcher::SetPriority(uint64_t jobId, int priority) {
+  auto job = jobs_.find(jobId);
+  if (job == jobs_.end()) return;
+  job->second.priority = priority;
+  job->second.weight = WeightOf(priority);
+}
+
+std::vector<WorkerLoss> Dispatcher::TakeWorkerLosses() {
+  std::vector<WorkerLoss> losses;
+  losses.swap(losses_);
+  return losses;
 }
 
 void Dispatcher::AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
@@ -111,12 +128,11 @@ void Dispatcher::Receive(Milliseconds timeout, DispatchSink& sink) {
 
 void Dispatcher::Flush() {
   SteadyTime now = clock_.Now();
-  std::vector<std::string> lost;
-  Requeue(registry_.ExpireSilent(lastDrained_, &lost));
-  for (const std::string& name : lost) {
+  for (const WorkerRegistry::Expired& silent : registry_.ExpireSilent(lastDrained_)) {
     ++counters_.workersLost;
     std::fprintf(stderr, "coordinator: worker %s went silent; its tasks are requeued\n",
-                 name.c_str());
+                 silent.name.c_str());
+    RequeueLost(silent.name, "went silent", silent.tasks);
   }
   if (authenticator_) {
     counters_.refusedKeys = authenticator_->RefusedKeys();
@@ -214,7 +230,9 @@ void Dispatcher::Handle(const std::string& identity, wire::Message message,
     return;
   }
   if (auto* ready = std::get_if<wire::Ready>(&message)) {
-    Requeue(registry_.OnReady(identity, *ready, now));
+    const WorkerState* known = registry_.Find(identity);
+    const std::string name = known ? known->name : ready->name;
+    RequeueLost(name, "restarted", registry_.OnReady(identity, *ready, now));
     return;
   }
   if (!registry_.OnHeard(identity, now)) {
@@ -241,7 +259,7 @@ void Dispatcher::Handle(const std::string& identity, wire::Message message,
   } else if (auto* error = std::get_if<wire::Error>(&message)) {
     OnError(identity, *error, sink);
   } else if (std::holds_alternative<wire::Disconnect>(message)) {
-    Requeue(registry_.Remove(identity));
+    RemoveAndRequeue(identity, "left");
   } else if (!std::holds_alternative<wire::Heartbeat>(message)) {
     ++counters_.unexpected;  // TASK or SCENE from a worker: not its role
   }
@@ -287,7 +305,7 @@ void Dispatcher::DropWorker(const std::string& identity, const std::string& why)
   std::fprintf(stderr, "coordinator: dropped worker %s: %s; its tasks are requeued\n",
                worker ? worker->name.c_str() : "?", why.c_str());
   ++counters_.workersDropped;
-  Requeue(registry_.Remove(identity));
+  RemoveAndRequeue(identity, "was dropped: " + why);
   Send(identity, wire::Disconnect{});
 }
 
@@ -349,7 +367,8 @@ void Dispatcher::OnError(const std::string& identity, const wire::Error& error,
   sink.OnTaskFailed(jobId, plannerTaskId, why);
 }
 
-void Dispatcher::Requeue(const std::vector<uint64_t>& taskIds) {
+std::map<uint64_t, size_t> Dispatcher::Requeue(const std::vector<uint64_t>& taskIds) {
+  std::map<uint64_t, size_t> requeued;
   for (uint64_t id : taskIds) {
     auto entry = tasks_.find(id);
     if (entry == tasks_.end() || entry->second.pending) continue;
@@ -360,7 +379,20 @@ void Dispatcher::Requeue(const std::vector<uint64_t>& taskIds) {
     ++pendingCount_;
     job->second.pending.push_front(id);  // it waited long enough already
     ++counters_.requeued;
+    ++requeued[job->first];
   }
+  return requeued;
+}
+
+void Dispatcher::RequeueLost(const std::string& name, const std::string& why, const std::vector<uint64_t>& taskIds) {
+  std::map<uint64_t, size_t> requeued = Requeue(taskIds);
+  if (!requeued.empty()) losses_.push_back({name, why, std::move(requeued)});
+}
+
+void Dispatcher::RemoveAndRequeue(const std::string& identity, const std::string& why) {
+  const WorkerState* worker = registry_.Find(identity);
+  const std::string name = worker ? worker->name : "an unknown worker";
+  RequeueLost(name, why, registry_.Remove(identity));
 }
 
 void Dispatcher::SendHeartbeats(SteadyTime now) {
@@ -425,7 +457,7 @@ void Dispatcher::DispatchPending() {
     ++counters_.tasksSent;
     if (!Send(worker->identity, message)) {
       // Gone between its last message and now: take the task back; expiry removes it.
-      Requeue(registry_.Remove(worker->identity));
+      RemoveAndRequeue(worker->identity, "could not be reached");
     }
   }
 }

@@ -69,6 +69,14 @@ class AssetSource {
   virtual std::string ReadPiece(const std::string& hash, uint64_t offset, size_t maxBytes) const = 0;
 };
 
+// A worker that went away holding tasks (silent, gone, restarted, dropped): its tasks went
+// back to the queue, counted by job.
+struct WorkerLoss {
+  std::string worker;  // its name
+  std::string why;     // "went silent", "left", ...
+  std::map<uint64_t, size_t> requeuedTasks;  // job id -> tasks of that job requeued
+};
+
 struct DispatcherCounters {
   uint64_t malformed = 0;         // undecodable or invalid messages dropped
   uint64_t unexpected = 0;        // valid messages that made no sense (unknown worker, wrong sizes)
@@ -109,8 +117,16 @@ class Dispatcher {
   // ERRORs from this many different workers fail a task: one worker's may be its own fault.
   static constexpr size_t kWorkersThatMustFailATask = 2;
 
+  // Jobs share the workers by priority, over the whole range -100..100: a job of priority
+  // p >= 0 gets 1 + p shares, one of p < 0 gets 1 / (1 - p) (a job of 0 gets 51 tasks to
+  // every one of a job of -50 while both have tasks waiting).
+  static double WeightOf(int priority);
   void AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
               const std::string& sceneHash, const std::string& sceneJson);
+  // A running job's new priority counts from its next task on.
+  void SetPriority(uint64_t jobId, int priority);
+  // The workers lost since the last call, with the tasks of each job they held.
+  std::vector<WorkerLoss> TakeWorkerLosses();
   // Drops the job's pending tasks and forgets its in-flight ones; late results are ignored.
   void RemoveJob(uint64_t jobId);
   void Enqueue(DispatchTask task);
@@ -167,7 +183,12 @@ class Dispatcher {
   static std::string ResultMismatch(const DispatchTask& task, const wire::Result& result);
   // Forgets a worker that answered wrongly, tells it DISCONNECT, requeues its tasks.
   void DropWorker(const std::string& identity, const std::string& why);
-  void Requeue(const std::vector<uint64_t>& taskIds);
+  // Returns how many tasks of each job went back to the queue.
+  std::map<uint64_t, size_t> Requeue(const std::vector<uint64_t>& taskIds);
+  // A worker's tasks requeued because the worker is gone; noted for TakeWorkerLosses.
+  void RequeueLost(const std::string& name, const std::string& why, const std::vector<uint64_t>& taskIds);
+  // RequeueLost for a worker still in the registry: removes it first.
+  void RemoveAndRequeue(const std::string& identity, const std::string& why);
   void SendHeartbeats(SteadyTime now);
   void OnAssetGet(const std::string& identity, const wire::AssetGet& get);
   void SendAssetPieces();
@@ -214,6 +235,7 @@ class Dispatcher {
   };
   const AssetSource* assets_;
   std::deque<AssetSend> assetSends_;
+  std::vector<WorkerLoss> losses_;
 };
 
 }  // namespace tcfarm

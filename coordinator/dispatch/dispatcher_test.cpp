@@ -399,6 +399,86 @@ TEST_F(DispatcherTest, HigherPriorityJobsGetALargerShare) {
   EXPECT_NEAR(static_cast<double>(served[2]) / (served[1] + served[2]), 0.75, 0.1);
 }
 
+// Every priority of the documented range counts: a job of -50 gets one task for every 51
+// a job of 0 gets. Once the weight ignored negative priorities, and both got half.
+TEST_F(DispatcherTest, NegativePrioritiesGetSmallerSharesThanZero) {
+  EXPECT_LT(Dispatcher::WeightOf(-100), Dispatcher::WeightOf(-99));
+  EXPECT_LT(Dispatcher::WeightOf(-1), Dispatcher::WeightOf(0));
+  EXPECT_DOUBLE_EQ(Dispatcher::WeightOf(0) / Dispatcher::WeightOf(-50), 51.0);
+  EXPECT_DOUBLE_EQ(Dispatcher::WeightOf(100) / Dispatcher::WeightOf(0), Dispatcher::WeightOf(0) / Dispatcher::WeightOf(-100));
+  dispatcher_.AddJob(2, -50, 4, 4, kHash, "{}");
+  EnqueueTasks(2, 40);  // the low job's tasks wait first
+  EnqueueTasks(1, 40);
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  std::map<uint64_t, int> served;
+  for (int i = 0; i < 30; ++i) {
+    Pump(2);
+    for (const auto& task : worker.Tasks()) {
+      ++served[task.jobId];
+      worker.Answer(task);
+    }
+  }
+  ASSERT_GE(served[1], 20);
+  EXPECT_LE(served[2], 1) << served[1] << " tasks of priority 0";
+}
+
+// A running job's priority changes what it gets from its next task on.
+TEST_F(DispatcherTest, APriorityChangedWhileTheJobRunsCountsAtOnce) {
+  dispatcher_.AddJob(2, 0, 4, 4, kHash, "{}");
+  EnqueueTasks(1, 40);
+  EnqueueTasks(2, 40);
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  std::map<uint64_t, int> served;
+  auto serve = [&](int rounds) {
+    for (int i = 0; i < rounds; ++i) {
+      Pump(2);
+      for (const auto& task : worker.Tasks()) {
+        ++served[task.jobId];
+        worker.Answer(task);
+      }
+    }
+  };
+  serve(10);
+  EXPECT_NEAR(served[1], served[2], 2);  // equal shares
+  dispatcher_.SetPriority(1, -100);
+  served.clear();
+  serve(20);
+  ASSERT_GE(served[2], 15);
+  EXPECT_LE(served[1], 1);
+}
+
+// Whoever is told of a lost worker learns how many tasks of each job went back.
+TEST_F(DispatcherTest, ALostWorkersTasksAreCountedByJob) {
+  dispatcher_.AddJob(2, 0, 4, 4, kHash, "{}");
+  FakeWorker silent(context_, dispatcher_.BoundEndpoint(), 5);
+  EnqueueTasks(1, 3);
+  EnqueueTasks(2, 2);
+  Pump();
+  ASSERT_EQ(silent.Tasks().size(), 5u);
+  EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
+  clock_.Advance(Milliseconds(6000));
+  Pump();
+  const std::vector<WorkerLoss> losses = dispatcher_.TakeWorkerLosses();
+  ASSERT_EQ(losses.size(), 1u);
+  EXPECT_EQ(losses[0].why, "went silent");
+  EXPECT_EQ(losses[0].requeuedTasks, (std::map<uint64_t, size_t>{{1, 3}, {2, 2}}));
+  EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
+  // One that says goodbye with tasks in hand is lost too; one holding nothing is not news.
+  FakeWorker leaving(context_, dispatcher_.BoundEndpoint(), 5);
+  Pump();
+  ASSERT_EQ(leaving.Tasks().size(), 5u);
+  leaving.Send(wire::Disconnect{});
+  Pump();
+  const std::vector<WorkerLoss> left = dispatcher_.TakeWorkerLosses();
+  ASSERT_EQ(left.size(), 1u);
+  EXPECT_EQ(left[0].why, "left");
+  FakeWorker idle(context_, dispatcher_.BoundEndpoint(), 0);
+  Pump();
+  idle.Send(wire::Disconnect{});
+  Pump();
+  EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
+}
+
 TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 2);

@@ -31,19 +31,17 @@ bool WorkerRegistry::OnHeard(const std::string& identity, SteadyTime now) {
   return true;
 }
 
-std::vector<uint64_t> WorkerRegistry::ExpireSilent(SteadyTime now,
-                                                   std::vector<std::string>* expired) {
-  std::vector<uint64_t> lost;
+std::vector<WorkerRegistry::Expired> WorkerRegistry::ExpireSilent(SteadyTime now) {
+  std::vector<Expired> expired;
   for (auto it = workers_.begin(); it != workers_.end();) {
     if (now - it->second.lastHeard < policy_.timeout) {
       ++it;
       continue;
     }
-    for (uint64_t task : it->second.inFlight) lost.push_back(task);
-    if (expired) expired->push_back(it->second.name);
+    expired.push_back({it->second.name, std::vector<uint64_t>(it->second.inFlight.begin(), it->second.inFlight.end())});
     it = workers_.erase(it);
   }
-  return lost;
+  return expired;
 }
 
 std::vector<uint64_t> WorkerRegistry::Remove(const std::string& identity) {

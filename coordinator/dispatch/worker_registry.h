@@ -41,8 +41,12 @@ class WorkerRegistry {
                                 SteadyTime now);
   // Any message: refreshes liveness. False for an identity that never said READY.
   bool OnHeard(const std::string& identity, SteadyTime now);
-  // Workers silent past the timeout are forgotten; their tasks are returned.
-  std::vector<uint64_t> ExpireSilent(SteadyTime now, std::vector<std::string>* expired = nullptr);
+  // Workers silent past the timeout are forgotten; their names and tasks are returned.
+  struct Expired {
+    std::string name;
+    std::vector<uint64_t> tasks;
+  };
+  std::vector<Expired> ExpireSilent(SteadyTime now);
   // DISCONNECT: the worker leaves; its tasks are returned.
   std::vector<uint64_t> Remove(const std::string& identity);
 

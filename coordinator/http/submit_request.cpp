@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -472,6 +473,14 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   spec.sceneHash = wire::Sha256Hex(spec.sceneJson);
   spec.frameSize = FrameSize{scene.render.width, scene.render.height};
   spec.cameraOrLightsChange = scene.CameraMoves() || scene.AnyLightChanges();
+  // What the job names in the store: the files it was submitted with and the textures its
+  // workers fetch. An asset goes with the last job that names it.
+  std::set<std::string> named;
+  for (const auto& [path, hash] : files) named.insert(hash);
+  for (const Material& material : scene.materials) {
+    if (material.diffuseTexture && !material.diffuseTexture->asset.empty()) named.insert(material.diffuseTexture->asset);
+  }
+  spec.assetHashes.assign(named.begin(), named.end());
   return spec;
 }
 
