@@ -19,6 +19,42 @@ double SecondsBetween(SteadyTime earlier, SteadyTime later) {
   return std::chrono::duration<double>(later - earlier).count();
 }
 
+std::string Figure(double value, const char* format) {
+  char text[64];
+  std::snprintf(text, sizeof text, format, value);
+  return text;
+}
+
+// The verification event of a finished job: its reference comparison when frames were
+// verified, its spot checks when any copied pixel was checked; nullopt when neither.
+std::optional<EventDraft> VerificationEvent(const nlohmann::json& error) {
+  if (!error.is_object()) return std::nullopt;
+  const nlohmann::json spot = error.value("spot_checks", nlohmann::json::object());
+  const bool spotChecked = spot.value("pixels_checked", 0.0) > 0;
+  if (!error.contains("reference") && !spotChecked) return std::nullopt;
+  EventDraft event{"verification", "", nlohmann::json::object()};
+  std::string message;
+  if (error.contains("reference")) {
+    const nlohmann::json& reference = error["reference"];
+    event.fields["reference"] = reference;
+    const nlohmann::json psnr = reference.value("psnr_db", nlohmann::json());
+    message = "verified " + std::to_string(reference.value("frames_compared", 0)) + " of " +
+              std::to_string(reference.value("frames_requested", 0)) + " frames against brute force: " +
+              std::to_string(reference.value("pixels_differing", 0)) + " pixels differ (" +
+              Figure(reference.value("percent_differing", 0.0), "%.4g") + " %), max error " +
+              Figure(reference.value("max_abs_error", 0.0), "%.4g") + ", PSNR " +
+              (psnr.is_number() ? Figure(psnr.get<double>(), "%.1f") + " dB" : std::string("infinite"));
+  }
+  if (spotChecked) {
+    event.fields["spot_checks"] = spot;
+    message += std::string(message.empty() ? "" : "; ") + "spot checks: " +
+               std::to_string(spot.value("mismatches", 0)) + " of " + std::to_string(spot.value("pixels_checked", 0)) +
+               " copied pixels traced again differ";
+  }
+  event.message = message;
+  return event;
+}
+
 }  // namespace
 
 Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
@@ -38,17 +74,22 @@ void Farm::Run(const std::atomic<bool>& stop, const std::function<void()>& after
     Step(kIdlePoll);
     if (afterStep) afterStep();
   }
+  {
+    std::lock_guard<std::mutex> lock(shared_);
+    stopped_ = true;
+  }
+  released_.notify_all();
   dispatcher_.SayGoodbye();
 }
 
 void Farm::Step(Milliseconds pollTimeout) {
   SteadyTime now = clock_.Now();
+  ApplyRequests();
   if (now - lastClaim_ >= kClaimInterval) {
     lastClaim_ = now;
     SettleClosingJobs();
     ClaimJobs();
   }
-  ApplyCancellations();
   // Results wake the receive at once; the planner's follow-up tasks go out in the same
   // step, so no worker waits for the timeout.
   PumpTasks();
@@ -58,6 +99,7 @@ void Farm::Step(Milliseconds pollTimeout) {
   dispatcher_.Flush();
   CollectFrames();
   DistrustWrongWorkers();
+  RecordEvents();
   finisher_.SetFarmBusy(!runs_.empty());
   UpdateMetrics();
   if (clock_.Now() - lastSnapshot_ >= kSnapshotInterval) PublishSnapshot();
@@ -96,6 +138,9 @@ void Farm::RequeueUnfinishedFrames() {
 }
 
 void Farm::StartJob(const JobRecord& record) {
+  // Canceled, retried and claimed again before the cancel reached the loop: the old run
+  // goes first, and the job resumes from what it wrote.
+  if (runs_.count(record.id)) StopRun(record.id);
   try {
     JobRunSettings settings;
     settings.output = WhileRendering(options_.output);
@@ -124,23 +169,88 @@ void Farm::RequestCancel(uint64_t jobId) {
   cancelRequests_.insert(jobId);
 }
 
-void Farm::ApplyCancellations() {
-  std::set<uint64_t> requests;
+void Farm::RequestPriority(uint64_t jobId, int priority) {
+  std::lock_guard<std::mutex> lock(shared_);
+  priorityRequests_[jobId] = priority;
+}
+
+bool Farm::ReleaseJob(uint64_t jobId) {
+  {
+    std::unique_lock<std::mutex> lock(shared_);
+    if (stopped_) return false;
+    const uint64_t ticket = nextReleaseTicket_++;
+    releaseRequests_.emplace_back(jobId, ticket);
+    released_.wait(lock, [&] { return stopped_ || releasedThrough_ >= ticket; });
+    if (releasedThrough_ < ticket) return false;
+  }
+  // Off the loop: the finisher may be a frame's encoding away from letting go.
+  finisher_.Drop(jobId);
+  return true;
+}
+
+void Farm::ApplyRequests() {
+  std::set<uint64_t> cancels;
+  std::map<uint64_t, int> priorities;
+  std::vector<std::pair<uint64_t, uint64_t>> releases;
   {
     std::lock_guard<std::mutex> lock(shared_);
-    requests.swap(cancelRequests_);
+    cancels.swap(cancelRequests_);
+    priorities.swap(priorityRequests_);
+    releases.swap(releaseRequests_);
   }
-  for (uint64_t id : requests) {
-    auto run = runs_.find(id);
-    if (run == runs_.end()) continue;
-    dispatcher_.RemoveJob(id);
+  for (const auto& [id, ticket] : releases) cancels.insert(id);
+  for (uint64_t id : cancels) {
+    if (!runs_.count(id)) continue;
+    // A cancel that comes after the job was retried and claimed again is stale.
+    std::optional<JobState> state;
     try {
-      run->second->FinishWriting();  // frames already finished stay downloadable
-    } catch (const std::exception&) {
+      state = store_.StateOf(id);
+    } catch (const JobStoreError&) {
+      continue;  // asked again by the next step
     }
-    finisher_.Add(id, run->second->firstFrame(), run->second->lastFrame());
-    runs_.erase(run);
+    if (state == JobState::kRunning) continue;
+    StopRun(id);
     metrics_.jobsFinishedCanceled.Increment();
+  }
+  for (const auto& [id, priority] : priorities) {
+    if (runs_.count(id)) dispatcher_.SetPriority(id, priority);
+  }
+  if (releases.empty()) return;
+  {
+    std::lock_guard<std::mutex> lock(shared_);
+    for (const auto& [id, ticket] : releases) releasedThrough_ = std::max(releasedThrough_, ticket);
+  }
+  released_.notify_all();
+}
+
+void Farm::StopRun(uint64_t jobId) {
+  auto run = runs_.find(jobId);
+  if (run == runs_.end()) return;
+  dispatcher_.RemoveJob(jobId);
+  try {
+    run->second->FinishWriting();  // frames already finished stay downloadable
+  } catch (const std::exception&) {
+  }
+  finisher_.Add(jobId, run->second->firstFrame(), run->second->lastFrame());
+  runs_.erase(run);
+}
+
+void Farm::RecordEvents() {
+  try {
+    for (const WorkerLoss& loss : dispatcher_.TakeWorkerLosses()) {
+      for (const auto& [jobId, tasks] : loss.requeuedTasks) {
+        store_.AppendEvent(jobId, {"worker_lost",
+                                   "worker " + loss.worker + " " + loss.why + "; " + std::to_string(tasks) +
+                                       " of its tasks of this job were requeued",
+                                   {{"worker", loss.worker}, {"why", loss.why}, {"requeued_tasks", tasks}}});
+      }
+    }
+    if (clock_.Now() - lastFrameEvents_ >= kClaimInterval) {
+      lastFrameEvents_ = clock_.Now();
+      store_.FlushFrameEvents();
+    }
+  } catch (const JobStoreError& e) {
+    NoteRefusedWrite(e);  // events are news, not records: the job goes on without them
   }
 }
 
@@ -228,6 +338,9 @@ void Farm::FinishJob(uint64_t jobId) {
   ClosingJob closing;
   closing.stats = run->second->Stats(/*final=*/true);
   CountError(closing.stats["error"]);
+  if (std::optional<EventDraft> verified = VerificationEvent(closing.stats["error"])) {
+    closing.events.push_back(std::move(*verified));
+  }
   finishedTraced_ += run->second->tracedPixels();
   finishedPixels_ += run->second->tracedPixels() + run->second->copiedPixels();
   dispatcher_.RemoveJob(jobId);
@@ -255,7 +368,7 @@ bool Farm::Settle(uint64_t jobId, ClosingJob& closing) {
       return false;
     }
     if (!closing.failed) {
-      if (store_.Complete(jobId, closing.stats)) metrics_.jobsFinishedCompleted.Increment();
+      if (store_.Complete(jobId, closing.stats, closing.events)) metrics_.jobsFinishedCompleted.Increment();
       return true;
     }
     // Said once every frame that made it to disk is recorded, so the record is the folder.
@@ -353,7 +466,10 @@ void Farm::PublishSnapshot() {
                                 w.pixelsDone, w.traceSeconds, SecondsBetween(w.lastHeard, now),
                                 SecondsBetween(w.connectedAt, now)});
   }
-  for (const auto& [id, run] : runs_) snapshot.runningStats[id] = run->Stats();
+  for (const auto& [id, run] : runs_) {
+    snapshot.runningStats[id] = run->Stats();
+    snapshot.tracingFrames[id] = run->TracingFrames();
+  }
   snapshot.queuedTasks = dispatcher_.PendingTasks();
   snapshot.inFlightTasks = dispatcher_.InFlightTasks();
   try {

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <atomic>
+#include <condition_variable>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -72,6 +73,8 @@ class Farm : public FarmControl, private DispatchSink {
 
   // Thread-safe.
   void RequestCancel(uint64_t jobId) override;
+  void RequestPriority(uint64_t jobId, int priority) override;
+  bool ReleaseJob(uint64_t jobId) override;
   FarmSnapshot Snapshot() const override;
 
  private:
@@ -81,7 +84,14 @@ class Farm : public FarmControl, private DispatchSink {
 
   void ClaimJobs();
   void StartJob(const JobRecord& record);
-  void ApplyCancellations();
+  // What other threads asked for: cancels, priority changes, jobs to let go of. Before
+  // claims, so that a job canceled and retried at once is stopped before it is claimed again.
+  void ApplyRequests();
+  // Stops a job's run (canceled, or about to be deleted): its tasks are dropped, frames
+  // already finished are written, and the frame finisher gets them.
+  void StopRun(uint64_t jobId);
+  // Worker losses and frame events, into the job store's event log.
+  void RecordEvents();
   void PumpTasks();
   void CollectFrames();
   // Workers the jobs' referee verdicts found returning wrong values: dropped for good,
@@ -95,6 +105,7 @@ class Farm : public FarmControl, private DispatchSink {
     bool failed = false;
     std::string why;
     nlohmann::json stats;
+    std::vector<EventDraft> events;  // recorded with the completion (the verification's)
   };
   void Close(uint64_t jobId, ClosingJob closing);
   void SettleClosingJobs();
@@ -136,10 +147,16 @@ class Farm : public FarmControl, private DispatchSink {
   SteadyTime lastRefusalLogged_{};
   DispatcherCounters lastCounters_;
   uint64_t finishedTraced_ = 0, finishedPixels_ = 0;
-  SteadyTime lastClaim_{}, lastSnapshot_{};
+  SteadyTime lastClaim_{}, lastSnapshot_{}, lastFrameEvents_{};
 
-  mutable std::mutex shared_;  // guards cancelRequests_ and snapshot_
+  mutable std::mutex shared_;  // guards the requests, stopped_ and snapshot_
   std::set<uint64_t> cancelRequests_;
+  std::map<uint64_t, int> priorityRequests_;
+  std::vector<std::pair<uint64_t, uint64_t>> releaseRequests_;  // (job, ticket)
+  uint64_t nextReleaseTicket_ = 1;
+  uint64_t releasedThrough_ = 0;  // every release request up to this ticket is done
+  bool stopped_ = false;          // Run returned: nobody answers requests any more
+  std::condition_variable released_;
   FarmSnapshot snapshot_;
 };
 

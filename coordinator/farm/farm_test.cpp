@@ -6,7 +6,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
 #include <functional>
+#include <map>
+#include <set>
+#include <thread>
 #include <random>
 
 #include "dispatch/fake_worker.h"
@@ -44,7 +49,7 @@ class FarmTest : public ::testing::Test {
   }
 
   // A brute-force job of `frames` frames of 4x3 pixels.
-  uint64_t Submit(int frames) {
+  static JobSpec BruteSpec(int frames) {
     JobSpec spec;
     spec.sceneJson = "{}";  // the fake workers never ask for it
     spec.sceneHash = std::string(64, 'b');
@@ -52,7 +57,15 @@ class FarmTest : public ::testing::Test {
     spec.strategy = Strategy::kBrute;
     spec.frameSize = {4, 3};
     spec.cameraOrLightsChange = false;
-    return store_->Submit(spec);
+    return spec;
+  }
+  uint64_t Submit(int frames) { return store_->Submit(BruteSpec(frames)); }
+  std::vector<JobEvent> EventsOf(uint64_t id, const std::string& type) const {
+    std::vector<JobEvent> events;
+    for (JobEvent& event : store_->Events({id, 0, 1000})) {
+      if (event.type == type) events.push_back(std::move(event));
+    }
+    return events;
   }
   JobState StateOf(uint64_t id) const { return store_->Get(id)->state; }
 
@@ -133,6 +146,139 @@ TEST_F(FarmTest, ASilentWorkersTasksAreRequeuedAfterTheTimeout) {
 
   ASSERT_TRUE(ServeUntilComplete(rescuer, id)) << ToString(StateOf(id));
   EXPECT_EQ(store_->Get(id)->framesDone, 2);
+  // The job's log tells of the lost worker and how many of its tasks went back.
+  const std::vector<JobEvent> lost = EventsOf(id, "worker_lost");
+  ASSERT_EQ(lost.size(), 1u);
+  EXPECT_EQ(lost[0].fields["requeued_tasks"], held);
+  EXPECT_EQ(lost[0].message, "worker fake went silent; " + std::to_string(held) + " of its tasks of this job were requeued");
+}
+
+TEST_F(FarmTest, AJobsEventsTellItsStoryInOrder) {
+  FakeWorker worker(context_, farm_->BoundEndpoint(), 4);
+  JobSpec spec = BruteSpec(12);
+  spec.options["verify"] = {{"frames", "all"}};
+  const uint64_t id = store_->Submit(spec);
+  ASSERT_TRUE(ServeUntilComplete(worker, id));
+  std::vector<std::string> types;
+  int framesTold = 0;
+  for (const JobEvent& event : store_->Events({id, 0, 1000})) {
+    if (types.empty() || types.back() != event.type) types.push_back(event.type);
+    if (event.type == "frames_written") framesTold += event.fields["count"].get<int>();
+  }
+  EXPECT_EQ(types, (std::vector<std::string>{"submitted", "started", "frames_written", "verification", "completed"}));
+  EXPECT_EQ(framesTold, 12);  // each frame told once
+  const std::vector<JobEvent> verified = EventsOf(id, "verification");
+  ASSERT_EQ(verified.size(), 1u);
+  EXPECT_EQ(verified[0].fields["reference"]["frames_compared"], 12);
+  EXPECT_EQ(verified[0].fields["reference"]["pixels_differing"], 0);
+}
+
+// Canceled and retried before the farm loop heard of the cancel: the claim finds the old
+// run still there, stops it, and the job resumes from the frames it wrote; the cancel
+// that arrives afterwards is stale and leaves the new run alone.
+TEST_F(FarmTest, ACanceledJobRetriedAtOnceResumesFromItsFrames) {
+  FakeWorker worker(context_, farm_->BoundEndpoint(), 1);
+  const uint64_t id = Submit(8);
+  ASSERT_TRUE(TurnUntil([&] {
+    for (const wire::Task& task : worker.Tasks()) worker.Answer(task, 0.75f);
+    return store_->Get(id)->framesDone >= 3;
+  }));
+  ASSERT_TRUE(store_->Cancel(id));
+  ASSERT_TRUE(store_->Retry(id));
+  const int kept = store_->Get(id)->framesDone;
+  clock_.Advance(Milliseconds(1000));  // the next step claims it again
+  farm_->Step(kTurnPoll);
+  EXPECT_EQ(StateOf(id), JobState::kRunning);
+  farm_->RequestCancel(id);
+  ASSERT_TRUE(ServeUntilComplete(worker, id, 0.75f)) << ToString(StateOf(id));
+  const JobRecord record = *store_->Get(id);
+  EXPECT_EQ(record.framesDone, 8);
+  EXPECT_EQ(record.stats["resumed_frames"], kept);
+  const FrameStore files(folder_ / "store");
+  for (int frame = 0; frame < 8; ++frame) {
+    EXPECT_EQ(ReadImage(files.FramePath(id, frame, "exr")).rgb, std::vector<float>(12 * 3, 0.75f)) << frame;
+  }
+}
+
+// A running job's new priority reaches the dispatcher. Priorities share the workers only
+// while both jobs have tasks waiting (an idle worker takes whatever there is), so the one
+// worker here takes a task at a time while both queues are long.
+TEST_F(FarmTest, APriorityChangedWhileRunningCountsForTheNextTasks) {
+  FakeWorker worker(context_, farm_->BoundEndpoint(), 1);
+  const uint64_t low = Submit(40);
+  const uint64_t high = Submit(40);
+  std::vector<wire::Task> held;
+  ASSERT_TRUE(TurnUntil([&] {
+    for (wire::Task& task : worker.Tasks()) held.push_back(std::move(task));
+    return held.size() == 1 && farm_->metrics().queueDepth.Value() >= 8;
+  }));
+  ASSERT_TRUE(store_->Change(low, {-100, std::nullopt}));
+  farm_->RequestPriority(low, -100);
+  farm_->Step(kTurnPoll);
+  std::map<uint64_t, int> served;
+  for (int round = 0; round < 6; ++round) {
+    worker.Answer(held.back());
+    held.clear();
+    ASSERT_TRUE(TurnUntil([&] {
+      for (wire::Task& task : worker.Tasks()) held.push_back(std::move(task));
+      return !held.empty();
+    }));
+    ++served[held.back().jobId];
+  }
+  // At most the one low task whose turn had come before the change.
+  EXPECT_LE(served[low], 1) << served[high] << " tasks of the other job";
+}
+
+// Frames the job is working on show in the snapshot, for per-frame state.
+TEST_F(FarmTest, TheSnapshotNamesTheFramesBeingTraced) {
+  FakeWorker silent(context_, farm_->BoundEndpoint(), 2);
+  const uint64_t id = Submit(6);
+  std::vector<wire::Task> held;
+  ASSERT_TRUE(TurnUntil([&] {
+    for (wire::Task& task : silent.Tasks()) held.push_back(std::move(task));
+    return held.size() == 2;
+  }));
+  clock_.Advance(Milliseconds(300));
+  farm_->Step(kTurnPoll);
+  std::set<int> expected;
+  for (const wire::Task& task : held) expected.insert(task.frame);
+  const FarmSnapshot snapshot = farm_->Snapshot();
+  ASSERT_TRUE(snapshot.tracingFrames.count(id));
+  const std::vector<int>& tracing = snapshot.tracingFrames.at(id);
+  // Tasks still queued for a worker count too: every held frame is there, and no more
+  // frames than the job's live bins hold.
+  for (int frame : expected) EXPECT_NE(std::find(tracing.begin(), tracing.end(), frame), tracing.end()) << frame;
+  EXPECT_LE(tracing.size(), 6u);
+  EXPECT_TRUE(std::is_sorted(tracing.begin(), tracing.end()));
+}
+
+// Deleting a job: the farm lets go of it (a run a cancel has not reached, the finisher)
+// before the files go; once the loop has stopped it says it cannot promise that.
+TEST_F(FarmTest, ReleaseJobStopsItsRunAndAnswersOnlyWhileTheLoopRuns) {
+  FakeWorker worker(context_, farm_->BoundEndpoint(), 1);
+  const uint64_t id = Submit(20);
+  ASSERT_TRUE(TurnUntil([&] {
+    for (const wire::Task& task : worker.Tasks()) worker.Answer(task);
+    return store_->Get(id)->framesDone >= 2;
+  }));
+  ASSERT_TRUE(store_->Cancel(id));  // no RequestCancel: the release alone must stop the run
+  std::atomic<int> answer{-1};
+  std::thread deleter([&] { answer = farm_->ReleaseJob(id) ? 1 : 0; });
+  ASSERT_TRUE(TurnUntil([&] { return answer != -1; }));
+  deleter.join();
+  EXPECT_EQ(answer, 1);
+  const int written = store_->Get(id)->framesDone;
+  std::error_code ignored;
+  fs::remove_all(folder_ / "store" / std::to_string(id), ignored);
+  for (int turn = 0; turn < 20; ++turn) {
+    for (const wire::Task& task : worker.Tasks()) worker.Answer(task);
+    farm_->Step(kTurnPoll);
+  }
+  EXPECT_FALSE(fs::exists(folder_ / "store" / std::to_string(id)));  // nothing wrote into it again
+  EXPECT_EQ(store_->Get(id)->framesDone, written);
+  std::atomic<bool> stop{true};
+  farm_->Run(stop);
+  EXPECT_FALSE(farm_->ReleaseJob(id));
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <set>
 #include <stdexcept>
 #include <system_error>
 
@@ -192,6 +193,7 @@ std::vector<DispatchTask> JobRun::TakeTasks(int workers) {
   const bool writerBehind = unwritten_.size() >= kMaxUnwrittenFrames;
   for (TraceTask& t : writerBehind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
     taskChains_[t.id] = {t.chain, t.step};
+    ++tasksOut_[spec_.firstFrame + t.frame];
     tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}});
   }
   // Checks go to a worker other than the ones whose values they check, so that a worker
@@ -276,6 +278,7 @@ bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& resul
                           horizons.empty() ? nullptr : horizons.data(), horizons.size())) {
     return false;
   }
+  if (auto out = tasksOut_.find(task.frame); out != tasksOut_.end() && --out->second == 0) tasksOut_.erase(out);
   const auto chain = taskChains_.find(taskId);
   if (chain != taskChains_.end()) {
     cost_.OnPlannerResult(result.frame - spec_.firstFrame, result, chain->second.first, chain->second.second);
@@ -421,6 +424,14 @@ void JobRun::FinishWriting() { writer_.Finish(); }
 
 int JobRun::BinWidth() const {
   return autoPlanner_ ? autoPlanner_->ChosenBinWidth() : resolved_.binWidth;
+}
+
+std::vector<int> JobRun::TracingFrames() const {
+  std::set<int> frames;
+  for (const auto& [frame, count] : tasksOut_) frames.insert(frame);
+  for (const FinishedFrame& frame : unwritten_) frames.insert(spec_.firstFrame + frame.frame);
+  for (const auto& [frame, traced] : writing_) frames.insert(frame);
+  return {frames.begin(), frames.end()};
 }
 
 nlohmann::json JobRun::Stats(bool final) const {

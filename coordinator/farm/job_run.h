@@ -126,6 +126,10 @@ class JobRun {
   // Waits for the frame writer; throws FrameIoError if a frame could not be written.
   void FinishWriting();
 
+  // The frames the job is working on (the scene's numbers, ascending): planner tasks out
+  // for them, or finished and not yet in the store.
+  std::vector<int> TracingFrames() const;
+
   // Progress and results so far, for the job record ("stats"). `final` adds the full
   // coherence analysis of the output sequence (pixel events, equation 3 per bin width).
   nlohmann::json Stats(bool final = false) const;
@@ -181,6 +185,7 @@ class JobRun {
   std::vector<ExactnessAudit::Verdict> verdicts_;
   // Planner tasks in flight: their chain and step (TraceTask), for the job's span.
   std::unordered_map<uint64_t, std::pair<int, int>> taskChains_;
+  std::map<int, int> tasksOut_;  // planner tasks handed out and not answered, by absolute frame
   // By frame (the job's): whether its files are written, so a repair may replace them.
   std::vector<bool> written_;
   FrameWriter writer_;

@@ -45,6 +45,15 @@ class FakeFarm : public FarmControl {
     std::lock_guard<std::mutex> lock(mutex_);
     canceled_.push_back(jobId);
   }
+  void RequestPriority(uint64_t jobId, int priority) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    priorities_.emplace_back(jobId, priority);
+  }
+  bool ReleaseJob(uint64_t jobId) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    released_.push_back(jobId);
+    return !stopped_;
+  }
   FarmSnapshot Snapshot() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     return snapshot_;
@@ -52,6 +61,18 @@ class FakeFarm : public FarmControl {
   std::vector<uint64_t> Canceled() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return canceled_;
+  }
+  std::vector<std::pair<uint64_t, int>> Priorities() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return priorities_;
+  }
+  std::vector<uint64_t> Released() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return released_;
+  }
+  void Stop() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopped_ = true;
   }
   void SetSnapshot(FarmSnapshot snapshot) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -61,6 +82,9 @@ class FakeFarm : public FarmControl {
  private:
   mutable std::mutex mutex_;
   std::vector<uint64_t> canceled_;
+  std::vector<std::pair<uint64_t, int>> priorities_;
+  std::vector<uint64_t> released_;
+  bool stopped_ = false;
   FarmSnapshot snapshot_;
 };
 

@@ -1,5 +1,6 @@
 #include "store/frame_finisher.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -71,6 +72,16 @@ void FrameFinisher::SetFarmBusy(bool busy) {
   wake_.notify_all();
 }
 
+void FrameFinisher::Drop(uint64_t job) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  queue_.erase(std::remove_if(queue_.begin(), queue_.end(), [job](const Job& queued) { return queued.id == job; }),
+               queue_.end());
+  if (current_ != job) return;
+  dropCurrent_ = true;
+  wake_.notify_all();  // it may be waiting for the farm to be idle
+  finishedOne_.wait(lock, [&] { return current_ != job; });
+}
+
 bool FrameFinisher::Idle() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return queue_.empty() && !working_;
@@ -91,10 +102,16 @@ void FrameFinisher::Run() {
       job = queue_.front();
       queue_.pop_front();
       working_ = true;
+      current_ = job.id;
+      dropCurrent_ = false;
     }
     Finish(job);
-    std::lock_guard<std::mutex> lock(mutex_);
-    working_ = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      working_ = false;
+      current_.reset();
+    }
+    finishedOne_.notify_all();
   }
 }
 
@@ -102,8 +119,9 @@ void FrameFinisher::Finish(const Job& job) {
   for (int frame = job.first; frame <= job.last; ++frame) {
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [this] { return stopping_ || !busy_; });
+      wake_.wait(lock, [this] { return stopping_ || !busy_ || dropCurrent_; });
       if (stopping_) return;  // the next coordinator finishes the job
+      if (dropCurrent_) return;  // being deleted: its folder is about to go
     }
     try {
       FinishFrame(job.id, frame);
@@ -114,7 +132,9 @@ void FrameFinisher::Finish(const Job& job) {
                    static_cast<unsigned long long>(job.id), frame, e.what());
     }
   }
-  std::ofstream(store_.JobFolder(job.id) / kFinishedMarker) << "finished\n";
+  // Drop waits for this to return, so the marker never lands in a folder being removed.
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!dropCurrent_) std::ofstream(store_.JobFolder(job.id) / kFinishedMarker) << "finished\n";
 }
 
 void FrameFinisher::FinishFrame(uint64_t job, int frame) const {

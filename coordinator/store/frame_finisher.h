@@ -48,6 +48,10 @@ class FrameFinisher {
   void Add(uint64_t job, int first, int last);
   // While the farm renders a job, finishing waits (between frames).
   void SetFarmBusy(bool busy);
+  // The job is being deleted: it leaves the queue, and finishing it stops after the frame
+  // at hand, without its marker. Returns once the finisher no longer touches the job's
+  // folder (at most a frame's encoding later). Thread-safe.
+  void Drop(uint64_t job);
   // Nothing queued or being finished.
   bool Idle() const;
   static bool IsFinished(const FrameStore& store, uint64_t job);
@@ -67,6 +71,9 @@ class FrameFinisher {
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Job> queue_;
+  std::condition_variable finishedOne_;  // a job left Finish (Drop waits for it)
+  std::optional<uint64_t> current_;      // the job being finished
+  bool dropCurrent_ = false;             // Drop asked for current_ to stop
   bool working_ = false;
   bool busy_ = false;
   bool stopping_ = false;

@@ -67,6 +67,52 @@ TEST_F(FrameFinisherTest, WaitsForTheFarmThenCompressesAndPreviewsBitForBit) {
   EXPECT_FALSE(fs::exists(store_.FramePath(7, 13, "png")));
 }
 
+// A job deleted while it is finished: the finisher stops after the frame at hand, and once
+// Drop returns it writes nothing more into the folder, marker included.
+TEST_F(FrameFinisherTest, ADroppedJobIsLeftAloneOnceDropReturns) {
+  FrameWriterOptions stored;
+  FrameFinisher finisher(store_, stored);
+  finisher.SetFarmBusy(true);
+  finisher.Add(7, 10, 12);
+  finisher.Add(8, 0, 0);  // never written: only its marker would appear
+  fs::create_directories(store_.JobFolder(8));
+  ASSERT_TRUE(WaitFor([&] { return !finisher.Idle(); }));
+  finisher.Drop(7);  // queued, or waiting for an idle farm before its first frame
+  fs::remove_all(store_.JobFolder(7));
+  finisher.SetFarmBusy(false);
+  ASSERT_TRUE(WaitFor([&] { return finisher.Idle(); }));
+  EXPECT_FALSE(fs::exists(store_.JobFolder(7)));  // nothing resurrected it
+  EXPECT_TRUE(FrameFinisher::IsFinished(store_, 8));
+  // Queued, not started: it simply leaves the queue.
+  finisher.SetFarmBusy(true);
+  finisher.Add(8, 0, 0);
+  finisher.Add(9, 0, 0);
+  finisher.Drop(9);
+  finisher.Drop(8);
+  fs::remove_all(store_.JobFolder(8));
+  finisher.SetFarmBusy(false);
+  ASSERT_TRUE(WaitFor([&] { return finisher.Idle(); }));
+  EXPECT_FALSE(fs::exists(store_.JobFolder(8)));
+  EXPECT_FALSE(fs::exists(store_.JobFolder(9)));
+}
+
+// Dropped while it encodes frames as fast as it can: many times, at random moments.
+TEST_F(FrameFinisherTest, DroppingDuringEncodingNeverLeavesAFolderBehind) {
+  FrameWriterOptions stored;
+  for (int round = 0; round < 20; ++round) {
+    const uint64_t job = 100 + round;
+    fs::create_directories(store_.JobFolder(job));
+    for (int frame = 0; frame < 6; ++frame) WriteExr(store_.FramePath(job, frame, "exr"), images_[0], "none");
+    FrameFinisher finisher(store_, stored);
+    finisher.Add(job, 0, 5);
+    std::this_thread::sleep_for(std::chrono::microseconds(500 * round));
+    finisher.Drop(job);
+    fs::remove_all(store_.JobFolder(job));
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    EXPECT_FALSE(fs::exists(store_.JobFolder(job))) << "round " << round;
+  }
+}
+
 TEST_F(FrameFinisherTest, AStoreWithoutExrsHasNothingToFinish) {
   FrameWriterOptions pngOnly;
   pngOnly.writeExr = false;
