@@ -23,6 +23,7 @@
 #include "http/api_server.h"
 #include "jobs/job_store.h"
 #include "store/store_identity.h"
+#include "store/store_janitor.h"
 
 namespace tcfarm {
 namespace {
@@ -43,6 +44,7 @@ struct ServeOptions {
   std::filesystem::path tlsCertFile;
   std::filesystem::path tlsKeyFile;
   bool adoptStore = false;
+  RetentionPolicy retention;
 };
 
 // The dashboard beside a build tree (build/coordinator -> ../../services/dashboard) or
@@ -114,10 +116,13 @@ struct ServeFlags {
   bool adoptStore = false;
   std::string curveSecret;  // empty: no CURVE
   std::string workerKeys;
+  double keepDays = 0;
+  std::string storeBudget;
   // Set when given: their defaults are worked out, not fixed.
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
   CLI::Option* jobMemoryOption = nullptr;
+  CLI::Option* keepDaysOption = nullptr;
 };
 
 void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
@@ -213,6 +218,16 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
                    "changes, so adding a worker needs no restart")
       ->type_name("DIR")
       ->envname("TCFARM_WORKER_KEYS");
+  flags.keepDaysOption =
+      serve.add_option("--keep-days", flags.keepDays,
+                       "Finished jobs (completed, failed, canceled) that finished more than D days ago are deleted "
+                       "with their frames, at start and every minute (0: every finished job). Default: kept")
+          ->type_name("D")
+          ->check(CLI::Range(0.0, 100000.0));
+  serve.add_option("--store-budget", flags.storeBudget,
+                   "While the store holds more than SIZE (500M, 50G, 2T), the earliest finished jobs are deleted "
+                   "with their frames until it fits; checked at start and every minute. Default: no budget")
+      ->type_name("SIZE");
   serve.add_flag("--insecure-no-auth", flags.insecureNoAuth,
                  "Serve beyond loopback without authentication: without --api-tokens anyone who reaches "
                  "the HTTP API may submit, cancel and download; without CURVE keys any process that "
@@ -327,6 +342,16 @@ ServeOptions Resolve(const ServeFlags& flags) {
   options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
   ResolveSecurity(flags, &options);
   ResolveWorkerAuthentication(flags, &options);
+  if (flags.keepDaysOption->count()) {
+    options.retention.keepMs = static_cast<int64_t>(flags.keepDays * 24 * 3600 * 1000);
+  }
+  if (!flags.storeBudget.empty()) {
+    try {
+      options.retention.budgetBytes = ParseByteSize(flags.storeBudget);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("--store-budget ") + e.what());
+    }
+  }
   if (!options.dashboard.empty() && !std::filesystem::is_directory(options.dashboard)) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
@@ -388,6 +413,36 @@ void ReportAccess(const ServeOptions& options, const char* scheme, int port) {
   }
 }
 
+// One line per job event on stderr: "job 7 frames_written: frames 10..19 written". Names
+// come from users: control bytes are escaped, so a name cannot forge a line of the log.
+void LogEvent(const JobEvent& event) {
+  std::string message;
+  for (char c : event.message) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) {
+      char escaped[8];
+      std::snprintf(escaped, sizeof escaped, "\\x%02x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+      message += escaped;
+    } else {
+      message += c;
+    }
+  }
+  std::fprintf(stderr, "job %llu %s: %s\n", static_cast<unsigned long long>(event.job), event.type.c_str(),
+               message.c_str());
+}
+
+void ReportRetention(const RetentionPolicy& retention) {
+  if (retention.keepMs) {
+    std::fprintf(stderr, "tcfarm-coordinator: finished jobs are deleted %g days after they finish (--keep-days)\n",
+                 static_cast<double>(*retention.keepMs) / (24 * 3600 * 1000.0));
+  }
+  if (retention.budgetBytes) {
+    std::fprintf(stderr,
+                 "tcfarm-coordinator: the earliest finished jobs are deleted while the store holds more than %s "
+                 "(--store-budget)\n",
+                 ShowBytes(*retention.budgetBytes).c_str());
+  }
+}
+
 int RunServe(const ServeOptions& options) {
   std::signal(SIGINT, RequestStop);
   std::signal(SIGTERM, RequestStop);
@@ -398,6 +453,7 @@ int RunServe(const ServeOptions& options) {
     std::filesystem::create_directories(options.database.parent_path());
   }
   JobStore store(options.database);
+  store.AddEventListener(LogEvent);
   BindDatabaseToStore(store, options.farm.storeRoot, options.adoptStore);
   SystemClock clock;
   FarmOptions farmOptions = options.farm;
@@ -421,7 +477,12 @@ int RunServe(const ServeOptions& options) {
   api.tlsKeyFile = options.tlsKeyFile;
   // One coordinator per store: what a crashed one left half-written is nobody's.
   AssetStore(api.storeRoot / "assets").RemoveLeftovers();
-  ApiServer server(store, farm, farm.metrics().registry, api);
+  // Deletes jobs for the API and the retention alike. Its rounds (the store's size, then at
+  // its first round deletions left half done, and the retention) run on its own thread
+  // from just before the farm loop starts: a deletion waits for the loop to let go of the job.
+  StoreJanitor janitor(store, options.farm.storeRoot, [&farm](uint64_t id) { return farm.ReleaseJob(id); },
+                       farm.metrics().registry.get(), options.retention);
+  ApiServer server(store, farm, farm.metrics().registry, api, &janitor);
   int port = server.Start();
 
   std::string workerEndpoint = LoopbackEndpoint(farm.BoundEndpoint());
@@ -450,6 +511,8 @@ int RunServe(const ServeOptions& options) {
                  options.httpHost.c_str(), port, options.dashboard.c_str());
   }
   ReportAccess(options, scheme, port);
+  ReportRetention(options.retention);
+  janitor.Start();
 
   // Run the farm; look after the local workers a few times a second. On SIGINT or SIGTERM
   // it tells its workers goodbye before it returns.
@@ -461,6 +524,7 @@ int RunServe(const ServeOptions& options) {
     }
   });
   std::fprintf(stderr, "tcfarm-coordinator: stopping\n");
+  janitor.Stop();  // a deletion waiting on the farm has been told it stopped
   server.Stop();
   localWorkers.Stop();
   return 0;

@@ -33,9 +33,13 @@ inline constexpr const char* kJobNotFound = "job_not_found";           // 404
 inline constexpr const char* kFrameNotReady = "frame_not_ready";       // 404
 inline constexpr const char* kMethodNotAllowed = "method_not_allowed"; // 405
 inline constexpr const char* kJobFinished = "job_finished";            // 409
+inline constexpr const char* kJobActive = "job_active";                // 409, delete a queued or running job
+inline constexpr const char* kJobNotRetryable = "job_not_retryable";  // 409, retry a job neither failed nor canceled
 inline constexpr const char* kPayloadTooLarge = "payload_too_large";   // 413
 inline constexpr const char* kJobTooLarge = "job_too_large";           // 413, frames beyond memory
 inline constexpr const char* kInternal = "internal";                   // 500
+inline constexpr const char* kTooManyStreams = "too_many_streams";    // 503, event streams at their limit
+inline constexpr const char* kShuttingDown = "shutting_down";          // 503, the coordinator is stopping
 inline constexpr const char* kInsufficientStorage = "insufficient_storage";  // 507, the disk refused
 }  // namespace error_code
 

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <map>
 #include <cstdio>
 #include <fstream>
 #include <limits>
@@ -30,6 +31,16 @@ namespace error_code = http::error_code;
 
 constexpr int kDefaultListLimit = 50;
 constexpr int kMaxListLimit = 1000;  // one page stays a few hundred KiB of JSON
+constexpr int64_t kMaxListOffset = int64_t{1} << 53;
+// A job's events in one answer: every event of all but the longest jobs (a frames_written
+// event covers ten frames or a second); `after` pages through the rest.
+constexpr int64_t kMaxEventsPerPage = 10000;
+constexpr int64_t kMaxEventSeq = int64_t{1} << 53;
+// Events read from the store at once while a stream catches up.
+constexpr size_t kStreamBatch = 500;
+// A stream looks at the store at least this often: another process may record events its
+// listener never hears, and Stop is seen this soon.
+constexpr std::chrono::milliseconds kStreamPoll{1000};
 constexpr size_t kFileChunkBytes = 64u << 10;
 constexpr const char* kJsonType = "application/json";
 // The Prometheus text exposition format, version 0.0.4: what a scraper asks for.
@@ -140,29 +151,83 @@ void RequireAtMostOnce(const httplib::Request& request, const char* name) {
   }
 }
 
-std::optional<JobState> ParseStateFilter(const httplib::Request& request) {
-  RequireAtMostOnce(request, "state");
-  if (!request.has_param("state")) return std::nullopt;
-  const std::string name = request.get_param_value("state");
-  std::optional<JobState> state = JobStateFromString(name);
-  if (!state) {
-    throw ApiError(400, error_code::kInvalidParameter,
-                   "state " + http::ShowValue(name) + " is not a job state; expected one of queued, running, "
-                   "completed, failed, canceled");
+// "queued,running": a comma-separated list of names, each one `parse` knows; empty when the
+// parameter is absent. `expected` lists the names.
+template <typename T, typename Parse>
+std::vector<T> ParseNameList(const httplib::Request& request, const char* name, Parse parse,
+                             const std::string& what, const std::string& expected) {
+  RequireAtMostOnce(request, name);
+  if (!request.has_param(name)) return {};
+  const std::string text = request.get_param_value(name);
+  std::vector<T> values;
+  size_t begin = 0;
+  for (;;) {
+    const size_t comma = text.find(',', begin);
+    const std::string item = text.substr(begin, comma == std::string::npos ? std::string::npos : comma - begin);
+    const std::optional<T> value = parse(item);
+    if (!value) {
+      throw ApiError(400, error_code::kInvalidParameter,
+                     std::string(name) + " " + http::ShowValue(item) + " is not " + what + "; expected one of " +
+                         expected + ", or several separated by commas");
+    }
+    values.push_back(*value);
+    if (comma == std::string::npos) return values;
+    begin = comma + 1;
   }
-  return state;
+}
+
+std::vector<JobState> ParseStateFilter(const httplib::Request& request) {
+  return ParseNameList<JobState>(request, "state", JobStateFromString, "a job state",
+                                 "queued, running, completed, failed, canceled");
+}
+
+std::vector<Strategy> ParseStrategyFilter(const httplib::Request& request) {
+  std::string names;
+  for (const StrategyNameEntry& entry : kStrategyNames) names += (names.empty() ? "" : ", ") + std::string(entry.name);
+  return ParseNameList<Strategy>(request, "strategy", StrategyFromString, "a strategy", names);
+}
+
+std::string ParseNameFilter(const httplib::Request& request) {
+  RequireAtMostOnce(request, "name");
+  const std::string text = request.get_param_value("name");
+  if (text.size() > http::kMaxNameBytes) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "name is " + std::to_string(text.size()) + " bytes long; expected at most " +
+                       std::to_string(http::kMaxNameBytes) + " bytes, the longest a job's name can be");
+  }
+  return text;
+}
+
+// A decimal integer in [low, high], or `fallback` when the parameter is absent.
+int64_t ParseInteger(const httplib::Request& request, const char* name, int64_t low, int64_t high, int64_t fallback) {
+  RequireAtMostOnce(request, name);
+  if (!request.has_param(name)) return fallback;
+  const std::string text = request.get_param_value(name);
+  const std::string expected = "expected an integer in [" + std::to_string(low) + ", " + std::to_string(high) + "]";
+  constexpr size_t kMaxDigits = 18;  // below 2^63
+  if (!AllDigits(text) || text.size() > kMaxDigits || std::stoll(text) < low || std::stoll(text) > high) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   std::string(name) + " " + http::ShowValue(text) + " is out of range; " + expected);
+  }
+  return std::stoll(text);
 }
 
 int ParseLimit(const httplib::Request& request) {
-  RequireAtMostOnce(request, "limit");
-  if (!request.has_param("limit")) return kDefaultListLimit;
-  const std::string text = request.get_param_value("limit");
-  const std::string expected = "expected an integer in [1, " + std::to_string(kMaxListLimit) + "]";
-  if (!AllDigits(text) || text.size() > 4 || std::stoi(text) < 1 || std::stoi(text) > kMaxListLimit) {
+  return static_cast<int>(ParseInteger(request, "limit", 1, kMaxListLimit, kDefaultListLimit));
+}
+
+// An event's sequence number to start after: `after`, else the Last-Event-ID header an
+// EventSource sends when it reconnects; nullopt when neither is given.
+std::optional<uint64_t> ParseEventCursor(const httplib::Request& request) {
+  if (request.has_param("after")) return ParseInteger(request, "after", 0, kMaxEventSeq, 0);
+  if (!request.has_header("Last-Event-ID")) return std::nullopt;
+  const std::string text = request.get_header_value("Last-Event-ID");
+  if (!AllDigits(text) || text.size() > 18) {
     throw ApiError(400, error_code::kInvalidParameter,
-                   "limit " + http::ShowValue(text) + " is out of range; " + expected);
+                   "Last-Event-ID " + http::ShowValue(text) + " is not an event's seq; expected the id: of an event "
+                   "this stream sent");
   }
-  return std::stoi(text);
+  return std::stoull(text);
 }
 
 struct FrameFile {
@@ -225,13 +290,26 @@ ApiError LibraryError(const httplib::Request& request, int status, size_t maxBod
 }  // namespace
 
 ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometheus::Registry> metrics,
-                     ApiOptions options)
+                     ApiOptions options, StoreJanitor* janitor)
     : store_(store),
       farm_(farm),
       metrics_(std::move(metrics)),
       options_(std::move(options)),
+      ownJanitor_(janitor ? nullptr
+                          : std::make_unique<StoreJanitor>(
+                                store, options_.storeRoot, [&farm](uint64_t id) { return farm.ReleaseJob(id); },
+                                metrics_.get())),
+      janitor_(janitor ? *janitor : *ownJanitor_),
       frameStore_(options_.storeRoot),
       assetStore_(options_.storeRoot / "assets") {
+  lastEventSeq_ = store_.LastEventSeq();
+  eventListener_ = store_.AddEventListener([this](const JobEvent& event) {
+    {
+      std::lock_guard<std::mutex> lock(eventsMutex_);
+      lastEventSeq_ = std::max(lastEventSeq_, event.seq);
+    }
+    eventRecorded_.notify_all();
+  });
   for (const Route& route : Routes()) routePatterns_.emplace_back(route.pattern);
   if (metrics_) {
     assetUploads_ = &NewCounter(*metrics_, "tcfarm_asset_uploads_total",
@@ -246,15 +324,25 @@ ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometh
   }
 }
 
-ApiServer::~ApiServer() { Stop(); }
+ApiServer::~ApiServer() {
+  Stop();
+  store_.RemoveEventListener(eventListener_);
+}
 
 const std::vector<ApiServer::Route>& ApiServer::Routes() {
   static const std::vector<Route> routes{
       {"POST", "/api/v1/jobs", Access::kSubmit, &ApiServer::SubmitJob},
       {"GET", "/api/v1/jobs", Access::kRead, &ApiServer::ListJobs},
       {"GET", "/api/v1/jobs/([^/]+)", Access::kRead, &ApiServer::GetJob},
-      // A submit token may cancel its own jobs only: CancelJob checks whose the job is.
+      // A submit token may cancel, retry, change and delete its own jobs only: the
+      // handlers check whose the job is (CheckMayChange).
       {"POST", "/api/v1/jobs/([^/]+)/cancel", Access::kSubmit, &ApiServer::CancelJob},
+      {"POST", "/api/v1/jobs/([^/]+)/retry", Access::kSubmit, &ApiServer::RetryJob},
+      {"PATCH", "/api/v1/jobs/([^/]+)", Access::kSubmit, &ApiServer::PatchJob},
+      {"DELETE", "/api/v1/jobs/([^/]+)", Access::kSubmit, &ApiServer::DeleteJob},
+      {"GET", "/api/v1/jobs/([^/]+)/frames", Access::kRead, &ApiServer::GetFrameStates},
+      {"GET", "/api/v1/jobs/([^/]+)/events", Access::kRead, &ApiServer::GetJobEvents},
+      {"GET", "/api/v1/events", Access::kRead, &ApiServer::StreamEvents},
       {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)", Access::kRead, &ApiServer::GetFrame},
       {"GET", "/api/v1/jobs/([^/]+)/frames/([^/]+)/(mask|change)\\.png", Access::kRead, &ApiServer::GetFrameMask},
       {"PUT", "/api/v1/assets/([^/]+)", Access::kSubmit, nullptr, &ApiServer::PutAsset},
@@ -284,7 +372,14 @@ int ApiServer::Start() {
   return listener_.Start(std::move(server), options_.host, options_.port);
 }
 
-void ApiServer::Stop() { listener_.Stop(); }
+void ApiServer::Stop() {
+  {
+    std::lock_guard<std::mutex> lock(eventsMutex_);
+    streamsStopping_ = true;
+  }
+  eventRecorded_.notify_all();
+  listener_.Stop();
+}
 
 void ApiServer::Configure(httplib::Server& server) {
   // The library's own limit is the larger of the two; each route keeps to its own (the JSON
@@ -453,9 +548,12 @@ bool ApiServer::Admit(const httplib::Request& request, Access access, httplib::R
   return admitted;
 }
 
-void ApiServer::CheckMayCancel(const httplib::Request& request, uint64_t id) const {
+void ApiServer::CheckMayChange(const httplib::Request& request, uint64_t id) const {
   const std::optional<http::Caller> caller = CallerOf(request);
-  if (!caller || caller->role >= http::Role::kAdmin) return;
+  if (!caller || caller->role >= http::Role::kAdmin) {
+    if (!store_.StateOf(id)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+    return;
+  }
   const JobRecord record = LoadJob(id);
   const std::string owner = record.spec.options.is_object() ? record.spec.options.value("submitted_by", "") : "";
   if (owner != caller->tokenId) {
@@ -463,7 +561,8 @@ void ApiServer::CheckMayCancel(const httplib::Request& request, uint64_t id) con
     throw ApiError(403, error_code::kForbidden,
                    "job " + std::to_string(id) + " was submitted " +
                        (owner.empty() ? std::string("without a token") : "by token " + owner) + ", not by this one (id " +
-                       caller->tokenId + "); a submit token cancels only its own jobs, an admin token any");
+                       caller->tokenId + "); a submit token cancels, retries, changes and deletes only its own "
+                       "jobs, an admin token any");
   }
 }
 
@@ -508,13 +607,19 @@ void ApiServer::CheckJobFitsInMemory(const JobSpec& spec) const {
 }
 
 void ApiServer::SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response) {
-  JobSpec spec = http::ParseSubmission(
-      body, http::SubmissionAssets{&assetStore_, options_.assetMaxJobBytes, "--asset-max-job-mib"});
-  CheckJobFitsInMemory(spec);
-  // Which token submitted the job, by its id (never the token): a submit token may cancel
-  // only its own jobs.
-  if (const std::optional<http::Caller> caller = CallerOf(request)) spec.options["submitted_by"] = caller->tokenId;
-  const uint64_t id = store_.Submit(spec);
+  // From checking the assets to storing the job that names them, no deletion removes them.
+  uint64_t id = 0;
+  JobSpec spec;
+  {
+    const auto holdAssets = janitor_.HoldAssets();
+    spec = http::ParseSubmission(
+        body, http::SubmissionAssets{&assetStore_, options_.assetMaxJobBytes, "--asset-max-job-mib"});
+    CheckJobFitsInMemory(spec);
+    // Which token submitted the job, by its id (never the token): a submit token may change
+    // only its own jobs.
+    if (const std::optional<http::Caller> caller = CallerOf(request)) spec.options["submitted_by"] = caller->tokenId;
+    id = store_.Submit(spec);
+  }
   {
     std::lock_guard<std::mutex> lock(frameRangesMutex_);
     frameRanges_[id] = FrameRange{spec.firstFrame, spec.lastFrame};
@@ -524,8 +629,14 @@ void ApiServer::SubmitJob(const httplib::Request& request, const std::string& bo
 }
 
 void ApiServer::ListJobs(const httplib::Request& request, const std::string&, httplib::Response& response) {
-  const std::optional<JobState> state = ParseStateFilter(request);
-  const std::vector<JobRecord> records = store_.List(state, ParseLimit(request));
+  JobQuery query;
+  query.states = ParseStateFilter(request);
+  query.strategies = ParseStrategyFilter(request);
+  query.nameContains = ParseNameFilter(request);
+  query.limit = ParseLimit(request);
+  query.offset = ParseInteger(request, "offset", 0, kMaxListOffset, 0);
+  const JobPage page = store_.Query(query);
+  const std::vector<JobRecord>& records = page.records;
   const bool anyRunning = std::any_of(records.begin(), records.end(), [](const JobRecord& record) {
     return record.state == JobState::kRunning;
   });
@@ -535,7 +646,8 @@ void ApiServer::ListJobs(const httplib::Request& request, const std::string&, ht
     const auto live = snapshot.runningStats.find(record.id);
     jobs.push_back(http::JobJson(record, live == snapshot.runningStats.end() ? nullptr : &live->second));
   }
-  WriteJson(response, json{{"jobs", std::move(jobs)}});
+  WriteJson(response,
+            json{{"jobs", std::move(jobs)}, {"total", page.total}, {"offset", query.offset}, {"limit", query.limit}});
 }
 
 void ApiServer::GetJob(const httplib::Request& request, const std::string&, httplib::Response& response) {
@@ -545,7 +657,7 @@ void ApiServer::GetJob(const httplib::Request& request, const std::string&, http
 void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
                           httplib::Response& response) {
   const uint64_t id = ParseJobId(request.matches[1]);
-  CheckMayCancel(request, id);
+  CheckMayChange(request, id);
   // Cancel first and ask afterwards: checking the state first would race with the farm
   // finishing the job in between.
   if (!store_.Cancel(id)) {
@@ -556,6 +668,166 @@ void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
   }
   farm_.RequestCancel(id);
   WriteJson(response, JobDetail(LoadJob(id)));
+}
+
+void ApiServer::RetryJob(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  CheckMayChange(request, id);
+  if (!store_.Retry(id)) {
+    const JobRecord record = LoadJob(id);
+    throw ApiError(409, error_code::kJobNotRetryable,
+                   "job " + std::to_string(id) + " is " + ToString(record.state) +
+                       "; only failed or canceled jobs can be retried");
+  }
+  WriteJson(response, JobDetail(LoadJob(id)));
+}
+
+void ApiServer::PatchJob(const httplib::Request& request, const std::string& body, httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  const JobChange change = http::ParseJobChange(body);
+  CheckMayChange(request, id);
+  if (!store_.Change(id, change)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  // A running job's next tasks follow it; a queued one is claimed by it from the store.
+  if (change.priority) farm_.RequestPriority(id, *change.priority);
+  WriteJson(response, JobDetail(LoadJob(id)));
+}
+
+void ApiServer::DeleteJob(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  CheckMayChange(request, id);
+  StoreJanitor::Deletion deletion;
+  try {
+    deletion = janitor_.Delete(id, "on request (DELETE)");
+  } catch (const FarmStoppingError& e) {
+    throw ApiError(503, error_code::kShuttingDown, std::string(e.what()) + "; expected it to be asked again once the coordinator runs");
+  }
+  switch (deletion.outcome) {
+    case DeletedJob::Outcome::kNotFound:
+      throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+    case DeletedJob::Outcome::kActive:
+      throw ApiError(409, error_code::kJobActive,
+                     "job " + std::to_string(id) + " is " + ToString(deletion.state) +
+                         "; cancel it first (POST /api/v1/jobs/" + std::to_string(id) + "/cancel), then delete it");
+    case DeletedJob::Outcome::kDeleted:
+      break;
+  }
+  {
+    std::lock_guard<std::mutex> lock(frameRangesMutex_);
+    frameRanges_.erase(id);
+  }
+  WriteJson(response, json{{"deleted", id}, {"freed_bytes", deletion.freedBytes}});
+}
+
+// queued, tracing (the farm is working on it), written (in the store, recorded), failed
+// (a failed job's frame that was not written). A canceled job's unwritten frames are queued:
+// a retry would render them.
+void ApiServer::GetFrameStates(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  const FrameRange range = FrameRangeOf(id);
+  const std::optional<JobState> state = store_.StateOf(id);
+  if (!state) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  const std::vector<RecordedFrame> written = store_.RecordedFrames(id);
+  std::vector<int> tracing;
+  if (*state == JobState::kRunning) {
+    FarmSnapshot snapshot = farm_.Snapshot();
+    if (auto live = snapshot.tracingFrames.find(id); live != snapshot.tracingFrames.end()) tracing = std::move(live->second);
+  }
+  json frames = json::array();
+  std::map<std::string, int> counts{{"queued", 0}, {"tracing", 0}, {"written", 0}, {"failed", 0}};
+  auto nextWritten = written.begin();
+  auto nextTracing = tracing.begin();
+  for (int frame = range.firstFrame; frame <= range.lastFrame; ++frame) {
+    while (nextWritten != written.end() && nextWritten->frame < frame) ++nextWritten;
+    while (nextTracing != tracing.end() && *nextTracing < frame) ++nextTracing;
+    json entry{{"frame", frame}, {"traced", nullptr}, {"copied", nullptr}};
+    std::string frameState = "queued";
+    if (nextWritten != written.end() && nextWritten->frame == frame) {
+      frameState = "written";
+      entry["traced"] = nextWritten->traced;
+      entry["copied"] = nextWritten->copied;
+    } else if (nextTracing != tracing.end() && *nextTracing == frame) {
+      frameState = "tracing";
+    } else if (*state == JobState::kFailed) {
+      frameState = "failed";
+    }
+    entry["state"] = frameState;
+    ++counts[frameState];
+    frames.push_back(std::move(entry));
+  }
+  WriteJson(response, json{{"job", id}, {"state", ToString(*state)}, {"frames", std::move(frames)}, {"counts", counts}});
+}
+
+void ApiServer::GetJobEvents(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const uint64_t id = ParseJobId(request.matches[1]);
+  const uint64_t after = static_cast<uint64_t>(ParseInteger(request, "after", 0, kMaxEventSeq, 0));
+  const size_t limit = static_cast<size_t>(ParseInteger(request, "limit", 1, kMaxEventsPerPage, kMaxEventsPerPage));
+  if (!store_.StateOf(id)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  json events = json::array();
+  for (const JobEvent& event : store_.Events({id, after, limit})) events.push_back(http::EventJson(event));
+  WriteJson(response, json{{"events", std::move(events)}});
+}
+
+bool ApiServer::AwaitEvent(uint64_t seq, std::chrono::steady_clock::time_point deadline) {
+  std::unique_lock<std::mutex> lock(eventsMutex_);
+  eventRecorded_.wait_until(lock, deadline, [&] { return streamsStopping_ || lastEventSeq_ > seq; });
+  return !streamsStopping_;
+}
+
+// Server-Sent Events: each event as "id: <seq>", "event: <type>", "data: <json>", from the
+// store's log (after `after` or Last-Event-ID; without either, from now on), then live.
+void ApiServer::StreamEvents(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  const std::optional<uint64_t> cursor = ParseEventCursor(request);
+  RequireAtMostOnce(request, "job");
+  const std::optional<uint64_t> job =
+      request.has_param("job") ? std::optional<uint64_t>(ParseJobId(request.get_param_value("job"))) : std::nullopt;
+  if (job && !store_.StateOf(*job)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(*job));
+  if (++openStreams_ > options_.maxEventStreams) {
+    --openStreams_;
+    throw ApiError(503, error_code::kTooManyStreams,
+                   std::to_string(options_.maxEventStreams) +
+                       " event streams are open, as many as this coordinator serves at once; expected a retry later "
+                       "or the per-job events (GET /api/v1/jobs/{id}/events)");
+  }
+  struct Stream {
+    uint64_t after;  // the last event sent (or skipped, before the stream began)
+    std::optional<uint64_t> job;
+    std::chrono::steady_clock::time_point lastSent;
+  };
+  auto stream = std::make_shared<Stream>(Stream{cursor ? *cursor : store_.LastEventSeq(), job,
+                                                std::chrono::steady_clock::now()});
+  response.set_header("Cache-Control", "no-cache");
+  response.set_header("X-Accel-Buffering", "no");  // a proxy in front must not hold events back
+  response.set_chunked_content_provider(
+      "text/event-stream",
+      [this, stream](size_t, httplib::DataSink& sink) {
+        // Taken before the store is read, so an event recorded meanwhile wakes the wait below.
+        uint64_t heard = 0;
+        {
+          std::lock_guard<std::mutex> lock(eventsMutex_);
+          heard = lastEventSeq_;
+        }
+        std::string text;
+        std::vector<JobEvent> events = store_.Events({stream->job, stream->after, kStreamBatch});
+        if (events.empty()) {
+          const auto now = std::chrono::steady_clock::now();
+          const auto keepAlive = stream->lastSent + options_.eventKeepAlive;
+          if (now >= keepAlive) {
+            text = ": keepalive\n\n";
+          } else if (!AwaitEvent(heard, std::min(keepAlive, now + kStreamPoll))) {
+            sink.done();  // the server stops: the stream ends cleanly
+            return true;
+          }
+        }
+        for (const JobEvent& event : events) {
+          text += "id: " + std::to_string(event.seq) + "\nevent: " + event.type + "\ndata: " +
+                  http::DumpJson(http::EventJson(event)) + "\n\n";
+          stream->after = event.seq;
+        }
+        if (text.empty()) return true;  // woken: read the store again
+        stream->lastSent = std::chrono::steady_clock::now();
+        return sink.write(text.data(), text.size());
+      },
+      [this](bool) { --openStreams_; });
 }
 
 void ApiServer::CheckFrameInJob(uint64_t id, int frame) {

@@ -8,11 +8,19 @@
 // token, 403 with one whose role is too low (http/api_tokens.h). Refused requests never
 // have their bodies read into memory or onto disk.
 //
-// The server only reads and writes the JobStore and asks the FarmControl for cancels and
-// snapshots; it never touches the farm's state directly, so a slow client cannot stall
-// rendering.
+// The server only reads and writes the JobStore and asks the FarmControl for cancels,
+// priority changes and snapshots; it never touches the farm's state directly, so a slow
+// client cannot stall rendering. Jobs are deleted through the StoreJanitor, by the same
+// code as the retention.
+//
+// GET /api/v1/events is a stream (Server-Sent Events) that stays open: each holds one of
+// the server's threads, so their number is bounded (ApiOptions::maxEventStreams, 503
+// beyond it), and each wakes at least once a second, so Stop never waits for a client.
 #pragma once
 
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -32,6 +40,7 @@
 #include "jobs/job_store.h"
 #include "store/asset_store.h"
 #include "store/frame_store.h"
+#include "store/store_janitor.h"
 
 namespace httplib {
 class Server;
@@ -69,12 +78,20 @@ struct ApiOptions {
   // Both set: HTTPS with this certificate chain and private key (PEM files).
   std::filesystem::path tlsCertFile;
   std::filesystem::path tlsKeyFile;
+  // Event streams (GET /api/v1/events) open at once; more are refused with 503. Each holds
+  // a thread of the server for as long as it is open.
+  size_t maxEventStreams = 32;
+  // A stream with nothing to say sends a comment this often, so proxies and clients know
+  // it is alive (and the server learns when a client has gone).
+  std::chrono::milliseconds eventKeepAlive{15000};
 };
 
 class ApiServer {
  public:
+  // janitor: deletes jobs (shared with the retention); none: the server keeps its own,
+  // without retention.
   ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometheus::Registry> metrics,
-            ApiOptions options);
+            ApiOptions options, StoreJanitor* janitor = nullptr);
   ~ApiServer();  // stops
   ApiServer(const ApiServer&) = delete;
   ApiServer& operator=(const ApiServer&) = delete;
@@ -124,8 +141,9 @@ class ApiServer {
   bool Admit(const httplib::Request& request, Access access, httplib::Response& response);
   // The token's owner; nullopt when the server has no tokens.
   std::optional<http::Caller> CallerOf(const httplib::Request& request) const;
-  // A submit token cancels only the jobs it submitted; throws 403 for another's.
-  void CheckMayCancel(const httplib::Request& request, uint64_t id) const;
+  // A submit token cancels, retries, changes and deletes only the jobs it submitted;
+  // throws 403 for another's (404 for an unknown job).
+  void CheckMayChange(const httplib::Request& request, uint64_t id) const;
   void Dispatch(Handler handle, const httplib::Request& request, const std::string& body,
                 httplib::Response& response);
   // Runs a handler, turning what it throws into the one error shape.
@@ -137,6 +155,12 @@ class ApiServer {
   void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void RetryJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void PatchJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void DeleteJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void GetFrameStates(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void GetJobEvents(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void StreamEvents(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetFrame(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetFrameMask(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void PutAsset(const httplib::Request& request, const BodyPieces& read, httplib::Response& response);
@@ -153,10 +177,16 @@ class ApiServer {
   // counts each time.
   FrameRange FrameRangeOf(uint64_t id);
 
+  // Waits until an event after `seq` is recorded, the deadline passes or the server stops;
+  // false once it stops.
+  bool AwaitEvent(uint64_t seq, std::chrono::steady_clock::time_point deadline);
+
   JobStore& store_;
   FarmControl& farm_;
   std::shared_ptr<prometheus::Registry> metrics_;
   ApiOptions options_;
+  std::unique_ptr<StoreJanitor> ownJanitor_;  // when none is given
+  StoreJanitor& janitor_;
   FrameStore frameStore_;  // where options_.storeRoot holds each job's files
   AssetStore assetStore_;  // options_.storeRoot/assets
   prometheus::Counter* assetUploads_ = nullptr;      // with a metrics registry only
@@ -167,6 +197,14 @@ class ApiServer {
 
   std::mutex frameRangesMutex_;
   std::unordered_map<uint64_t, FrameRange> frameRanges_;
+
+  // Event streams: woken by the job store's listener, ended by Stop.
+  uint64_t eventListener_ = 0;
+  std::mutex eventsMutex_;
+  std::condition_variable eventRecorded_;
+  uint64_t lastEventSeq_ = 0;  // the newest event this process recorded
+  bool streamsStopping_ = false;
+  std::atomic<size_t> openStreams_{0};
 
   HttpListener listener_;
 };

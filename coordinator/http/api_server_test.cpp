@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <random>
@@ -73,6 +74,11 @@ class FakeFarm : public FarmControl {
   void Stop() {
     std::lock_guard<std::mutex> lock(mutex_);
     stopped_ = true;
+  }
+  void Resume() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopped_ = false;
+    released_.clear();
   }
   void SetSnapshot(FarmSnapshot snapshot) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -877,6 +883,341 @@ TEST_F(ApiServerTest, CancelRunningJobAndUnknownJob) {
   ExpectError(client_->Post("/api/v1/jobs/x/cancel"), 400, "invalid_parameter");
 }
 
+// --- lists, retry, change, delete, frames, events ---------------------------------------
+
+std::vector<uint64_t> IdsOf(const json& list) {
+  std::vector<uint64_t> ids;
+  for (const json& job : list.at("jobs")) ids.push_back(job.at("id").get<uint64_t>());
+  return ids;
+}
+
+TEST_F(ApiServerTest, ListFiltersByStateStrategyAndNameAndPagesWithATotal) {
+  std::vector<uint64_t> ids;
+  for (const auto& [name, strategy] : std::vector<std::pair<std::string, std::string>>{
+           {"Orbit one", "search"}, {"teapot", "exact"}, {"orbit two", "exact"}, {"wide", "search"},
+           {"ORBIT three", "brute"}, {"last", "auto"}}) {
+    json body = Submission();
+    body["name"] = name;
+    body["strategy"] = strategy;
+    ids.push_back(SubmitOk(body));
+  }
+  ASSERT_TRUE(store_->Fail(ids[1], "broken"));
+  ASSERT_TRUE(store_->Cancel(ids[2]));
+  auto list = [&](const std::string& query) {
+    httplib::Result result = Get("/api/v1/jobs" + query);
+    EXPECT_TRUE(result);
+    EXPECT_EQ(result->status, 200) << query << ": " << result->body;
+    return json::parse(result->body);
+  };
+  json page = list("?offset=2&limit=2");
+  EXPECT_EQ(IdsOf(page), (std::vector<uint64_t>{ids[3], ids[2]}));
+  EXPECT_EQ(page["total"], 6);
+  EXPECT_EQ(page["offset"], 2);
+  EXPECT_EQ(page["limit"], 2);
+  EXPECT_EQ(IdsOf(list("?offset=6")), std::vector<uint64_t>{});
+  EXPECT_EQ(list("")["limit"], 50);
+  EXPECT_EQ(IdsOf(list("?state=failed,canceled")), (std::vector<uint64_t>{ids[2], ids[1]}));
+  EXPECT_EQ(IdsOf(list("?strategy=exact")), (std::vector<uint64_t>{ids[2], ids[1]}));
+  page = list("?name=orBit&limit=1");
+  EXPECT_EQ(IdsOf(page), std::vector<uint64_t>{ids[4]});
+  EXPECT_EQ(page["total"], 3);
+  EXPECT_EQ(IdsOf(list("?name=orbit&strategy=search,brute&state=queued")), (std::vector<uint64_t>{ids[4], ids[0]}));
+  EXPECT_EQ(IdsOf(list("?name=orbit%20two")), std::vector<uint64_t>{ids[2]});
+
+  for (const auto& [query, named] : std::vector<std::pair<std::string, std::string>>{
+           {"?state=bogus", "state \"bogus\" is not a job state"},
+           {"?state=", "state \"\" is not a job state"},
+           {"?state=queued,,failed", "state \"\""},
+           {"?strategy=magic", "strategy \"magic\" is not a strategy; expected one of search, brute"},
+           {"?limit=0", "limit \"0\" is out of range; expected an integer in [1, 1000]"},
+           {"?limit=1001", "limit"},
+           {"?offset=-1", "offset \"-1\" is out of range"},
+           {"?offset=two", "offset"},
+           {"?offset=1&offset=2", "offset is given 2 times"},
+           {"?name=" + std::string(300, 'x'), "name is 300 bytes long"}}) {
+    const json error = ExpectError(Get("/api/v1/jobs" + query), 400, "invalid_parameter");
+    EXPECT_NE(error.value("message", "").find(named), std::string::npos) << query << ": " << error;
+  }
+}
+
+TEST_F(ApiServerTest, RetryQueuesAFailedOrCanceledJobUnderItsId) {
+  const uint64_t canceled = SubmitOk();
+  const uint64_t completed = SubmitOk();
+  const uint64_t queued = SubmitOk();
+  ASSERT_EQ(store_->ClaimNext()->id, canceled);
+  ASSERT_TRUE(store_->RecordFrame(canceled, 0, 48, 0));
+  ASSERT_TRUE(store_->Cancel(canceled));
+  ASSERT_EQ(store_->ClaimNext()->id, completed);
+  ASSERT_TRUE(store_->Complete(completed, json::object()));
+  const std::string retry = "/api/v1/jobs/" + std::to_string(canceled) + "/retry";
+  httplib::Result result = client_->Post(retry.c_str());
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  const json job = json::parse(result->body);
+  EXPECT_EQ(job["id"], canceled);
+  EXPECT_EQ(job["state"], "queued");
+  EXPECT_TRUE(job["finished_at"].is_null());
+  EXPECT_EQ(job["frames"]["done"], 1);  // kept
+  EXPECT_EQ(job["traced_per_frame"][0], 48);
+  json error = ExpectError(client_->Post(retry.c_str()), 409, "job_not_retryable");
+  EXPECT_EQ(error["message"], "job " + std::to_string(canceled) + " is queued; only failed or canceled jobs can be retried");
+  ExpectError(client_->Post(("/api/v1/jobs/" + std::to_string(completed) + "/retry").c_str()), 409, "job_not_retryable");
+  ExpectError(client_->Post(("/api/v1/jobs/" + std::to_string(queued) + "/retry").c_str()), 409, "job_not_retryable");
+  ExpectError(client_->Post("/api/v1/jobs/999/retry"), 404, "job_not_found");
+  ExpectError(client_->Post("/api/v1/jobs/-1/retry"), 400, "invalid_parameter");
+}
+
+TEST_F(ApiServerTest, PatchChangesPriorityAndNameAndTellsTheFarm) {
+  const uint64_t id = SubmitOk();
+  const std::string path = "/api/v1/jobs/" + std::to_string(id);
+  auto patch = [&](const std::string& body) { return client_->Patch(path.c_str(), body, "application/json"); };
+  httplib::Result result = patch(R"({"priority": -50})");
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(json::parse(result->body)["priority"], -50);
+  EXPECT_EQ(farm_.Priorities(), (std::vector<std::pair<uint64_t, int>>{{id, -50}}));
+  result = patch(R"({"name": "shot 12", "priority": 100})");
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(json::parse(result->body)["name"], "shot 12");
+  EXPECT_EQ(store_->Get(id)->spec.priority, 100);
+  result = patch(R"({"name": "renamed only"})");
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(farm_.Priorities().size(), 2u);  // no priority given: the farm is not bothered
+  // 200 characters of two bytes each is a name; 201 is not.
+  std::string accented;
+  for (int i = 0; i < 200; ++i) accented += "\xc3\xa9";
+  EXPECT_EQ(patch(json{{"name", accented}}.dump())->status, 200);
+  ExpectBadField(patch(json{{"name", accented + "e"}}.dump()), "invalid_field", "/name", "201 characters");
+  // A finished job can still be renamed.
+  ASSERT_TRUE(store_->Cancel(id));
+  EXPECT_EQ(patch(R"({"name": "kept for the record"})")->status, 200);
+
+  ExpectBadField(patch(R"({"priority": 101})"), "invalid_field", "/priority", "expected an integer in [-100, 100]");
+  ExpectBadField(patch(R"({"priority": -101})"), "invalid_field", "/priority");
+  ExpectBadField(patch(R"({"priority": 1.5})"), "invalid_field", "/priority", "not an integer");
+  ExpectBadField(patch(R"({"priority": "5"})"), "invalid_field", "/priority");
+  ExpectBadField(patch(R"({"name": ""})"), "invalid_field", "/name", "empty");
+  ExpectBadField(patch(R"({"name": 7})"), "invalid_field", "/name", "not a string");
+  ExpectBadField(patch(R"({"name": "a", "colour": "red"})"), "unknown_field", "/colour", "priority, name");
+  ExpectBadField(patch(R"({"priority": 1, "priority": 2})"), "invalid_json", "/priority", "duplicate");
+  ExpectBadField(patch("{}"), "missing_field", "", "changes nothing");
+  ExpectBadField(patch("[1]"), "invalid_field", "");
+  ExpectError(patch("{\"priority\": "), 400, "invalid_json");
+  ExpectError(patch(""), 400, "invalid_json");
+  ExpectError(client_->Patch("/api/v1/jobs/999", R"({"priority": 1})", "application/json"), 404, "job_not_found");
+  ExpectError(client_->Patch("/api/v1/jobs/1x", R"({"priority": 1})", "application/json"), 400, "invalid_parameter");
+  EXPECT_EQ(store_->Get(id)->spec.name, "kept for the record");
+}
+
+TEST_F(ApiServerTest, DeleteRemovesAFinishedJobItsFilesAndItsUnsharedAssets) {
+  const std::string mine = PutAssetOk(kTriangleObj);
+  const std::string shared = PutAssetOk("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  json body = Submission(SceneWithMeshFile("tri.obj"));
+  body["scene"]["shapes"].push_back({{"type", "mesh"}, {"file", "other.obj"}});
+  body["assets"] = {{"tri.obj", mine}, {"other.obj", shared}};
+  const uint64_t id = SubmitOk(body);
+  body = Submission(SceneWithMeshFile("other.obj"));
+  body["assets"] = {{"other.obj", shared}};
+  const uint64_t keeper = SubmitOk(body);
+  const std::string path = "/api/v1/jobs/" + std::to_string(id);
+  // Queued or running: the job must be canceled first.
+  json error = ExpectError(client_->Delete(path.c_str()), 409, "job_active");
+  EXPECT_EQ(error["message"], "job " + std::to_string(id) + " is queued; cancel it first (POST " + path +
+                                  "/cancel), then delete it");
+  ASSERT_TRUE(store_->Cancel(id));
+  fs::create_directories(FramePath(id, 0, "exr").parent_path());
+  std::ofstream(FramePath(id, 0, "exr")) << std::string(1000, 'f');
+  std::ofstream(FramePath(id, 0, "png")) << std::string(100, 'p');
+
+  farm_.Stop();  // a coordinator on its way out deletes nothing
+  ExpectError(client_->Delete(path.c_str()), 503, "shutting_down");
+  EXPECT_TRUE(fs::exists(FramePath(id, 0, "exr")));
+  EXPECT_TRUE(store_->Get(id).has_value());
+  farm_.Resume();
+
+  httplib::Result result = client_->Delete(path.c_str());
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  EXPECT_EQ(json::parse(result->body),
+            (json{{"deleted", id}, {"freed_bytes", 1000 + 100 + kTriangleObj.size()}}));
+  EXPECT_FALSE(fs::exists(folder_ / "store" / std::to_string(id)));
+  EXPECT_FALSE(fs::exists(folder_ / "store" / "assets" / mine));
+  EXPECT_TRUE(fs::exists(folder_ / "store" / "assets" / shared));  // the other job names it
+  EXPECT_EQ(farm_.Released(), (std::vector<uint64_t>{id, id}));
+  ExpectError(Get(path), 404, "job_not_found");
+  ExpectError(Get(path + "/frames/0.exr"), 404, "job_not_found");
+  ExpectError(client_->Delete(path.c_str()), 404, "job_not_found");
+  ExpectError(client_->Delete("/api/v1/jobs/abc"), 400, "invalid_parameter");
+  const std::string metrics = Get("/metrics")->body;
+  EXPECT_NE(metrics.find("\ntcfarm_jobs_deleted_total 1"), std::string::npos) << metrics;
+  EXPECT_NE(metrics.find("\ntcfarm_store_bytes "), std::string::npos) << metrics;
+  EXPECT_TRUE(store_->Get(keeper).has_value());
+}
+
+TEST_F(ApiServerTest, FramesAnswerEachFramesState) {
+  const uint64_t id = SubmitOk();  // frames 0..9
+  ASSERT_TRUE(store_->ClaimNext());
+  ASSERT_TRUE(store_->RecordFrame(id, 0, 48, 0));
+  ASSERT_TRUE(store_->RecordFrame(id, 1, 5, 43));
+  FarmSnapshot snapshot;
+  snapshot.tracingFrames[id] = {1, 2, 3};  // 1 is written already: written wins
+  farm_.SetSnapshot(snapshot);
+  const std::string path = "/api/v1/jobs/" + std::to_string(id) + "/frames";
+  httplib::Result result = Get(path);
+  ASSERT_TRUE(result);
+  ASSERT_EQ(result->status, 200) << result->body;
+  json body = json::parse(result->body);
+  EXPECT_EQ(body["job"], id);
+  EXPECT_EQ(body["state"], "running");
+  ASSERT_EQ(body["frames"].size(), 10u);
+  EXPECT_EQ(body["frames"][0], (json{{"frame", 0}, {"state", "written"}, {"traced", 48}, {"copied", 0}}));
+  EXPECT_EQ(body["frames"][1], (json{{"frame", 1}, {"state", "written"}, {"traced", 5}, {"copied", 43}}));
+  EXPECT_EQ(body["frames"][2], (json{{"frame", 2}, {"state", "tracing"}, {"traced", nullptr}, {"copied", nullptr}}));
+  EXPECT_EQ(body["frames"][9]["state"], "queued");
+  EXPECT_EQ(body["counts"], (json{{"queued", 6}, {"tracing", 2}, {"written", 2}, {"failed", 0}}));
+  // A failed job's unwritten frames failed; a canceled job's would render on a retry.
+  ASSERT_TRUE(store_->Fail(id, "broken"));
+  body = json::parse(Get(path)->body);
+  EXPECT_EQ(body["counts"], (json{{"queued", 0}, {"tracing", 0}, {"written", 2}, {"failed", 8}}));
+  ASSERT_TRUE(store_->Retry(id));
+  ASSERT_TRUE(store_->Cancel(id));
+  EXPECT_EQ(json::parse(Get(path)->body)["counts"]["queued"], 8);
+  ExpectError(Get("/api/v1/jobs/999/frames"), 404, "job_not_found");
+  ExpectError(Get("/api/v1/jobs/0x1/frames"), 400, "invalid_parameter");
+}
+
+TEST_F(ApiServerTest, AJobsEventsComeInOrderAndPageWithAfter) {
+  const uint64_t id = SubmitOk();
+  const uint64_t other = SubmitOk();
+  ASSERT_TRUE(store_->ClaimNext());
+  ASSERT_TRUE(store_->Cancel(id));
+  const std::string path = "/api/v1/jobs/" + std::to_string(id) + "/events";
+  json events = json::parse(Get(path)->body)["events"];
+  ASSERT_EQ(events.size(), 3u);
+  EXPECT_EQ(events[0]["type"], "submitted");
+  EXPECT_EQ(events[0]["job"], id);
+  EXPECT_EQ(events[0]["time"], "2024-05-01T12:34:56.789Z");
+  EXPECT_EQ(events[0]["strategy"], "search");
+  EXPECT_EQ(events[1]["type"], "started");
+  EXPECT_EQ(events[2]["type"], "canceled");
+  EXPECT_EQ(events[2]["message"], "canceled with 0 of 10 frames written");
+  const uint64_t first = events[0]["seq"].get<uint64_t>();
+  json after = json::parse(Get(path + "?after=" + std::to_string(first))->body)["events"];
+  ASSERT_EQ(after.size(), 2u);
+  EXPECT_EQ(after[0]["type"], "started");
+  EXPECT_EQ(json::parse(Get(path + "?limit=1")->body)["events"].size(), 1u);
+  EXPECT_EQ(json::parse(Get("/api/v1/jobs/" + std::to_string(other) + "/events")->body)["events"].size(), 1u);
+  ExpectError(Get(path + "?after=-3"), 400, "invalid_parameter");
+  ExpectError(Get(path + "?limit=10001"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/jobs/999/events"), 404, "job_not_found");
+}
+
+// A stream of events read by a real HTTP client: the log replayed from a seq, then what
+// happens live; a keepalive when nothing does; a bounded number of streams; and a server
+// that stops while streams are open, promptly.
+class EventStreamTest : public ApiServerTest {
+ protected:
+  void SetUp() override {
+    ApiServerTest::SetUp();
+    ApiOptions options;
+    options.host = "127.0.0.1";
+    options.port = 0;
+    options.storeRoot = folder_ / "store";
+    options.maxEventStreams = 2;
+    options.eventKeepAlive = std::chrono::milliseconds(200);
+    streamServer_ = std::make_unique<ApiServer>(*store_, farm_, std::make_shared<prometheus::Registry>(), options);
+    streamPort_ = streamServer_->Start();
+  }
+  void TearDown() override {
+    streamServer_.reset();
+    ApiServerTest::TearDown();
+  }
+  // Reads the stream at `path` until `enough` says the text so far is enough.
+  std::string Follow(const std::string& path, const std::function<bool(const std::string&)>& enough,
+                     httplib::Headers headers = {}) {
+    httplib::Client client("127.0.0.1", streamPort_);
+    client.set_read_timeout(10, 0);
+    std::string text;
+    client.Get(path.c_str(), headers, [&](const char* data, size_t length) {
+      text.append(data, length);
+      return !enough(text);
+    });
+    return text;
+  }
+  static size_t Count(const std::string& text, const std::string& part) {
+    size_t count = 0;
+    for (size_t at = text.find(part); at != std::string::npos; at = text.find(part, at + 1)) ++count;
+    return count;
+  }
+
+  std::unique_ptr<ApiServer> streamServer_;
+  int streamPort_ = 0;
+};
+
+TEST_F(EventStreamTest, ReplaysFromASeqThenFollowsLive) {
+  const uint64_t id = SubmitOk();
+  std::thread later([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    store_->Cancel(id);
+  });
+  const std::string text =
+      Follow("/api/v1/events?after=0", [](const std::string& t) { return t.find("event: canceled") != std::string::npos; });
+  later.join();
+  const uint64_t submitted = store_->Events({id, 0, 10}).at(0).seq;
+  const std::string expected = "id: " + std::to_string(submitted) + "\nevent: submitted\ndata: {";
+  EXPECT_EQ(text.rfind(expected, 0), 0u) << text;
+  const size_t data = text.find("data: ") + 6;
+  const json event = json::parse(text.substr(data, text.find('\n', data) - data));
+  EXPECT_EQ(event["type"], "submitted");
+  EXPECT_EQ(event["seq"], submitted);
+  EXPECT_NE(text.find("event: canceled\ndata: "), std::string::npos) << text;
+
+  // Resumed by an EventSource with Last-Event-ID: only what came after it.
+  const std::string resumed = Follow("/api/v1/events", [](const std::string& t) { return t.find("\n\n") != std::string::npos; },
+                                     {{"Last-Event-ID", std::to_string(submitted)}});
+  EXPECT_EQ(resumed.find("event: submitted"), std::string::npos) << resumed;
+  EXPECT_NE(resumed.find("event: canceled"), std::string::npos) << resumed;
+  // One job only; compression asked for changes nothing (an event stream is never buffered).
+  const uint64_t other = SubmitOk();
+  const std::string filtered = Follow("/api/v1/events?after=0&job=" + std::to_string(other),
+                                      [](const std::string& t) { return t.find("\n\n") != std::string::npos; },
+                                      {{"Accept-Encoding", "gzip, deflate"}});
+  EXPECT_EQ(filtered.rfind("id: " + std::to_string(store_->Events({other, 0, 10}).at(0).seq) + "\n", 0), 0u)
+      << filtered;
+  ExpectError(Get("/api/v1/events?after=x"), 400, "invalid_parameter");
+  ExpectError(Get("/api/v1/events?job=999"), 404, "job_not_found");
+  httplib::Client client("127.0.0.1", port_);
+  ExpectError(client.Get("/api/v1/events", {{"Last-Event-ID", "yesterday"}}), 400, "invalid_parameter");
+}
+
+TEST_F(EventStreamTest, WithoutACursorItStartsWithTheNextEventAndKeepsAlive) {
+  SubmitOk();  // before the stream: not replayed
+  const std::string text = Follow("/api/v1/events", [](const std::string& t) { return Count(t, ": keepalive\n\n") >= 2; });
+  EXPECT_EQ(text, ": keepalive\n\n: keepalive\n\n");
+}
+
+TEST_F(EventStreamTest, StreamsAreBoundedAndEndWhenTheServerStops) {
+  std::atomic<int> ended{0};
+  std::vector<std::thread> followers;
+  for (int i = 0; i < 2; ++i) {
+    followers.emplace_back([&] {
+      Follow("/api/v1/events", [](const std::string&) { return false; });
+      ++ended;
+    });
+  }
+  httplib::Client client("127.0.0.1", streamPort_);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const json error = ExpectError(client.Get("/api/v1/events"), 503, "too_many_streams");
+  EXPECT_NE(error.value("message", "").find("2 event streams are open"), std::string::npos) << error;
+  // Other requests are served meanwhile.
+  EXPECT_EQ(client.Get("/api/v1/jobs")->status, 200);
+  const auto start = std::chrono::steady_clock::now();
+  streamServer_->Stop();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(3));
+  for (std::thread& follower : followers) follower.join();
+  EXPECT_EQ(ended, 2);
+}
+
 // curl -X POST sends neither Content-Length nor Transfer-Encoding: no body, not "read until
 // the client closes".
 TEST_F(ApiServerTest, PostWithoutAnyLengthHeaderHasAnEmptyBody) {
@@ -1025,9 +1366,11 @@ TEST_F(ApiServerTest, UnknownRouteIs404AndWrongMethodIs405) {
   ExpectError(Get("/"), 404, "not_found");
   ExpectError(client_->Delete("/nothing/here"), 404, "not_found");
 
-  httplib::Result wrong = client_->Delete("/api/v1/jobs/1");
+  httplib::Result wrong = client_->Put("/api/v1/jobs/1", "{}", "application/json");
   ExpectError(wrong, 405, "method_not_allowed");
-  EXPECT_EQ(wrong->get_header_value("Allow"), "GET, HEAD");
+  EXPECT_EQ(wrong->get_header_value("Allow"), "GET, HEAD, PATCH, DELETE");
+  ExpectError(Get("/api/v1/jobs/1/retry"), 405, "method_not_allowed");
+  ExpectError(Post("/api/v1/events", json::object()), 405, "method_not_allowed");
   wrong = client_->Put("/api/v1/jobs", "{}", "application/json");
   ExpectError(wrong, 405, "method_not_allowed");
   EXPECT_EQ(wrong->get_header_value("Allow"), "POST, GET, HEAD");
@@ -1220,6 +1563,19 @@ TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
   withAssets["assets"] = {{"tri.obj", wire::Sha256Hex("")}, {"../x", asset}};
   add("Error", Post("/api/v1/jobs", withAssets));
 
+  const std::string failedPath = "/api/v1/jobs/" + std::to_string(failed);
+  add("JobList", Get("/api/v1/jobs?state=failed,queued&offset=1&limit=2&name=&strategy=search"));
+  add("Job", client_->Patch(failedPath.c_str(), R"({"priority": -5, "name": "x"})", "application/json"));
+  add("Error", client_->Patch(failedPath.c_str(), R"({"priority": -500})", "application/json"));
+  add("FrameStates", Get("/api/v1/jobs/" + std::to_string(running) + "/frames"));
+  add("FrameStates", Get(failedPath + "/frames"));
+  add("EventList", Get("/api/v1/jobs/" + std::to_string(running) + "/events"));
+  add("Error", client_->Delete(("/api/v1/jobs/" + std::to_string(running)).c_str()));
+  add("Error", client_->Post(("/api/v1/jobs/" + std::to_string(running) + "/retry").c_str()));
+  add("Job", client_->Post((failedPath + "/retry").c_str()));
+  ASSERT_TRUE(store_->Cancel(failed));
+  add("Deleted", client_->Delete(failedPath.c_str()));
+
   ExpectMatchesSchemas(python, folder_, checks);
 }
 
@@ -1309,6 +1665,35 @@ TEST_F(ApiServerWithTokensTest, RolesDecideWhatATokenMayDo) {
   EXPECT_EQ(As(kAdminToken).Post(cancelOther.c_str())->status, 200);
 }
 
+// Retry, change and delete need what cancel needs: a submit token for its own jobs, an
+// admin token for any; reads of frames and events need a read token.
+TEST_F(ApiServerWithTokensTest, RetryChangeAndDeleteNeedWhatCancelNeeds) {
+  httplib::Result submitted = As(kSubmitToken).Post("/api/v1/jobs", Submission().dump(), "application/json");
+  ASSERT_TRUE(submitted);
+  ASSERT_EQ(submitted->status, 201) << submitted->body;
+  const uint64_t id = json::parse(submitted->body)["id"].get<uint64_t>();
+  ASSERT_TRUE(store_->Cancel(id));
+  const std::string path = "/api/v1/jobs/" + std::to_string(id);
+  const std::string patch = R"({"priority": 3})";
+  for (const std::string& token : {kReadToken, kOtherSubmitToken}) {
+    ExpectError(As(token).Post((path + "/retry").c_str()), 403, "forbidden");
+    ExpectError(As(token).Patch(path.c_str(), patch, "application/json"), 403, "forbidden");
+    ExpectError(As(token).Delete(path.c_str()), 403, "forbidden");
+  }
+  ExpectError(As("").Delete(path.c_str()), 401, "unauthorized");
+  EXPECT_EQ(store_->Get(id)->state, JobState::kCanceled);
+  for (const std::string& read : {path + "/frames", path + "/events"}) {
+    ExpectError(As("").Get(read.c_str()), 401, "unauthorized");
+    EXPECT_EQ(As(kReadToken).Get(read.c_str())->status, 200) << read;
+  }
+  ExpectError(As("").Get("/api/v1/events"), 401, "unauthorized");
+  EXPECT_EQ(As(kSubmitToken).Patch(path.c_str(), patch, "application/json")->status, 200);
+  EXPECT_EQ(As(kAdminToken).Post((path + "/retry").c_str())->status, 200);
+  ASSERT_TRUE(store_->Cancel(id));
+  EXPECT_EQ(As(kSubmitToken).Delete(path.c_str())->status, 200);
+  ExpectError(As(kAdminToken).Delete(path.c_str()), 404, "job_not_found");
+}
+
 TEST_F(ApiServerWithTokensTest, RefusalsMatchTheOpenApiSchemas) {
   const std::string python = PythonWith("yaml, openapi_schema_validator");
   if (python.empty()) GTEST_SKIP() << "no python with yaml and openapi_schema_validator";
@@ -1335,7 +1720,8 @@ TEST(OpenApiSpecTest, DescribesEveryRoute) {
                            "/api/v1/jobs/{id}/frames/{frame}/mask.png:",
                            "/api/v1/jobs/{id}/frames/{frame}/change.png:",
                            "/api/v1/assets/{sha256}:", "/api/v1/assets/missing:",
-                           "/api/v1/workers:", "/healthz:", "/metrics:"}) {
+                           "/api/v1/jobs/{id}/retry:", "/api/v1/jobs/{id}/frames:", "/api/v1/jobs/{id}/events:",
+                           "/api/v1/events:", "/api/v1/workers:", "/healthz:", "/metrics:"}) {
     EXPECT_NE(text.str().find(std::string("\n  ") + path), std::string::npos) << path;
   }
 }

@@ -66,6 +66,16 @@ json JobDetailJson(const JobRecord& record, const json* liveStats) {
   return job;
 }
 
+json EventJson(const JobEvent& event) {
+  json body = event.fields.is_object() ? event.fields : json::object();
+  body["seq"] = event.seq;
+  body["job"] = event.job;
+  body["time"] = IsoUtcOrNull(event.timeMs);
+  body["type"] = event.type;
+  body["message"] = event.message;
+  return body;
+}
+
 json WorkersJson(const FarmSnapshot& snapshot) {
   json workers = json::array();
   for (const WorkerSnapshot& worker : snapshot.workers) {

@@ -23,6 +23,9 @@ nlohmann::json JobJson(const JobRecord& record, const nlohmann::json* liveStats)
 // JobStore::Get; lists leave it out, as JobStore::List does, to stay cheap.
 nlohmann::json JobDetailJson(const JobRecord& record, const nlohmann::json* liveStats);
 
+// An event: {"seq", "job", "time", "type", "message"} and its own fields beside them.
+nlohmann::json EventJson(const JobEvent& event);
+
 // GET /api/v1/workers body.
 nlohmann::json WorkersJson(const FarmSnapshot& snapshot);
 

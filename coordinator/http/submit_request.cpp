@@ -1,5 +1,6 @@
 #include "http/submit_request.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -94,14 +95,16 @@ std::string IntegerRange(int low, int high) {
   return "an integer in [" + std::to_string(low) + ", " + std::to_string(high) + "]";
 }
 
-void CheckKnownFields(const json& request) {
+// Every member of `object` (at `pointer`) is one of `fields`.
+template <typename Fields>
+void CheckKnownFields(const json& object, const std::string& pointer, const Fields& fields) {
   std::string known;
-  for (const char* field : kTopLevelFields) known += std::string(known.empty() ? "" : ", ") + field;
-  for (const auto& item : request.items()) {
+  for (const char* field : fields) known += std::string(known.empty() ? "" : ", ") + field;
+  for (const auto& item : object.items()) {
     bool isKnown = false;
-    for (const char* field : kTopLevelFields) isKnown = isKnown || item.key() == field;
+    for (const char* field : fields) isKnown = isKnown || item.key() == field;
     if (!isKnown) {
-      Fail(error_code::kUnknownField, "/" + EscapePointerToken(item.key()), "unknown field",
+      Fail(error_code::kUnknownField, pointer + "/" + EscapePointerToken(item.key()), "unknown field",
            "only the fields " + known);
     }
   }
@@ -353,12 +356,8 @@ std::pair<int, int> ReadFrameRange(const json& request, const RenderSettings& re
     Fail(error_code::kInvalidField, "/frames", ShowValue(*frames) + " is not an object",
          "{\"start\": first frame, \"end\": last frame}, both inclusive");
   }
-  for (const auto& item : frames->items()) {
-    if (item.key() != "start" && item.key() != "end") {
-      Fail(error_code::kUnknownField, "/frames/" + EscapePointerToken(item.key()), "unknown field",
-           "only the fields start, end");
-    }
-  }
+  constexpr const char* kFrameFields[] = {"start", "end"};
+  CheckKnownFields(*frames, "/frames", kFrameFields);
   const std::string inScene = "an integer in the scene's frame range [" + std::to_string(first) +
                               ", " + std::to_string(last) + "]";
   const int start = frames->contains("start")
@@ -420,7 +419,7 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
     Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object",
          "a JSON object with at least a \"scene\"");
   }
-  CheckKnownFields(request);
+  CheckKnownFields(request, "", kTopLevelFields);
 
   JobSpec spec;
   // Cheap fields first, so a typo in one of them is reported before a long scene parse.
@@ -482,6 +481,39 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   }
   spec.assetHashes.assign(named.begin(), named.end());
   return spec;
+}
+
+JobChange ParseJobChange(const std::string& body) {
+  const json request = ParseBody(body);
+  const std::string expected = "{\"priority\": " + IntegerRange(kMinPriority, kMaxPriority) +
+                               ", \"name\": a string of 1 to " + std::to_string(kMaxChangedNameCharacters) +
+                               " characters}, either or both";
+  if (!request.is_object()) Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object", expected);
+  constexpr const char* kChangeFields[] = {"priority", "name"};
+  CheckKnownFields(request, "", kChangeFields);
+  if (request.empty()) Fail(error_code::kMissingField, "", "{} changes nothing", expected);
+  JobChange change;
+  if (request.contains("priority")) {
+    change.priority = ReadInteger(request["priority"], "/priority", kMinPriority, kMaxPriority,
+                                  IntegerRange(kMinPriority, kMaxPriority));
+  }
+  if (request.contains("name")) {
+    const json& name = request["name"];
+    const std::string nameExpected =
+        "a string of 1 to " + std::to_string(kMaxChangedNameCharacters) + " characters";
+    if (!name.is_string()) Fail(error_code::kInvalidField, "/name", ShowValue(name) + " is not a string", nameExpected);
+    const std::string& text = name.get_ref<const std::string&>();
+    // The parser took only valid UTF-8: every byte but a continuation byte starts a character.
+    const size_t characters = static_cast<size_t>(
+        std::count_if(text.begin(), text.end(), [](char c) { return (static_cast<unsigned char>(c) & 0xC0) != 0x80; }));
+    if (characters == 0 || characters > kMaxChangedNameCharacters) {
+      Fail(error_code::kInvalidField, "/name",
+           characters == 0 ? "the name is empty" : "the name has " + std::to_string(characters) + " characters",
+           nameExpected);
+    }
+    change.name = text;
+  }
+  return change;
 }
 
 std::vector<std::string> ParseMissingAssetsQuery(const std::string& body) {

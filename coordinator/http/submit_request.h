@@ -1,5 +1,6 @@
 // The JSON request bodies of the API, checked field by field: POST /api/v1/jobs turned into a
-// JobSpec, POST /api/v1/assets/missing into the hashes it asks about.
+// JobSpec, PATCH /api/v1/jobs/{id} into a JobChange, POST /api/v1/assets/missing into the
+// hashes it asks about.
 #pragma once
 
 #include <cstdint>
@@ -19,6 +20,8 @@ inline constexpr int kMaxBinWidth = 1000;
 inline constexpr int kMinPriority = JobStore::kMinPriority;
 inline constexpr int kMaxPriority = JobStore::kMaxPriority;
 inline constexpr size_t kMaxNameBytes = 256;  // a label for lists, not a document
+// A name given afterwards (PATCH), counted in characters (Unicode code points).
+inline constexpr size_t kMaxChangedNameCharacters = 200;
 // A scene with more files than this is a project tree, not a shot; it also bounds the
 // folder a submission lays out.
 inline constexpr size_t kMaxAssetsPerJob = 10000;
@@ -48,6 +51,11 @@ struct SubmissionAssets {
 // lacks missing_asset, both at /assets/<path>; a total past maxJobBytes is 413
 // job_too_large at /assets.
 JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets = {});
+
+// PATCH /api/v1/jobs/{id}: {"priority": int in [-100, 100], "name": 1 to 200 characters},
+// either or both. Throws ApiError 400 (invalid_json, unknown_field, missing_field for {},
+// invalid_field) naming the pointer of the first bad value.
+JobChange ParseJobChange(const std::string& body);
 
 // POST /api/v1/assets/missing: {"hashes": [sha256, ...]}. Throws ApiError 400 (invalid_json,
 // unknown_field, missing_field, invalid_field) naming the pointer of the first bad value.

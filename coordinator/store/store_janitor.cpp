@@ -172,8 +172,11 @@ void StoreJanitor::Freed(uint64_t bytes) {
 }
 
 void StoreJanitor::Measure() {
+  const auto start = std::chrono::steady_clock::now();
   storeBytes_ = BytesUnder(root_);
   if (storeBytesGauge_) storeBytesGauge_->Set(static_cast<double>(storeBytes_.load()));
+  const auto walk = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - start);
+  measureIntervalMs_ = std::max<int64_t>(kUsageIntervalMs, kUsageWalkShare * walk.count());
 }
 
 void StoreJanitor::FinishPendingDeletions() {
@@ -220,7 +223,7 @@ void StoreJanitor::RunDue() {
   const int64_t now = nowMs_();
   const bool first = !lastMeasureMs_.has_value();
   try {
-    if (first || now - *lastMeasureMs_ >= kUsageIntervalMs) {
+    if (first || now - *lastMeasureMs_ >= measureIntervalMs_) {
       lastMeasureMs_ = now;
       Measure();
     }

@@ -6,8 +6,8 @@
 //    names. The farm lets go of the job first (its frame finisher may be encoding the
 //    job's frames), so nothing writes into the folder while it is removed, or after.
 //  - The store's size, for /metrics (tcfarm_store_bytes): measured by walking the store
-//    at most every kUsageIntervalMs, lowered at once by what each deletion freed, so a
-//    scrape never walks a large tree.
+//    at most every kUsageIntervalMs (less often for a store that takes long to walk),
+//    lowered at once by what each deletion freed, so a scrape never walks a large tree.
 //  - Retention, when asked for: at start and every kRetentionIntervalMs, finished jobs
 //    that finished longer than keep ago are deleted, and while the store is larger than
 //    its budget the earliest finished jobs are deleted until it fits.
@@ -63,8 +63,10 @@ class StoreJanitor {
  public:
   static constexpr int64_t kRetentionIntervalMs = 60'000;
   // Often enough that the gauge follows a running job's frames, rarely enough that a store
-  // of a million files is not walked all the time.
+  // of a million files is not walked all the time: a walk that took longer waits
+  // kUsageWalkShare times its own duration, so walking never takes more than 5 % of a core.
   static constexpr int64_t kUsageIntervalMs = 10'000;
+  static constexpr int kUsageWalkShare = 20;
 
   // releaseJob: the farm lets go of a job's files (FarmControl::ReleaseJob); false when it
   // cannot promise that (it has stopped). metrics: where tcfarm_store_bytes and
@@ -124,6 +126,7 @@ class StoreJanitor {
 
   std::mutex dueMutex_;  // one RunDue at a time
   std::optional<int64_t> lastMeasureMs_, lastRetentionMs_;
+  int64_t measureIntervalMs_ = kUsageIntervalMs;
   bool overBudgetLogged_ = false;
 
   std::mutex threadMutex_;
