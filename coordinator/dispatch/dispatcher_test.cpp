@@ -76,6 +76,18 @@ class DispatcherTest : public ::testing::Test {
     PumpUntil([&] { return sink_.results.size() >= resultsBefore + owed.size(); });
     return owed.size();
   }
+  // `rounds` turns of `worker` answering every task it gets: how many it served of each job.
+  std::map<uint64_t, int> Serve(FakeWorker& worker, int rounds) {
+    std::map<uint64_t, int> served;
+    for (int i = 0; i < rounds; ++i) {
+      Pump(2);
+      for (const auto& task : worker.Tasks()) {
+        ++served[task.jobId];
+        worker.Answer(task);
+      }
+    }
+    return served;
+  }
   void EnqueueTasks(uint64_t job, int count) {
     for (int i = 0; i < count; ++i) {
       dispatcher_.Enqueue({job, static_cast<uint64_t>(100 + i), 0, PixelSet::Full(16), 0, {}});
@@ -387,14 +399,7 @@ TEST_F(DispatcherTest, HigherPriorityJobsGetALargerShare) {
   EnqueueTasks(1, 40);
   EnqueueTasks(2, 40);
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
-  std::map<uint64_t, int> served;
-  for (int i = 0; i < 20; ++i) {
-    Pump(2);
-    for (const auto& task : worker.Tasks()) {
-      ++served[task.jobId];
-      worker.Answer(task);
-    }
-  }
+  std::map<uint64_t, int> served = Serve(worker, 20);
   ASSERT_GE(served[1] + served[2], 16);
   EXPECT_NEAR(static_cast<double>(served[2]) / (served[1] + served[2]), 0.75, 0.1);
 }
@@ -410,14 +415,7 @@ TEST_F(DispatcherTest, NegativePrioritiesGetSmallerSharesThanZero) {
   EnqueueTasks(2, 40);  // the low job's tasks wait first
   EnqueueTasks(1, 40);
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
-  std::map<uint64_t, int> served;
-  for (int i = 0; i < 30; ++i) {
-    Pump(2);
-    for (const auto& task : worker.Tasks()) {
-      ++served[task.jobId];
-      worker.Answer(task);
-    }
-  }
+  std::map<uint64_t, int> served = Serve(worker, 30);
   ASSERT_GE(served[1], 20);
   EXPECT_LE(served[2], 1) << served[1] << " tasks of priority 0";
 }
@@ -428,21 +426,10 @@ TEST_F(DispatcherTest, APriorityChangedWhileTheJobRunsCountsAtOnce) {
   EnqueueTasks(1, 40);
   EnqueueTasks(2, 40);
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
-  std::map<uint64_t, int> served;
-  auto serve = [&](int rounds) {
-    for (int i = 0; i < rounds; ++i) {
-      Pump(2);
-      for (const auto& task : worker.Tasks()) {
-        ++served[task.jobId];
-        worker.Answer(task);
-      }
-    }
-  };
-  serve(10);
+  std::map<uint64_t, int> served = Serve(worker, 10);
   EXPECT_NEAR(served[1], served[2], 2);  // equal shares
   dispatcher_.SetPriority(1, -100);
-  served.clear();
-  serve(20);
+  served = Serve(worker, 20);
   ASSERT_GE(served[2], 15);
   EXPECT_LE(served[1], 1);
 }
@@ -450,6 +437,14 @@ TEST_F(DispatcherTest, APriorityChangedWhileTheJobRunsCountsAtOnce) {
 // Whoever is told of a lost worker learns how many tasks of each job went back.
 TEST_F(DispatcherTest, ALostWorkersTasksAreCountedByJob) {
   dispatcher_.AddJob(2, 0, 4, 4, kHash, "{}");
+  // One that leaves holding nothing is not news.
+  FakeWorker idle(context_, dispatcher_.BoundEndpoint(), 1);
+  Pump();
+  ASSERT_EQ(dispatcher_.registry().workers().size(), 1u);
+  idle.Send(wire::Disconnect{});
+  Pump();
+  ASSERT_TRUE(dispatcher_.registry().workers().empty());
+  EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
   FakeWorker silent(context_, dispatcher_.BoundEndpoint(), 5);
   EnqueueTasks(1, 3);
   EnqueueTasks(2, 2);
@@ -463,7 +458,7 @@ TEST_F(DispatcherTest, ALostWorkersTasksAreCountedByJob) {
   EXPECT_EQ(losses[0].why, "went silent");
   EXPECT_EQ(losses[0].requeuedTasks, (std::map<uint64_t, size_t>{{1, 3}, {2, 2}}));
   EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
-  // One that says goodbye with tasks in hand is lost too; one holding nothing is not news.
+  // One that says goodbye with tasks in hand is lost too.
   FakeWorker leaving(context_, dispatcher_.BoundEndpoint(), 5);
   Pump();
   ASSERT_EQ(leaving.Tasks().size(), 5u);
@@ -472,11 +467,7 @@ TEST_F(DispatcherTest, ALostWorkersTasksAreCountedByJob) {
   const std::vector<WorkerLoss> left = dispatcher_.TakeWorkerLosses();
   ASSERT_EQ(left.size(), 1u);
   EXPECT_EQ(left[0].why, "left");
-  FakeWorker idle(context_, dispatcher_.BoundEndpoint(), 0);
-  Pump();
-  idle.Send(wire::Disconnect{});
-  Pump();
-  EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
+  EXPECT_EQ(left[0].requeuedTasks, (std::map<uint64_t, size_t>{{1, 3}, {2, 2}}));
 }
 
 TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {

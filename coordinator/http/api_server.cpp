@@ -661,24 +661,23 @@ void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
   // Cancel first and ask afterwards: checking the state first would race with the farm
   // finishing the job in between.
   if (!store_.Cancel(id)) {
-    const JobRecord record = LoadJob(id);
-    throw ApiError(409, error_code::kJobFinished,
-                   "job " + std::to_string(id) + " is already " + ToString(record.state) +
-                       "; only queued or running jobs can be canceled");
+    RefuseTransition(id, error_code::kJobFinished, "already ", "only queued or running jobs can be canceled");
   }
   farm_.RequestCancel(id);
   WriteJson(response, JobDetail(LoadJob(id)));
 }
 
+void ApiServer::RefuseTransition(uint64_t id, const char* code, const std::string& already,
+                                 const std::string& expected) const {
+  const std::optional<JobState> state = store_.StateOf(id);
+  if (!state) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  throw ApiError(409, code, "job " + std::to_string(id) + " is " + already + ToString(*state) + "; " + expected);
+}
+
 void ApiServer::RetryJob(const httplib::Request& request, const std::string&, httplib::Response& response) {
   const uint64_t id = ParseJobId(request.matches[1]);
   CheckMayChange(request, id);
-  if (!store_.Retry(id)) {
-    const JobRecord record = LoadJob(id);
-    throw ApiError(409, error_code::kJobNotRetryable,
-                   "job " + std::to_string(id) + " is " + ToString(record.state) +
-                       "; only failed or canceled jobs can be retried");
-  }
+  if (!store_.Retry(id)) RefuseTransition(id, error_code::kJobNotRetryable, "", "only failed or canceled jobs can be retried");
   WriteJson(response, JobDetail(LoadJob(id)));
 }
 

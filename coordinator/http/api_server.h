@@ -170,6 +170,10 @@ class ApiServer {
   void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
 
   JobRecord LoadJob(uint64_t id) const;  // throws ApiError 404 job_not_found
+  // A transition the store refused: throws 409 `code` saying the job's state ("is <already>
+  // canceled; <expected>"), or 404 when the job is gone.
+  [[noreturn]] void RefuseTransition(uint64_t id, const char* code, const std::string& already,
+                                     const std::string& expected) const;
   // Throws 400 invalid_parameter when frame is outside job id's frames.
   void CheckFrameInJob(uint64_t id, int frame);
   nlohmann::json JobDetail(const JobRecord& record);

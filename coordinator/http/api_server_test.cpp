@@ -222,6 +222,15 @@ class ApiServerTest : public ::testing::Test {
     return hash;
   }
 
+  // For a second server on the same store and farm.
+  ApiOptions SecondServerOptions() const {
+    ApiOptions options;
+    options.host = "127.0.0.1";
+    options.port = 0;
+    options.storeRoot = folder_ / "store";
+    return options;
+  }
+
   fs::path FramePath(uint64_t id, int frame, const std::string& extension) const {
     return folder_ / "store" / std::to_string(id) / (FrameFileStem(frame) + "." + extension);
   }
@@ -1119,10 +1128,7 @@ class EventStreamTest : public ApiServerTest {
  protected:
   void SetUp() override {
     ApiServerTest::SetUp();
-    ApiOptions options;
-    options.host = "127.0.0.1";
-    options.port = 0;
-    options.storeRoot = folder_ / "store";
+    ApiOptions options = SecondServerOptions();
     options.maxEventStreams = 2;
     options.eventKeepAlive = std::chrono::milliseconds(200);
     streamServer_ = std::make_unique<ApiServer>(*store_, farm_, std::make_shared<prometheus::Registry>(), options);
@@ -1591,10 +1597,7 @@ class ApiServerWithTokensTest : public ApiServerTest {
  protected:
   void SetUp() override {
     ApiServerTest::SetUp();
-    ApiOptions options;
-    options.host = "127.0.0.1";
-    options.port = 0;
-    options.storeRoot = folder_ / "store";
+    ApiOptions options = SecondServerOptions();
     options.tokens = std::make_shared<const http::ApiTokens>(http::ApiTokens::Parse(
         "read " + kReadToken + "\nsubmit " + kSubmitToken + "\nsubmit " + kOtherSubmitToken + "\nadmin " +
             kAdminToken + "\n",
