@@ -551,7 +551,7 @@ bool ApiServer::Admit(const httplib::Request& request, Access access, httplib::R
 void ApiServer::CheckMayChange(const httplib::Request& request, uint64_t id) const {
   const std::optional<http::Caller> caller = CallerOf(request);
   if (!caller || caller->role >= http::Role::kAdmin) {
-    if (!store_.StateOf(id)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+    RequireJob(id);
     return;
   }
   const JobRecord record = LoadJob(id);
@@ -669,9 +669,7 @@ void ApiServer::CancelJob(const httplib::Request& request, const std::string&,
 
 void ApiServer::RefuseTransition(uint64_t id, const char* code, const std::string& already,
                                  const std::string& expected) const {
-  const std::optional<JobState> state = store_.StateOf(id);
-  if (!state) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
-  throw ApiError(409, code, "job " + std::to_string(id) + " is " + already + ToString(*state) + "; " + expected);
+  throw ApiError(409, code, "job " + std::to_string(id) + " is " + already + ToString(RequireJob(id)) + "; " + expected);
 }
 
 void ApiServer::RetryJob(const httplib::Request& request, const std::string&, httplib::Response& response) {
@@ -685,7 +683,7 @@ void ApiServer::PatchJob(const httplib::Request& request, const std::string& bod
   const uint64_t id = ParseJobId(request.matches[1]);
   const JobChange change = http::ParseJobChange(body);
   CheckMayChange(request, id);
-  if (!store_.Change(id, change)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  if (!store_.Change(id, change)) RequireJob(id);
   // A running job's next tasks follow it; a queued one is claimed by it from the store.
   if (change.priority) farm_.RequestPriority(id, *change.priority);
   WriteJson(response, JobDetail(LoadJob(id)));
@@ -723,11 +721,10 @@ void ApiServer::DeleteJob(const httplib::Request& request, const std::string&, h
 void ApiServer::GetFrameStates(const httplib::Request& request, const std::string&, httplib::Response& response) {
   const uint64_t id = ParseJobId(request.matches[1]);
   const FrameRange range = FrameRangeOf(id);
-  const std::optional<JobState> state = store_.StateOf(id);
-  if (!state) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  const JobState state = RequireJob(id);
   const std::vector<RecordedFrame> written = store_.RecordedFrames(id);
   std::vector<int> tracing;
-  if (*state == JobState::kRunning) {
+  if (state == JobState::kRunning) {
     FarmSnapshot snapshot = farm_.Snapshot();
     if (auto live = snapshot.tracingFrames.find(id); live != snapshot.tracingFrames.end()) tracing = std::move(live->second);
   }
@@ -746,21 +743,21 @@ void ApiServer::GetFrameStates(const httplib::Request& request, const std::strin
       entry["copied"] = nextWritten->copied;
     } else if (nextTracing != tracing.end() && *nextTracing == frame) {
       frameState = "tracing";
-    } else if (*state == JobState::kFailed) {
+    } else if (state == JobState::kFailed) {
       frameState = "failed";
     }
     entry["state"] = frameState;
     ++counts[frameState];
     frames.push_back(std::move(entry));
   }
-  WriteJson(response, json{{"job", id}, {"state", ToString(*state)}, {"frames", std::move(frames)}, {"counts", counts}});
+  WriteJson(response, json{{"job", id}, {"state", ToString(state)}, {"frames", std::move(frames)}, {"counts", counts}});
 }
 
 void ApiServer::GetJobEvents(const httplib::Request& request, const std::string&, httplib::Response& response) {
   const uint64_t id = ParseJobId(request.matches[1]);
   const uint64_t after = static_cast<uint64_t>(ParseInteger(request, "after", 0, kMaxEventSeq, 0));
   const size_t limit = static_cast<size_t>(ParseInteger(request, "limit", 1, kMaxEventsPerPage, kMaxEventsPerPage));
-  if (!store_.StateOf(id)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  RequireJob(id);
   json events = json::array();
   for (const JobEvent& event : store_.Events({id, after, limit})) events.push_back(http::EventJson(event));
   WriteJson(response, json{{"events", std::move(events)}});
@@ -779,7 +776,7 @@ void ApiServer::StreamEvents(const httplib::Request& request, const std::string&
   RequireAtMostOnce(request, "job");
   const std::optional<uint64_t> job =
       request.has_param("job") ? std::optional<uint64_t>(ParseJobId(request.get_param_value("job"))) : std::nullopt;
-  if (job && !store_.StateOf(*job)) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(*job));
+  if (job) RequireJob(*job);
   if (++openStreams_ > options_.maxEventStreams) {
     --openStreams_;
     throw ApiError(503, error_code::kTooManyStreams,
@@ -862,6 +859,7 @@ void ApiServer::GetFrame(const httplib::Request& request, const std::string&, ht
     }
   }
   if (!ServeFile(response, path, file.contentType)) {
+    RequireJob(id);  // deleted meanwhile (by the retention: the frame range was cached)
     throw ApiError(404, error_code::kFrameNotReady,
                    "frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +
                        " is not written yet");
@@ -886,6 +884,7 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
   // The route's pattern admits only the two names.
   const std::filesystem::path path = frameStore_.MaskPath(id, MaskKindFromName(kind).value(), frame);
   if (!ServeFile(response, path, "image/png")) {
+    RequireJob(id);
     throw ApiError(404, error_code::kFrameNotReady,
                    std::string(kind == "mask" ? "the traced-pixel" : "the change") + " mask of frame " +
                        std::to_string(frame) + " of job " +
@@ -971,6 +970,12 @@ void ApiServer::Health(const httplib::Request&, const std::string&, httplib::Res
 void ApiServer::Metrics(const httplib::Request&, const std::string&, httplib::Response& response) {
   const std::string text = metrics_ ? prometheus::TextSerializer().Serialize(metrics_->Collect()) : "";
   response.set_content(text, kMetricsType);
+}
+
+JobState ApiServer::RequireJob(uint64_t id) const {
+  const std::optional<JobState> state = store_.StateOf(id);
+  if (!state) throw ApiError(404, error_code::kJobNotFound, "no job " + std::to_string(id));
+  return *state;
 }
 
 JobRecord ApiServer::LoadJob(uint64_t id) const {

@@ -170,6 +170,7 @@ class ApiServer {
   void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
 
   JobRecord LoadJob(uint64_t id) const;  // throws ApiError 404 job_not_found
+  JobState RequireJob(uint64_t id) const;  // the job's state, without loading it; 404 the same
   // A transition the store refused: throws 409 `code` saying the job's state ("is <already>
   // canceled; <expected>"), or 404 when the job is gone.
   [[noreturn]] void RefuseTransition(uint64_t id, const char* code, const std::string& already,

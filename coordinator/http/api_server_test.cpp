@@ -1063,6 +1063,21 @@ TEST_F(ApiServerTest, DeleteRemovesAFinishedJobItsFilesAndItsUnsharedAssets) {
   EXPECT_TRUE(store_->Get(keeper).has_value());
 }
 
+// Deleted by the retention (another janitor: the server never heard of it), after a frame
+// of the job was served: the job is gone, not its frame "not ready".
+TEST_F(ApiServerTest, AJobDeletedBehindTheServersBackIsNotFound) {
+  const uint64_t id = SubmitOk();
+  ASSERT_TRUE(store_->Cancel(id));
+  fs::create_directories(FramePath(id, 3, "exr").parent_path());
+  std::ofstream(FramePath(id, 3, "exr")) << "exr";
+  ASSERT_EQ(Get("/api/v1/jobs/" + std::to_string(id) + "/frames/3.exr")->status, 200);
+  StoreJanitor retention(*store_, folder_ / "store", [](uint64_t) { return true; }, nullptr);
+  ASSERT_EQ(retention.Delete(id, "by the retention").outcome, DeletedJob::Outcome::kDeleted);
+  for (const char* file : {"3.exr", "3.png", "3/mask.png"}) {
+    ExpectError(Get("/api/v1/jobs/" + std::to_string(id) + "/frames/" + std::string(file)), 404, "job_not_found");
+  }
+}
+
 TEST_F(ApiServerTest, FramesAnswerEachFramesState) {
   const uint64_t id = SubmitOk();  // frames 0..9
   ASSERT_TRUE(store_->ClaimNext());

@@ -124,10 +124,13 @@ StoreJanitor::Deletion StoreJanitor::Delete(uint64_t id, const std::string& reas
   // and a cancel between the first release and the record's deletion). A farm stopped
   // meanwhile leaves the folder to the note JobStore::Delete made, for the next start.
   if (releaseJob_(id)) {
-    deletion.freedBytes += RemoveFolder(id);
-    jobs_.FinishDeletion(id, {"deleted",
-                              "deleted " + reason + "; " + ShowBytes(deletion.freedBytes) + " freed",
-                              {{"freed_bytes", deletion.freedBytes}, {"reason", reason}}});
+    const std::optional<uint64_t> folder = RemoveFolder(id);
+    deletion.freedBytes += folder.value_or(0);
+    // A folder not removed whole keeps its note: the next start tries again.
+    if (folder) {
+      jobs_.FinishDeletion(id, {"deleted", "deleted " + reason + "; " + ShowBytes(deletion.freedBytes) + " freed",
+                                {{"freed_bytes", deletion.freedBytes}, {"reason", reason}}});
+    }
   }
   ++jobsDeleted_;
   if (jobsDeletedCounter_) jobsDeletedCounter_->Increment();
@@ -135,21 +138,21 @@ StoreJanitor::Deletion StoreJanitor::Delete(uint64_t id, const std::string& reas
   return deletion;
 }
 
-uint64_t StoreJanitor::RemoveFolder(uint64_t id) {
+std::optional<uint64_t> StoreJanitor::RemoveFolder(uint64_t id) {
   const fs::path folder = FrameStore(root_).JobFolder(id);
   uint64_t freed = 0;
   for (int attempt = 0; attempt < kRemoveAttempts; ++attempt) {
     std::error_code error;
-    if (!fs::exists(folder, error)) break;
+    if (!fs::exists(folder, error)) return freed;
     freed += BytesUnder(folder);
     fs::remove_all(folder, error);
-    if (!error) break;
+    if (!error) return freed;
     if (attempt + 1 == kRemoveAttempts) {
       std::fprintf(stderr, "coordinator: job %llu's folder %s could not be removed whole: %s\n",
                    static_cast<unsigned long long>(id), folder.c_str(), error.message().c_str());
     }
   }
-  return freed;
+  return std::nullopt;
 }
 
 uint64_t StoreJanitor::RemoveAssets(const std::vector<std::string>& hashes) {
@@ -182,10 +185,11 @@ void StoreJanitor::Measure() {
 void StoreJanitor::FinishPendingDeletions() {
   for (uint64_t id : jobs_.PendingDeletions()) {
     if (!releaseJob_(id)) return;
-    const uint64_t freed = RemoveFolder(id);
-    jobs_.FinishDeletion(id, {"deleted", "deleted; its folder removed at start, " + ShowBytes(freed) + " freed",
-                              {{"freed_bytes", freed}, {"reason", "a deletion the previous coordinator left unfinished"}}});
-    Freed(freed);
+    const std::optional<uint64_t> freed = RemoveFolder(id);
+    if (!freed) continue;
+    jobs_.FinishDeletion(id, {"deleted", "deleted; its folder removed at start, " + ShowBytes(*freed) + " freed",
+                              {{"freed_bytes", *freed}, {"reason", "a deletion the previous coordinator left unfinished"}}});
+    Freed(*freed);
   }
 }
 

@@ -108,8 +108,9 @@ class StoreJanitor {
   void Measure();
   void FinishPendingDeletions();
   void ApplyRetention(int64_t nowMs);
-  // The folder's files, removed; the bytes they held.
-  uint64_t RemoveFolder(uint64_t id);
+  // The folder's files, removed; the bytes they held. nullopt when some could not be
+  // removed (the error is logged).
+  std::optional<uint64_t> RemoveFolder(uint64_t id);
   uint64_t RemoveAssets(const std::vector<std::string>& hashes);
   void Freed(uint64_t bytes);
 
