@@ -180,8 +180,9 @@ bool Farm::ReleaseJob(uint64_t jobId) {
     if (stopped_) return false;
     const uint64_t ticket = nextReleaseTicket_++;
     releaseRequests_.emplace_back(jobId, ticket);
-    released_.wait(lock, [&] { return stopped_ || releasedThrough_ >= ticket; });
-    if (releasedThrough_ < ticket) return false;
+    releasesOwed_.insert(ticket);
+    released_.wait(lock, [&] { return stopped_ || !releasesOwed_.count(ticket); });
+    if (releasesOwed_.erase(ticket)) return false;  // the loop stopped first
   }
   // Off the loop: the finisher may be a frame's encoding away from letting go.
   finisher_.Drop(jobId);
@@ -199,15 +200,17 @@ void Farm::ApplyRequests() {
     releases.swap(releaseRequests_);
   }
   for (const auto& [id, ticket] : releases) cancels.insert(id);
+  std::set<uint64_t> unread;  // asked again by the next step
   for (uint64_t id : cancels) {
     if (!runs_.count(id)) continue;
-    // A cancel that comes after the job was retried and claimed again is stale.
     std::optional<JobState> state;
     try {
       state = store_.StateOf(id);
     } catch (const JobStoreError&) {
-      continue;  // asked again by the next step
+      unread.insert(id);
+      continue;
     }
+    // A cancel (or release) that comes after the job was retried and claimed again is stale.
     if (state == JobState::kRunning) continue;
     StopRun(id);
     metrics_.jobsFinishedCanceled.Increment();
@@ -215,12 +218,18 @@ void Farm::ApplyRequests() {
   for (const auto& [id, priority] : priorities) {
     if (runs_.count(id)) dispatcher_.SetPriority(id, priority);
   }
-  if (releases.empty()) return;
   {
     std::lock_guard<std::mutex> lock(shared_);
-    for (const auto& [id, ticket] : releases) releasedThrough_ = std::max(releasedThrough_, ticket);
+    for (const auto& [id, ticket] : releases) {
+      if (unread.count(id)) {
+        releaseRequests_.emplace_back(id, ticket);
+      } else {
+        releasesOwed_.erase(ticket);
+      }
+    }
+    for (uint64_t id : unread) cancelRequests_.insert(id);
   }
-  released_.notify_all();
+  if (!releases.empty()) released_.notify_all();
 }
 
 void Farm::StopRun(uint64_t jobId) {

@@ -152,9 +152,9 @@ class Farm : public FarmControl, private DispatchSink {
   mutable std::mutex shared_;  // guards the requests, stopped_ and snapshot_
   std::set<uint64_t> cancelRequests_;
   std::map<uint64_t, int> priorityRequests_;
-  std::vector<std::pair<uint64_t, uint64_t>> releaseRequests_;  // (job, ticket)
+  std::vector<std::pair<uint64_t, uint64_t>> releaseRequests_;  // (job, ticket), not yet taken
   uint64_t nextReleaseTicket_ = 1;
-  uint64_t releasedThrough_ = 0;  // every release request up to this ticket is done
+  std::set<uint64_t> releasesOwed_;  // tickets asked for and not done
   bool stopped_ = false;          // Run returned: nobody answers requests any more
   std::condition_variable released_;
   FarmSnapshot snapshot_;
