@@ -1,9 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <filesystem>
 #include <cstring>
 #include <limits>
+#include <thread>
 #include <unistd.h>
 
 #include "frame/coherence.h"
@@ -42,6 +44,30 @@ TEST(FrameIoTest, ExrKeepsEveryFloatBit) {
     EXPECT_EQ(entry.path().filename().string().find(".partial"), std::string::npos) << entry.path();
   }
   EXPECT_NE(PartialPathFor(folder / "a.exr"), PartialPathFor(folder / "a.exr"));
+}
+
+// Two writers of one file at once (a frame rendered again by a retried job while the
+// finisher compresses it) each write a temporary of their own: whichever renames last,
+// the file is whole and neither write fails.
+TEST(FrameIoTest, WritersOfOneFileAtOnceNeverMixTheirBytes) {
+  auto folder = FreshFolder("writers");
+  const Image image = Gradient(640, 480);
+  std::vector<std::thread> writers;
+  std::atomic<int> failures{0};
+  for (int writer = 0; writer < 4; ++writer) {
+    writers.emplace_back([&, writer] {
+      for (int round = 0; round < 5; ++round) {
+        try {
+          WriteExr(folder / "a.exr", image, writer % 2 ? "zip:9" : "none");
+        } catch (const FrameIoError&) {
+          ++failures;
+        }
+      }
+    });
+  }
+  for (std::thread& writer : writers) writer.join();
+  EXPECT_EQ(failures, 0);
+  EXPECT_EQ(ReadImage(folder / "a.exr").rgb, image.rgb);
 }
 
 TEST(FrameIoTest, PngIsSrgbEncoded) {
