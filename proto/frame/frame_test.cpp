@@ -69,30 +69,6 @@ TEST(FrameIoTest, WritersOfOneFileAtOnceNeverMixTheirBytes) {
   EXPECT_EQ(ReadImage(folder / "a.exr").rgb, image.rgb);
 }
 
-// Two writers of one file at once (a frame rendered again by a retried job while the
-// finisher compresses it) each write a temporary of their own: whichever renames last,
-// the file is whole and neither write fails.
-TEST(FrameIoTest, WritersOfOneFileAtOnceNeverMixTheirBytes) {
-  auto folder = FreshFolder("writers");
-  const Image image = Gradient(640, 480);
-  std::vector<std::thread> writers;
-  std::atomic<int> failures{0};
-  for (int writer = 0; writer < 4; ++writer) {
-    writers.emplace_back([&, writer] {
-      for (int round = 0; round < 5; ++round) {
-        try {
-          WriteExr(folder / "a.exr", image, writer % 2 ? "zip:9" : "none");
-        } catch (const FrameIoError&) {
-          ++failures;
-        }
-      }
-    });
-  }
-  for (std::thread& writer : writers) writer.join();
-  EXPECT_EQ(failures, 0);
-  EXPECT_EQ(ReadImage(folder / "a.exr").rgb, image.rgb);
-}
-
 TEST(FrameIoTest, PngIsSrgbEncoded) {
   EXPECT_EQ(LinearToSrgb8(0.0f), 0);
   EXPECT_EQ(LinearToSrgb8(1.0f), 255);
