@@ -40,7 +40,7 @@ DeformingMesh::PoseKey DeformingMesh::KeyAt(int frame) const {
   return key;
 }
 
-void DeformingMesh::Refit(Pose& pose, int frame, PoseKey key) const {
+void DeformingMesh::Refit(Pose& pose, int frame, std::shared_ptr<const PoseKey> key) const {
   const DeformedVertices deformed = Deform(shape_.Mesh(), *shape_.deformation, frame);
   auto* vertex = static_cast<float*>(rtcGetGeometryBufferData(pose.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
   for (size_t i = 0; i < deformed.positions.size(); ++i) {
@@ -57,12 +57,12 @@ void DeformingMesh::Refit(Pose& pose, int frame, PoseKey key) const {
 }
 
 std::shared_ptr<const DeformingMesh::Pose> DeformingMesh::AtFrame(int frame) {
-  PoseKey key = KeyAt(frame);
+  std::shared_ptr<const PoseKey> key = KeyOf(frame);
   std::lock_guard<std::mutex> lock(mutex_);
   // A pose with the same joint matrices and weights is this frame's pose already, held or
   // not: its vertices would be deformed to the same bits.
   for (const auto& pose : poses_) {
-    if (pose->frame >= 0 && (pose->frame == frame || pose->key == key)) {
+    if (pose->frame >= 0 && (pose->frame == frame || *pose->key == *key)) {
       ++posesShared_;
       return pose;
     }
@@ -86,45 +86,37 @@ std::shared_ptr<const DeformingMesh::Pose> DeformingMesh::AtFrame(int frame) {
   return free;
 }
 
-BoundingSphere DeformingMesh::BoundsAt(int frame) {
+// A value computed once per frame and kept: looked up under the lock, computed outside it
+// (two threads may both compute a frame; the first one stored wins, and both are equal).
+template <typename Value, typename Compute>
+std::shared_ptr<const Value> DeformingMesh::Memo(std::map<int, std::shared_ptr<const Value>>& memo, int frame,
+                                                Compute compute) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    auto found = bounds_.find(frame);
-    if (found != bounds_.end()) return found->second;
+    auto found = memo.find(frame);
+    if (found != memo.end()) return found->second;
   }
-  const BoundingSphere bounds = BoundsOf(Deform(shape_.Mesh(), *shape_.deformation, frame).positions);
+  auto value = std::make_shared<const Value>(compute());
   std::lock_guard<std::mutex> lock(mutex_);
-  bounds_.emplace(frame, bounds);
-  return bounds;
+  return memo.emplace(frame, std::move(value)).first->second;
 }
 
 std::shared_ptr<const std::vector<BoundingSphere>> DeformingMesh::PartBoundsAt(int frame) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto found = partBounds_.find(frame);
-    if (found != partBounds_.end()) return found->second;
-  }
-  const std::vector<Vec3> positions = Deform(shape_.Mesh(), *shape_.deformation, frame).positions;
-  auto bounds = std::make_shared<std::vector<BoundingSphere>>();
-  std::vector<Vec3> points;
-  for (const DeformationParts::Group& group : parts_.groups) {
-    points.clear();
-    for (uint32_t v : group.reach) points.push_back(positions[v]);
-    bounds->push_back(BoundsOf(points));
-  }
-  std::lock_guard<std::mutex> lock(mutex_);
-  return partBounds_.emplace(frame, std::move(bounds)).first->second;
+  return Memo(partBounds_, frame, [&] {
+    const std::vector<Vec3> positions = Deform(shape_.Mesh(), *shape_.deformation, frame).positions;
+    std::vector<BoundingSphere> bounds;
+    std::vector<Vec3> points;
+    for (const DeformationParts::Group& group : parts_.groups) {
+      points.clear();
+      for (uint32_t v : group.reach) points.push_back(positions[v]);
+      bounds.push_back(BoundsOf(points));
+    }
+    return bounds;
+  });
 }
 
 std::shared_ptr<const DeformingMesh::PoseKey> DeformingMesh::KeyOf(int frame) {
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto found = keys_.find(frame);
-    if (found != keys_.end()) return found->second;
-  }
-  auto key = std::make_shared<const PoseKey>(KeyAt(frame));
-  std::lock_guard<std::mutex> lock(mutex_);
-  return keys_.emplace(frame, std::move(key)).first->second;
+  return Memo(keys_, frame, [&] { return KeyAt(frame); });
 }
 
 uint64_t DeformingMesh::PosesComputed() const {

@@ -34,7 +34,7 @@ class DeformingMesh {
   };
   struct Pose {
     int frame = 0;
-    PoseKey key;
+    std::shared_ptr<const PoseKey> key;
     SceneHandle scene;
     RTCGeometry geometry = nullptr;  // owned by `scene`
     std::shared_ptr<const SurfaceNormals> normals;
@@ -47,9 +47,8 @@ class DeformingMesh {
   std::shared_ptr<const Pose> AtFrame(int frame);
 
   // For the horizons of `exact`, thread-safe, each computed once per frame: the bounds of
-  // the mesh's vertices at a frame, in its object space (the world's for a skin); the
-  // bounds of each part's reach (DeformationParts); what the frame's pose is made of.
-  BoundingSphere BoundsAt(int frame);
+  // each part's reach (DeformationParts) at a frame, in the mesh's object space (the
+  // world's for a skin); what the frame's pose is made of.
   std::shared_ptr<const std::vector<BoundingSphere>> PartBoundsAt(int frame);
   std::shared_ptr<const PoseKey> KeyOf(int frame);
   const DeformationParts& Parts() const { return parts_; }
@@ -63,7 +62,9 @@ class DeformingMesh {
  private:
   std::shared_ptr<Pose> NewRestPose() const;
   PoseKey KeyAt(int frame) const;
-  void Refit(Pose& pose, int frame, PoseKey key) const;
+  void Refit(Pose& pose, int frame, std::shared_ptr<const PoseKey> key) const;
+  template <typename Value, typename Compute>
+  std::shared_ptr<const Value> Memo(std::map<int, std::shared_ptr<const Value>>& memo, int frame, Compute compute);
 
   const EmbreeDevice& device_;
   const Shape& shape_;
@@ -72,8 +73,7 @@ class DeformingMesh {
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<Pose>> poses_;  // every pose made; a use count of 1 means free
   DeformationParts parts_;
-  std::map<int, BoundingSphere> bounds_;      // by frame
-  std::map<int, std::shared_ptr<const std::vector<BoundingSphere>>> partBounds_;
+  std::map<int, std::shared_ptr<const std::vector<BoundingSphere>>> partBounds_;  // by frame
   std::map<int, std::shared_ptr<const PoseKey>> keys_;
   uint64_t posesComputed_ = 0, posesShared_ = 0, verticesDeformed_ = 0;
 };

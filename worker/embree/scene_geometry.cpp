@@ -105,11 +105,13 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
 
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())),
-      settlesTies_(SceneMayTie(scene)), cachedFrames_(FramesToCache(scene)) {
-  std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
+      settlesTies_(SceneMayTie(scene)),
+      normals_(PerShapeOncePerMesh<SurfaceNormals>(scene.shapes, [](const Shape& shape) {
+        return SurfaceNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)};
+      })),
+      cachedFrames_(FramesToCache(scene)) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
-    AddSurfaceNormals(shape, firstShapeOfMesh);
     // A shape whose motion is not the identity is placed by an instance: at each frame
     // when it moves, or held at one place when it never does (PrepareForTracing builds
     // the latter in place where it can, sparing the per-frame placement).
@@ -134,19 +136,6 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     staticFrame_->settlesTies_ = settlesTies_;
     staticFrame_->normals_ = normals_;
   }
-}
-
-void SceneGeometry::AddSurfaceNormals(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh) {
-  // Normals are in object space, so every placement of a shared mesh reads the same.
-  if (shape.SharesMesh()) {
-    auto [first, isNew] = firstShapeOfMesh.emplace(shape.sharedMesh.get(), normals_.size());
-    if (!isNew) {
-      normals_.push_back(normals_[first->second]);
-      return;
-    }
-  }
-  normals_.push_back(std::make_shared<const SurfaceNormals>(
-      SurfaceNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)}));
 }
 
 SceneHandle SceneGeometry::ObjectScene(const Shape& shape) {

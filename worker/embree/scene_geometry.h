@@ -89,7 +89,6 @@ class SceneGeometry {
     SceneHandle scene;                        // a rigid mover's rest pose
     std::unique_ptr<DeformingMesh> deforming;  // or a deforming mesh's poses
   };
-  void AddSurfaceNormals(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh);
   std::shared_ptr<FrameGeometry> BuildFrame(int frame) const;
   // The shape in its rest pose, as a scene of its own to instance: shapes placing one
   // shared mesh get one scene between them.

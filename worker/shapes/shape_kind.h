@@ -7,6 +7,8 @@
 
 #include <embree3/rtcore.h>
 
+#include <map>
+#include <memory>
 #include <vector>
 
 #include "scene/scene.h"
@@ -36,6 +38,25 @@ struct SurfaceNormals {
   std::vector<Float3> faces;
   std::vector<Float3> vertices;
 };
+
+// Per shape, a table `make(shape)` computes from what it places (normals, texture
+// coordinates: in object space), once per shared mesh: its placements share one.
+template <typename Value, typename Make>
+std::vector<std::shared_ptr<const Value>> PerShapeOncePerMesh(const std::vector<Shape>& shapes, Make make) {
+  std::vector<std::shared_ptr<const Value>> tables;
+  std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
+  for (const Shape& shape : shapes) {
+    if (shape.SharesMesh()) {
+      auto [first, isNew] = firstShapeOfMesh.emplace(shape.sharedMesh.get(), tables.size());
+      if (!isNew) {
+        tables.push_back(tables[first->second]);
+        continue;
+      }
+    }
+    tables.push_back(std::make_shared<const Value>(make(shape)));
+  }
+  return tables;
+}
 
 // Per triangle over `vertices`, its unit normal (UnitNormal of its edges).
 std::vector<Float3> TriangleFaceNormals(const std::vector<Vec3>& vertices,

@@ -95,12 +95,12 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const De
     });
   });
   int last = std::min(frame + window, scene.render.LastFrame());
-  shapeChange_.assign(scene.shapes.size(), 0);
+  shapeChange_.assign(scene.shapes.size(), SurfaceChanges::kNever);
   partChanges_.resize(scene.shapes.size());
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
     if (!shape.Moves()) continue;
-    shapeChange_[i] = 1;
+    shapeChange_[i] = SurfaceChanges::kNextFrame;
     if (shape.Deforms()) {
       AddDeformingMesh(shape, i, last, *deforming(i));
     } else {
@@ -181,10 +181,10 @@ BoundingSphere Union(const std::vector<BoundingSphere>& spheres) {
 void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastFrame, DeformingMesh& mesh) {
   if (shape.motion.IsAnimated()) {
     // Carried as a whole too: every part may move, at every frame.
-    AddMover(shape, lastFrame, [&](int f) { return mesh.BoundsAt(f); });
+    AddMover(shape, lastFrame, [&](int f) { return Union(*mesh.PartBoundsAt(f)); });
     return;
   }
-  shapeChange_[index] = 2;
+  shapeChange_[index] = SurfaceChanges::kByPart;
   const DeformationParts& parts = mesh.Parts();
   // The first frame each joint's matrix and each target's weight differs from frame()'s.
   const std::shared_ptr<const DeformingMesh::PoseKey> base = mesh.KeyOf(frame_);
@@ -228,11 +228,11 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
 
 int HorizonOracle::SurfaceChange(int shape, uint32_t primitive) const {
   switch (shapeChange_[static_cast<size_t>(shape)]) {
-    case 0:
+    case SurfaceChanges::kNever:
       return Unbounded();
-    case 1:
+    case SurfaceChanges::kNextFrame:
       return frame_ + 1;
-    default: {
+    case SurfaceChanges::kByPart: {
       const PartChanges& changes = partChanges_[static_cast<size_t>(shape)];
       int change = Unbounded();
       for (uint32_t corner : changes.mesh->triangles[primitive]) {
@@ -241,6 +241,7 @@ int HorizonOracle::SurfaceChange(int shape, uint32_t primitive) const {
       return change;
     }
   }
+  return frame_ + 1;  // unreachable; the earliest answer is always safe
 }
 
 void HorizonOracle::AddMover(const Shape& shape, int lastFrame,

@@ -125,8 +125,10 @@ class HorizonOracle {
   // A deforming mesh: as one mover, or as one per set of its parts that start to change
   // at one frame, leaving out the parts that hold still over the window.
   void AddDeformingMesh(const Shape& shape, size_t index, int lastFrame, DeformingMesh& mesh);
-  // Per shape: 0 still, 1 moves rigidly (changes next frame), 2 deforms in parts.
-  std::vector<uint8_t> shapeChange_;
+  // How a shape's surface may change after frame(): never, at the next frame (it moves
+  // as a whole), or triangle by triangle as its parts start to deform.
+  enum class SurfaceChanges : uint8_t { kNever, kNextFrame, kByPart };
+  std::vector<SurfaceChanges> shapeChange_;  // by shape
   // Per shape deforming in parts: its vertices' group and each group's first change.
   struct PartChanges {
     const DeformationParts* parts = nullptr;

@@ -464,30 +464,17 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
 
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads)
     : device_(device), scene_(scene), geometry_(device, scene), threads_(threads) {
-  std::map<const TriangleMesh*, size_t> firstShapeOfMesh;
-  for (const Shape& shape : scene.shapes) {
-    AddShapeUvs(shape, firstShapeOfMesh);
-  }
+  uvs_ = PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [](const Shape& shape) {
+    ShapeUvs uvs;
+    for (const auto& uv : shape.Mesh().uvs) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+    return uvs;
+  });
   // Materials never change over frames: converted for shading once, not per task.
   materials_ = MakeMaterials(scene);
   // Only the images a material uses are loaded, once.
   for (const Material& material : scene.materials) {
     textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
   }
-}
-
-void Tracer::AddShapeUvs(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh) {
-  // Every placement of a shared mesh reads the same texture coordinates.
-  if (shape.SharesMesh()) {
-    auto [first, isNew] = firstShapeOfMesh.emplace(shape.sharedMesh.get(), uvs_.size());
-    if (!isNew) {
-      uvs_.push_back(uvs_[first->second]);
-      return;
-    }
-  }
-  auto uvs = std::make_shared<ShapeUvs>();
-  for (const auto& uv : shape.Mesh().uvs) uvs->push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
-  uvs_.push_back(std::move(uvs));
 }
 
 void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,

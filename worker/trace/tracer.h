@@ -79,7 +79,6 @@ class Tracer {
   // Per material: its decoded texture, if it has one.
   std::vector<std::unique_ptr<TextureImage>> textures_;
   std::vector<std::shared_ptr<const ShapeUvs>> uvs_;
-  void AddShapeUvs(const Shape& shape, std::map<const TriangleMesh*, size_t>& firstShapeOfMesh);
   TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
   std::atomic<uint64_t> cpuNanoseconds_{0};
