@@ -218,6 +218,12 @@ void Dispatcher::ReceiveAll(DispatchSink& sink) {
       if (counters_.malformed++ < 10) {
         std::fprintf(stderr, "coordinator: dropped a malformed message: %s\n", e.what());
       }
+      // A registered worker that breaks the protocol may be answering one of its tasks
+      // (a RESULT refused before its task could be told): it would never answer it
+      // properly, and the job would wait on it. Its tasks go to the others.
+      if (!distrusted_.count(identity) && registry_.Find(identity)) {
+        DropWorker(identity, std::string("it sent a malformed message (") + e.what() + ")");
+      }
     }
   }
 }

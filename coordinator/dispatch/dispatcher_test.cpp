@@ -320,16 +320,52 @@ TEST_F(DispatcherTest, ALateResultFromAnExpiredWorkerIsIgnored) {
   EXPECT_EQ(sink_.results.size(), 1u);
 }
 
-TEST_F(DispatcherTest, MalformedMessagesAreDroppedAndCounted) {
+TEST_F(DispatcherTest, MalformedMessagesFromAStrangerAreDroppedAndCounted) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
-  worker.SendRaw({"garbage"});
-  worker.SendRaw({std::string(1, '\x01'), std::string(1, '\x03'), "\xff\xff", ""});
-  worker.SendRaw({std::string(1, '\x07'), std::string(1, '\x01'), "", ""});
-  Pump();
+  zmq::socket_t stranger(context_, zmq::socket_type::dealer);
+  stranger.connect(dispatcher_.BoundEndpoint());
+  for (const std::vector<std::string>& parts :
+       {std::vector<std::string>{"garbage"},
+        {std::string(1, '\x01'), std::string(1, '\x03'), "\xff\xff", ""},
+        {std::string(1, '\x07'), std::string(1, '\x01'), "", ""}}) {
+    for (size_t i = 0; i < parts.size(); ++i) {
+      stranger.send(zmq::buffer(parts[i]), i + 1 < parts.size() ? zmq::send_flags::sndmore : zmq::send_flags::none);
+    }
+  }
+  PumpUntil([&] { return dispatcher_.counters().malformed == 3; });
   EXPECT_EQ(dispatcher_.counters().malformed, 3u);
+  EXPECT_EQ(dispatcher_.counters().workersDropped, 0u);
   EnqueueTasks(1, 1);
   Pump();
-  EXPECT_EQ(worker.Tasks().size(), 1u);  // still serving
+  EXPECT_EQ(worker.Tasks().size(), 1u);  // the worker is still served
+}
+
+TEST_F(DispatcherTest, AWorkerThatSendsAMalformedResultLosesItsTasksToAnother) {
+  FakeWorker broken(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 1);
+  Pump();
+  const wire::Task task = broken.Tasks().at(0);
+  // Its answer, with the header cut short: refused before its task id can be read.
+  wire::Result answer;
+  answer.taskId = task.taskId, answer.jobId = task.jobId, answer.frame = task.frame;
+  answer.rgb.assign(3 * task.pixels.size(), 0.5f);
+  std::vector<std::string> parts = wire::Encode(answer);
+  parts[2].resize(parts[2].size() / 2);
+  broken.SendRaw(parts);
+  FakeWorker other(context_, dispatcher_.BoundEndpoint(), 1);
+  std::vector<wire::Task> moved;
+  PumpUntil([&] {
+    for (auto& t : other.Tasks()) moved.push_back(std::move(t));
+    return !moved.empty();
+  });
+  EXPECT_EQ(dispatcher_.counters().malformed, 1u);
+  EXPECT_EQ(dispatcher_.counters().workersDropped, 1u);
+  EXPECT_TRUE(SaidDisconnect(broken));
+  ASSERT_EQ(moved.size(), 1u);
+  EXPECT_EQ(moved[0].taskId, task.taskId);
+  other.Answer(moved[0]);
+  Pump();
+  EXPECT_EQ(sink_.results.size(), 1u);
 }
 
 TEST_F(DispatcherTest, ScenesAreSentOnRequest) {
