@@ -55,6 +55,36 @@ uint64_t ThreadCpuNanoseconds() {
 
 }  // namespace
 
+// What shading reads of a shape at a frame, gathered once per task: a hit reads one small
+// record instead of following the scene, the frame's geometry and the per-shape tables.
+struct Tracer::ShapeShading {
+  const Float3* faceNormals = nullptr;    // unit, by triangle; null: Embree's normal
+  const Float3* vertexNormals = nullptr;  // by vertex; null: flat
+  const std::array<uint32_t, 3>* triangles = nullptr;
+  const std::array<float, 2>* uvs = nullptr;  // null unless the shape is textured and has them
+  const TextureImage* texture = nullptr;
+  bool turns = false;  // its normals need carrying to the world (FrameGeometry::NormalToWorld)
+  int material = 0;
+};
+
+std::vector<Tracer::ShapeShading> Tracer::ShadingAt(const FrameGeometry& frame) const {
+  std::vector<ShapeShading> table(scene_.shapes.size());
+  for (size_t i = 0; i < table.size(); ++i) {
+    const Shape& shape = scene_.shapes[i];
+    const SurfaceNormals& normals = frame.Normals(static_cast<int>(i));
+    ShapeShading& entry = table[i];
+    entry.material = shape.material;
+    entry.turns = frame.HasNormalTransform(static_cast<int>(i));
+    if (!normals.faces.empty()) entry.faceNormals = normals.faces.data();
+    if (!normals.vertices.empty()) entry.vertexNormals = normals.vertices.data();
+    entry.texture = textures_[static_cast<size_t>(shape.material)].get();
+    const ShapeUvs& uvs = *uvs_[i];
+    if (entry.texture && !uvs.empty()) entry.uvs = uvs.data();
+    if (entry.vertexNormals || entry.uvs) entry.triangles = shape.Mesh().triangles.data();
+  }
+  return table;
+}
+
 struct Tracer::FrameContext {
   int frame;
   std::shared_ptr<const FrameGeometry> geometry;
@@ -62,8 +92,7 @@ struct Tracer::FrameContext {
   PerspectiveCamera camera;
   std::vector<ShadingLight> lights;
   const std::vector<ShadingMaterial>* materials;
-  const std::vector<std::unique_ptr<TextureImage>>* textures;        // by material
-  const std::vector<std::shared_ptr<const ShapeUvs>>* uvs;           // by shape
+  std::vector<ShapeShading> shapes;  // by shape
   Float3 background;
   int maxDepth;
   int samplesPerPixel;
@@ -110,14 +139,14 @@ class Tracer::PixelTracer {
     float u, v;  // barycentric coordinates of the hit in its triangle
   };
   // The normal a smooth mesh shades this hit with, in object space; zero when flat.
-  Float3 SmoothNormal(int shape, const RawHit& raw) const;
+  static Float3 SmoothNormal(const ShapeShading& shape, const RawHit& raw);
   // The diffuse colour at the hit: the material's, times its texture at the hit's
   // interpolated texture coordinates where the shape has them.
-  Float3 SurfaceDiffuse(int shape, int material, const RawHit& raw) const;
+  Float3 SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const;
   // A normal carried to the world and made unit (kept as it is when already unit and the
   // shape does not turn); zero stays zero. Inline for the common shape that does not turn.
-  Float3 ToWorld(int shape, const Float3& normal, bool unit = false) const {
-    if (frame_.geometry->HasNormalTransform(shape)) return TurnedToWorld(shape, normal);
+  Float3 ToWorld(int shape, bool turns, const Float3& normal, bool unit = false) const {
+    if (turns) return TurnedToWorld(shape, normal);
     if (unit) return normal;  // computed unit in double: kept to the bit
     float length = Length(normal);
     return (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
@@ -164,44 +193,41 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
   hit.position = origin + direction * raw.t;
   hit.direction = direction;
   hit.offset = kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t);
-  int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
+  const int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
+  const ShapeShading& shading = frame_.shapes[static_cast<size_t>(shape)];
   hit.shape = shape;
   hit.primitive = raw.primitiveId;
-  hit.material = scene_.shapes[shape].material;
-  const std::vector<Float3>& faces = frame_.geometry->Normals(shape).faces;
+  hit.material = shading.material;
   // The face's normal (unit, computed in double from the scene), or Embree's for shapes
   // without faces; in object space for a shape that turns or scales.
-  Float3 face = faces.empty() ? ToWorld(shape, raw.geometricNormal) : ToWorld(shape, faces[raw.primitiveId], true);
+  Float3 face = shading.faceNormals ? ToWorld(shape, shading.turns, shading.faceNormals[raw.primitiveId], true)
+                                    : ToWorld(shape, shading.turns, raw.geometricNormal);
   // A degenerate normal would put NaN into the frame; face the ray instead.
   if (IsZero(face)) face = -direction;
   hit.fromInside = Dot(face, direction) > 0;
   hit.faceNormal = hit.fromInside ? -face : face;
   // A smooth mesh shades with its interpolated normal, turned to the face's side.
   // Zero (flat) stays zero in the world: only a smooth normal is carried there.
-  Float3 shading = SmoothNormal(shape, raw);
-  if (!IsZero(shading)) shading = ToWorld(shape, shading);
-  if (IsZero(shading)) shading = hit.faceNormal;
-  hit.normal = Dot(shading, hit.faceNormal) < 0 ? -shading : shading;
-  hit.diffuse = SurfaceDiffuse(shape, hit.material, raw);
+  Float3 smooth = shading.vertexNormals ? SmoothNormal(shading, raw) : Float3{};
+  if (!IsZero(smooth)) smooth = ToWorld(shape, shading.turns, smooth);
+  if (IsZero(smooth)) smooth = hit.faceNormal;
+  hit.normal = Dot(smooth, hit.faceNormal) < 0 ? -smooth : smooth;
+  hit.diffuse = shading.uvs ? SurfaceDiffuse(shading, raw) : (*frame_.materials)[hit.material].diffuse;
   return hit;
 }
 
-Float3 Tracer::PixelTracer::SurfaceDiffuse(int shape, int material, const RawHit& raw) const {
-  const Float3 diffuse = (*frame_.materials)[material].diffuse;
-  const TextureImage* texture = (*frame_.textures)[material].get();
-  const ShapeUvs& uvs = *(*frame_.uvs)[shape];
-  if (!texture || uvs.empty()) return diffuse;
-  const auto& corner = scene_.shapes[shape].Mesh().triangles[raw.primitiveId];
-  const auto &a = uvs[corner[0]], &b = uvs[corner[1]], &c = uvs[corner[2]];
+Float3 Tracer::PixelTracer::SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const {
+  const auto& corner = shape.triangles[raw.primitiveId];
+  const auto &a = shape.uvs[corner[0]], &b = shape.uvs[corner[1]], &c = shape.uvs[corner[2]];
   const float w = 1.0f - raw.u - raw.v;
-  return diffuse * texture->Sample(a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v);
+  return (*frame_.materials)[shape.material].diffuse *
+         shape.texture->Sample(a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v);
 }
 
-Float3 Tracer::PixelTracer::SmoothNormal(int shape, const RawHit& raw) const {
-  const std::vector<Float3>& vertices = frame_.geometry->Normals(shape).vertices;
-  if (vertices.empty()) return {};
-  const auto& corner = scene_.shapes[shape].Mesh().triangles[raw.primitiveId];
-  const Float3 &a = vertices[corner[0]], &b = vertices[corner[1]], &c = vertices[corner[2]];
+Float3 Tracer::PixelTracer::SmoothNormal(const ShapeShading& shape, const RawHit& raw) {
+  const auto& corner = shape.triangles[raw.primitiveId];
+  const Float3 *vertices = shape.vertexNormals, &a = vertices[corner[0]], &b = vertices[corner[1]],
+               &c = vertices[corner[2]];
   // A corner without a normal leaves the face flat.
   for (const Float3* n : {&a, &b, &c}) {
     if (n->x == 0 && n->y == 0 && n->z == 0) return {};
@@ -498,12 +524,12 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        MakeCamera(scene_, frame),
                        MakeLights(scene_, frame),
                        &materials_,
-                       &textures_,
-                       &uvs_,
+                       {},
                        ToFloat3(scene_.background),
                        scene_.render.maxDepth,
                        scene_.render.samplesPerPixel,
                        scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts()};
+  context.shapes = ShadingAt(*context.geometry);
   const int spp = context.samplesPerPixel;
   threads_.ParallelFor(pixelCount, PixelsPerChunk(pixelCount, threads_.ThreadCount()), [&](size_t begin, size_t end) {
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();

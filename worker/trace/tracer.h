@@ -67,7 +67,10 @@ class Tracer {
 
  private:
   struct FrameContext;
+  struct ShapeShading;
   class PixelTracer;
+  // Each shape's record for shading at a frame (its normals may be a pose's).
+  std::vector<ShapeShading> ShadingAt(const FrameGeometry& frame) const;
 
   const EmbreeDevice& device_;
   const Scene& scene_;
