@@ -39,12 +39,7 @@ PerspectiveCamera MakeCamera(const Scene& scene, int frame) {
   return camera;
 }
 
-void SamplePosition(uint32_t x, uint32_t y, int sample, int samplesPerPixel, float* px, float* py) {
-  if (samplesPerPixel == 1) {
-    *px = x + 0.5f;
-    *py = y + 0.5f;
-    return;
-  }
+void SampleInPixel(uint32_t x, uint32_t y, int sample, float* px, float* py) {
   constexpr double kG = 1.32471795724474602596;  // the plastic number: R2's generator
   uint32_t h = HashPixel(x, y);
   double u = (h & 0xffff) / 65536.0 + sample / kG;

@@ -38,6 +38,15 @@ PerspectiveCamera MakeCamera(const Scene& scene, int frame);
 // Where sample `sample` of pixel (x, y) falls: the pixel centre for one sample, else an R2
 // low-discrepancy sequence rotated by a hash of the pixel. Seeded by pixel, not frame, so
 // a pixel that sees nothing change keeps its bits from frame to frame.
-void SamplePosition(uint32_t x, uint32_t y, int sample, int samplesPerPixel, float* px, float* py);
+// Inline for the pixel centre: asked for every camera ray. SampleInPixel: the others.
+void SampleInPixel(uint32_t x, uint32_t y, int sample, float* px, float* py);
+inline void SamplePosition(uint32_t x, uint32_t y, int sample, int samplesPerPixel, float* px, float* py) {
+  if (samplesPerPixel == 1) {
+    *px = x + 0.5f;
+    *py = y + 0.5f;
+    return;
+  }
+  SampleInPixel(x, y, sample, px, py);
+}
 
 }  // namespace tcfarm

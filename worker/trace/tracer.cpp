@@ -158,8 +158,13 @@ class Tracer::PixelTracer {
   // Light arriving at the hit from light i if nothing blocks it; false when the light is
   // behind the surface (then no shadow ray is needed at all).
   bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const;
-  Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction,
-                           float distance) const;
+  // Inline: asked for every lit hit and light.
+  Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction, float distance) const {
+    const ShadingLight& l = frame_.lights[light];
+    const Float3 color =
+        (*frame_.materials)[hit.material].Reflected(direction, hit.normal, hit.direction, hit.diffuse);
+    return color * l.intensity * (l.Falloff(distance) * l.Cone(direction));
+  }
   // What the surface shows with no light: the ambient term, and its own emission.
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
@@ -244,13 +249,6 @@ Float3 Tracer::PixelTracer::TurnedToWorld(int shape, const Float3& normal) const
 bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,
                                     float* distance) const {
   return frame_.lights[light].Toward(hit.position, hit.normal, direction, distance);
-}
-
-Float3 Tracer::PixelTracer::LightContribution(const SurfaceHit& hit, size_t light,
-                                              Float3 direction, float distance) const {
-  const ShadingLight& l = frame_.lights[light];
-  const Float3 color = (*frame_.materials)[hit.material].Reflected(direction, hit.normal, hit.direction, hit.diffuse);
-  return color * l.intensity * (l.Falloff(distance) * l.Cone(direction));
 }
 
 Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
