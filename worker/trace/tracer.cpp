@@ -194,31 +194,35 @@ RTCScene Tracer::PixelTracer::SceneAhead(int frame) {
 
 Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origin, const Float3& direction,
                                                              const RawHit& raw) const {
-  SurfaceHit hit;
-  hit.position = origin + direction * raw.t;
-  hit.direction = direction;
-  hit.offset = kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t);
   const int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
   const ShapeShading& shading = frame_.shapes[static_cast<size_t>(shape)];
-  hit.shape = shape;
-  hit.primitive = raw.primitiveId;
-  hit.material = shading.material;
   // The face's normal (unit, computed in double from the scene), or Embree's for shapes
   // without faces; in object space for a shape that turns or scales.
   Float3 face = shading.faceNormals ? ToWorld(shape, shading.turns, shading.faceNormals[raw.primitiveId], true)
                                     : ToWorld(shape, shading.turns, raw.geometricNormal);
   // A degenerate normal would put NaN into the frame; face the ray instead.
   if (IsZero(face)) face = -direction;
-  hit.fromInside = Dot(face, direction) > 0;
-  hit.faceNormal = hit.fromInside ? -face : face;
+  const bool fromInside = Dot(face, direction) > 0;
+  if (fromInside) face = -face;
   // A smooth mesh shades with its interpolated normal, turned to the face's side.
   // Zero (flat) stays zero in the world: only a smooth normal is carried there.
-  Float3 smooth = shading.vertexNormals ? SmoothNormal(shading, raw) : Float3{};
-  if (!IsZero(smooth)) smooth = ToWorld(shape, shading.turns, smooth);
-  if (IsZero(smooth)) smooth = hit.faceNormal;
-  hit.normal = Dot(smooth, hit.faceNormal) < 0 ? -smooth : smooth;
-  hit.diffuse = shading.uvs ? SurfaceDiffuse(shading, raw) : (*frame_.materials)[hit.material].diffuse;
-  return hit;
+  Float3 normal = face;
+  if (shading.vertexNormals) {
+    Float3 smooth = SmoothNormal(shading, raw);
+    if (!IsZero(smooth)) smooth = ToWorld(shape, shading.turns, smooth);
+    if (!IsZero(smooth)) normal = Dot(smooth, face) < 0 ? -smooth : smooth;
+  }
+  // Every field written once: a default-constructed hit would be zeroed first.
+  return SurfaceHit{origin + direction * raw.t,
+                    normal,
+                    face,
+                    shading.uvs ? SurfaceDiffuse(shading, raw) : (*frame_.materials)[shading.material].diffuse,
+                    direction,
+                    fromInside,
+                    kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t),
+                    shape,
+                    raw.primitiveId,
+                    shading.material};
 }
 
 Float3 Tracer::PixelTracer::SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const {
