@@ -118,12 +118,14 @@ struct Material {
 struct TriangleMesh {
   std::vector<Vec3> vertices;
   std::vector<std::array<uint32_t, 3>> triangles;
-  // Optional per-vertex attributes, each either empty or one per vertex (the parser checks);
-  // imported files bring them, and the tracer does not read them yet.
+  // Optional per-vertex attributes, each either empty or one per vertex (the parser checks).
   // Shading normals, not necessarily unit length; a zero normal means "use the geometric one".
   std::vector<Vec3> normals;
   // Texture coordinates (u, v), as OBJ's vt and glTF's TEXCOORD_0 give them.
   std::vector<std::array<double, 2>> uvs;
+  // Linear RGB per vertex (glTF's COLOR_0), multiplying the material's diffuse colour
+  // (and its texture) as glTF multiplies the base colour.
+  std::vector<Vec3> colors;
 };
 
 struct Shape {

@@ -950,7 +950,7 @@ class SceneReader {
   }
 
   void ReadMesh(const Node& node, Shape& shape) {
-    ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "file", "mesh_ref", "skin", "morph"}),
+    ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "colors", "file", "mesh_ref", "skin", "morph"}),
                  "a mesh");
     shape.type = Shape::Type::kMesh;
     if (node.Has("mesh_ref")) {
@@ -1084,7 +1084,7 @@ class SceneReader {
   TriangleMesh ReadMeshGeometry(const Node& node) {
     TriangleMesh mesh;
     if (node.Has("file")) {
-      if (node.Has("vertices") || node.Has("triangles") || node.Has("normals") || node.Has("uvs")) {
+      if (HasInlineGeometry(node)) {
         Fail(node.MemberPointer("file"), "both a file and inline geometry",
              "either \"file\" or inline \"vertices\" and \"triangles\"");
       }
@@ -1099,8 +1099,14 @@ class SceneReader {
     mesh.triangles = ReadTriangles(triangles, mesh.vertices.size());
     if (node.Has("normals")) mesh.normals = ReadNormals(node.Member("normals"), mesh.vertices.size());
     if (node.Has("uvs")) mesh.uvs = ReadUvs(node.Member("uvs"), mesh.vertices.size());
+    if (node.Has("colors")) mesh.colors = ReadVertexColors(node.Member("colors"), mesh.vertices.size());
     CheckMesh(mesh, vertices, triangles);
     return mesh;
+  }
+
+  static bool HasInlineGeometry(const Node& node) {
+    return node.Has("vertices") || node.Has("triangles") || node.Has("normals") || node.Has("uvs") ||
+           node.Has("colors");
   }
 
   // Every shared mesh is read and checked, used or not: a scene holds no invalid geometry.
@@ -1122,7 +1128,7 @@ class SceneReader {
     if (!node.value.is_object()) FailType(node, "an object mapping mesh names to meshes");
     for (const auto& entry : node.value.items()) {
       Node mesh = node.Member(entry.key());
-      ExpectObject(mesh, {"vertices", "triangles", "normals", "uvs", "file"}, "a shared mesh");
+      ExpectObject(mesh, {"vertices", "triangles", "normals", "uvs", "colors", "file"}, "a shared mesh");
       sharedMeshes_[entry.key()] = std::make_shared<const TriangleMesh>(ReadMeshGeometry(mesh));
       unplacedMeshes_.insert(entry.key());
     }
@@ -1131,7 +1137,7 @@ class SceneReader {
 
   void ReadMeshRef(const Node& node, Shape& shape) {
     Node ref = node.Member("mesh_ref");
-    if (node.Has("vertices") || node.Has("triangles") || node.Has("normals") || node.Has("uvs") || node.Has("file")) {
+    if (HasInlineGeometry(node) || node.Has("file")) {
       Fail(ref.pointer, "both a shared mesh and geometry of its own",
            "either \"mesh_ref\" or inline \"vertices\" and \"triangles\" or a \"file\"");
     }
@@ -1182,6 +1188,15 @@ class SceneReader {
       uvs.push_back({ReadNumber(uv.Element(0), expected), ReadNumber(uv.Element(1), expected)});
     }
     return uvs;
+  }
+
+  static std::vector<Vec3> ReadVertexColors(const Node& node, size_t vertexCount) {
+    if (!node.value.is_array()) FailType(node, "an array of linear RGB colours [r, g, b], one per vertex");
+    ExpectOnePerVertex(node, vertexCount, "colour");
+    std::vector<Vec3> colors;
+    colors.reserve(node.value.size());
+    for (size_t i = 0; i < node.value.size(); ++i) colors.push_back(ReadColour(node.Element(i)));
+    return colors;
   }
 
   std::vector<Vec3> ReadVertices(const Node& node) {
@@ -1431,6 +1446,11 @@ json MeshJson(const TriangleMesh& mesh, json result) {
     json uvs = json::array();
     for (const auto& uv : mesh.uvs) uvs.push_back(json::array({uv[0], uv[1]}));
     result["uvs"] = std::move(uvs);
+  }
+  if (!mesh.colors.empty()) {
+    json colors = json::array();
+    for (const auto& c : mesh.colors) colors.push_back(Vec3Json(c));
+    result["colors"] = std::move(colors);
   }
   return result;
 }

@@ -216,6 +216,25 @@ TEST(SceneShapeTest, MeshNormalsAndUvs) {
 
 }
 
+TEST(SceneShapeTest, MeshVertexColoursRoundTripAndAreChecked) {
+  json mesh = Triangle();
+  mesh["colors"] = {{1, 0, 0}, {0, 0.5, 0}, {0, 0, 2}};
+  Scene parsed = ParseScene(WithShape(mesh).dump());
+  EXPECT_EQ(parsed.shapes[0].mesh.colors[1], (Vec3{0, 0.5, 0}));
+  json written = json::parse(SerializeScene(parsed));
+  EXPECT_EQ(written["shapes"][0]["colors"], mesh["colors"]);
+  EXPECT_FALSE(json::parse(SerializeScene(ParseScene(WithShape(Triangle()).dump())))["shapes"][0].contains("colors"));
+
+  json negative = mesh;
+  negative["colors"][2] = {0, -1, 0};
+  EXPECT_TRUE(FailsAt(WithShape(negative), "/shapes/0/colors/2/1", "non-negative"));
+  json short_ = mesh;
+  short_["colors"].erase(2);
+  EXPECT_TRUE(FailsAt(WithShape(short_), "/shapes/0/colors", "colour"));
+  json withFile = json{{"type", "mesh"}, {"file", "x.obj"}, {"colors", mesh["colors"]}};
+  EXPECT_TRUE(FailsAt(WithShape(withFile), "/shapes/0/file", "both a file and inline geometry"));
+}
+
 TEST(SceneShapeTest, MotionAppliesToEveryType) {
   json scene = MinimalScene();
   json motion = {{"polynomial", {{0, 1}, {0}, {0}}}};

@@ -117,7 +117,7 @@ class Gltf:
 
     def mesh(self, primitives, name=None, weights=None):
         """primitives: dicts of positions (flat), indices, mode, material, normals, uvs,
-        joints and weights (flat, 4 per vertex: JOINTS_0 as unsigned bytes, WEIGHTS_0 as
+        colors (flat RGBA in [0, 1], COLOR_0), joints and weights (flat, 4 per vertex: JOINTS_0 as unsigned bytes, WEIGHTS_0 as
         floats) and targets (morph targets: dicts of positions and normals, flat deltas);
         weights: the mesh's default morph target weights."""
         out = []
@@ -130,6 +130,9 @@ class Gltf:
                 primitive["attributes"]["TEXCOORD_0"] = self.accessor(
                     [round(u * 65535) for u in p["uvs"]], "VEC2", UNSIGNED_SHORT, normalized=True,
                     target=34962)
+            if p.get("colors"):  # RGBA, normalized unsigned bytes (the alpha is not used)
+                primitive["attributes"]["COLOR_0"] = self.accessor(
+                    [round(c * 255) for c in p["colors"]], "VEC4", UNSIGNED_BYTE, normalized=True, target=34962)
             if p.get("joints"):
                 primitive["attributes"]["JOINTS_0"] = self.accessor(p["joints"], "VEC4", UNSIGNED_BYTE, target=34962)
                 primitive["attributes"]["WEIGHTS_0"] = self.accessor(p["weights"], "VEC4", target=34962)
@@ -282,15 +285,17 @@ def cube(size):
 def animated_hierarchy():
     """Every channel (translation, rotation, scale) with every interpolation (LINEAR, STEP,
     CUBICSPLINE), on a hierarchy: a parent turning about y carries three children; a still
-    floor (a strip), a still fan and a matrix node, a camera looking down at them, a point
+    floor (a strip with vertex colours), a still fan and a matrix node, a camera looking down at them, a point
     and a directional light. One second of animation: 13 frames at 12 frames per second."""
     g = Gltf()
     red = g.material("red", (0.8, 0.1, 0.1), metallic=0.0, roughness=0.4)
     chrome = g.material("chrome", (0.9, 0.9, 0.9), metallic=1.0, roughness=0.1)
     glass = g.material("glass", (1.0, 1.0, 1.0), roughness=0.05, transmission=0.8, ior=1.4)
     floor = g.material("floor", (0.6, 0.6, 0.6), roughness=0.9)
-    # The floor: a strip of 4 vertices in y = 0 facing up.
+    # The floor: a strip of 4 vertices in y = 0 facing up, painted by vertex colours from
+    # warm at the back to cool at the front.
     g.node(name="floor", mesh=g.mesh([{"positions": [-6, 0, -6, -6, 0, 6, 6, 0, -6, 6, 0, 6],
+                                       "colors": [1, 0.6, 0.3, 1, 0.3, 0.6, 1, 1, 1, 0.8, 0.2, 1, 0.4, 0.6, 1, 1],
                                        "mode": TRIANGLE_STRIP, "material": floor}]))
     # A still hexagon fan, off to the side, placed by a matrix (scale 0.5, moved).
     hexagon = [0, 0, 0] + [c for k in range(7) for c in

@@ -148,6 +148,8 @@ def farm_exact_equals_reference(scene, reference_scene, tmp_path):
 def test_farm_exact_equals_brute_force_on_an_animated_hierarchy(worker_binary, files, tmp_path):
     scene = printed_scene(worker_binary, files["animated_hierarchy.gltf"], "--fps", "12", "--size", "96x72")
     assert scene["render"]["frames"]["count"] == 13
+    floor = next(shape for shape in scene["shapes"] if shape.get("name") == "floor")
+    assert floor["colors"][0] == pytest.approx([1, 0.6, 0.3], abs=1 / 255)  # COLOR_0, the alpha left out
     job = farm_exact_equals_reference(scene, scene, tmp_path)
     # The still floor and sign keep their pixels between the movers' passes.
     assert job["traced_pixel_ratio"] < 0.6, job["traced_pixel_ratio"]  # 0.29 when written

@@ -1,5 +1,6 @@
 // Textured surfaces: the texels of an image show at the pixels its texture coordinates
-// put them, linear after sRGB decoding, in every wrap and filter mode.
+// put them, linear after sRGB decoding, in every wrap and filter mode; vertex colours
+// multiply the diffuse colour, textured or not.
 #include <gtest/gtest.h>
 
 #include <OpenImageIO/imageio.h>
@@ -150,6 +151,52 @@ TEST_F(TextureTest, AnAssetRendersLikeItsFileFromDiskOrMemory) {
 TEST_F(TextureTest, AFileThatIsNoImageIsAClearError) {
   std::ofstream(folder_ / "notes.png") << "not an image";
   EXPECT_THROW(Render(TexturedSquare(R"({"image": "notes.png"})")), TextureError);
+}
+
+// The square with a colour per corner (red, green, blue, white from the top left, clockwise
+// to the bottom left), textured or plain.
+Scene ColouredSquare(const std::string& texture, const fs::path& folder) {
+  const std::string material = texture.empty() ? "" : R"(, "diffuse_texture": )" + texture;
+  return ParseScene(R"({"camera": {"position": [0, 0, 5], "look_at": [0, 0, 0]},
+      "lights": [{"type": "directional", "direction": [0, 0, -1], "intensity": [1, 1, 1]}],
+      "materials": {"painted": {"diffuse": [1, 1, 1])" + material + R"(}},
+      "shapes": [{"type": "mesh", "material": "painted",
+                  "vertices": [[-4, 4, 0], [4, 4, 0], [4, -4, 0], [-4, -4, 0]],
+                  "uvs": [[0, 0], [1, 0], [1, 1], [0, 1]],
+                  "colors": [[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]],
+                  "triangles": [[0, 3, 2], [0, 2, 1]]}],
+      "render": {"width": 9, "height": 9}})",
+                    folder);
+}
+
+TEST_F(TextureTest, VertexColoursMultiplyTheDiffuseColourTexturedOrNot) {
+  // The centre pixel lies on the diagonal from the top left to the bottom right: half the
+  // top left's colour and half the bottom right's, red and blue.
+  auto plain = Render(ColouredSquare("", folder_));
+  ExpectTexel(At(plain, 4, 4), {0.5f, 0, 0.5f}, "centre, plain");
+  // Above the centre, in the triangle of the red, blue and green corners: half red, then
+  // blue, then a little green (the nearer the top right, the more). Below left, in the
+  // triangle of the red, white and blue corners: green only from the white corner.
+  Float3 above = At(plain, 4, 2), belowLeft = At(plain, 2, 6);
+  EXPECT_NEAR(above.x, 0.5f * 1.05f, 1e-5f);
+  EXPECT_GT(above.z, above.y);
+  EXPECT_GT(above.y, 0.0f);
+  EXPECT_GT(belowLeft.y, 0.0f);
+  EXPECT_GT(belowLeft.x, belowLeft.y);
+  EXPECT_GT(belowLeft.z, belowLeft.y);
+  // Textured: the texel times the corner colour. The top left texel is red, the top
+  // right green: each under its own corner's colour keeps most of its channel.
+  auto textured = Render(ColouredSquare(R"({"image": "checker.png", "filter": "nearest"})", folder_));
+  Float3 topLeft = At(textured, 1, 1), bottomLeft = At(textured, 1, 7);
+  EXPECT_GT(topLeft.x, 0.5f);
+  EXPECT_EQ(topLeft.y, 0.0f);
+  EXPECT_EQ(topLeft.z, 0.0f);
+  EXPECT_EQ(bottomLeft.x, 0.0f);  // the blue texel under the white corner and the blue one
+  EXPECT_GT(bottomLeft.z, 0.5f);
+  // Without colours the same square shows the plain diffuse (1.05 lit head-on).
+  Scene uncoloured = ColouredSquare("", folder_);
+  uncoloured.shapes[0].mesh.colors.clear();
+  ExpectTexel(At(Render(uncoloured), 4, 4), {1, 1, 1}, "centre, uncoloured");
 }
 
 }  // namespace

@@ -63,6 +63,8 @@ struct Tracer::ShapeShading {
   const std::array<uint32_t, 3>* triangles = nullptr;
   const std::array<float, 2>* uvs = nullptr;  // null unless the shape is textured and has them
   const TextureImage* texture = nullptr;
+  const Float3* colors = nullptr;  // linear RGB by vertex, multiplying the diffuse; null: none
+  bool VariesDiffuse() const { return uvs || colors; }
   bool turns = false;  // its normals need carrying to the world (FrameGeometry::NormalToWorld)
   int material = 0;
 };
@@ -80,7 +82,8 @@ std::vector<Tracer::ShapeShading> Tracer::ShadingAt(const FrameGeometry& frame) 
     entry.texture = textures_[static_cast<size_t>(shape.material)].get();
     const ShapeUvs& uvs = *uvs_[i];
     if (entry.texture && !uvs.empty()) entry.uvs = uvs.data();
-    if (entry.vertexNormals || entry.uvs) entry.triangles = shape.Mesh().triangles.data();
+    if (!colors_[i]->empty()) entry.colors = colors_[i]->data();
+    if (entry.vertexNormals || entry.VariesDiffuse()) entry.triangles = shape.Mesh().triangles.data();
   }
   return table;
 }
@@ -216,7 +219,8 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
   return SurfaceHit{origin + direction * raw.t,
                     normal,
                     face,
-                    shading.uvs ? SurfaceDiffuse(shading, raw) : (*frame_.materials)[shading.material].diffuse,
+                    shading.VariesDiffuse() ? SurfaceDiffuse(shading, raw)
+                                            : (*frame_.materials)[shading.material].diffuse,
                     direction,
                     fromInside,
                     kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t),
@@ -227,10 +231,18 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
 
 Float3 Tracer::PixelTracer::SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const {
   const auto& corner = shape.triangles[raw.primitiveId];
-  const auto &a = shape.uvs[corner[0]], &b = shape.uvs[corner[1]], &c = shape.uvs[corner[2]];
   const float w = 1.0f - raw.u - raw.v;
-  return (*frame_.materials)[shape.material].diffuse *
-         shape.texture->Sample(a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v);
+  Float3 diffuse = (*frame_.materials)[shape.material].diffuse;
+  if (shape.uvs) {
+    const auto &a = shape.uvs[corner[0]], &b = shape.uvs[corner[1]], &c = shape.uvs[corner[2]];
+    diffuse = diffuse * shape.texture->Sample(a[0] * w + b[0] * raw.u + c[0] * raw.v,
+                                              a[1] * w + b[1] * raw.u + c[1] * raw.v);
+  }
+  if (shape.colors) {
+    const Float3 &a = shape.colors[corner[0]], &b = shape.colors[corner[1]], &c = shape.colors[corner[2]];
+    diffuse = diffuse * (a * w + b * raw.u + c * raw.v);
+  }
+  return diffuse;
 }
 
 Float3 Tracer::PixelTracer::SmoothNormal(const ShapeShading& shape, const RawHit& raw) {
@@ -496,6 +508,11 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
     ShapeUvs uvs;
     for (const auto& uv : shape.Mesh().uvs) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
     return uvs;
+  });
+  colors_ = PerShapeOncePerMesh<ShapeColors>(scene.shapes, [](const Shape& shape) {
+    ShapeColors colors;
+    for (const Vec3& color : shape.Mesh().colors) colors.push_back(ToFloat3(color));
+    return colors;
   });
   // Materials never change over frames: converted for shading once, not per task.
   materials_ = MakeMaterials(scene);

@@ -82,6 +82,9 @@ class Tracer {
   // Per material: its decoded texture, if it has one.
   std::vector<std::unique_ptr<TextureImage>> textures_;
   std::vector<std::shared_ptr<const ShapeUvs>> uvs_;
+  // Per shape, its vertices' colours (none for most shapes), shared like the uvs.
+  using ShapeColors = std::vector<Float3>;
+  std::vector<std::shared_ptr<const ShapeColors>> colors_;
   TracingThreads& threads_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
   std::atomic<uint64_t> cpuNanoseconds_{0};

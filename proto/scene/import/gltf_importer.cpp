@@ -1355,6 +1355,9 @@ class GltfReader {
       }
       for (size_t v = 0; v < uvs.count; ++v) mesh.uvs.push_back({uvs.At(v, 0), uvs.At(v, 1)});
     }
+    if (auto color = primitive.attributes.find("COLOR_0"); color != primitive.attributes.end()) {
+      mesh.colors = ReadVertexColors(color->second, pointer + "/attributes/COLOR_0", positions.count);
+    }
     std::vector<uint32_t> indices;
     if (primitive.indices >= 0) {
       AccessorData data = ReadAccessor(primitive.indices, pointer + "/indices", {TINYGLTF_TYPE_SCALAR},
@@ -1691,6 +1694,38 @@ class GltfReader {
     std::string text;
     for (double v : {a, b, c, d}) text += (text.empty() ? "" : ", ") + nlohmann::json(v).dump();
     return text;
+  }
+
+  // COLOR_0: linear RGB (an alpha is not used), FLOAT or normalized UNSIGNED_BYTE or
+  // UNSIGNED_SHORT, one per position.
+  std::vector<Vec3> ReadVertexColors(int index, const std::string& referencedAt, size_t positions) const {
+    AccessorData colors = ReadAccessor(
+        index, referencedAt, {TINYGLTF_TYPE_VEC3, TINYGLTF_TYPE_VEC4},
+        {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+        "a VEC3 or VEC4 accessor of colours (FLOAT, or normalized UNSIGNED_BYTE or UNSIGNED_SHORT)");
+    const std::string pointer = Pointer("accessors", static_cast<size_t>(index));
+    const tinygltf::Accessor& accessor = model_.accessors[static_cast<size_t>(index)];
+    if (accessor.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !accessor.normalized) {
+      Fail(pointer + "/normalized", "integer colours that are not normalized", "normalized: true on integer colours");
+    }
+    CheckFinite(colors, index, "colour");
+    if (colors.count != positions) {
+      Fail(pointer + "/count", std::to_string(colors.count) + " colours for " + std::to_string(positions) + " positions",
+           "one colour per position");
+    }
+    std::vector<Vec3> result;
+    result.reserve(colors.count);
+    for (size_t v = 0; v < colors.count; ++v) {
+      Vec3 rgb{colors.At(v, 0), colors.At(v, 1), colors.At(v, 2)};
+      for (int c = 0; c < 3; ++c) {
+        if (!(rgb[c] >= 0)) {
+          Fail(pointer, "colour " + std::to_string(v) + " has a negative component " + std::to_string(rgb[c]),
+               "colours in [0, 1]");
+        }
+      }
+      result.push_back(rgb);
+    }
+    return result;
   }
 
   // A primitive's skin: JOINTS_0/WEIGHTS_0 (and _1 for 8 influences), each vertex's weights

@@ -465,6 +465,45 @@ TEST(GltfImporterTest, InterleavedStrideAndNormalizedUvs) {
       << what;
 }
 
+TEST(GltfImporterTest, VertexColoursFromFloatsOrNormalizedIntegers) {
+  GltfBuilder gltf;
+  const int mesh = gltf.Mesh({0, 0, 0, 1, 0, 0, 0, 1, 0});
+  json& attributes = gltf.doc()["meshes"][mesh]["primitives"][0]["attributes"];
+  // RGBA as normalized unsigned bytes: the alpha is dropped.
+  attributes["COLOR_0"] = gltf.Integers({255, 0, 0, 255, 0, 51, 0, 128, 0, 0, 255, 0}, 5121, "VEC4", true);
+  gltf.Node({{"mesh", mesh}}, true);
+  Scene scene = gltf.Import();
+  const TriangleMesh& imported = scene.shapes.at(0).mesh;
+  ASSERT_EQ(imported.colors.size(), 3u);
+  ExpectNear(imported.colors[0], {1, 0, 0}, 0);
+  ExpectNear(imported.colors[1], {0, 0.2, 0}, 1e-12);
+  ExpectNear(imported.colors[2], {0, 0, 1}, 0);
+  ExpectRoundTrip(scene);
+
+  attributes["COLOR_0"] = gltf.Floats({1, 1, 1, 0.5, 0.5, 0.5, 0, 0, 0}, "VEC3");
+  ExpectNear(gltf.Import().shapes.at(0).mesh.colors[1], {0.5, 0.5, 0.5}, 0);
+
+  const int raw = gltf.Integers({255, 0, 0, 0, 255, 0, 0, 0, 255}, 5121, "VEC3");
+  attributes["COLOR_0"] = raw;
+  std::string what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(raw) +
+                      "/normalized: the gltf scene: integer colours that are not normalized"),
+            std::string::npos)
+      << what;
+  const int two = gltf.Floats({1, 0, 0, 0, 1, 0}, "VEC3");
+  attributes["COLOR_0"] = two;
+  what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(two) + "/count: the gltf scene: 2 colours for 3 positions"),
+            std::string::npos)
+      << what;
+  const int negative = gltf.Floats({1, 0, 0, 0, -0.5, 0, 0, 0, 1}, "VEC3");
+  attributes["COLOR_0"] = negative;
+  what = ErrorOf([&] { gltf.Import(); });
+  EXPECT_NE(what.find("scene/accessors/" + std::to_string(negative) + ": the gltf scene: colour 1 has a negative"),
+            std::string::npos)
+      << what;
+}
+
 TEST(GltfImporterTest, SpotLightsKeepTheirConeAndShineDownTheirNode) {
   GltfBuilder gltf;
   gltf.Node({{"mesh", gltf.Mesh(kTriangle)}}, true);
