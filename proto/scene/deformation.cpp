@@ -18,21 +18,6 @@ double Lerp(double a, double b, double t) { return a + (b - a) * t; }
 Vec3 Add(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 Vec3 Scaled(const Vec3& v, double s) { return {v.x * s, v.y * s, v.z * s}; }
 
-// The cofactor matrix of a linear map: the inverse transpose times the determinant, which
-// carries normals (their length is of no matter; its sign keeps a mirror's outside out).
-void Cofactor(const double m[3][3], double out[3][3]) {
-  for (int row = 0; row < 3; ++row) {
-    for (int column = 0; column < 3; ++column) {
-      const int r1 = (row + 1) % 3, r2 = (row + 2) % 3, c1 = (column + 1) % 3, c2 = (column + 2) % 3;
-      out[row][column] = m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1];
-    }
-  }
-}
-
-Vec3 ApplyMatrix(const double m[3][3], const Vec3& v) {
-  return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z, m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
-          m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
-}
 
 void Morph(const MorphTargets& morph, double frame, DeformedVertices& out) {
   const std::vector<double> weights = morph.weights.Evaluate(frame);
@@ -68,6 +53,7 @@ void SkinVertices(const Skin& skin, double frame, DeformedVertices& out) {
     }
     out.positions[v] = Add(blended.Apply(out.positions[v]), skin.worldOffset);
     if (!out.normals.empty()) {
+      // Normals by the cofactor matrix (transform.h): their length is of no matter.
       double cofactor[3][3];
       Cofactor(blended.linear, cofactor);
       out.normals[v] = ApplyMatrix(cofactor, out.normals[v]);

@@ -178,9 +178,19 @@ bool PlaceStillShape(Shape& shape, const Affine& placement) {
     case Shape::Type::kMesh:
     case Shape::Type::kTerrain:
       // A still placement is built into world-space triangles of its own, as an inline
-      // copy would be (see PlaceStillShapes in scene.h).
+      // copy would be (see PlaceStillShapes in scene.h): its normals go to the world too.
       OwnMesh(shape);
       for (Vec3& v : shape.mesh.vertices) v = placement.Apply(v);
+      if (!shape.mesh.normals.empty()) {
+        double normalMatrix[3][3];
+        placement.NormalMatrix(normalMatrix);
+        for (Vec3& n : shape.mesh.normals) n = ApplyMatrix(normalMatrix, n);
+      }
+      // A mirror turns the triangles' winding over, and with it the face normals the
+      // tracer takes from it: turned back, the outside stays outside (as glTF has it).
+      if (placement.Determinant() < 0) {
+        for (auto& triangle : shape.mesh.triangles) std::swap(triangle[1], triangle[2]);
+      }
       return true;
   }
   return false;

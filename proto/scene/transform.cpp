@@ -93,6 +93,34 @@ double Affine::MaxStretch() const {
   return std::sqrt(largest);
 }
 
+void Cofactor(const double m[3][3], double out[3][3]) {
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 3; ++column) {
+      const int r1 = (row + 1) % 3, r2 = (row + 2) % 3, c1 = (column + 1) % 3, c2 = (column + 2) % 3;
+      out[row][column] = m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1];
+    }
+  }
+}
+
+Vec3 ApplyMatrix(const double m[3][3], const Vec3& v) {
+  return {m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z, m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+          m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
+}
+
+double Affine::Determinant() const {
+  double cofactor[3][3];
+  Cofactor(linear, cofactor);
+  return linear[0][0] * cofactor[0][0] + linear[0][1] * cofactor[0][1] + linear[0][2] * cofactor[0][2];
+}
+
+void Affine::NormalMatrix(double out[3][3]) const {
+  Cofactor(linear, out);
+  const double determinant = linear[0][0] * out[0][0] + linear[0][1] * out[0][1] + linear[0][2] * out[0][2];
+  for (int row = 0; row < 3; ++row) {
+    for (int column = 0; column < 3; ++column) out[row][column] /= determinant;
+  }
+}
+
 bool Affine::operator==(const Affine& o) const {
   for (int row = 0; row < 3; ++row) {
     for (int column = 0; column < 3; ++column) {

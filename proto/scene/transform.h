@@ -35,8 +35,16 @@ struct Affine {
   // Largest factor by which the map stretches a length: the largest column norm, exact
   // for a rotation times a scale.
   double MaxStretch() const;
+  double Determinant() const;
+  // What carries a normal of the object to the world: the inverse transpose of the linear
+  // part, so that an outward normal stays outward under a mirror too. Not unit.
+  void NormalMatrix(double out[3][3]) const;
   bool operator==(const Affine& o) const;
 };
+
+// The cofactor matrix of a linear map: its inverse transpose times its determinant.
+void Cofactor(const double m[3][3], double out[3][3]);
+Vec3 ApplyMatrix(const double m[3][3], const Vec3& v);
 
 // outer * inner: first inner, then outer.
 Affine Compose(const Affine& outer, const Affine& inner);

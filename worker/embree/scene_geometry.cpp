@@ -75,22 +75,9 @@ unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Af
 
 void FrameGeometry::SetNormalTransform(int shape, const Affine& worldFromObject) {
   if (normalFromObject_.size() <= static_cast<size_t>(shape)) normalFromObject_.resize(shape + 1);
-  // Normals transform by the inverse transpose of the linear part: the cofactor matrix
-  // over the determinant (its sign keeps a mirrored shape's outside outside).
-  const auto& m = worldFromObject.linear;
-  double cofactor[3][3];
-  for (int row = 0; row < 3; ++row) {
-    for (int column = 0; column < 3; ++column) {
-      const int r1 = (row + 1) % 3, r2 = (row + 2) % 3, c1 = (column + 1) % 3, c2 = (column + 2) % 3;
-      cofactor[row][column] = m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1];
-    }
-  }
-  const double determinant = m[0][0] * cofactor[0][0] + m[0][1] * cofactor[0][1] + m[0][2] * cofactor[0][2];
   NormalTransform& out = normalFromObject_[shape];
   out.present = true;
-  for (int row = 0; row < 3; ++row) {
-    for (int column = 0; column < 3; ++column) out.matrix[row][column] = cofactor[row][column] / determinant;
-  }
+  worldFromObject.NormalMatrix(out.matrix);
 }
 
 Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
