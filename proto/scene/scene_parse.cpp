@@ -484,7 +484,58 @@ constexpr size_t kMaxJoints = 4096;
 // JSON parser's own nesting limit is 128 levels).
 constexpr int kMaxMotionDepth = 32;
 
-Motion ReadMotion(const Node& node, const FrameRange& range, int depth = 0) {
+// The document's named transforms ("transforms"), which a transform's "parent" may name
+// instead of holding its parent inline: a skeleton's joints then share their ancestors
+// instead of each writing its whole chain.
+class NamedTransforms {
+ public:
+  NamedTransforms() = default;
+  NamedTransforms(const Node& table, const FrameRange& range);
+  struct Resolved {
+    std::shared_ptr<const Motion> motion;
+    int levels;  // in its chain, itself included
+  };
+  // The transform named by `name` (a parent's string at `at`); fails naming `at` when the
+  // table has none of that name, or when it is its own ancestor.
+  Resolved Find(const Node& at) const;
+
+ private:
+  const json* table_ = nullptr;  // the document's, which outlives the reading
+  std::string tablePointer_;
+  FrameRange range_{};
+  mutable std::map<std::string, Resolved> read_;
+  mutable std::set<std::string> reading_;
+};
+
+Motion ReadMotion(const Node& node, const FrameRange& range, int depth = 0,
+                  const NamedTransforms* named = nullptr, int* levels = nullptr);
+
+NamedTransforms::NamedTransforms(const Node& table, const FrameRange& range)
+    : table_(&table.value), tablePointer_(table.pointer), range_(range) {
+  if (!table.value.is_object()) FailType(table, "an object mapping names to transforms");
+  // Every entry is read and checked, named by a parent or not.
+  for (const auto& entry : table.value.items()) Find(Node{json(entry.key()), table.MemberPointer(entry.key())});
+}
+
+NamedTransforms::Resolved NamedTransforms::Find(const Node& at) const {
+  const std::string name = at.value.get<std::string>();
+  if (auto found = read_.find(name); found != read_.end()) return found->second;
+  if (!table_ || !table_->contains(name)) {
+    Fail(at.pointer, "no transform named " + Quote(name),
+         table_ ? "the name of a transform in the scene's \"transforms\"" : "a parent transform object (the scene has no \"transforms\")");
+  }
+  if (!reading_.insert(name).second) {
+    Fail(at.pointer, "transform " + Quote(name) + " is its own ancestor", "a hierarchy without cycles");
+  }
+  const Node entry = Node{*table_, tablePointer_}.Member(name);
+  if (!IsTransformObject(entry)) FailType(entry, "a transform {\"translation\", \"rotation\", \"scale\", \"pivot\", \"parent\"}");
+  int levels = 1;
+  Resolved resolved{std::make_shared<const Motion>(ReadMotion(entry, range_, 0, this, &levels)), levels};
+  reading_.erase(name);
+  return read_[name] = resolved;
+}
+
+Motion ReadMotion(const Node& node, const FrameRange& range, int depth, const NamedTransforms* named, int* levels) {
   Motion motion;
   if (!IsTransformObject(node)) {
     if (!node.value.is_array() && !node.value.is_object()) FailType(node, kMotionExpected);
@@ -501,12 +552,23 @@ Motion ReadMotion(const Node& node, const FrameRange& range, int depth = 0) {
   if (node.Has("pivot")) motion.pivot = ReadVec3(node.Member("pivot"));
   if (node.Has("parent")) {
     Node parent = node.Member("parent");
-    if (depth + 1 >= kMaxMotionDepth) {
+    auto tooDeep = [&] {
       Fail(parent.pointer, "a hierarchy deeper than " + std::to_string(kMaxMotionDepth) + " levels",
            "at most " + std::to_string(kMaxMotionDepth) + " nested parents");
+    };
+    if (depth + 1 >= kMaxMotionDepth) tooDeep();
+    int parentLevels = 1;
+    if (parent.value.is_string()) {
+      NamedTransforms::Resolved found = (named ? *named : NamedTransforms()).Find(parent);
+      if (depth + 1 + found.levels > kMaxMotionDepth) tooDeep();
+      motion.parent = found.motion, parentLevels = found.levels;
+    } else {
+      if (!IsTransformObject(parent)) {
+        FailType(parent, "a parent transform {\"translation\", \"rotation\", \"scale\", \"pivot\", \"parent\"} or the name of one in \"transforms\"");
+      }
+      motion.parent = std::make_shared<const Motion>(ReadMotion(parent, range, depth + 1, named, &parentLevels));
     }
-    if (!IsTransformObject(parent)) FailType(parent, "a parent transform {\"translation\", \"rotation\", \"scale\", \"pivot\", \"parent\"}");
-    motion.parent = std::make_shared<const Motion>(ReadMotion(parent, range, depth + 1));
+    if (levels) *levels = 1 + parentLevels;
   }
   return motion;
 }
@@ -532,7 +594,8 @@ class SceneReader {
 
   Scene Read(const json& document) {
     Node root{document, ""};
-    ExpectObject(root, {"import", "camera", "lights", "materials", "meshes", "shapes", "background", "render"},
+    ExpectObject(root,
+                 {"import", "camera", "lights", "materials", "meshes", "transforms", "shapes", "background", "render"},
                  "a scene object");
     // An imported file is the base the rest of the document adds to (proto/scene.md, "Importing").
     Scene scene = root.Has("import") ? ReadImport(root) : Scene{};
@@ -543,6 +606,7 @@ class SceneReader {
                                 imported ? std::optional(scene.render) : std::nullopt);
     }
     range_ = FrameRange{scene.render.firstFrame, scene.render.LastFrame()};
+    if (root.Has("transforms")) named_ = NamedTransforms(root.Member("transforms"), range_);
     scene.materials = ReadMaterials(root, std::move(scene.materials));
     if (!imported || root.Has("camera")) {
       scene.camera = ReadCamera(Required(root, "camera", "a camera {\"position\", \"look_at\", ...}"));
@@ -750,7 +814,7 @@ class SceneReader {
   Camera ReadCamera(const Node& node) {
     ExpectObject(node, {"position", "look_at", "up", "fov_degrees", "motion", "projection", "ortho_height"}, "a camera");
     Camera camera;
-    if (node.Has("motion")) camera.rig = ReadMotion(node.Member("motion"), range_);
+    if (node.Has("motion")) camera.rig = ReadMotion(node.Member("motion"), range_, 0, &named_);
     camera.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
     camera.lookAt = ReadAnimated(Required(node, "look_at", kAnimatedExpected), range_);
     if (node.Has("up")) camera.up = ReadVec3(node.Member("up"));
@@ -842,7 +906,7 @@ class SceneReader {
     } else {
       Fail(node.MemberPointer("type"), "unknown light type " + Quote(type), typeExpected);
     }
-    if (node.Has("motion")) light.motion = ReadMotion(node.Member("motion"), range_);
+    if (node.Has("motion")) light.motion = ReadMotion(node.Member("motion"), range_, 0, &named_);
     Node intensity = Required(node, "intensity", kAnimatedExpected);
     light.intensity = ReadAnimated(intensity, range_);
     CheckNonNegative(light.intensity, intensity, range_);
@@ -914,7 +978,7 @@ class SceneReader {
 
   void ReadCommonShapeFields(const Node& node, Shape& shape) {
     if (node.Has("name")) shape.name = ReadString(node.Member("name"), "a string");
-    if (node.Has("motion")) shape.motion = ReadMotion(node.Member("motion"), range_);
+    if (node.Has("motion")) shape.motion = ReadMotion(node.Member("motion"), range_, 0, &named_);
     if (node.Has("material")) {
       Node material = node.Member("material");
       std::string name = ReadString(material, "the name of a material");
@@ -1037,7 +1101,7 @@ class SceneReader {
     if (!joints.value.is_array() || joints.value.empty() || joints.value.size() > kMaxJoints) {
       FailType(joints, "an array of 1 to " + std::to_string(kMaxJoints) + " joint transforms");
     }
-    for (size_t j = 0; j < joints.value.size(); ++j) skin.joints.push_back(ReadMotion(joints.Element(j), range_));
+    for (size_t j = 0; j < joints.value.size(); ++j) skin.joints.push_back(ReadMotion(joints.Element(j), range_, 0, &named_));
     const std::string matrixExpected = "a 3x4 matrix [m00, m01, m02, m03, m10, ..., m23] (row-major, finite)";
     Node matrices = Required(node, "inverse_bind_matrices", "one inverse bind matrix per joint");
     if (!matrices.value.is_array()) FailType(matrices, "an array of " + matrixExpected);
@@ -1310,6 +1374,7 @@ class SceneReader {
 
   std::optional<std::filesystem::path> baseDirectory_;
   FrameRange range_{0, 0};
+  NamedTransforms named_;
   std::map<std::string, int> materialIndex_;
   std::map<std::string, std::shared_ptr<const TriangleMesh>> sharedMeshes_;
   std::set<std::string> unplacedMeshes_;  // shared meshes no shape has placed yet
@@ -1376,30 +1441,81 @@ json RotationJson(const AnimatedRotation& rotation) {
 
 // A translation alone is written as the paper's motion always was, so the text (and the
 // hash) of a scene without rotation or scale does not change.
-json TransformJson(const Motion& motion) {
+// The parents that several transforms share (by object: a glTF node's, or a named
+// transform's), written once in "transforms" and named by the transforms they carry. A
+// parent of one transform stays inline, so a scene without shared parents keeps its bytes.
+class SharedParents {
+ public:
+  explicit SharedParents(const Scene& scene) {
+    Visit(scene.camera.rig);
+    for (const Light& light : scene.lights) Visit(light.motion);
+    for (const Shape& shape : scene.shapes) {
+      Visit(shape.motion);
+      if (shape.deformation && shape.deformation->hasSkin) {
+        for (const Motion& joint : shape.deformation->skin.joints) Visit(joint);
+      }
+    }
+    for (const Motion* parent : order_) {
+      if (uses_[parent] > 1) names_[parent] = "t" + std::to_string(names_.size());
+    }
+  }
+  // The name a shared parent is written under; null for one written inline.
+  const std::string* NameOf(const Motion* parent) const {
+    auto found = names_.find(parent);
+    return found == names_.end() ? nullptr : &found->second;
+  }
+  // "transforms": each shared parent, in the order first met.
+  json Table() const;
+
+ private:
+  void Visit(const Motion& motion) {
+    const Motion* parent = motion.parent.get();
+    if (!parent || parent->IsNone()) return;
+    if (uses_[parent]++ == 0) {
+      order_.push_back(parent);
+      Visit(*parent);  // its own parent is counted once, however many carry it
+    }
+  }
+  std::map<const Motion*, int> uses_;
+  std::vector<const Motion*> order_;
+  std::map<const Motion*, std::string> names_;
+};
+
+json TransformJson(const Motion& motion, const SharedParents& shared) {
   json result{{"translation", AnimatedJson(motion.translation)},
               {"rotation", RotationJson(motion.rotation)},
               {"scale", AnimatedJson(motion.scale)},
               {"pivot", Vec3Json(motion.pivot)}};
-  if (motion.parent && !motion.parent->IsNone()) result["parent"] = TransformJson(*motion.parent);
+  if (motion.parent && !motion.parent->IsNone()) {
+    const std::string* name = shared.NameOf(motion.parent.get());
+    result["parent"] = name ? json(*name) : TransformJson(*motion.parent, shared);
+  }
   return result;
 }
 
-json MotionJson(const Motion& motion) {
-  return motion.IsTranslationOnly() ? AnimatedJson(motion.translation) : TransformJson(motion);
+json SharedParents::Table() const {
+  json table = json::object();
+  for (const Motion* parent : order_) {
+    if (const std::string* name = NameOf(parent)) table[*name] = TransformJson(*parent, *this);
+  }
+  return table;
 }
 
-json CameraJson(const Camera& camera) {
+json MotionJson(const Motion& motion, const SharedParents& shared) {
+  return motion.IsTranslationOnly() ? AnimatedJson(motion.translation) : TransformJson(motion, shared);
+}
+
+json CameraJson(const Camera& camera, const SharedParents& shared) {
   json result{{"position", AnimatedJson(camera.position)},
               {"look_at", AnimatedJson(camera.lookAt)},
               {"up", Vec3Json(camera.up)},
               {"fov_degrees", camera.verticalFovDegrees}};
   if (camera.orthographic) result["projection"] = "orthographic", result["ortho_height"] = camera.orthographicHeight;
-  if (!camera.rig.IsNone()) result["motion"] = MotionJson(camera.rig);
+  if (!camera.rig.IsNone()) result["motion"] = MotionJson(camera.rig, shared);
   return result;
 }
 
-json LightJson(const Light& light) {
+json LightJson(const Light& light, const SharedParents& shared) {
   json result{{"intensity", AnimatedJson(light.intensity)}};
   static const char* const kTypeNames[] = {"point", "directional", "spot"};
   result["type"] = kTypeNames[static_cast<int>(light.type)];
@@ -1409,7 +1525,7 @@ json LightJson(const Light& light) {
     result["inner_cone_degrees"] = light.innerConeDegrees;
     result["outer_cone_degrees"] = light.outerConeDegrees;
   }
-  if (!light.motion.IsNone()) result["motion"] = MotionJson(light.motion);
+  if (!light.motion.IsNone()) result["motion"] = MotionJson(light.motion, shared);
   return result;
 }
 
@@ -1505,9 +1621,9 @@ json MorphJson(const MorphTargets& morph) {
   return json{{"targets", std::move(targets)}, {"weights", WeightsJson(morph.weights)}};
 }
 
-json SkinJson(const Skin& skin) {
+json SkinJson(const Skin& skin, const SharedParents& shared) {
   json joints = json::array(), matrices = json::array(), vertexJoints = json::array(), vertexWeights = json::array();
-  for (const Motion& joint : skin.joints) joints.push_back(MotionJson(joint));
+  for (const Motion& joint : skin.joints) joints.push_back(MotionJson(joint, shared));
   for (const Affine& m : skin.inverseBind) {
     json matrix = json::array();
     for (int row = 0; row < 3; ++row) {
@@ -1528,14 +1644,14 @@ json SkinJson(const Skin& skin) {
   return result;
 }
 
-json ShapeJson(const Shape& shape, const std::vector<Material>& materials) {
+json ShapeJson(const Shape& shape, const std::vector<Material>& materials, const SharedParents& shared) {
   json result = ShapeGeometryJson(shape);
   if (shape.deformation && shape.deformation->hasMorph) result["morph"] = MorphJson(shape.deformation->morph);
-  if (shape.deformation && shape.deformation->hasSkin) result["skin"] = SkinJson(shape.deformation->skin);
+  if (shape.deformation && shape.deformation->hasSkin) result["skin"] = SkinJson(shape.deformation->skin, shared);
   if (!shape.name.empty()) result["name"] = shape.name;
   result["material"] = materials.at(static_cast<size_t>(shape.material)).name;
   // A skinned mesh has no motion of its own (its joints place it), and the parser refuses one.
-  if (!(shape.deformation && shape.deformation->hasSkin)) result["motion"] = MotionJson(shape.motion);
+  if (!(shape.deformation && shape.deformation->hasSkin)) result["motion"] = MotionJson(shape.motion, shared);
   return result;
 }
 
@@ -1572,17 +1688,19 @@ Scene LoadSceneFile(const std::filesystem::path& path) {
 }
 
 std::string SerializeScene(const Scene& scene) {
+  const SharedParents shared(scene);
   json materials = json::object();
   for (const auto& material : scene.materials) materials[material.name] = MaterialJson(material);
   json lights = json::array();
-  for (const auto& light : scene.lights) lights.push_back(LightJson(light));
+  for (const auto& light : scene.lights) lights.push_back(LightJson(light, shared));
   json shapes = json::array();
-  for (const auto& shape : scene.shapes) shapes.push_back(ShapeJson(shape, scene.materials));
-  json document{{"camera", CameraJson(scene.camera)}, {"lights", lights},
+  for (const auto& shape : scene.shapes) shapes.push_back(ShapeJson(shape, scene.materials, shared));
+  json document{{"camera", CameraJson(scene.camera, shared)}, {"lights", lights},
                 {"materials", materials},             {"shapes", shapes},
                 {"background", Vec3Json(scene.background)}, {"render", RenderJson(scene.render)}};
   // Only scenes with shared meshes have the key: every other scene keeps its bytes (and hash).
   if (!scene.meshes.empty()) document["meshes"] = SharedMeshesJson(scene.meshes);
+  if (json table = shared.Table(); !table.empty()) document["transforms"] = std::move(table);
   return document.dump();
 }
 

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <memory>
 #include <string>
@@ -10,6 +12,8 @@
 
 namespace tcfarm {
 namespace {
+
+using nlohmann::json;
 
 void ExpectNear(const Vec3& a, const Vec3& b, double tolerance = 1e-12) {
   EXPECT_NEAR(a.x, b.x, tolerance);
@@ -211,6 +215,81 @@ TEST(TransformSceneTest, InterpolationsTangentsAndParentsAreWrittenOutAndReadBac
   EXPECT_EQ(SerializeScene(reread), written);
   for (int frame : {0, 2, 5, 9}) {
     EXPECT_EQ(reread.shapes[0].motion.WorldFromObject(frame), motion.WorldFromObject(frame)) << frame;
+  }
+}
+
+// A skeleton of two levels in "transforms", carrying two shapes: the same worlds as the
+// chain written inline in each, and written back once.
+std::string SceneWithNamedParents(const std::string& transforms, const std::string& firstParent = "\"knee\"") {
+  return R"({"camera": {"position": [0, 0, 10], "look_at": [0, 0, 0]},
+    "transforms": )" + transforms + R"(,
+    "shapes": [{"type": "sphere", "center": [0, 1, 0], "radius": 0.2,
+                "motion": {"rotation": {"axis": [1, 0, 0], "degrees_per_frame": 4}, "parent": )" + firstParent + R"(}},
+               {"type": "sphere", "center": [0, -1, 0], "radius": 0.2,
+                "motion": {"translation": [0, 0.5, 0], "parent": )" + firstParent + R"(}}],
+    "render": {"width": 8, "height": 8, "frames": {"start": 0, "count": 10}}})";
+}
+
+const char kSkeleton[] = R"({"hip": {"translation": {"polynomial": [[0, 0.1], [0], [0]]}},
+    "knee": {"rotation": {"axis": [0, 0, 1], "degrees_per_frame": 9}, "parent": "hip"}})";
+
+TEST(TransformSceneTest, NamedParentsAreSharedAndWrittenOnce) {
+  Scene scene = ParseScene(SceneWithNamedParents(kSkeleton));
+  ASSERT_TRUE(scene.shapes[0].motion.parent);
+  EXPECT_EQ(scene.shapes[0].motion.parent, scene.shapes[1].motion.parent);  // one knee, shared
+  Scene inline_ = ParseScene(SceneWithNamedParents(
+      "{}", R"({"rotation": {"axis": [0, 0, 1], "degrees_per_frame": 9},
+                "parent": {"translation": {"polynomial": [[0, 0.1], [0], [0]]}}})"));
+  for (int frame : {0, 3, 9}) {
+    EXPECT_EQ(scene.shapes[0].motion.WorldFromObject(frame), inline_.shapes[0].motion.WorldFromObject(frame)) << frame;
+  }
+  // Written back: the shared knee once, in "transforms", named by both; the hip it alone
+  // carries stays inline in it. A parent of one transform is written inline.
+  const json written = json::parse(SerializeScene(scene));
+  ASSERT_TRUE(written.contains("transforms"));
+  EXPECT_EQ(written["transforms"].size(), 1u);
+  const std::string name = written["shapes"][0]["motion"]["parent"].get<std::string>();
+  EXPECT_EQ(written["shapes"][1]["motion"]["parent"], name);
+  EXPECT_TRUE(written["transforms"][name]["parent"].is_object());
+  EXPECT_FALSE(json::parse(SerializeScene(inline_)).contains("transforms"));
+  Scene reread = ParseScene(written.dump());
+  EXPECT_EQ(SerializeScene(reread), written.dump());
+  for (int frame : {0, 3, 9}) {
+    EXPECT_EQ(reread.shapes[1].motion.WorldFromObject(frame), scene.shapes[1].motion.WorldFromObject(frame));
+  }
+}
+
+TEST(TransformSceneTest, BadNamedParentsAreRefusedWithTheirPointer) {
+  const std::pair<std::string, std::string> cases[] = {
+      {SceneWithNamedParents(kSkeleton, R"("ankle")"), "/shapes/0/motion/parent"},
+      {SceneWithNamedParents(R"({"knee": {"rotation": [0, 0, 0, 1], "parent": "hip"},
+                                 "hip": {"rotation": [0, 0, 0, 1], "parent": "knee"}})"),
+       "/transforms/knee/parent"},  // read in name order: hip, then its parent knee
+      {SceneWithNamedParents(R"({"knee": {"rotation": [0, 0, 0, 1]}, "spare": {"scale": [0, 1, 1]}})"),
+       "/transforms/spare/scale"},
+      {SceneWithNamedParents(R"({"knee": [1, 2, 3]})"), "/transforms/knee"},
+      {SceneWithNamedParents(R"([])"), "/transforms"},
+  };
+  for (const auto& [text, pointer] : cases) {
+    try {
+      ParseScene(text);
+      ADD_FAILURE() << text << " was accepted";
+    } catch (const SceneError& error) {
+      EXPECT_EQ(error.pointer(), pointer) << error.what();
+    }
+  }
+  // 40 levels, each naming the one above: deeper than a hierarchy may be.
+  std::string chain = R"({"l0": {"translation": [0, 0, 1]})";
+  for (int level = 1; level < 40; ++level) {
+    chain += ", \"l" + std::to_string(level) + R"(": {"translation": [0, 0, 1], "parent": "l)" +
+             std::to_string(level - 1) + "\"}";
+  }
+  chain += R"(, "knee": {"rotation": [0, 0, 0, 1], "parent": "l39"}})";
+  try {
+    ParseScene(SceneWithNamedParents(chain));
+    ADD_FAILURE() << "40 levels were accepted";
+  } catch (const SceneError& error) {
+    EXPECT_NE(std::string(error.what()).find("deeper than 32 levels"), std::string::npos) << error.what();
   }
 }
 
