@@ -1231,13 +1231,21 @@ class SceneReader {
     }
   }
 
+  // One value per vertex, each read by `read`: what (e.g. "normal"), as an array says it.
+  template <typename Read>
+  static std::vector<Vec3> ReadPerVertex(const Node& node, size_t vertexCount, const std::string& what,
+                                         const std::string& arrayOf, Read read) {
+    if (!node.value.is_array()) FailType(node, "an array of " + arrayOf + ", one per vertex");
+    ExpectOnePerVertex(node, vertexCount, what);
+    std::vector<Vec3> values;
+    values.reserve(node.value.size());
+    for (size_t i = 0; i < node.value.size(); ++i) values.push_back(read(node.Element(i)));
+    return values;
+  }
+
   static std::vector<Vec3> ReadNormals(const Node& node, size_t vertexCount) {
-    if (!node.value.is_array()) FailType(node, "an array of normals [x, y, z], one per vertex");
-    ExpectOnePerVertex(node, vertexCount, "normal");
-    std::vector<Vec3> normals;
-    normals.reserve(node.value.size());
-    for (size_t i = 0; i < node.value.size(); ++i) normals.push_back(ReadVec3(node.Element(i)));
-    return normals;
+    return ReadPerVertex(node, vertexCount, "normal", "normals [x, y, z]",
+                         [](const Node& element) { return ReadVec3(element); });
   }
 
   static std::vector<std::array<double, 2>> ReadUvs(const Node& node, size_t vertexCount) {
@@ -1255,12 +1263,7 @@ class SceneReader {
   }
 
   static std::vector<Vec3> ReadVertexColors(const Node& node, size_t vertexCount) {
-    if (!node.value.is_array()) FailType(node, "an array of linear RGB colours [r, g, b], one per vertex");
-    ExpectOnePerVertex(node, vertexCount, "colour");
-    std::vector<Vec3> colors;
-    colors.reserve(node.value.size());
-    for (size_t i = 0; i < node.value.size(); ++i) colors.push_back(ReadColour(node.Element(i)));
-    return colors;
+    return ReadPerVertex(node, vertexCount, "colour", "linear RGB colours [r, g, b]", ReadColour);
   }
 
   std::vector<Vec3> ReadVertices(const Node& node) {
