@@ -554,30 +554,38 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
     // Every (pixel, sample) of the chunk, in order, then packets of 8 over them. The
-    // buffers live per thread: allocating them per chunk showed up in profiles.
+    // buffers live per thread: allocating them per chunk showed up in profiles. With one
+    // sample a pixel, the items are the pixels themselves, all of sample 0.
     thread_local std::vector<uint32_t> itemPixel;
     thread_local std::vector<int> itemSample;
     thread_local std::vector<Float3> sampleColor;
-    itemPixel.clear();
-    itemSample.clear();
-    for (size_t i = begin; i < end; ++i) {
-      for (int s = 0; s < spp; ++s) {
-        itemPixel.push_back(pixels[i]);
-        itemSample.push_back(s);
+    const size_t items = (end - begin) * static_cast<size_t>(spp);
+    const uint32_t* itemPixels = pixels + begin;
+    if (spp == 1) {
+      itemSample.assign(items, 0);
+    } else {
+      itemPixel.clear();
+      itemSample.clear();
+      for (size_t i = begin; i < end; ++i) {
+        for (int s = 0; s < spp; ++s) {
+          itemPixel.push_back(pixels[i]);
+          itemSample.push_back(s);
+        }
       }
+      itemPixels = itemPixel.data();
     }
-    sampleColor.resize(itemPixel.size());
+    sampleColor.resize(items);
     thread_local std::vector<int32_t> sampleHorizon;
     HorizonTracker tracker;
     if (oracle) {
-      sampleHorizon.resize(itemPixel.size());
+      sampleHorizon.resize(items);
       tracker.oracle = oracle.get();
       tracer.TrackHorizons(&tracker);
     }
-    for (size_t item = 0; item < itemPixel.size(); item += kPacketWidth) {
-      int lanes = static_cast<int>(std::min<size_t>(kPacketWidth, itemPixel.size() - item));
+    for (size_t item = 0; item < items; item += kPacketWidth) {
+      int lanes = static_cast<int>(std::min<size_t>(kPacketWidth, items - item));
       if (oracle) tracker.Reset();
-      tracer.TracePrimaryPacket(&itemPixel[item], &itemSample[item], lanes, &sampleColor[item]);
+      tracer.TracePrimaryPacket(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
       for (int lane = 0; oracle && lane < lanes; ++lane) {
         sampleHorizon[item + lane] = tracker.horizon[lane];
       }
