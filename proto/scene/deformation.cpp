@@ -19,8 +19,7 @@ Vec3 Add(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z
 Vec3 Scaled(const Vec3& v, double s) { return {v.x * s, v.y * s, v.z * s}; }
 
 
-void Morph(const MorphTargets& morph, double frame, DeformedVertices& out) {
-  const std::vector<double> weights = morph.weights.Evaluate(frame);
+void Morph(const MorphTargets& morph, const std::vector<double>& weights, DeformedVertices& out) {
   for (size_t target = 0; target < morph.TargetCount(); ++target) {
     const double weight = weights[target];
     if (weight == 0) continue;  // adds nothing, and a zero weight leaves the bits as they are
@@ -32,8 +31,7 @@ void Morph(const MorphTargets& morph, double frame, DeformedVertices& out) {
   }
 }
 
-void SkinVertices(const Skin& skin, double frame, DeformedVertices& out) {
-  const std::vector<Affine> matrices = SkinMatrices(skin, frame);
+void SkinVertices(const Skin& skin, const std::vector<Affine>& matrices, DeformedVertices& out) {
   const size_t k = static_cast<size_t>(skin.influencesPerVertex);
   for (size_t v = 0; v < out.positions.size(); ++v) {
     // The vertex's blended skin matrix, then one product: the same sum of the same terms in
@@ -140,14 +138,25 @@ bool Skin::IsAnimated() const {
 }
 
 bool Deformation::SameAt(double a, double b) const {
-  if (hasMorph && morph.weights.Evaluate(a) != morph.weights.Evaluate(b)) return false;
-  return !hasSkin || skin.SameAt(a, b);
+  return EvaluateDeformation(*this, a) == EvaluateDeformation(*this, b);
+}
+
+DeformationAt EvaluateDeformation(const Deformation& deformation, double frame) {
+  DeformationAt at;
+  if (deformation.hasSkin) at.skinMatrices = SkinMatrices(deformation.skin, frame);
+  if (deformation.hasMorph) at.morphWeights = deformation.morph.weights.Evaluate(frame);
+  return at;
 }
 
 DeformedVertices Deform(const TriangleMesh& rest, const Deformation& deformation, double frame) {
-  DeformedVertices out{rest.vertices, rest.normals};
-  if (deformation.hasMorph) Morph(deformation.morph, frame, out);
-  if (deformation.hasSkin) SkinVertices(deformation.skin, frame, out);
+  return Deform(rest, deformation, EvaluateDeformation(deformation, frame));
+}
+
+DeformedVertices Deform(const TriangleMesh& rest, const Deformation& deformation, const DeformationAt& at,
+                        bool withNormals) {
+  DeformedVertices out{rest.vertices, withNormals ? rest.normals : std::vector<Vec3>{}};
+  if (deformation.hasMorph) Morph(deformation.morph, at.morphWeights, out);
+  if (deformation.hasSkin) SkinVertices(deformation.skin, at.skinMatrices, out);
   return out;
 }
 

@@ -96,7 +96,23 @@ struct DeformedVertices {
   std::vector<Vec3> normals;
 };
 
+// What a deformation is at one frame: its joints' skin matrices (SkinMatrices) and its
+// morph weights, each empty without a skin or morph. Two frames with equal values deform
+// the mesh to the same bits.
+struct DeformationAt {
+  std::vector<Affine> skinMatrices;
+  std::vector<double> morphWeights;
+  bool operator==(const DeformationAt& o) const {
+    return skinMatrices == o.skinMatrices && morphWeights == o.morphWeights;
+  }
+};
+DeformationAt EvaluateDeformation(const Deformation& deformation, double frame);
+
 DeformedVertices Deform(const TriangleMesh& rest, const Deformation& deformation, double frame);
+// The same from the frame's values evaluated once; withNormals false leaves the normals
+// out (bounds need the positions alone).
+DeformedVertices Deform(const TriangleMesh& rest, const Deformation& deformation, const DeformationAt& at,
+                        bool withNormals = true);
 
 // A deforming mesh's vertices grouped by what moves them: the joints they are weighted to
 // and the morph targets that move them. A group holds still while its joints' matrices

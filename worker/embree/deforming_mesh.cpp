@@ -32,16 +32,8 @@ std::shared_ptr<DeformingMesh::Pose> DeformingMesh::NewRestPose() const {
   return pose;
 }
 
-DeformingMesh::PoseKey DeformingMesh::KeyAt(int frame) const {
-  const Deformation& deformation = *shape_.deformation;
-  PoseKey key;
-  if (deformation.hasSkin) key.skinMatrices = SkinMatrices(deformation.skin, frame);
-  if (deformation.hasMorph) key.morphWeights = deformation.morph.weights.Evaluate(frame);
-  return key;
-}
-
 void DeformingMesh::Refit(Pose& pose, int frame, std::shared_ptr<const PoseKey> key) const {
-  const DeformedVertices deformed = Deform(shape_.Mesh(), *shape_.deformation, frame);
+  const DeformedVertices deformed = Deform(shape_.Mesh(), *shape_.deformation, *key);
   auto* vertex = static_cast<float*>(rtcGetGeometryBufferData(pose.geometry, RTC_BUFFER_TYPE_VERTEX, 0));
   for (size_t i = 0; i < deformed.positions.size(); ++i) {
     for (int axis = 0; axis < 3; ++axis) vertex[3 * i + axis] = static_cast<float>(deformed.positions[i][axis]);
@@ -102,8 +94,9 @@ std::shared_ptr<const Value> DeformingMesh::Memo(std::map<int, std::shared_ptr<c
 }
 
 std::shared_ptr<const std::vector<BoundingSphere>> DeformingMesh::PartBoundsAt(int frame) {
+  const std::shared_ptr<const PoseKey> key = KeyOf(frame);
   return Memo(partBounds_, frame, [&] {
-    const std::vector<Vec3> positions = Deform(shape_.Mesh(), *shape_.deformation, frame).positions;
+    const std::vector<Vec3> positions = Deform(shape_.Mesh(), *shape_.deformation, *key, false).positions;
     std::vector<BoundingSphere> bounds;
     std::vector<Vec3> points;
     for (const DeformationParts::Group& group : parts_.groups) {
@@ -116,7 +109,7 @@ std::shared_ptr<const std::vector<BoundingSphere>> DeformingMesh::PartBoundsAt(i
 }
 
 std::shared_ptr<const DeformingMesh::PoseKey> DeformingMesh::KeyOf(int frame) {
-  return Memo(keys_, frame, [&] { return KeyAt(frame); });
+  return Memo(keys_, frame, [&] { return EvaluateDeformation(*shape_.deformation, frame); });
 }
 
 uint64_t DeformingMesh::PosesComputed() const {

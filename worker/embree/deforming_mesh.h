@@ -25,13 +25,9 @@ namespace tcfarm {
 
 class DeformingMesh {
  public:
-  // The shape's mesh at one frame: a committed scene to instance, and its normals.
   // What a frame's vertices are made of: two frames with equal keys pose the same bits.
-  struct PoseKey {
-    std::vector<Affine> skinMatrices;
-    std::vector<double> morphWeights;
-    bool operator==(const PoseKey& o) const { return skinMatrices == o.skinMatrices && morphWeights == o.morphWeights; }
-  };
+  using PoseKey = DeformationAt;
+  // The shape's mesh at one frame: a committed scene to instance, and its normals.
   struct Pose {
     int frame = 0;
     std::shared_ptr<const PoseKey> key;
@@ -61,7 +57,6 @@ class DeformingMesh {
 
  private:
   std::shared_ptr<Pose> NewRestPose() const;
-  PoseKey KeyAt(int frame) const;
   void Refit(Pose& pose, int frame, std::shared_ptr<const PoseKey> key) const;
   template <typename Value, typename Compute>
   std::shared_ptr<const Value> Memo(std::map<int, std::shared_ptr<const Value>>& memo, int frame, Compute compute);

@@ -104,6 +104,8 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
     // the latter in place where it can, sparing the per-frame placement).
     if (shape.Deforms()) {
       movers_.push_back({static_cast<int>(i), SceneHandle(), std::make_unique<DeformingMesh>(device, shape, settlesTies_)});
+      deformingOfShape_.resize(scene.shapes.size(), nullptr);
+      deformingOfShape_[i] = movers_.back().deforming.get();
     } else if (!shape.motion.IsNone()) {
       movers_.push_back({static_cast<int>(i), ObjectScene(shape), nullptr});
     } else {
@@ -192,15 +194,10 @@ std::shared_ptr<const FrameGeometry> SceneGeometry::ForFrame(int frame) {
   return recentFrames_.front().second;
 }
 
-bool SceneGeometry::HasDeformingMeshes() const {
-  return std::any_of(movers_.begin(), movers_.end(), [](const Mover& mover) { return mover.deforming != nullptr; });
-}
+bool SceneGeometry::HasDeformingMeshes() const { return !deformingOfShape_.empty(); }
 
 DeformingMesh* SceneGeometry::Deforming(size_t shape) const {
-  for (const Mover& mover : movers_) {
-    if (static_cast<size_t>(mover.shape) == shape) return mover.deforming.get();
-  }
-  return nullptr;
+  return shape < deformingOfShape_.size() ? deformingOfShape_[shape] : nullptr;
 }
 
 SceneGeometry::DeformationWork SceneGeometry::DeformationCounts() const {

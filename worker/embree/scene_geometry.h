@@ -102,6 +102,7 @@ class SceneGeometry {
   std::vector<int> staticShapeOfGeometry_;
   bool settlesTies_ = false;
   std::vector<Mover> movers_;
+  std::vector<DeformingMesh*> deformingOfShape_;  // by shape (movers_' own); empty without any
   std::map<const TriangleMesh*, SceneHandle> sharedMeshScenes_;
   std::shared_ptr<FrameGeometry> staticFrame_;  // used for every frame when nothing moves
   // Per shape, its normals as the scene gives them; shapes placing one shared mesh share
