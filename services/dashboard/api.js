@@ -144,7 +144,11 @@ class EventStreamParser {
 }
 
 // Cuts the back-off short: the next try is now (a token was just given, say).
-let retryEventsNow = () => {};
+// Asked while the stream is being opened (a sign-in during a fetch): the next wait is skipped.
+let retryAsked = false;
+let retryEventsNow = () => {
+  retryAsked = true;
+};
 
 // Follows the stream for as long as the page lives. handlers: onEvent(event),
 // onState("live" | "connecting" | "absent" | "error", detail).
@@ -191,12 +195,19 @@ async function followEvents(handlers) {
       clearTimeout(silence);
     }
     await new Promise((resolve) => {
+      if (retryAsked) {
+        resolve();
+        return;
+      }
       const timer = setTimeout(resolve, wait);
       retryEventsNow = () => {
         clearTimeout(timer);
         resolve();
       };
     });
-    retryEventsNow = () => {};
+    retryAsked = false;
+    retryEventsNow = () => {
+      retryAsked = true;
+    };
   }
 }

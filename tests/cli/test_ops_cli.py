@@ -90,6 +90,9 @@ def test_delete_asks_first_and_frees_the_store(tmp_path, scenes_dir, tcfarm):
         gone = tcfarm(farm, "status", job["id"])
         assert gone.returncode == 1 and "job_not_found (404)" in gone.stderr
 
+        # With no worker left the job cannot finish before the delete arrives: still active.
+        farm.workers[0].terminate()
+        farm.workers[0].wait()
         running = farm.client.submit(tiny(scenes_dir, frames=400), name="busy")
         refused = tcfarm(farm, "delete", running["id"], "--yes")
         assert refused.returncode == 1 and "job_active (409)" in refused.stderr, refused.stderr

@@ -58,10 +58,11 @@ def tiny_scene(frames=1):
             "render": {"width": 8, "height": 6, "frames": {"start": 0, "count": frames}}}
 
 
-def follow_events(farm, path, until, timeout=TIMEOUT, headers=None, token=None):
+def follow_events(farm, path, until, timeout=TIMEOUT, headers=None, token=None, opened=None):
     """Reads the Server-Sent Events at `path` with a plain HTTP client until `until(events)`;
     returns the events as (id, type, data) in the order they came. token: instead of the
-    farm's own."""
+    farm's own. opened: a threading.Event set once the server has answered, when the
+    stream's starting point is fixed."""
     parsed = urllib.parse.urlsplit(farm.url)
     connection = http.client.HTTPConnection(parsed.hostname, parsed.port, timeout=timeout)
     headers = dict(headers or {})
@@ -71,6 +72,8 @@ def follow_events(farm, path, until, timeout=TIMEOUT, headers=None, token=None):
     response = connection.getresponse()
     assert response.status == 200, response.read()
     assert response.getheader("Content-Type").startswith("text/event-stream")
+    if opened:
+        opened.set()
     events, fields = [], {}
     try:
         for line in response:
@@ -312,19 +315,19 @@ def test_events_are_followed_live_as_server_sent_events(tmp_path, scenes_dir):
     with LocalFarm(tmp_path, workers=1, api_tokens=tokens) as farm:
         farm.wait_for_workers(1)
         scene = small_scene(scenes_dir / "paper_a_one_sphere.json", 160, 120, 30)
-        started = threading.Event()
+        opened = threading.Event()
         got = {}
 
         def follow():
-            started.set()
             got["events"] = follow_events(
                 farm, "/api/v1/events",
-                lambda events: any(e[1] == "completed" and e[2]["job"] == got.get("job") for e in events))
+                lambda events: any(e[1] == "completed" and e[2]["job"] == got.get("job") for e in events),
+                opened=opened)
 
         follower = threading.Thread(target=follow)
         follower.start()
-        started.wait()
-        time.sleep(0.5)  # the stream is open before the job exists: all of it comes live
+        # The stream is open before the job exists: all of it comes live.
+        assert opened.wait(TIMEOUT), "the event stream did not open"
         job = farm.client.submit(scene, strategy="search", bin_width=6, name="followed")
         got["job"] = job["id"]
         follower.join(TIMEOUT)
