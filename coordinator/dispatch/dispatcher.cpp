@@ -65,7 +65,6 @@ double Dispatcher::WeightOf(int priority) {
 void Dispatcher::SetPriority(uint64_t jobId, int priority) {
   auto job = jobs_.find(jobId);
   if (job == jobs_.end()) return;
-  job->second.priority = priority;
   job->second.weight = WeightOf(priority);
 }
 
@@ -78,7 +77,6 @@ std::vector<WorkerLoss> Dispatcher::TakeWorkerLosses() {
 void Dispatcher::AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
                         const std::string& sceneHash, const std::string& sceneJson) {
   JobQueue queue;
-  queue.priority = priority;
   queue.weight = WeightOf(priority);
   queue.width = width;
   queue.height = height;

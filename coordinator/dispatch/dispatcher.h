@@ -165,8 +165,7 @@ class Dispatcher {
     std::string firstError;
   };
   struct JobQueue {
-    int priority = 0;
-    double weight = 1;
+    double weight = 1;  // WeightOf(its priority)
     double pass = 0;  // stride scheduling: the job with the lowest pass goes next
     uint32_t width = 0, height = 0;
     std::string sceneHash;

@@ -68,7 +68,7 @@ void RemoveLeftovers(const FrameStore& store, uint64_t job) {
   std::filesystem::remove_all(store.SpillFolder(job), ignored);
   for (std::filesystem::directory_iterator it(store.JobFolder(job), ignored), end; !ignored && it != end;
        it.increment(ignored)) {
-    if (it->path().filename().string().find(".partial") != std::string::npos) {
+    if (it->path().extension() == ".partial") {
       std::filesystem::remove(it->path(), ignored);
     }
   }

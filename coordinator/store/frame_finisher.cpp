@@ -84,7 +84,7 @@ void FrameFinisher::Drop(uint64_t job) {
 
 bool FrameFinisher::Idle() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return queue_.empty() && !working_;
+  return queue_.empty() && !current_;
 }
 
 bool FrameFinisher::IsFinished(const FrameStore& store, uint64_t job) {
@@ -101,14 +101,12 @@ void FrameFinisher::Run() {
       if (stopping_) return;
       job = queue_.front();
       queue_.pop_front();
-      working_ = true;
       current_ = job.id;
       dropCurrent_ = false;
     }
     Finish(job);
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      working_ = false;
       current_.reset();
     }
     finishedOne_.notify_all();

@@ -74,7 +74,6 @@ class FrameFinisher {
   std::condition_variable finishedOne_;  // a job left Finish (Drop waits for it)
   std::optional<uint64_t> current_;      // the job being finished
   bool dropCurrent_ = false;             // Drop asked for current_ to stop
-  bool working_ = false;
   bool busy_ = false;
   bool stopping_ = false;
   std::atomic<uint64_t> framesFinished_{0};

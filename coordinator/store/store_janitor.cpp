@@ -201,7 +201,12 @@ void StoreJanitor::ApplyRetention(int64_t nowMs) {
     for (uint64_t id : jobs_.FinishedJobs(nowMs - *policy_.keepMs)) Delete(id, reason);
   }
   if (policy_.budgetBytes) {
-    Measure();  // the budget is weighed against the store as it is, not as last measured
+    // The budget is weighed against the store as it is, not as last measured (RunDue may
+    // have measured it this very round).
+    if (lastMeasureMs_ != nowMs) {
+      lastMeasureMs_ = nowMs;
+      Measure();
+    }
     if (storeBytes_ <= *policy_.budgetBytes) {
       overBudgetLogged_ = false;
       return;
