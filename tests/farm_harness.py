@@ -17,6 +17,14 @@ sys.path.insert(0, str(ROOT / "services" / "client"))
 from tcfarm.client import Client  # noqa: E402
 
 
+def wait_until(condition, what, timeout=300, poll=0.02):
+    """Polls `condition` until it holds; fails naming `what` after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(poll)
+
+
 class LocalFarm:
     """A coordinator on ephemeral loopback ports plus worker processes we control."""
 
@@ -97,6 +105,12 @@ class LocalFarm:
         request = urllib.request.Request(self.url + "/metrics", headers=headers)
         with urllib.request.urlopen(request, timeout=10) as response:
             return response.read().decode()
+
+    def metric(self, name):
+        """One unlabelled metric's value; fails when the coordinator does not export it."""
+        match = re.search(rf"^{re.escape(name)} (\S+)$", self.metrics(), re.M)
+        assert match, f"{name} is not exported"
+        return float(match.group(1))
 
     def close(self):
         for process in self.workers + [self.coordinator]:

@@ -13,7 +13,7 @@ import urllib.request
 
 import pytest
 
-from farm_harness import LocalFarm, compare, small_scene
+from farm_harness import LocalFarm, compare, small_scene, wait_until
 from tcfarm.client import ApiError
 
 TIMEOUT = 300
@@ -37,19 +37,6 @@ def raw(farm, method, path, data=None, headers=None):
             return response.status, json.loads(response.read())
     except urllib.error.HTTPError as e:
         return e.code, json.loads(e.read())
-
-
-def metric(farm, name):
-    match = re.search(rf"^{re.escape(name)} (\S+)$", farm.metrics(), re.M)
-    assert match, f"{name} is not exported"
-    return float(match.group(1))
-
-
-def wait_until(condition, what, timeout=TIMEOUT, poll=0.02):
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(poll)
 
 
 def tiny_scene(frames=1):
@@ -284,18 +271,18 @@ def test_delete_removes_the_jobs_files_and_the_assets_no_other_job_names(one_wor
     assert not (farm.store / str(big["id"])).exists()
 
     # The store's size is measured every few seconds: wait until it counts the first job.
-    wait_until(lambda: metric(farm, "tcfarm_store_bytes") >= folder_bytes, "the store's size to count the job",
+    wait_until(lambda: farm.metric("tcfarm_store_bytes") >= folder_bytes, "the store's size to count the job",
                timeout=30, poll=0.5)
-    before = metric(farm, "tcfarm_store_bytes")
-    deleted_before = metric(farm, "tcfarm_jobs_deleted_total")
+    before = farm.metric("tcfarm_store_bytes")
+    deleted_before = farm.metric("tcfarm_jobs_deleted_total")
     answer = api(farm, "DELETE", f"/api/v1/jobs/{first['id']}")
     assert answer == {"deleted": first["id"], "freed_bytes": folder_bytes + (tmp_path / "own.obj").stat().st_size}
     assert not folder.exists()
     assert not (farm.store / "assets" / own).exists()
     assert (farm.store / "assets" / shared).exists()  # the second job names it
     assert farm.client.missing_assets([own, shared]) == [own]
-    assert metric(farm, "tcfarm_store_bytes") <= before - answer["freed_bytes"]
-    assert metric(farm, "tcfarm_jobs_deleted_total") == deleted_before + 1
+    assert farm.metric("tcfarm_store_bytes") <= before - answer["freed_bytes"]
+    assert farm.metric("tcfarm_jobs_deleted_total") == deleted_before + 1
     for method, path in (("GET", ""), ("GET", "/frames"), ("GET", "/events"), ("DELETE", ""), ("POST", "/retry"),
                          ("GET", "/frames/0.png")):
         with pytest.raises(ApiError) as gone:
@@ -386,7 +373,7 @@ def test_retention_deletes_finished_jobs_at_start(tmp_path, scenes_dir):
         wait_until(lambda: not any((farm.store / str(i)).exists() for i in old), "the retention at start", timeout=30)
         listed = api(farm, "GET", "/api/v1/jobs")
         assert [job["id"] for job in listed["jobs"]] == [canceled["id"]] and listed["total"] == 1
-        wait_until(lambda: metric(farm, "tcfarm_jobs_deleted_total") == 2, "two deletions counted", timeout=10)
+        wait_until(lambda: farm.metric("tcfarm_jobs_deleted_total") == 2, "two deletions counted", timeout=10)
         farm.client.cancel(canceled["id"])
         # Finished now, so the next round (a minute later) would take it; it is still here.
         assert farm.client.job(canceled["id"])["state"] == "canceled"
@@ -408,7 +395,7 @@ def test_retention_deletes_finished_jobs_at_start(tmp_path, scenes_dir):
         assert remaining == [jobs[2], jobs[1]]
         # The database lives in the store and grows by what the deletions logged (its
         # write-ahead log), after the retention weighed the store: that growth is allowed.
-        measured = metric(farm, "tcfarm_store_bytes")
+        measured = farm.metric("tcfarm_store_bytes")
         assert measured <= budget + max(0, database_bytes(farm.store) - database_before)
 
 
