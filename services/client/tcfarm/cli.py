@@ -338,10 +338,7 @@ FRAME_MARKS = {"written": "#", "tracing": "+", "queued": ".", "failed": "x"}
 def _frame_strip(states):
     frames = states.get("frames", [])
     strip = "".join(FRAME_MARKS.get(frame["state"], "?") for frame in frames)
-    counts = states.get("counts") or {}
-    if not counts:
-        for frame in frames:
-            counts[frame["state"]] = counts.get(frame["state"], 0) + 1
+    counts = states["counts"]
     legend = ", ".join(f"{counts[state]} {state}" for state in FRAME_MARKS if counts.get(state))
     return [f"frames: {legend}", "  " + strip + "   (# written, + tracing, . queued, x failed)"]
 
@@ -468,10 +465,6 @@ def _print_event(event, args):
     print(json.dumps(event) if args.json else _event_line(event), flush=True)
 
 
-# Events after which a job does nothing more unless someone acts on it.
-FINAL_EVENTS = ("completed", "failed", "canceled")
-
-
 def cmd_events(client, args):
     past = client.events(args.job)
     for event in past:
@@ -487,7 +480,7 @@ def cmd_events(client, args):
         if event.get("job") != args.job:
             continue
         _print_event(event, args)
-        if event.get("type") in FINAL_EVENTS:
+        if event.get("type") in FINAL_STATES:  # the event that puts the job in its final state
             return 0
     return 0
 
