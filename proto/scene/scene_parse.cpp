@@ -527,6 +527,12 @@ NamedTransforms::Resolved NamedTransforms::Find(const Node& at) const {
   if (!reading_.insert(name).second) {
     Fail(at.pointer, "transform " + Quote(name) + " is its own ancestor", "a hierarchy without cycles");
   }
+  // The names being read are the chain above this one: refused here, before reading
+  // deeper, a long chain cannot run the parser out of stack.
+  if (reading_.size() > static_cast<size_t>(kMaxMotionDepth)) {
+    Fail(at.pointer, "a hierarchy deeper than " + std::to_string(kMaxMotionDepth) + " levels",
+         "at most " + std::to_string(kMaxMotionDepth) + " nested parents");
+  }
   const Node entry = Node{*table_, tablePointer_}.Member(name);
   if (!IsTransformObject(entry)) FailType(entry, "a transform {\"translation\", \"rotation\", \"scale\", \"pivot\", \"parent\"}");
   int levels = 1;

@@ -278,18 +278,21 @@ TEST(TransformSceneTest, BadNamedParentsAreRefusedWithTheirPointer) {
       EXPECT_EQ(error.pointer(), pointer) << error.what();
     }
   }
-  // 40 levels, each naming the one above: deeper than a hierarchy may be.
-  std::string chain = R"({"l0": {"translation": [0, 0, 1]})";
-  for (int level = 1; level < 40; ++level) {
-    chain += ", \"l" + std::to_string(level) + R"(": {"translation": [0, 0, 1], "parent": "l)" +
-             std::to_string(level - 1) + "\"}";
-  }
-  chain += R"(, "knee": {"rotation": [0, 0, 0, 1], "parent": "l39"}})";
-  try {
-    ParseScene(SceneWithNamedParents(chain));
-    ADD_FAILURE() << "40 levels were accepted";
-  } catch (const SceneError& error) {
-    EXPECT_NE(std::string(error.what()).find("deeper than 32 levels"), std::string::npos) << error.what();
+  // 40 levels, each naming the one above, are deeper than a hierarchy may be; 20,000 are
+  // refused as well, before they run the parser out of stack.
+  for (int levels : {40, 20000}) {
+    std::string chain = R"({"l0": {"translation": [0, 0, 1]})";
+    for (int level = 1; level < levels; ++level) {
+      chain += ", \"l" + std::to_string(level) + R"(": {"translation": [0, 0, 1], "parent": "l)" +
+               std::to_string(level - 1) + "\"}";
+    }
+    chain += R"(, "knee": {"rotation": [0, 0, 0, 1], "parent": "l)" + std::to_string(levels - 1) + "\"}}";
+    try {
+      ParseScene(SceneWithNamedParents(chain));
+      ADD_FAILURE() << levels << " levels were accepted";
+    } catch (const SceneError& error) {
+      EXPECT_NE(std::string(error.what()).find("deeper than 32 levels"), std::string::npos) << error.what();
+    }
   }
 }
 
