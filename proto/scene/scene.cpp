@@ -181,11 +181,9 @@ bool PlaceStillShape(Shape& shape, const Affine& placement) {
       // copy would be (see PlaceStillShapes in scene.h): its normals go to the world too.
       OwnMesh(shape);
       for (Vec3& v : shape.mesh.vertices) v = placement.Apply(v);
-      if (!shape.mesh.normals.empty()) {
-        double normalMatrix[3][3];
-        placement.NormalMatrix(normalMatrix);
-        for (Vec3& n : shape.mesh.normals) n = ApplyMatrix(normalMatrix, n);
-      }
+      double normalMatrix[3][3];
+      placement.NormalMatrix(normalMatrix);
+      for (Vec3& n : shape.mesh.normals) n = ApplyMatrix(normalMatrix, n);
       // A mirror turns the triangles' winding over, and with it the face normals the
       // tracer takes from it: turned back, the outside stays outside (as glTF has it).
       if (placement.Determinant() < 0) {

@@ -77,11 +77,7 @@ Vec3 Affine::Apply(const Vec3& p) const {
   return {v.x + offset.x, v.y + offset.y, v.z + offset.z};
 }
 
-Vec3 Affine::ApplyLinear(const Vec3& v) const {
-  return {linear[0][0] * v.x + linear[0][1] * v.y + linear[0][2] * v.z,
-          linear[1][0] * v.x + linear[1][1] * v.y + linear[1][2] * v.z,
-          linear[2][0] * v.x + linear[2][1] * v.y + linear[2][2] * v.z};
-}
+Vec3 Affine::ApplyLinear(const Vec3& v) const { return ApplyMatrix(linear, v); }
 
 double Affine::MaxStretch() const {
   double largest = 0;
@@ -107,15 +103,24 @@ Vec3 ApplyMatrix(const double m[3][3], const Vec3& v) {
           m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z};
 }
 
+namespace {
+
+// Expanded along the first row, whose cofactors `cofactor` holds.
+double DeterminantFrom(const double m[3][3], const double cofactor[3][3]) {
+  return m[0][0] * cofactor[0][0] + m[0][1] * cofactor[0][1] + m[0][2] * cofactor[0][2];
+}
+
+}  // namespace
+
 double Affine::Determinant() const {
   double cofactor[3][3];
   Cofactor(linear, cofactor);
-  return linear[0][0] * cofactor[0][0] + linear[0][1] * cofactor[0][1] + linear[0][2] * cofactor[0][2];
+  return DeterminantFrom(linear, cofactor);
 }
 
 void Affine::NormalMatrix(double out[3][3]) const {
   Cofactor(linear, out);
-  const double determinant = linear[0][0] * out[0][0] + linear[0][1] * out[0][1] + linear[0][2] * out[0][2];
+  const double determinant = DeterminantFrom(linear, out);
   for (int row = 0; row < 3; ++row) {
     for (int column = 0; column < 3; ++column) out[row][column] /= determinant;
   }

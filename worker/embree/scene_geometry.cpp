@@ -84,10 +84,7 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
   if (static_cast<size_t>(shape) >= normalFromObject_.size() || !normalFromObject_[shape].present) {
     return objectNormal;
   }
-  const auto& m = normalFromObject_[shape].matrix;
-  return {m[0][0] * objectNormal.x + m[0][1] * objectNormal.y + m[0][2] * objectNormal.z,
-          m[1][0] * objectNormal.x + m[1][1] * objectNormal.y + m[1][2] * objectNormal.z,
-          m[2][0] * objectNormal.x + m[2][1] * objectNormal.y + m[2][2] * objectNormal.z};
+  return ApplyMatrix(normalFromObject_[shape].matrix, objectNormal);
 }
 
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)

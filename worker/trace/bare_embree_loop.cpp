@@ -41,13 +41,11 @@ void AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Affine
 // Normals go to the world by the inverse transpose of the linear part, up to a scale the
 // shading normalises away: the cofactor matrix.
 std::array<float, 9> NormalMatrix(const Affine& placement) {
-  const auto& m = placement.linear;
+  double cofactor[3][3];
+  Cofactor(placement.linear, cofactor);
   std::array<float, 9> out;
   for (int row = 0; row < 3; ++row) {
-    for (int column = 0; column < 3; ++column) {
-      const int r1 = (row + 1) % 3, r2 = (row + 2) % 3, c1 = (column + 1) % 3, c2 = (column + 2) % 3;
-      out[3 * row + column] = static_cast<float>(m[r1][c1] * m[r2][c2] - m[r1][c2] * m[r2][c1]);
-    }
+    for (int column = 0; column < 3; ++column) out[3 * row + column] = static_cast<float>(cofactor[row][column]);
   }
   return out;
 }
