@@ -7,6 +7,7 @@
 
 #include "trace/float3.h"
 #include "trace/horizons.h"
+#include "trace/segment_fan.h"
 
 namespace tcfarm {
 
@@ -17,12 +18,29 @@ struct HorizonTracker {
   const HorizonOracle* oracle = nullptr;
   int horizon[kPacketWidth];
   int lane = 0;  // the sample whose secondary rays are being traced
+  // Segments that fan out from the camera's eye, or toward light i, are recorded in their
+  // fan and searched frame by frame once the chunk is traced (FanFirstMeetings), where
+  // given; `sample` numbers the packet's lanes in the chunk.
+  SegmentFan* eyeFan = nullptr;
+  std::vector<SegmentFan>* lightFans = nullptr;  // by light; a fan without cones: none
+  uint32_t sample = 0;
 
   void Reset() {
     for (int& h : horizon) h = oracle->CameraCap();
   }
   void Segment(int forLane, Float3 origin, Float3 direction, float length) {
     if (horizon[forLane] == oracle->frame() + 1) return;  // cannot get any earlier
+    horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
+  }
+  void EyeSegment(int forLane, Float3 origin, Float3 direction, float length) {
+    FanSegment(eyeFan, forLane, origin, direction, length);
+  }
+  void LightSegment(int forLane, size_t light, Float3 origin, Float3 direction, float length) {
+    FanSegment(lightFans ? &(*lightFans)[light] : nullptr, forLane, origin, direction, length);
+  }
+  void FanSegment(SegmentFan* fan, int forLane, Float3 origin, Float3 direction, float length) {
+    if (horizon[forLane] == oracle->frame() + 1) return;
+    if (fan && fan->cones() && fan->Add(sample + static_cast<uint32_t>(forLane), {origin, direction, length})) return;
     horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
   }
   // A surface seen: the pixel may change when the surface does (a deforming mesh's parts

@@ -6,6 +6,7 @@
 #include <map>
 
 #include "shapes/shape_kind.h"
+#include "trace/segment_fan.h"
 
 namespace tcfarm {
 namespace {
@@ -300,48 +301,75 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
   spheres_.push_back(std::move(sphere));
 }
 
-bool HorizonOracle::SurelyBlocked(const RaySegment& segment, int frame, int* hint) const {
-  if (frame <= frame_ || frame > frame_ + window_) return false;
-  const int count = static_cast<int>(spheres_.size());
-  if (*hint >= 0 && *hint < count && SphereSurelyBlocks(spheres_[*hint], segment, frame)) return true;
-  for (int i = 0; i < count; ++i) {
-    if (i != *hint && SphereSurelyBlocks(spheres_[i], segment, frame)) {
-      *hint = i;
-      return true;
-    }
-  }
-  return false;
-}
+namespace {
 
-bool HorizonOracle::SphereSurelyBlocks(const MovingSphere& sphere, const RaySegment& segment,
-                                       int frame) const {
-  size_t index = static_cast<size_t>(frame - frame_);
-  if (index >= sphere.centers.size()) return false;
-  const Vec3& c = sphere.centers[index];
-  const double ox = segment.origin.x, oy = segment.origin.y, oz = segment.origin.z;
-  const double dx = segment.direction.x, dy = segment.direction.y, dz = segment.direction.z;
-  const double length = segment.length;
+// A blocked shadow ray in double, with what each frame's test against a sphere needs of
+// it computed once.
+struct BlockedRay {
+  double ox, oy, oz, dx, dy, dz;
+  double dd, length;
+  double ex, ey, ez;  // its end, when finite
+  bool finite;
+  double originMagnitude;
+  explicit BlockedRay(const RaySegment& s)
+      : ox(s.origin.x), oy(s.origin.y), oz(s.origin.z),
+        dx(s.direction.x), dy(s.direction.y), dz(s.direction.z),
+        dd(dx * dx + dy * dy + dz * dz), length(s.length),
+        ex(ox + length * dx), ey(oy + length * dy), ez(oz + length * dz),
+        finite(std::isfinite(s.length)),
+        originMagnitude(std::max({std::fabs(ox), std::fabs(oy), std::fabs(oz)})) {}
+};
+
+// Whether the sphere surely blocks the ray: it runs through the sphere well inside, from
+// outside to outside, with margins far above the rounding of the tracer's own ray-sphere
+// test, so that test says "blocked" too.
+bool SurelyBlocks(const BlockedRay& ray, const Vec3& c, double radius) {
   // Margins: the tracer rounds in float, relative to the coordinates' magnitude (~1e-7
   // of it per operation); these are a hundred times that and a thousandth of the radius.
-  const double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), std::fabs(ox),
-                                     std::fabs(oy), std::fabs(oz)}) + sphere.radius;
-  const double slack = 1e-3 * sphere.radius + 1e-5 * magnitude;
-  const double inner = sphere.radius - slack, outer = sphere.radius + slack;
+  const double magnitude =
+      std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), ray.originMagnitude}) + radius;
+  const double slack = 1e-3 * radius + 1e-5 * magnitude;
+  const double inner = radius - slack, outer = radius + slack;
   if (inner <= 0) return false;
-  const double ocx = c.x - ox, ocy = c.y - oy, ocz = c.z - oz;
-  const double dd = dx * dx + dy * dy + dz * dz;
-  const double along = (ocx * dx + ocy * dy + ocz * dz) / dd;
-  const double px = ocx - along * dx, py = ocy - along * dy, pz = ocz - along * dz;
+  const double ocx = c.x - ray.ox, ocy = c.y - ray.oy, ocz = c.z - ray.oz;
+  const double along = (ocx * ray.dx + ocy * ray.dy + ocz * ray.dz) / ray.dd;
+  const double px = ocx - along * ray.dx, py = ocy - along * ray.dy, pz = ocz - along * ray.dz;
   const double missBy2 = px * px + py * py + pz * pz;
   if (missBy2 >= inner * inner) return false;  // not well inside
   if (ocx * ocx + ocy * ocy + ocz * ocz <= outer * outer) return false;  // starts inside
-  if (std::isfinite(length)) {
-    const double ex = ox + length * dx - c.x, ey = oy + length * dy - c.y, ez = oz + length * dz - c.z;
+  if (ray.finite) {
+    const double ex = ray.ex - c.x, ey = ray.ey - c.y, ez = ray.ez - c.z;
     if (ex * ex + ey * ey + ez * ez <= outer * outer) return false;  // ends inside
   }
   // Where the segment enters the inner sphere: well after its start, well before its end.
-  const double enter = along - std::sqrt((inner * inner - missBy2) / dd);
-  return enter > slack && enter < length - slack;
+  const double enter = along - std::sqrt((inner * inner - missBy2) / ray.dd);
+  return enter > slack && enter < ray.length - slack;
+}
+
+}  // namespace
+
+int HorizonOracle::FirstNotSurelyBlocked(const RaySegment& segment, int from, int before, int* hint) const {
+  const int count = static_cast<int>(spheres_.size());
+  before = std::min(before, frame_ + window_ + 1);
+  int frame = std::max(from, frame_ + 1);
+  if (count == 0) return std::min(frame, before);
+  const BlockedRay ray(segment);
+  auto blocks = [&](int sphere, int f) {
+    const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
+    const size_t index = static_cast<size_t>(f - frame_);
+    return index < s.centers.size() && SurelyBlocks(ray, s.centers[index], s.radius);
+  };
+  while (frame < before) {
+    if (*hint >= 0 && *hint < count) {
+      while (frame < before && blocks(*hint, frame)) ++frame;
+      if (frame >= before) break;
+    }
+    int other = 0;
+    while (other < count && (other == *hint || !blocks(other, frame))) ++other;
+    if (other == count) return frame;
+    *hint = other;
+  }
+  return before;
 }
 
 // SegmentMeetsSphere for the kFramesPerChunk proxies of a mover's chunk from `begin`,
@@ -416,6 +444,45 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
     }
   }
   return std::min(before, frame_ + static_cast<int>(earliest));
+}
+
+HorizonOracle::MoverSphere HorizonOracle::MoverAt(size_t mover, size_t offset) const {
+  const Mover& m = movers_[mover];
+  if (offset >= m.frames) return {0, 0, 0, -1};
+  return {m.x[offset], m.y[offset], m.z[offset], m.radius[offset]};
+}
+
+double HorizonOracle::FanSlack(const Vec3& point) const {
+  double magnitude = std::max({std::fabs(point.x), std::fabs(point.y), std::fabs(point.z)});
+  if (all_.lo.x <= all_.hi.x) {  // some proxy
+    magnitude = std::max({magnitude, double(MaxAbsComponent(all_.lo)), double(MaxAbsComponent(all_.hi))});
+  }
+  // Shadow rays start off their surface by the tracer's ray offset (1e-5 of the hit's
+  // magnitude, camera distance included) while they aim at the light from the surface
+  // itself, so their lines miss the light by up to that offset: a hundred times it.
+  return 1e-3 * (1 + magnitude);
+}
+
+void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon) const {
+  if (fan.empty() || movers_.empty()) return;
+  FanCones& cones = *fan.cones();
+  // Frames at or beyond every sample's horizon cannot lower any.
+  int latest = frame_ + 1;
+  fan.ForEach([&](const SegmentFan::Entry& entry) { latest = std::max(latest, int(horizon[entry.sample])); });
+  for (int frame = frame_ + 1; frame < latest; ++frame) {
+    const size_t offset = static_cast<size_t>(frame - frame_);
+    for (size_t m = 0; m < movers_.size(); ++m) {
+      const MoverSphere at = MoverAt(m, offset);
+      if (at.radius < 0) continue;
+      const float sphere[4] = {at.x, at.y, at.z, at.radius};
+      for (int face : fan.Faces()) {
+        fan.ForEachIn(face, cones.Cone(face, m, offset), [&](const SegmentFan::Entry& entry) {
+          int32_t& h = horizon[entry.sample];
+          if (h > frame && SegmentMeetsSphere(entry.segment, sphere)) h = frame;
+        });
+      }
+    }
+  }
 }
 
 bool HorizonOracle::MayBeBlockedByMover(const RaySegment& segment) const {

@@ -13,6 +13,7 @@
 #include "trace/float3.h"
 #include "trace/horizon_tracker.h"
 #include "trace/horizons.h"
+#include "trace/segment_fan.h"
 #include "trace/lights.h"
 #include "trace/materials.h"
 
@@ -119,6 +120,10 @@ class Tracer::PixelTracer {
   const RayCounts& counts() const { return counts_; }
   // Folds every ray of the packets traced from now on into their horizons.
   void TrackHorizons(HorizonTracker* tracker) { horizons_ = tracker; }
+  // Follows the blocked shadow rays of the samples traced so far, frame by frame ahead,
+  // while they stay blocked and below their sample's horizon: a blocked light adds
+  // nothing, whoever blocks it. The horizon becomes the first frame one clears at.
+  void FollowBlockedShadowRays(int32_t* sampleHorizon);
 
  private:
   struct SurfaceHit {
@@ -173,7 +178,13 @@ class Tracer::PixelTracer {
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
   // Folds a packet's shadow rays toward one light into their samples' horizons.
-  void ShadowHorizons(const RTCRay8& query, const int* valid, const int* blocked);
+  void ShadowHorizons(size_t light, const RTCRay8& query, const int* valid, const int* blocked);
+  // A shadow ray found blocked, as it was asked, to be followed over the frames ahead.
+  struct BlockedShadowRay {
+    uint32_t sample;  // in the chunk
+    RTCRay ray;
+  };
+  std::vector<BlockedShadowRay> walks_;
   Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
     return hit.position + hit.faceNormal * (transmitted ? -hit.offset : hit.offset);
   }
@@ -346,17 +357,11 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     if (!horizons_) continue;
     const int lane = horizons_->lane;
     if (!blocked) {
-      horizons_->Segment(lane, start, toLight, distance);
+      horizons_->LightSegment(lane, light, start, toLight, distance);
       continue;
     }
-    const RaySegment segment{start, toLight, distance};
-    if (!horizons_->BlockedShadowMayClear(lane, segment)) continue;
-    int blocker = -1;
-    for (int frame = frame_.frame + 1; frame < horizons_->horizon[lane]; ++frame) {
-      if (horizons_->oracle->SurelyBlocked(segment, frame, &blocker)) continue;
-      RTCRay ray = query;
-      rtcOccluded1(SceneAhead(frame), &context_.embree, &ray);
-      if (ray.tfar >= 0) horizons_->horizon[lane] = frame;
+    if (horizons_->BlockedShadowMayClear(lane, {start, toLight, distance})) {
+      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), query});
     }
   }
   return Combine(hit, local, depth);
@@ -394,7 +399,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
     Float3 direction{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
     if (!hasHit[lane]) {
-      if (horizons_) horizons_->Segment(lane, origin, direction, kInfinity);
+      if (horizons_) horizons_->EyeSegment(lane, origin, direction, kInfinity);
       color[lane] = frame_.background;
       continue;
     }
@@ -409,7 +414,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
                           packet.hit.v[lane]});
     if (horizons_) {
       NoteSurface(lane, hits[lane]);
-      horizons_->Segment(lane, origin, direction, hitDistance);
+      horizons_->EyeSegment(lane, origin, direction, hitDistance);
     }
     color[lane] = Ambient(hits[lane]);
   }
@@ -445,7 +450,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       blocked[lane] = shadow.tfar[lane] < 0;
       if (!blocked[lane]) color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
     }
-    if (horizons_) ShadowHorizons(query, shadowValid, blocked);
+    if (horizons_) ShadowHorizons(light, query, shadowValid, blocked);
   }
   if (!frame_.anySecondary) return;
   for (int lane = 0; lane < count; ++lane) {
@@ -455,47 +460,45 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   }
 }
 
-void Tracer::PixelTracer::ShadowHorizons(const RTCRay8& query, const int* valid,
+void Tracer::PixelTracer::ShadowHorizons(size_t light, const RTCRay8& query, const int* valid,
                                          const int* blocked) {
-  bool walking[kPacketWidth] = {};
-  RaySegment segment[kPacketWidth];
-  int blocker[kPacketWidth];
-  bool anyWalking = false;
   for (int lane = 0; lane < kPacketWidth; ++lane) {
     if (!valid[lane]) continue;
-    segment[lane] = {{query.org_x[lane], query.org_y[lane], query.org_z[lane]},
-                     {query.dir_x[lane], query.dir_y[lane], query.dir_z[lane]},
-                     query.tfar[lane]};
-    blocker[lane] = -1;
+    const RaySegment segment{{query.org_x[lane], query.org_y[lane], query.org_z[lane]},
+                             {query.dir_x[lane], query.dir_y[lane], query.dir_z[lane]},
+                             query.tfar[lane]};
     if (!blocked[lane]) {
-      horizons_->Segment(lane, segment[lane].origin, segment[lane].direction, segment[lane].length);
-    } else if (horizons_->BlockedShadowMayClear(lane, segment[lane])) {
-      walking[lane] = anyWalking = true;
+      horizons_->LightSegment(lane, light, segment.origin, segment.direction, segment.length);
+    } else if (horizons_->BlockedShadowMayClear(lane, segment)) {
+      RTCRay ray{};
+      ray.org_x = query.org_x[lane], ray.org_y = query.org_y[lane], ray.org_z = query.org_z[lane];
+      ray.dir_x = query.dir_x[lane], ray.dir_y = query.dir_y[lane], ray.dir_z = query.dir_z[lane];
+      ray.tnear = query.tnear[lane], ray.tfar = query.tfar[lane], ray.mask = query.mask[lane];
+      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), ray});
     }
   }
-  // The lanes still blocked go on together, frame by frame ahead: a moving sphere that
-  // surely blocks a ray settles it by arithmetic; the others are asked in one packet
-  // query, as the trace itself would ask it there.
-  for (int frame = frame_.frame + 1; anyWalking; ++frame) {
-    alignas(32) int ahead[kPacketWidth] = {};
-    anyWalking = false;
-    bool anyAsked = false;
-    for (int lane = 0; lane < kPacketWidth; ++lane) {
-      walking[lane] = walking[lane] && frame < horizons_->horizon[lane];
-      if (!walking[lane]) continue;
-      anyWalking = true;
-      if (!horizons_->oracle->SurelyBlocked(segment[lane], frame, &blocker[lane])) {
-        ahead[lane] = -1;
-        anyAsked = true;
+}
+
+void Tracer::PixelTracer::FollowBlockedShadowRays(int32_t* sampleHorizon) {
+  for (const BlockedShadowRay& walk : walks_) {
+    int32_t& horizon = sampleHorizon[walk.sample];
+    const RaySegment segment{{walk.ray.org_x, walk.ray.org_y, walk.ray.org_z},
+                             {walk.ray.dir_x, walk.ray.dir_y, walk.ray.dir_z},
+                             walk.ray.tfar};
+    int blocker = -1;
+    for (int frame = frame_.frame + 1; frame < horizon; ++frame) {
+      frame = horizons_->oracle->FirstNotSurelyBlocked(segment, frame, horizon, &blocker);
+      if (frame >= horizon) break;
+      if (horizons_->oracle->OnlyTranslatingSpheresMove()) {
+        horizon = frame;
+        break;
       }
-    }
-    if (!anyAsked) continue;
-    alignas(32) RTCRay8 ray = query;
-    rtcOccluded8(ahead, SceneAhead(frame), &context_.embree, &ray);
-    for (int lane = 0; lane < kPacketWidth; ++lane) {
-      if (ahead[lane] && ray.tfar[lane] >= 0) horizons_->horizon[lane] = frame, walking[lane] = false;
+      RTCRay ray = walk.ray;
+      rtcOccluded1(SceneAhead(frame), &context_.embree, &ray);
+      if (ray.tfar >= 0) horizon = frame;  // clear: the light reaches the pixel again
     }
   }
+  walks_.clear();
 }
 
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
@@ -521,6 +524,14 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
     textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
   }
 }
+
+namespace {
+void SearchFan(const HorizonOracle& oracle, SegmentFan& fan, int32_t* sampleHorizon) {
+  if (fan.empty()) return;
+  fan.Index();
+  oracle.FanFirstMeetings(fan, sampleHorizon);
+}
+}  // namespace
 
 void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, float* rgb,
                          int window, int32_t* horizons) {
@@ -550,6 +561,21 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts()};
   context.shapes = ShadingAt(*context.geometry);
   const int spp = context.samplesPerPixel;
+  // Camera rays, and shadow rays toward lights that have a position, are searched for
+  // their horizons frame by frame in fans (segment_fan.h); the cones of the movers' bounds
+  // are shared by all chunks.
+  std::unique_ptr<FanCones> eyeCones;
+  std::vector<std::unique_ptr<FanCones>> lightCones(context.lights.size());
+  if (oracle && oracle->MoverCount() > 0) {
+    auto conesAround = [&oracle](Float3 point) {
+      const Vec3 at{point.x, point.y, point.z};
+      return std::make_unique<FanCones>(*oracle, at, oracle->FanSlack(at));
+    };
+    if (!context.camera.orthographic) eyeCones = conesAround(context.camera.origin);
+    for (size_t light = 0; light < context.lights.size(); ++light) {
+      if (context.lights[light].isPoint) lightCones[light] = conesAround(context.lights[light].position);
+    }
+  }
   threads_.ParallelFor(pixelCount, PixelsPerChunk(pixelCount, threads_.ThreadCount()), [&](size_t begin, size_t end) {
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
@@ -577,18 +603,33 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     sampleColor.resize(items);
     thread_local std::vector<int32_t> sampleHorizon;
     HorizonTracker tracker;
+    // Fans live per thread too: their buffers grow to a chunk's segments once.
+    thread_local SegmentFan eyeFan;
+    thread_local std::vector<SegmentFan> lightFans;
     if (oracle) {
       sampleHorizon.resize(items);
       tracker.oracle = oracle.get();
+      eyeFan.Reset(eyeCones.get());
+      lightFans.resize(lightCones.size());
+      for (size_t light = 0; light < lightCones.size(); ++light) lightFans[light].Reset(lightCones[light].get());
+      tracker.eyeFan = &eyeFan;
+      tracker.lightFans = &lightFans;
       tracer.TrackHorizons(&tracker);
     }
     for (size_t item = 0; item < items; item += kPacketWidth) {
       int lanes = static_cast<int>(std::min<size_t>(kPacketWidth, items - item));
-      if (oracle) tracker.Reset();
+      if (oracle) tracker.Reset(), tracker.sample = static_cast<uint32_t>(item);
       tracer.TracePrimaryPacket(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
       for (int lane = 0; oracle && lane < lanes; ++lane) {
         sampleHorizon[item + lane] = tracker.horizon[lane];
       }
+    }
+    // The fans' searches first: blocked shadow rays are followed only up to the horizons
+    // they leave, the dearest search last.
+    if (oracle) {
+      SearchFan(*oracle, eyeFan, sampleHorizon.data());
+      for (SegmentFan& fan : lightFans) SearchFan(*oracle, fan, sampleHorizon.data());
+      tracer.FollowBlockedShadowRays(sampleHorizon.data());
     }
     // A pixel is valid while all its samples are.
     for (size_t i = begin; oracle && i < end; ++i) {
