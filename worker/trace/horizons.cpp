@@ -1,6 +1,7 @@
 #include "trace/horizons.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <map>
@@ -290,13 +291,19 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
   // is placed through a float matrix whose rounding the margins were not made for, so its
   // blocked shadow rays are asked of Embree instead.
   if (shape.type != Shape::Type::kSphere || !shape.motion.IsTranslationOnly()) return;
-  MovingSphere sphere{shape.radius, {}};
+  MovingSphere sphere{shape.radius, {}, 0, movers_.size() - 1};
   for (int f = frame_; f <= lastFrame; ++f) {
     Vec3 t = shape.motion.translation.Evaluate(f);
     // In the tracer's own precision: a float centre placed by a float translation.
     sphere.centers.push_back({double(float(shape.center.x)) + double(float(t.x)),
                               double(float(shape.center.y)) + double(float(t.y)),
                               double(float(shape.center.z)) + double(float(t.z))});
+  }
+  for (size_t i = 1; i < sphere.centers.size(); ++i) {
+    const Vec3& a = sphere.centers[i - 1];
+    const Vec3& b = sphere.centers[i];
+    sphere.step = std::max(sphere.step, std::sqrt((b.x - a.x) * (b.x - a.x) + (b.y - a.y) * (b.y - a.y) +
+                                                  (b.z - a.z) * (b.z - a.z)));
   }
   spheres_.push_back(std::move(sphere));
 }
@@ -322,28 +329,40 @@ struct BlockedRay {
 
 // Whether the sphere surely blocks the ray: it runs through the sphere well inside, from
 // outside to outside, with margins far above the rounding of the tracer's own ray-sphere
-// test, so that test says "blocked" too.
-bool SurelyBlocks(const BlockedRay& ray, const Vec3& c, double radius) {
+// test, so that test says "blocked" too. -1 when it does not; otherwise how many frames
+// after this one it surely still does, given that its centre moves at most `step` a
+// frame: each distance the test compares moves by at most that much a frame, and the
+// margins (grown by the centre's magnitude) by a 1e-5 of it.
+int SurelyBlockedFor(const BlockedRay& ray, const Vec3& c, double radius, double step) {
   // Margins: the tracer rounds in float, relative to the coordinates' magnitude (~1e-7
   // of it per operation); these are a hundred times that and a thousandth of the radius.
   const double magnitude =
       std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), ray.originMagnitude}) + radius;
   const double slack = 1e-3 * radius + 1e-5 * magnitude;
   const double inner = radius - slack, outer = radius + slack;
-  if (inner <= 0) return false;
+  if (inner <= 0) return -1;
   const double ocx = c.x - ray.ox, ocy = c.y - ray.oy, ocz = c.z - ray.oz;
   const double along = (ocx * ray.dx + ocy * ray.dy + ocz * ray.dz) / ray.dd;
   const double px = ocx - along * ray.dx, py = ocy - along * ray.dy, pz = ocz - along * ray.dz;
   const double missBy2 = px * px + py * py + pz * pz;
-  if (missBy2 >= inner * inner) return false;  // not well inside
-  if (ocx * ocx + ocy * ocy + ocz * ocz <= outer * outer) return false;  // starts inside
+  if (missBy2 >= inner * inner) return -1;  // not well inside
+  const double startBy2 = ocx * ocx + ocy * ocy + ocz * ocz;
+  if (startBy2 <= outer * outer) return -1;  // starts inside
+  double endBy2 = INFINITY;
   if (ray.finite) {
     const double ex = ray.ex - c.x, ey = ray.ey - c.y, ez = ray.ez - c.z;
-    if (ex * ex + ey * ey + ez * ez <= outer * outer) return false;  // ends inside
+    endBy2 = ex * ex + ey * ey + ez * ez;
+    if (endBy2 <= outer * outer) return -1;  // ends inside
   }
   // Where the segment enters the inner sphere: well after its start, well before its end.
   const double enter = along - std::sqrt((inner * inner - missBy2) / ray.dd);
-  return enter > slack && enter < ray.length - slack;
+  if (!(enter > slack && enter < ray.length - slack)) return -1;
+  // With both ends outside, the ray runs through while its closest approach stays inside
+  // and between its ends (then it enters at least 2 * slack from either end).
+  const double margin = std::min({inner - std::sqrt(missBy2), std::sqrt(startBy2) - outer,
+                                  std::sqrt(endBy2) - outer, along, ray.length - along});
+  const double perFrame = step * (1 + 1e-5) + 1e-300;
+  return static_cast<int>(std::min(1e6, std::floor(margin / perFrame * (1 - 1e-9))));
 }
 
 }  // namespace
@@ -354,18 +373,31 @@ int HorizonOracle::FirstNotSurelyBlocked(const RaySegment& segment, int from, in
   int frame = std::max(from, frame_ + 1);
   if (count == 0) return std::min(frame, before);
   const BlockedRay ray(segment);
-  auto blocks = [&](int sphere, int f) {
+  // Only spheres whose path over the window comes near the ray can block it.
+  uint8_t nearStack[256];
+  thread_local std::vector<uint8_t> nearHeap;
+  uint8_t* near = nearStack;
+  if (sweptLo_[0].size() > 256) nearHeap.resize(sweptLo_[0].size()), near = nearHeap.data();
+  BoxesMet(SlabRay(segment), sweptLo_, sweptHi_, near);
+  // -1, or the frames after f the sphere surely keeps blocking the ray.
+  auto blockedFor = [&](int sphere, int f) {
     const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
     const size_t index = static_cast<size_t>(f - frame_);
-    return index < s.centers.size() && SurelyBlocks(ray, s.centers[index], s.radius);
+    if (index >= s.centers.size()) return -1;
+    const int ahead = SurelyBlockedFor(ray, s.centers[index], s.radius, s.step);
+    return std::min(ahead, static_cast<int>(s.centers.size() - 1 - index));
   };
+  auto blocks = [&](int sphere, int f) { return blockedFor(sphere, f) >= 0; };
   while (frame < before) {
     if (*hint >= 0 && *hint < count) {
-      while (frame < before && blocks(*hint, frame)) ++frame;
+      for (int ahead; frame < before && (ahead = blockedFor(*hint, frame)) >= 0;) frame += 1 + ahead;
       if (frame >= before) break;
     }
     int other = 0;
-    while (other < count && (other == *hint || !blocks(other, frame))) ++other;
+    while (other < count && (other == *hint || !near[spheres_[static_cast<size_t>(other)].mover] ||
+                             !blocks(other, frame))) {
+      ++other;
+    }
     if (other == count) return frame;
     *hint = other;
   }
@@ -466,17 +498,31 @@ double HorizonOracle::FanSlack(const Vec3& point) const {
 void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon) const {
   if (fan.empty() || movers_.empty()) return;
   FanCones& cones = *fan.cones();
+  const size_t frames = cones.Frames();
+  std::array<const FaceRect*, 6> conesOn{}, spansOn{};
+  for (int face : fan.Faces()) conesOn[face] = cones.Cones(face), spansOn[face] = cones.SpanCones(face);
   // Frames at or beyond every sample's horizon cannot lower any.
   int latest = frame_ + 1;
   fan.ForEach([&](const SegmentFan::Entry& entry) { latest = std::max(latest, int(horizon[entry.sample])); });
+  // Per mover, whether its cones over the current span of frames miss the fan's segments.
+  thread_local std::vector<uint8_t> passedBy;
+  passedBy.assign(movers_.size(), 0);
   for (int frame = frame_ + 1; frame < latest; ++frame) {
     const size_t offset = static_cast<size_t>(frame - frame_);
+    if ((offset - 1) % FanCones::kSpan == 0) {
+      const size_t span = (offset - 1) / FanCones::kSpan;
+      for (size_t m = 0; m < movers_.size(); ++m) {
+        passedBy[m] = std::none_of(fan.Faces().begin(), fan.Faces().end(), [&](int face) {
+          return fan.Overlaps(face, spansOn[face][m * cones.Spans() + span]);
+        });
+      }
+    }
     for (size_t m = 0; m < movers_.size(); ++m) {
-      const MoverSphere at = MoverAt(m, offset);
-      if (at.radius < 0) continue;
-      const float sphere[4] = {at.x, at.y, at.z, at.radius};
+      const Mover& mover = movers_[m];
+      if (passedBy[m] || offset >= mover.frames || mover.radius[offset] < 0) continue;
+      const float sphere[4] = {mover.x[offset], mover.y[offset], mover.z[offset], mover.radius[offset]};
       for (int face : fan.Faces()) {
-        fan.ForEachIn(face, cones.Cone(face, m, offset), [&](const SegmentFan::Entry& entry) {
+        fan.ForEachIn(face, conesOn[face][m * frames + offset], [&](const SegmentFan::Entry& entry) {
           int32_t& h = horizon[entry.sample];
           if (h > frame && SegmentMeetsSphere(entry.segment, sphere)) h = frame;
         });

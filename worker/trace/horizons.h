@@ -146,6 +146,8 @@ class HorizonOracle {
   struct MovingSphere {
     double radius;
     std::vector<Vec3> centers;
+    double step = 0;  // the farthest its centre moves from one frame to the next
+    size_t mover;     // its index in movers_
   };
   static Box EmptyBox();
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);

@@ -62,24 +62,43 @@ FaceRect ConeOnFace(int face, const Vec3& center, double radius) {
 }
 
 FanCones::FanCones(const HorizonOracle& oracle, const Vec3& point, double slack)
-    : oracle_(oracle), point_(point), slack_(slack), frames_(static_cast<size_t>(oracle.window()) + 1) {}
+    : oracle_(oracle), point_(point), slack_(slack), frames_(static_cast<size_t>(oracle.window()) + 1),
+      spans_((frames_ - 1 + kSpan - 1) / kSpan) {}
 
-const FaceRect& FanCones::Cone(int face, size_t mover, size_t offset) {
-  std::call_once(computed_[face], [&] {
-    std::vector<FaceRect>& cones = cones_[face];
-    cones.assign(oracle_.MoverCount() * frames_, FaceRect{});
-    for (size_t m = 0; m < oracle_.MoverCount(); ++m) {
-      for (size_t f = 1; f < frames_; ++f) {
-        const HorizonOracle::MoverSphere proxy = oracle_.MoverAt(m, f);
-        if (proxy.radius < 0) continue;
-        const Vec3 center{proxy.x - point_.x, proxy.y - point_.y, proxy.z - point_.z};
-        // Grown by the slack, and rounded up again for the float radius.
-        const double radius = (double(proxy.radius) + slack_) * (1 + 1e-6);
-        cones[m * frames_ + f] = ConeOnFace(face, center, radius);
+const FaceRect* FanCones::Cones(int face) {
+  std::call_once(computed_[face], [&] { Compute(face); });
+  return cones_[face].data();
+}
+
+const FaceRect* FanCones::SpanCones(int face) {
+  std::call_once(computed_[face], [&] { Compute(face); });
+  return spanCones_[face].data();
+}
+
+void FanCones::Compute(int face) {
+  std::vector<FaceRect>& cones = cones_[face];
+  std::vector<FaceRect>& spans = spanCones_[face];
+  cones.assign(oracle_.MoverCount() * frames_, FaceRect{});
+  spans.assign(oracle_.MoverCount() * spans_, FaceRect{});
+  for (size_t m = 0; m < oracle_.MoverCount(); ++m) {
+    for (size_t f = 1; f < frames_; ++f) {
+      const HorizonOracle::MoverSphere proxy = oracle_.MoverAt(m, f);
+      if (proxy.radius < 0) continue;
+      const Vec3 center{proxy.x - point_.x, proxy.y - point_.y, proxy.z - point_.z};
+      // Grown by the slack, and rounded up again for the float radius.
+      const double radius = (double(proxy.radius) + slack_) * (1 + 1e-6);
+      const FaceRect cone = ConeOnFace(face, center, radius);
+      cones[m * frames_ + f] = cone;
+      if (cone.Empty()) continue;
+      FaceRect& span = spans[m * spans_ + (f - 1) / kSpan];
+      if (span.Empty()) {
+        span = cone;
+      } else {
+        span = {std::min(span.u0, cone.u0), std::max(span.u1, cone.u1), std::min(span.v0, cone.v0),
+                std::max(span.v1, cone.v1)};
       }
     }
-  });
-  return cones_[face][mover * frames_ + offset];
+  }
 }
 
 bool SegmentFan::Add(uint32_t sample, const RaySegment& segment) {

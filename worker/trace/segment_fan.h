@@ -50,16 +50,26 @@ class FanCones {
   FanCones(const HorizonOracle& oracle, const Vec3& point, double slack);
   const Vec3& point() const { return point_; }
   double slack() const { return slack_; }
-  // The cone of mover m's bounds at frame offset `offset` (1 .. window) on `face`.
-  const FaceRect& Cone(int face, size_t mover, size_t offset);
+  // The cones of every mover's bounds on `face`: mover m's at frame offset `offset`
+  // (1 .. window) is at [m * Frames() + offset].
+  const FaceRect* Cones(int face);
+  size_t Frames() const { return frames_; }
+  // The union of mover m's cones on `face` over frame offsets [8k + 1, 8k + 8]: one test
+  // passes a mover by for eight frames. At [m * Spans() + k].
+  static constexpr size_t kSpan = 8;
+  const FaceRect* SpanCones(int face);
+  size_t Spans() const { return spans_; }
 
  private:
   const HorizonOracle& oracle_;
   Vec3 point_;
   double slack_;
   size_t frames_;
+  size_t spans_;
   std::array<std::once_flag, 6> computed_;
   std::array<std::vector<FaceRect>, 6> cones_;  // [mover * frames_ + offset]
+  std::array<std::vector<FaceRect>, 6> spanCones_;  // [mover * spans_ + span]
+  void Compute(int face);
 };
 
 class SegmentFan {
@@ -81,6 +91,12 @@ class SegmentFan {
   bool Add(uint32_t sample, const RaySegment& segment);
   // Lays the recorded segments out by cell; Add may not be called after it.
   void Index();
+  // Whether `rect` on `face` may hold any recorded segment's direction.
+  bool Overlaps(int face, const FaceRect& rect) const {
+    const Grid& grid = grids_[face];
+    return !rect.Empty() && rect.u1 >= grid.uMin && rect.u0 <= grid.uMax && rect.v1 >= grid.vMin &&
+           rect.v0 <= grid.vMax;
+  }
   // Calls visit(entry) for every recorded segment whose direction lies in `rect` on
   // `face` (and for some beside it).
   template <typename Visit>
@@ -119,10 +135,8 @@ class SegmentFan {
 
 template <typename Visit>
 void SegmentFan::ForEachIn(int face, const FaceRect& rect, Visit visit) const {
+  if (!Overlaps(face, rect)) return;
   const Grid& grid = grids_[face];
-  if (rect.Empty() || rect.u1 < grid.uMin || rect.u0 > grid.uMax || rect.v1 < grid.vMin || rect.v0 > grid.vMax) {
-    return;
-  }
   const uint32_t c0 = grid.Column(rect.u0), c1 = grid.Column(rect.u1);
   const uint32_t r0 = grid.Row(rect.v0), r1 = grid.Row(rect.v1);
   for (uint32_t row = r0; row <= r1; ++row) {

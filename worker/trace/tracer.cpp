@@ -30,11 +30,15 @@ constexpr float kRelativeRayOffset = 1e-5f;
 // and about kChunksPerThread chunks a thread, so that threads stay balanced while the
 // fixed cost of a chunk (its thread's CPU clock, read twice through a system call, and
 // its tracer) stays small against a large task's tracing.
+// With horizons a chunk also searches its fans once per mover and span of frames ahead,
+// whatever its size: fewer, larger chunks.
 constexpr size_t kMinPixelsPerChunk = 128;
 constexpr size_t kChunksPerThread = 16;
+constexpr size_t kChunksPerThreadWithHorizons = 4;
 
-size_t PixelsPerChunk(size_t pixelCount, unsigned threads) {
-  return std::max(kMinPixelsPerChunk, pixelCount / (size_t{threads} * kChunksPerThread));
+size_t PixelsPerChunk(size_t pixelCount, unsigned threads, bool horizons) {
+  const size_t chunksPerThread = horizons ? kChunksPerThreadWithHorizons : kChunksPerThread;
+  return std::max(kMinPixelsPerChunk, pixelCount / (size_t{threads} * chunksPerThread));
 }
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
@@ -576,7 +580,8 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       if (context.lights[light].isPoint) lightCones[light] = conesAround(context.lights[light].position);
     }
   }
-  threads_.ParallelFor(pixelCount, PixelsPerChunk(pixelCount, threads_.ThreadCount()), [&](size_t begin, size_t end) {
+  const size_t chunk = PixelsPerChunk(pixelCount, threads_.ThreadCount(), oracle != nullptr);
+  threads_.ParallelFor(pixelCount, chunk, [&](size_t begin, size_t end) {
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
     // Every (pixel, sample) of the chunk, in order, then packets of 8 over them. The

@@ -78,6 +78,10 @@ void TraceSceneFramesWithHorizons(benchmark::State& state, const std::string& fi
   state.counters["frames/s"] = benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
 }
 
+// A frame's pixel set is traced in tasks of at most this many pixels, as the farm cuts it
+// for one worker (PlannerOptions::maxTaskPixels).
+constexpr size_t kTaskPixels = 16384;
+
 // The pixel sets of a whole `exact` sequence, frame by frame: frame 0 in full, then each
 // frame only the pixels whose horizon it is.
 std::vector<std::vector<uint32_t>> ExactPixelSets(Tracer& tracer, const Scene& scene) {
@@ -95,8 +99,11 @@ std::vector<std::vector<uint32_t>> ExactPixelSets(Tracer& tracer, const Scene& s
     rgb.resize(indices.size() * 3);
     horizons.resize(indices.size());
     int window = last - frame;
-    tracer.TracePixels(frame, indices.data(), indices.size(), rgb.data(), window,
-                       window > 0 ? horizons.data() : nullptr);
+    for (size_t task = 0; task < indices.size(); task += kTaskPixels) {
+      const size_t count = std::min(kTaskPixels, indices.size() - task);
+      tracer.TracePixels(frame, indices.data() + task, count, rgb.data() + 3 * task, window,
+                         window > 0 ? horizons.data() + task : nullptr);
+    }
     for (size_t i = 0; window > 0 && i < indices.size(); ++i) next[indices[i]] = horizons[i];
   }
   return sets;
@@ -108,15 +115,27 @@ double TracedRatio(const std::vector<std::vector<uint32_t>>& sets, const Scene& 
   return double(traced) / (double(scene.render.width) * scene.render.height * sets.size());
 }
 
-// A whole `exact` sequence in one process, without the farm. Its time over brute force's
-// (TraceSceneFrames x frame count) is exact's relative cost on one worker.
+// The tracing threads' CPU seconds (what the farm's jobs report) for every frame in full.
+double BruteForceCpuSeconds(Tracer& tracer, const Scene& scene) {
+  std::vector<float> rgb(static_cast<size_t>(scene.render.width) * scene.render.height * 3);
+  const double before = tracer.CpuSeconds();
+  for (int f = scene.render.firstFrame; f <= scene.render.LastFrame(); ++f) tracer.TraceFrame(f, rgb.data());
+  return tracer.CpuSeconds() - before;
+}
+
+// A whole `exact` sequence in one process, without the farm, in tasks as one worker gets
+// them. cpu_ratio: its tracing threads' CPU over brute force's in the same process, as
+// the farm prices a job (stats.cost); the process's time also holds the bookkeeping.
 void TraceExactSequence(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   EmbreeDevice device;
   TracingThreads pool;
   Tracer tracer(device, scene, pool);
+  const double bruteForce = BruteForceCpuSeconds(tracer, scene);
   std::vector<std::vector<uint32_t>> sets;
+  const double before = tracer.CpuSeconds();
   for (auto _ : state) sets = ExactPixelSets(tracer, scene);
+  state.counters["cpu_ratio"] = (tracer.CpuSeconds() - before) / state.iterations() / bruteForce;
   state.counters["traced_ratio"] = TracedRatio(sets, scene);
   state.counters["frames/s"] = benchmark::Counter(state.iterations() * scene.render.frameCount,
                                                   benchmark::Counter::kIsRate);
@@ -130,15 +149,20 @@ void TraceExactSetsWithoutHorizons(benchmark::State& state, const std::string& f
   TracingThreads pool;
   Tracer tracer(device, scene, pool);
   const std::vector<std::vector<uint32_t>> sets = ExactPixelSets(tracer, scene);
+  const double bruteForce = BruteForceCpuSeconds(tracer, scene);
   std::vector<float> rgb;
+  const double before = tracer.CpuSeconds();
   for (auto _ : state) {
     for (size_t f = 0; f < sets.size(); ++f) {
       rgb.resize(sets[f].size() * 3);
-      tracer.TracePixels(scene.render.firstFrame + static_cast<int>(f), sets[f].data(),
-                         sets[f].size(), rgb.data());
+      for (size_t task = 0; task < sets[f].size(); task += kTaskPixels) {
+        tracer.TracePixels(scene.render.firstFrame + static_cast<int>(f), sets[f].data() + task,
+                           std::min(kTaskPixels, sets[f].size() - task), rgb.data() + 3 * task);
+      }
     }
     benchmark::DoNotOptimize(rgb.data());
   }
+  state.counters["cpu_ratio"] = (tracer.CpuSeconds() - before) / state.iterations() / bruteForce;
   state.counters["traced_ratio"] = TracedRatio(sets, scene);
 }
 
