@@ -40,6 +40,7 @@ struct HorizonTracker {
   }
   void FanSegment(SegmentFan* fan, int forLane, Float3 origin, Float3 direction, float length) {
     if (horizon[forLane] == oracle->frame() + 1) return;
+    if (fan && fan->cones() && !oracle->NearAnyMover({origin, direction, length})) return;
     if (fan && fan->cones() && fan->Add(sample + static_cast<uint32_t>(forLane), {origin, direction, length})) return;
     horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
   }
@@ -56,8 +57,12 @@ struct HorizonTracker {
   // bounds come near the ray at the traced frame: what blocks it never moves, so it
   // stays blocked.
   // A walk goes no further than the oracle's WalkEnd: the horizon is capped there first.
-  bool BlockedShadowMayClear(int forLane, const RaySegment& segment) {
-    if (horizon[forLane] <= oracle->frame() + 1 || !oracle->MayBeBlockedByMover(segment)) return false;
+  // `blocker`: the moving sphere that likely blocks it (-1: not known).
+  bool BlockedShadowMayClear(int forLane, const RaySegment& segment, int* blocker) {
+    if (horizon[forLane] <= oracle->frame() + 1) return false;
+    const int mover = oracle->MoverThatMayBlock(segment);
+    if (mover < 0) return false;
+    *blocker = oracle->SphereOfMover(mover);
     horizon[forLane] = std::min(horizon[forLane], oracle->WalkEnd());
     return true;
   }

@@ -373,12 +373,18 @@ int HorizonOracle::FirstNotSurelyBlocked(const RaySegment& segment, int from, in
   int frame = std::max(from, frame_ + 1);
   if (count == 0) return std::min(frame, before);
   const BlockedRay ray(segment);
-  // Only spheres whose path over the window comes near the ray can block it.
+  // Only spheres whose path over the window comes near the ray can block it; found when
+  // the blocker found last lets go, which many rays never reach within their horizon.
   uint8_t nearStack[256];
   thread_local std::vector<uint8_t> nearHeap;
-  uint8_t* near = nearStack;
-  if (sweptLo_[0].size() > 256) nearHeap.resize(sweptLo_[0].size()), near = nearHeap.data();
-  BoxesMet(SlabRay(segment), sweptLo_, sweptHi_, near);
+  uint8_t* near = nullptr;
+  auto nearSpheres = [&] {
+    if (near) return near;
+    near = nearStack;
+    if (sweptLo_[0].size() > 256) nearHeap.resize(sweptLo_[0].size()), near = nearHeap.data();
+    BoxesMet(SlabRay(segment), sweptLo_, sweptHi_, near);
+    return near;
+  };
   // -1, or the frames after f the sphere surely keeps blocking the ray.
   auto blockedFor = [&](int sphere, int f) {
     const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
@@ -394,7 +400,8 @@ int HorizonOracle::FirstNotSurelyBlocked(const RaySegment& segment, int from, in
       if (frame >= before) break;
     }
     int other = 0;
-    while (other < count && (other == *hint || !near[spheres_[static_cast<size_t>(other)].mover] ||
+    const uint8_t* nearby = nearSpheres();
+    while (other < count && (other == *hint || !nearby[spheres_[static_cast<size_t>(other)].mover] ||
                              !blocks(other, frame))) {
       ++other;
     }
@@ -439,12 +446,8 @@ HorizonOracle::Box HorizonOracle::EmptyBox() {
 
 int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
   before = std::min(before, Unbounded());
-  if (movers_.empty() || before <= frame_ + 1) return before;
+  if (movers_.empty() || before <= frame_ + 1 || !NearAnyMover(segment)) return before;
   const SlabRay ray(segment);
-  {
-    const float lo[3] = {all_.lo.x, all_.lo.y, all_.lo.z}, hi[3] = {all_.hi.x, all_.hi.y, all_.hi.z};
-    if (!Meets(ray, lo, hi)) return before;
-  }
   // Bytes of box tests: on the stack for the usual few movers and chunks.
   constexpr size_t kStackLanes = 256;
   uint8_t stackNear[kStackLanes], stackChunks[kStackLanes];
@@ -476,6 +479,11 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
     }
   }
   return std::min(before, frame_ + static_cast<int>(earliest));
+}
+
+bool HorizonOracle::NearAnyMover(const RaySegment& segment) const {
+  const float lo[3] = {all_.lo.x, all_.lo.y, all_.lo.z}, hi[3] = {all_.hi.x, all_.hi.y, all_.hi.z};
+  return Meets(SlabRay(segment), lo, hi);
 }
 
 HorizonOracle::MoverSphere HorizonOracle::MoverAt(size_t mover, size_t offset) const {
@@ -531,10 +539,18 @@ void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon) co
   }
 }
 
-bool HorizonOracle::MayBeBlockedByMover(const RaySegment& segment) const {
-  return std::any_of(movers_.begin(), movers_.end(), [&](const Mover& mover) {
-    return mover.atFrame[3] >= 0 && SegmentMeetsSphere(segment, mover.atFrame);
-  });
+int HorizonOracle::MoverThatMayBlock(const RaySegment& segment) const {
+  for (size_t m = 0; m < movers_.size(); ++m) {
+    if (movers_[m].atFrame[3] >= 0 && SegmentMeetsSphere(segment, movers_[m].atFrame)) return static_cast<int>(m);
+  }
+  return -1;
+}
+
+int HorizonOracle::SphereOfMover(int mover) const {
+  for (size_t i = 0; i < spheres_.size(); ++i) {
+    if (spheres_[i].mover == static_cast<size_t>(mover)) return static_cast<int>(i);
+  }
+  return -1;
 }
 
 }  // namespace tcfarm

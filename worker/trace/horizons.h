@@ -28,9 +28,8 @@
 //   earliest frame found. For reflected and refracted rays, and any ray no fan takes.
 // - FanFirstMeetings, frame by frame: camera rays leave one point (the eye) and shadow
 //   rays toward a point or spot light end at one (the light), so each mover's bounds at
-//   each frame find the few segments they may meet by direction (segment_fan.h). On the
-//   paper's twelve spheres this cut the horizons' cost to a third, the segment-by-segment
-//   search having spent most of its time culling paths that sweep the whole picture.
+//   each frame find the few segments they may meet by direction (segment_fan.h), where
+//   segment by segment most of the time went to culling paths that sweep the picture.
 #pragma once
 
 #include <cstdint>
@@ -88,10 +87,12 @@ class HorizonOracle {
   // that only deforms changes when its triangle's corners are posed differently (the
   // parts of it that hold still stay still); a still shape never (Unbounded()).
   int SurfaceChange(int shape, uint32_t primitive) const;
-  // Whether a moving shape's bounds meet the segment at frame() itself: for a blocked
-  // shadow ray, whether what blocks it may be a shape that moves. When none may, a still
-  // shape blocks it, and keeps blocking it at every frame.
-  bool MayBeBlockedByMover(const RaySegment& segment) const;
+  // The first moving shape whose bounds meet the segment at frame() itself (-1: none):
+  // for a blocked shadow ray, what may block it. When none may, a still shape blocks it,
+  // and keeps blocking it at every frame. The moving sphere a mover is (-1: none): the
+  // likely blocker, the first one FirstNotSurelyBlocked tries.
+  int MoverThatMayBlock(const RaySegment& segment) const;
+  int SphereOfMover(int mover) const;
   // For a blocked shadow ray: the first frame in [from, before) at which no moving sphere
   // surely blocks it, else `before`. A sphere surely blocks a segment that runs through
   // it well inside, from outside to outside, with margins far above the rounding of the
@@ -118,6 +119,9 @@ class HorizonOracle {
     float x, y, z, radius;
   };
   size_t MoverCount() const { return movers_.size(); }
+  // Whether the segment comes near any mover's bounds over the window at all: most
+  // segments of a picture do not, and need no search.
+  bool NearAnyMover(const RaySegment& segment) const;
   MoverSphere MoverAt(size_t mover, size_t offset) const;
   // How far a fan's segments may pass from its point (SegmentFan::Add): far above the
   // tracer's ray offsets at the scale of the point and of the movers.

@@ -376,5 +376,34 @@ TEST(HorizonsTest, LateMeetingsInALongWindowAreFoundWhereTheyAre) {
   }
 }
 
+// Blocked shadow rays skip ahead over the frames their sphere surely keeps blocking them:
+// a run gives the frame that frame-by-frame calls, which cannot skip, give.
+TEST(HorizonsTest, SkippingAheadInAShadowStopsWhereFrameByFrameStops) {
+  Scene scene = LoadSceneFile("tests/scenes/paper_b_twelve_spheres.json");
+  HorizonOracle oracle(scene, 0, scene.render.LastFrame());
+  ASSERT_TRUE(oracle.OnlyTranslatingSpheresMove());
+  std::mt19937 random(5);
+  std::uniform_real_distribution<float> unit(0, 1);
+  const Float3 light{5, 6, 9};
+  size_t blocked = 0, skipped = 0;
+  for (int i = 0; i < 4000; ++i) {
+    // From the backdrop toward the light, through where the balls fly.
+    const Float3 start{24 * unit(random) - 12, 18 * unit(random) - 9, -3.99f};
+    const Float3 toLight = Normalize(light - start);
+    const RaySegment ray{start, toLight, Length(light - start)};
+    int runHint = -1, stepHint = -1;
+    const int run = oracle.FirstNotSurelyBlocked(ray, 1, oracle.Unbounded(), &runHint);
+    int stepped = 1;
+    while (stepped < oracle.Unbounded() && oracle.FirstNotSurelyBlocked(ray, stepped, stepped + 1, &stepHint) > stepped) {
+      ++stepped;
+    }
+    ASSERT_EQ(run, stepped) << "ray " << i;
+    blocked += run > 1;
+    skipped += run - 1;
+  }
+  EXPECT_GT(blocked, 40u) << "some rays should start in a ball's shadow";
+  EXPECT_GT(skipped, 200u);
+}
+
 }  // namespace
 }  // namespace tcfarm

@@ -186,6 +186,7 @@ class Tracer::PixelTracer {
   // A shadow ray found blocked, as it was asked, to be followed over the frames ahead.
   struct BlockedShadowRay {
     uint32_t sample;  // in the chunk
+    int blocker;      // the moving sphere that likely blocks it, -1: not known
     RTCRay ray;
   };
   std::vector<BlockedShadowRay> walks_;
@@ -364,8 +365,9 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
       horizons_->LightSegment(lane, light, start, toLight, distance);
       continue;
     }
-    if (horizons_->BlockedShadowMayClear(lane, {start, toLight, distance})) {
-      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), query});
+    int blocker;
+    if (horizons_->BlockedShadowMayClear(lane, {start, toLight, distance}, &blocker)) {
+      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), blocker, query});
     }
   }
   return Combine(hit, local, depth);
@@ -473,12 +475,12 @@ void Tracer::PixelTracer::ShadowHorizons(size_t light, const RTCRay8& query, con
                              query.tfar[lane]};
     if (!blocked[lane]) {
       horizons_->LightSegment(lane, light, segment.origin, segment.direction, segment.length);
-    } else if (horizons_->BlockedShadowMayClear(lane, segment)) {
+    } else if (int blocker; horizons_->BlockedShadowMayClear(lane, segment, &blocker)) {
       RTCRay ray{};
       ray.org_x = query.org_x[lane], ray.org_y = query.org_y[lane], ray.org_z = query.org_z[lane];
       ray.dir_x = query.dir_x[lane], ray.dir_y = query.dir_y[lane], ray.dir_z = query.dir_z[lane];
       ray.tnear = query.tnear[lane], ray.tfar = query.tfar[lane], ray.mask = query.mask[lane];
-      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), ray});
+      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), blocker, ray});
     }
   }
 }
@@ -489,7 +491,7 @@ void Tracer::PixelTracer::FollowBlockedShadowRays(int32_t* sampleHorizon) {
     const RaySegment segment{{walk.ray.org_x, walk.ray.org_y, walk.ray.org_z},
                              {walk.ray.dir_x, walk.ray.dir_y, walk.ray.dir_z},
                              walk.ray.tfar};
-    int blocker = -1;
+    int blocker = walk.blocker;
     for (int frame = frame_.frame + 1; frame < horizon; ++frame) {
       frame = horizons_->oracle->FirstNotSurelyBlocked(segment, frame, horizon, &blocker);
       if (frame >= horizon) break;
