@@ -327,42 +327,59 @@ struct BlockedRay {
         originMagnitude(std::max({std::fabs(ox), std::fabs(oy), std::fabs(oz)})) {}
 };
 
+// The squared distance from the sphere's centre to the ray's line.
+double MissBy2(const BlockedRay& ray, const Vec3& c) {
+  const double ocx = c.x - ray.ox, ocy = c.y - ray.oy, ocz = c.z - ray.oz;
+  const double along = (ocx * ray.dx + ocy * ray.dy + ocz * ray.dz) / ray.dd;
+  const double px = ocx - along * ray.dx, py = ocy - along * ray.dy, pz = ocz - along * ray.dz;
+  return px * px + py * py + pz * pz;
+}
+
+// What the test of a ray against a sphere at one frame says of the frames after it, given
+// that the sphere's centre moves at most `step` a frame: every distance the test compares
+// moves by at most that much a frame, and the margins (grown by the centre's magnitude)
+// by 1e-5 of it.
+struct SureBlock {
+  bool blocked = false;
+  int keeps = 0;     // frames after this one it surely still blocks the ray
+  int endsHold = 0;  // frames after this one all but how far the ray passes from the
+                     // centre surely still hold: only that needs testing there
+  double inner = 0;  // the radius the ray must pass within, at this frame
+};
+
 // Whether the sphere surely blocks the ray: it runs through the sphere well inside, from
 // outside to outside, with margins far above the rounding of the tracer's own ray-sphere
-// test, so that test says "blocked" too. -1 when it does not; otherwise how many frames
-// after this one it surely still does, given that its centre moves at most `step` a
-// frame: each distance the test compares moves by at most that much a frame, and the
-// margins (grown by the centre's magnitude) by a 1e-5 of it.
-int SurelyBlockedFor(const BlockedRay& ray, const Vec3& c, double radius, double step) {
+// test, so that test says "blocked" too.
+SureBlock TestSureBlock(const BlockedRay& ray, const Vec3& c, double radius, double step) {
   // Margins: the tracer rounds in float, relative to the coordinates' magnitude (~1e-7
   // of it per operation); these are a hundred times that and a thousandth of the radius.
   const double magnitude =
       std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), ray.originMagnitude}) + radius;
   const double slack = 1e-3 * radius + 1e-5 * magnitude;
   const double inner = radius - slack, outer = radius + slack;
-  if (inner <= 0) return -1;
+  if (inner <= 0) return {};
   const double ocx = c.x - ray.ox, ocy = c.y - ray.oy, ocz = c.z - ray.oz;
   const double along = (ocx * ray.dx + ocy * ray.dy + ocz * ray.dz) / ray.dd;
   const double px = ocx - along * ray.dx, py = ocy - along * ray.dy, pz = ocz - along * ray.dz;
   const double missBy2 = px * px + py * py + pz * pz;
-  if (missBy2 >= inner * inner) return -1;  // not well inside
+  if (missBy2 >= inner * inner) return {};  // not well inside
   const double startBy2 = ocx * ocx + ocy * ocy + ocz * ocz;
-  if (startBy2 <= outer * outer) return -1;  // starts inside
+  if (startBy2 <= outer * outer) return {};  // starts inside
   double endBy2 = INFINITY;
   if (ray.finite) {
     const double ex = ray.ex - c.x, ey = ray.ey - c.y, ez = ray.ez - c.z;
     endBy2 = ex * ex + ey * ey + ez * ez;
-    if (endBy2 <= outer * outer) return -1;  // ends inside
+    if (endBy2 <= outer * outer) return {};  // ends inside
   }
   // Where the segment enters the inner sphere: well after its start, well before its end.
   const double enter = along - std::sqrt((inner * inner - missBy2) / ray.dd);
-  if (!(enter > slack && enter < ray.length - slack)) return -1;
+  if (!(enter > slack && enter < ray.length - slack)) return {};
   // With both ends outside, the ray runs through while its closest approach stays inside
   // and between its ends (then it enters at least 2 * slack from either end).
-  const double margin = std::min({inner - std::sqrt(missBy2), std::sqrt(startBy2) - outer,
-                                  std::sqrt(endBy2) - outer, along, ray.length - along});
+  const double ends = std::min({std::sqrt(startBy2) - outer, std::sqrt(endBy2) - outer, along, ray.length - along});
   const double perFrame = step * (1 + 1e-5) + 1e-300;
-  return static_cast<int>(std::min(1e6, std::floor(margin / perFrame * (1 - 1e-9))));
+  auto frames = [&](double margin) { return static_cast<int>(std::min(1e6, std::floor(margin / perFrame * (1 - 1e-9)))); };
+  return {true, frames(std::min(ends, inner - std::sqrt(missBy2))), frames(ends), inner};
 }
 
 }  // namespace
@@ -385,24 +402,39 @@ int HorizonOracle::FirstNotSurelyBlocked(const RaySegment& segment, int from, in
     BoxesMet(SlabRay(segment), sweptLo_, sweptHi_, near);
     return near;
   };
-  // -1, or the frames after f the sphere surely keeps blocking the ray.
-  auto blockedFor = [&](int sphere, int f) {
+  auto test = [&](int sphere, int f) {
     const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
     const size_t index = static_cast<size_t>(f - frame_);
-    if (index >= s.centers.size()) return -1;
-    const int ahead = SurelyBlockedFor(ray, s.centers[index], s.radius, s.step);
-    return std::min(ahead, static_cast<int>(s.centers.size() - 1 - index));
+    if (index >= s.centers.size()) return SureBlock{};
+    SureBlock sure = TestSureBlock(ray, s.centers[index], s.radius, s.step);
+    const int left = static_cast<int>(s.centers.size() - 1 - index);  // frames it has after f
+    sure.keeps = std::min(sure.keeps, left), sure.endsHold = std::min(sure.endsHold, left);
+    return sure;
   };
-  auto blocks = [&](int sphere, int f) { return blockedFor(sphere, f) >= 0; };
+  // From a frame the blocker surely blocks the ray at, on: first the frames its margins
+  // cover, then, while the ray's ends surely stay clear, only how far the ray passes from
+  // the centre, against the least inner radius those frames can have.
+  auto follow = [&](int sphere) {
+    for (SureBlock sure; frame < before && (sure = test(sphere, frame)).blocked;) {
+      const int first = frame;
+      const int last = std::min(before - 1, first + sure.endsHold);
+      frame += 1 + sure.keeps;
+      const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
+      const double inner = sure.inner - 1e-5 * s.step * (1 + 1e-5) * (last - first);
+      while (inner > 0 && frame <= last && MissBy2(ray, s.centers[static_cast<size_t>(frame - frame_)]) < inner * inner) {
+        ++frame;
+      }
+    }
+  };
   while (frame < before) {
     if (*hint >= 0 && *hint < count) {
-      for (int ahead; frame < before && (ahead = blockedFor(*hint, frame)) >= 0;) frame += 1 + ahead;
+      follow(*hint);
       if (frame >= before) break;
     }
     int other = 0;
     const uint8_t* nearby = nearSpheres();
     while (other < count && (other == *hint || !nearby[spheres_[static_cast<size_t>(other)].mover] ||
-                             !blocks(other, frame))) {
+                             !test(other, frame).blocked)) {
       ++other;
     }
     if (other == count) return frame;
