@@ -31,19 +31,6 @@ void TangentRange(double across, double ahead, double r, double* lo, double* hi)
 
 }  // namespace
 
-CubeKey CubeKeyOf(float x, float y, float z) {
-  const float c[3] = {x, y, z};
-  int axis = 0;
-  if (std::fabs(c[1]) > std::fabs(c[axis])) axis = 1;
-  if (std::fabs(c[2]) > std::fabs(c[axis])) axis = 2;
-  const FaceAxes axes = AxesOf(2 * axis);
-  const float ahead = std::fabs(c[axis]);
-  const int face = 2 * axis + (c[axis] < 0 ? 1 : 0);
-  if (!(ahead > 0)) return {face, 0, 0};  // not a direction: Add records none
-  const float inverse = 1.0f / ahead;
-  return {face, c[axes.uAxis] * inverse, c[axes.vAxis] * inverse};
-}
-
 FaceRect ConeOnFace(int face, const Vec3& center, double radius) {
   const FaceAxes axes = AxesOf(face);
   const double ahead = axes.sign * center[axes.axis];
@@ -121,7 +108,7 @@ bool SegmentFan::Add(uint32_t sample, const RaySegment& segment) {
   const bool away = tau >= 0;
   const float beyond = away ? 0.0f : std::max(0.0f, tau + segment.length);
   if (!(Dot(cross, cross) <= halfSlackSquared_ && beyond <= halfSlack_)) return false;
-  entries_.push_back({segment, sample, 0});
+  entries_.push_back({segment, sample});
   keys_.push_back(away ? CubeKeyOf(d.x, d.y, d.z) : CubeKeyOf(-d.x, -d.y, -d.z));
   return true;
 }
@@ -175,16 +162,17 @@ void SegmentFan::Index() {
   }
   // Counting sort by cell.
   cellStart_.assign(size_t{cells} + 1, 0);
+  cellOf_.resize(entries_.size());
   for (size_t i = 0; i < entries_.size(); ++i) {
     const Grid& grid = grids_[keys_[i].face];
-    entries_[i].cell = grid.firstCell + grid.Row(keys_[i].v) * grid.columns + grid.Column(keys_[i].u);
-    ++cellStart_[entries_[i].cell + 1];
+    cellOf_[i] = grid.firstCell + grid.Row(keys_[i].v) * grid.columns + grid.Column(keys_[i].u);
+    ++cellStart_[cellOf_[i] + 1];
   }
   for (size_t c = 1; c < cellStart_.size(); ++c) cellStart_[c] += cellStart_[c - 1];
-  std::vector<Entry> sorted(entries_.size());
-  std::vector<uint32_t> next(cellStart_.begin(), cellStart_.end() - 1);
-  for (const Entry& entry : entries_) sorted[next[entry.cell]++] = entry;
-  entries_.swap(sorted);
+  sorted_.resize(entries_.size());
+  nextInCell_.assign(cellStart_.begin(), cellStart_.end() - 1);
+  for (size_t i = 0; i < entries_.size(); ++i) sorted_[nextInCell_[cellOf_[i]]++] = entries_[i];
+  entries_.swap(sorted_);
   keys_.clear();
 }
 

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <mutex>
 #include <vector>
@@ -28,7 +29,22 @@ struct CubeKey {
   int face = 0;
   float u = 0, v = 0;
 };
-CubeKey CubeKeyOf(float x, float y, float z);
+// Inline: asked for every segment a fan records.
+inline CubeKey CubeKeyOf(float x, float y, float z) {
+  const float ax = std::fabs(x), ay = std::fabs(y), az = std::fabs(z);
+  // The axis the direction is most along, and its other two coordinates in the order
+  // (axis + 1, axis + 2) mod 3.
+  if (ax >= ay && ax >= az) {
+    const float inverse = 1.0f / ax;
+    return {x < 0 ? 1 : 0, y * inverse, z * inverse};
+  }
+  if (ay >= az) {
+    const float inverse = 1.0f / ay;
+    return {y < 0 ? 3 : 2, z * inverse, x * inverse};
+  }
+  const float inverse = 1.0f / az;
+  return {z < 0 ? 5 : 4, x * inverse, y * inverse};
+}
 
 // A rectangle of one cube face's coordinates; empty when u0 > u1.
 struct FaceRect {
@@ -78,7 +94,6 @@ class SegmentFan {
   struct Entry {
     RaySegment segment;
     uint32_t sample;
-    uint32_t cell;
   };
 
   SegmentFan() = default;
@@ -128,6 +143,8 @@ class SegmentFan {
   float halfSlack_ = 0, halfSlackSquared_ = 0, farSquared_ = 0;
   std::vector<Entry> entries_;
   std::vector<CubeKey> keys_;  // of entries_, until Index
+  std::vector<uint32_t> cellOf_, nextInCell_;  // Index's scratch, kept for its capacity
+  std::vector<Entry> sorted_;
   std::array<Grid, 6> grids_;
   std::vector<int> faces_;
   std::vector<uint32_t> cellStart_;  // entries of cell c: [cellStart_[c], cellStart_[c + 1])
