@@ -17,14 +17,20 @@ namespace {
 // PNG deflate level: 3 encodes ~1.5x faster than the default 6 for ~25 % more bytes,
 // and frames are written at the rate they are traced.
 constexpr int kPngCompressionLevel = 3;
+// libpng's PNG_FILTER_NONE. A mask is two values in runs: row filters do nothing for its
+// size, and choosing them took three quarters of its encoding (2.4 ms against 0.57 ms
+// for a 640x480 mask, 4.3 KB against 4.5 KB), written twice a frame while a job renders.
+constexpr int kPngNoFilter = 8;
 
 void WritePixels(const std::filesystem::path& path, int width, int height, int channels,
-                 OIIO::TypeDesc format, const void* pixels, const std::string& exrCompression = "") {
+                 OIIO::TypeDesc format, const void* pixels, const std::string& exrCompression = "",
+                 bool filterRows = true) {
   auto out = OIIO::ImageOutput::create(path.string());
   if (!out) throw FrameIoError("cannot write " + path.string() + ": " + OIIO::geterror());
   OIIO::ImageSpec spec(width, height, channels, format);
   if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", exrCompression);
   if (format == OIIO::TypeDesc::UINT8) spec.attribute("png:compressionLevel", kPngCompressionLevel);
+  if (!filterRows) spec.attribute("png:filter", kPngNoFilter);
   // Write to a temporary name and rename, so a reader never sees half a frame.
   const std::filesystem::path partial = PartialPathFor(path);
   if (!out->open(partial.string(), spec) || !out->write_image(format, pixels) || !out->close()) {
@@ -161,7 +167,7 @@ void WriteMaskPng(const std::filesystem::path& path, int width, int height,
   std::vector<uint8_t> codes(mask.size());
   std::transform(mask.begin(), mask.end(), codes.begin(),
                  [](uint8_t value) { return static_cast<uint8_t>(value ? 255 : 0); });
-  WritePixels(path, width, height, 1, OIIO::TypeDesc::UINT8, codes.data());
+  WritePixels(path, width, height, 1, OIIO::TypeDesc::UINT8, codes.data(), "", /*filterRows=*/false);
 }
 
 std::string ExrCompressionOf(const std::filesystem::path& path) {
