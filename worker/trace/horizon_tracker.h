@@ -49,12 +49,12 @@ struct HorizonTracker {
     horizon[forLane] = std::min({horizon[forLane], oracle->SurfaceChange(shape, primitive), oracle->LightCap()});
   }
   // A shadow ray found blocked at the traced frame: the light adds nothing, and keeps
-  // adding nothing for as long as the ray stays blocked, whoever blocks it. Such a ray is
-  // re-tested frame by frame ahead with the very query its trace would make there,
-  // instead of the pixel being traced again at every frame a moving shadow covers it.
-  // Not needed when the horizon is the next frame already, nor when no moving shape's
-  // bounds come near the ray at the traced frame: what blocks it never moves, so it
-  // stays blocked.
+  // adding nothing for as long as the ray stays blocked, whoever blocks it. True when the
+  // ray is to be followed frame by frame ahead (the tracer's FollowBlockedShadowRays,
+  // once the chunk's other rays have set the horizons), instead of the pixel being traced
+  // again at every frame a moving shadow covers it. Not needed when the horizon is the
+  // next frame already, nor when no moving shape's bounds come near the ray at the
+  // traced frame: what blocks it never moves, so it stays blocked.
   // A walk goes no further than the oracle's WalkEnd: the horizon is capped there first.
   // `blocker`: the moving sphere that likely blocks it (-1: not known).
   bool BlockedShadowMayClear(int forLane, const RaySegment& segment, int* blocker) {
