@@ -119,6 +119,10 @@ class HorizonOracle {
     float x, y, z, radius;
   };
   size_t MoverCount() const { return movers_.size(); }
+  // Whether the segment meets the box of every mover's bounds over the window: where the
+  // movers keep to a corner of the picture, most segments miss it and need no search (a
+  // segment's test costs less than its place in a fan).
+  bool NearAnyMover(const RaySegment& segment) const;
   MoverSphere MoverAt(size_t mover, size_t offset) const;
   // How far a fan's segments may pass from its point (SegmentFan::Add): far above the
   // tracer's ray offsets at the scale of the point and of the movers.
@@ -151,8 +155,6 @@ class HorizonOracle {
     size_t mover;     // its index in movers_
   };
   static Box EmptyBox();
-  // Whether the segment meets the box of every proxy: most segments of a picture miss it.
-  bool NearAnyMover(const RaySegment& segment) const;
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);
   static uint32_t LaneMask(size_t chunkBegin, size_t from, size_t to);
   // objectBounds(f): the shape's object-space bounds at frame f, a negative radius where
