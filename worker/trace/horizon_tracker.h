@@ -40,8 +40,10 @@ struct HorizonTracker {
   }
   void FanSegment(SegmentFan* fan, int forLane, Float3 origin, Float3 direction, float length) {
     if (horizon[forLane] == oracle->frame() + 1) return;
-    if (fan && fan->cones() && !oracle->NearAnyMover({origin, direction, length})) return;
-    if (fan && fan->cones() && fan->Add(sample + static_cast<uint32_t>(forLane), {origin, direction, length})) return;
+    if (fan && fan->cones()) {
+      if (!oracle->NearAnyMover({origin, direction, length})) return;
+      if (fan->Add(sample + static_cast<uint32_t>(forLane), {origin, direction, length})) return;
+    }
     horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
   }
   // A surface seen: the pixel may change when the surface does (a deforming mesh's parts

@@ -287,10 +287,12 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
   mover.radius.resize(padded, -1.0f);
   LayBoxesOut(mover.chunks, mover.chunkLo, mover.chunkHi);
   movers_.push_back(std::move(mover));
+  sphereOfMover_.push_back(-1);
   // Only a sphere that merely translates is settled by arithmetic: a turned or scaled one
   // is placed through a float matrix whose rounding the margins were not made for, so its
   // blocked shadow rays are asked of Embree instead.
   if (shape.type != Shape::Type::kSphere || !shape.motion.IsTranslationOnly()) return;
+  sphereOfMover_.back() = static_cast<int>(spheres_.size());
   MovingSphere sphere{shape.radius, {}, 0, movers_.size() - 1};
   for (int f = frame_; f <= lastFrame; ++f) {
     Vec3 t = shape.motion.translation.Evaluate(f);
@@ -578,11 +580,6 @@ int HorizonOracle::MoverThatMayBlock(const RaySegment& segment) const {
   return -1;
 }
 
-int HorizonOracle::SphereOfMover(int mover) const {
-  for (size_t i = 0; i < spheres_.size(); ++i) {
-    if (spheres_[i].mover == static_cast<size_t>(mover)) return static_cast<int>(i);
-  }
-  return -1;
-}
+int HorizonOracle::SphereOfMover(int mover) const { return sphereOfMover_[static_cast<size_t>(mover)]; }
 
 }  // namespace tcfarm

@@ -188,6 +188,7 @@ class HorizonOracle {
   std::vector<float> sweptLo_[3], sweptHi_[3];
   static void LayBoxesOut(const std::vector<Box>& boxes, std::vector<float> (&lo)[3], std::vector<float> (&hi)[3]);
   std::vector<MovingSphere> spheres_;
+  std::vector<int> sphereOfMover_;  // by mover: its index in spheres_, -1 for none
   Box all_;  // bounds of every proxy: most segments miss it and cost one test
 };
 
