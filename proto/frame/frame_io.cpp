@@ -11,6 +11,8 @@
 #include <cstring>
 #include <memory>
 
+#include "frame/page_aligned_output.h"
+
 namespace tcfarm {
 namespace {
 
@@ -31,12 +33,22 @@ void WritePixels(const std::filesystem::path& path, int width, int height, int c
   if (format == OIIO::TypeDesc::FLOAT) spec.attribute("compression", exrCompression);
   if (format == OIIO::TypeDesc::UINT8) spec.attribute("png:compressionLevel", kPngCompressionLevel);
   if (!filterRows) spec.attribute("png:filter", kPngNoFilter);
-  // Write to a temporary name and rename, so a reader never sees half a frame.
+  // Write to a temporary name and rename, so a reader never sees half a frame. The image
+  // is encoded in memory first and written around the page cache (page_aligned_output.h);
+  // the buffer is the thread's own, kept from one image to the next.
   const std::filesystem::path partial = PartialPathFor(path);
-  if (!out->open(partial.string(), spec) || !out->write_image(format, pixels) || !out->close()) {
-    std::string error = out->geterror();
-    std::filesystem::remove(partial);
-    throw FrameIoError("cannot write " + path.string() + ": " + error);
+  thread_local PageAlignedOutput encoded;
+  encoded.Reset();
+  if (!out->set_ioproxy(&encoded) || !out->open(partial.string(), spec) || !out->write_image(format, pixels) ||
+      !out->close()) {
+    throw FrameIoError("cannot write " + path.string() + ": " + out->geterror());
+  }
+  try {
+    WriteFileAroundCache(partial, encoded);
+  } catch (const FrameIoError&) {
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    throw;
   }
   std::error_code ec;
   std::filesystem::rename(partial, path, ec);
