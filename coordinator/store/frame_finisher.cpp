@@ -42,8 +42,8 @@ std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, 
   return png;
 }
 
-FrameFinisher::FrameFinisher(FrameStore store, FrameWriterOptions stored)
-    : store_(std::move(store)), stored_(std::move(stored)), thread_([this] { Run(); }) {}
+FrameFinisher::FrameFinisher(FrameStore store, FrameWriterOptions stored, std::chrono::milliseconds idleGrace)
+    : store_(std::move(store)), stored_(std::move(stored)), idleGrace_(idleGrace), thread_([this] { Run(); }) {}
 
 FrameFinisher::~FrameFinisher() {
   {
@@ -68,6 +68,7 @@ void FrameFinisher::SetFarmBusy(bool busy) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (busy_ == busy) return;
     busy_ = busy;
+    if (!busy) idleSince_ = std::chrono::steady_clock::now();
   }
   wake_.notify_all();
 }
@@ -117,9 +118,8 @@ void FrameFinisher::Finish(const Job& job) {
   for (int frame = job.first; frame <= job.last; ++frame) {
     {
       std::unique_lock<std::mutex> lock(mutex_);
-      wake_.wait(lock, [this] { return stopping_ || !busy_ || dropCurrent_; });
-      if (stopping_) return;  // the next coordinator finishes the job
-      if (dropCurrent_) return;  // being deleted: its folder is about to go
+      // Stopping: the next coordinator finishes the job. Dropped: its folder is about to go.
+      if (!WaitForIdleFarm(lock)) return;
     }
     try {
       FinishFrame(job.id, frame);
@@ -133,6 +133,19 @@ void FrameFinisher::Finish(const Job& job) {
   // Drop waits for this to return, so the marker never lands in a folder being removed.
   std::lock_guard<std::mutex> lock(mutex_);
   if (!dropCurrent_) std::ofstream(store_.JobFolder(job.id) / kFinishedMarker) << "finished\n";
+}
+
+bool FrameFinisher::WaitForIdleFarm(std::unique_lock<std::mutex>& lock) {
+  for (;;) {
+    if (stopping_ || dropCurrent_) return false;
+    if (busy_) {
+      wake_.wait(lock);
+      continue;
+    }
+    const auto idleEnough = idleSince_ + idleGrace_;
+    if (std::chrono::steady_clock::now() >= idleEnough) return true;
+    wake_.wait_until(lock, idleEnough);
+  }
 }
 
 void FrameFinisher::FinishFrame(uint64_t job, int frame) const {

@@ -17,6 +17,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
+constexpr std::chrono::milliseconds kNoGrace{0};
+
 bool WaitFor(const std::function<bool()>& condition) {
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
   while (!condition()) {
@@ -51,7 +53,7 @@ TEST_F(FrameFinisherTest, WaitsForTheFarmThenCompressesAndPreviewsBitForBit) {
   FrameWriterOptions stored;  // zip:1 and previews
   EXPECT_EQ(WhileRendering(stored).exrCompression, "none");
   EXPECT_FALSE(WhileRendering(stored).writePng);
-  FrameFinisher finisher(store_, stored);
+  FrameFinisher finisher(store_, stored, kNoGrace);
   finisher.SetFarmBusy(true);
   finisher.Add(7, 10, 13);  // frame 13 was never written (a failed job): skipped
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
@@ -67,11 +69,31 @@ TEST_F(FrameFinisherTest, WaitsForTheFarmThenCompressesAndPreviewsBitForBit) {
   EXPECT_FALSE(fs::exists(store_.FramePath(7, 13, "png")));
 }
 
+// The next job of a batch is submitted as the last one completes: the finisher lets the
+// farm stay idle for its grace before it starts a frame, and a job that comes within the
+// grace keeps it waiting.
+TEST_F(FrameFinisherTest, WaitsForTheFarmToStayIdleForItsGrace) {
+  FrameWriterOptions stored;
+  FrameFinisher finisher(store_, stored, std::chrono::milliseconds(400));
+  finisher.SetFarmBusy(true);
+  finisher.Add(7, 10, 12);
+  finisher.SetFarmBusy(false);
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  finisher.SetFarmBusy(true);  // the next job, within the grace
+  finisher.SetFarmBusy(false);
+  const auto idle = std::chrono::steady_clock::now();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_EQ(finisher.FramesFinished(), 0u);  // 350 ms since the first idle, 200 since the last
+  ASSERT_TRUE(WaitFor([&] { return finisher.Idle() && FrameFinisher::IsFinished(store_, 7); }));
+  EXPECT_GE(std::chrono::steady_clock::now() - idle, std::chrono::milliseconds(400));
+  EXPECT_EQ(finisher.FramesFinished(), 3u);
+}
+
 // A job deleted while it is finished: the finisher stops after the frame at hand, and once
 // Drop returns it writes nothing more into the folder, marker included.
 TEST_F(FrameFinisherTest, ADroppedJobIsLeftAloneOnceDropReturns) {
   FrameWriterOptions stored;
-  FrameFinisher finisher(store_, stored);
+  FrameFinisher finisher(store_, stored, kNoGrace);
   finisher.SetFarmBusy(true);
   finisher.Add(7, 10, 12);
   finisher.Add(8, 0, 0);  // never written: only its marker would appear
@@ -103,7 +125,7 @@ TEST_F(FrameFinisherTest, DroppingDuringEncodingNeverLeavesAFolderBehind) {
     const uint64_t job = 100 + round;
     fs::create_directories(store_.JobFolder(job));
     for (int frame = 0; frame < 6; ++frame) WriteExr(store_.FramePath(job, frame, "exr"), images_[0], "none");
-    FrameFinisher finisher(store_, stored);
+    FrameFinisher finisher(store_, stored, kNoGrace);
     finisher.Add(job, 0, 5);
     std::this_thread::sleep_for(std::chrono::microseconds(500 * round));
     finisher.Drop(job);
@@ -117,7 +139,7 @@ TEST_F(FrameFinisherTest, AStoreWithoutExrsHasNothingToFinish) {
   FrameWriterOptions pngOnly;
   pngOnly.writeExr = false;
   EXPECT_TRUE(WhileRendering(pngOnly).writePng);  // the PNG is the only copy: written at once
-  FrameFinisher finisher(store_, pngOnly);
+  FrameFinisher finisher(store_, pngOnly, kNoGrace);
   finisher.Add(7, 10, 12);
   EXPECT_TRUE(finisher.Idle());
   EXPECT_FALSE(fs::exists(store_.FramePath(7, 10, "png")));
