@@ -18,9 +18,9 @@ namespace tcfarm {
 
 class JobCoherence {
  public:
-  // Frames are width x height float RGB; spillFolder is where frames ahead of their turn
-  // wait once pendingFrameBytes of them are held in memory.
-  JobCoherence(int width, int height, std::filesystem::path spillFolder, size_t pendingFrameBytes);
+  // spillFolder is where frames ahead of their turn wait once pendingFrameBytes of them
+  // are held in memory.
+  JobCoherence(std::filesystem::path spillFolder, size_t pendingFrameBytes);
 
   // `frame` relative to the job; white (1) where the pixel is bitwise the previous frame's.
   struct ChangeMask {
@@ -31,7 +31,8 @@ class JobCoherence {
   // oldest first: none while `frame` is ahead of its turn, several when it was the one
   // the waiting frames needed. Throws FrameIoError when a waiting frame cannot be spilled
   // or read back.
-  std::vector<ChangeMask> Add(int frame, const std::vector<float>& rgb);
+  // A frame taken in its turn is not copied; one ahead of it is, to wait.
+  std::vector<ChangeMask> Add(int frame, const Image& image);
 
   const SequenceAnalyzer& analysis() const { return analyzer_; }
   // The frame whose turn it is: every frame before it is analysed.
@@ -40,13 +41,11 @@ class JobCoherence {
   uint64_t FramesWaitedOnDisk() const { return waiting_.TotalSpilled(); }
 
  private:
-  ChangeMask TakeInOrder(Image frame);
+  ChangeMask TakeInOrder(const Image& frame);
 
-  int width_, height_;
   SequenceAnalyzer analyzer_;
   int nextFrame_ = 0;
   PendingFrames waiting_;
-  std::vector<float> previousRgb_;  // the last frame analysed, for the next one's mask
 };
 
 }  // namespace tcfarm

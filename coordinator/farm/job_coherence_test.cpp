@@ -19,10 +19,10 @@ class JobCoherenceTest : public ::testing::Test {
 };
 
 // Two pixels; frame f's first pixel is f, its second stays 0.
-std::vector<float> Frame(int f) { return {float(f), 0, 0, 0, 0, 0}; }
+Image Frame(int f) { return Image{2, 1, {float(f), 0, 0, 0, 0, 0}}; }
 
 TEST_F(JobCoherenceTest, FramesAheadOfTheirTurnWaitThenComeOutInOrder) {
-  JobCoherence coherence(2, 1, folder_ / ".pending", size_t{1} << 20);
+  JobCoherence coherence(folder_ / ".pending", size_t{1} << 20);
   EXPECT_TRUE(coherence.Add(2, Frame(2)).empty());
   EXPECT_TRUE(coherence.Add(1, Frame(1)).empty());
   const std::vector<JobCoherence::ChangeMask> masks = coherence.Add(0, Frame(0));
@@ -39,7 +39,7 @@ TEST_F(JobCoherenceTest, FramesAheadOfTheirTurnWaitThenComeOutInOrder) {
 
 TEST_F(JobCoherenceTest, WithoutMemoryFramesWaitOnDisk) {
   {
-    JobCoherence coherence(2, 1, folder_ / ".pending", 0);
+    JobCoherence coherence(folder_ / ".pending", 0);
     EXPECT_TRUE(coherence.Add(1, Frame(1)).empty());
     EXPECT_EQ(coherence.FramesWaitedOnDisk(), 1u);
     ASSERT_EQ(coherence.Add(0, Frame(0)).size(), 2u);

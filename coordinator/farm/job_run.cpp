@@ -173,8 +173,7 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
              PromisesExact(resolved_.strategy)),
       written_(kept_.kept),
       writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
-      coherence_(spec_.frameSize.width, spec_.frameSize.height, store.SpillFolder(record.id),
-                 settings.pendingFrameBytes),
+      coherence_(store.SpillFolder(record.id), settings.pendingFrameBytes),
       cost_(PixelsPerFrame(), FrameCountOf(spec_)),
       started_(std::chrono::steady_clock::now()),
       framesToForget_(kept_.missing),
@@ -396,7 +395,7 @@ void JobRun::FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds) {
     // Its reference, when one is asked for, is traced and compared like any frame's; its
     // traced pixels are not known here, so it gets no spot checks.
     verification_.OnFrameFinished(frame, image.rgb, std::vector<uint8_t>(PixelsPerFrame(), 1));
-    for (JobCoherence::ChangeMask& mask : coherence_.Add(frame, image.rgb)) {
+    for (JobCoherence::ChangeMask& mask : coherence_.Add(frame, image)) {
       WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
     }
   }
@@ -406,12 +405,13 @@ void JobRun::FinishFrame(FinishedFrame frame) {
   const int absolute = spec_.firstFrame + frame.frame;
   writing_[absolute] = frame.tracedCount;
   cost_.OnFrameFinished(frame.frame, frame.tracedCount);
-  verification_.OnFrameFinished(frame.frame, frame.rgb, frame.traced);
+  Image image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)};
+  verification_.OnFrameFinished(frame.frame, image.rgb, frame.traced);
   WriteMask(MaskKind::kTraced, absolute, std::move(frame.traced));
-  for (JobCoherence::ChangeMask& mask : coherence_.Add(frame.frame, frame.rgb)) {
+  for (JobCoherence::ChangeMask& mask : coherence_.Add(frame.frame, image)) {
     WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
   }
-  writer_.Write(absolute, Image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)});
+  writer_.Write(absolute, std::move(image));
   ++framesDone_;
 }
 

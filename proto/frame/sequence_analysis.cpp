@@ -104,10 +104,13 @@ void SequenceAnalyzer::Start(const Image& frame) {
   closedEventsByDuration_.assign(2, 0);
 }
 
-size_t SequenceAnalyzer::AdvanceRuns(const Image& frame) {
+size_t SequenceAnalyzer::AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged) {
   size_t equal = 0;
+  uint8_t* mask = unchanged ? unchanged->data() : nullptr;
   for (size_t pixel = 0; pixel < runLength_.size(); ++pixel) {
-    if (SamePixel(previous_, frame, pixel)) {
+    const bool same = SamePixel(previous_, frame, pixel);
+    if (mask) mask[pixel] = same;
+    if (same) {
       ++runLength_[pixel];
       ++equal;
       continue;
@@ -119,8 +122,9 @@ size_t SequenceAnalyzer::AdvanceRuns(const Image& frame) {
   return equal;
 }
 
-void SequenceAnalyzer::Add(const Image& frame) {
+void SequenceAnalyzer::Add(const Image& frame, std::vector<uint8_t>* unchanged) {
   CheckShape(frame);
+  if (unchanged) unchanged->assign(frame.PixelCount(), 1);
   if (frames_ == 0) {
     Start(frame);
     frames_ = 1;
@@ -129,7 +133,7 @@ void SequenceAnalyzer::Add(const Image& frame) {
   ++frames_;
   // A run can now last up to frames_ frames: index frames_ must exist.
   closedEventsByDuration_.resize(frames_ + 1, 0);
-  double frameToFrame = double(AdvanceRuns(frame)) / double(runLength_.size());
+  double frameToFrame = double(AdvanceRuns(frame, unchanged)) / double(runLength_.size());
   double longTerm = Coherence(first_, frame);
   frameToFrame_.Add(frameToFrame);
   longTerm_.Add(longTerm);

@@ -46,7 +46,9 @@ class SequenceAnalyzer {
  public:
   // Throws std::invalid_argument for an empty or malformed image, or one whose size differs
   // from the first frame's.
-  void Add(const Image& frame);
+  // unchanged, when given, is set to the frame's change mask: 1 where the pixel is bitwise
+  // the previous frame's (every pixel of the first frame), 0 elsewhere.
+  void Add(const Image& frame, std::vector<uint8_t>* unchanged = nullptr);
   int FrameCount() const { return frames_; }
   // Running coherence figures, cheap to read while frames arrive.
   const RunningStats& frameToFrame() const { return frameToFrame_; }
@@ -57,7 +59,8 @@ class SequenceAnalyzer {
  private:
   void CheckShape(const Image& frame) const;
   void Start(const Image& frame);
-  size_t AdvanceRuns(const Image& frame);  // returns the pixels equal to the previous frame
+  // Returns the pixels equal to the previous frame; marks them in `unchanged` when given.
+  size_t AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged);
   std::vector<uint64_t> EventsIncludingOpenRuns() const;
 
   int frames_ = 0, width_ = 0, height_ = 0;

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <cstring>
 #include <numeric>
 #include <random>
@@ -27,6 +29,19 @@ SequenceAnalysis Analyze(const std::vector<Image>& frames) {
 
 double Sum(const std::vector<double>& values) {
   return std::accumulate(values.begin(), values.end(), 0.0);
+}
+
+// The change mask is bitwise, as the farm copies bits: -0 is a change from +0, and a NaN
+// with the same bits is no change.
+TEST(SequenceAnalysisTest, ChangeMaskComparesBits) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  SequenceAnalyzer analyzer;
+  std::vector<uint8_t> unchanged;
+  analyzer.Add(Image{3, 1, {0.0f, 0, 0, nan, 1, 1, 0.5f, 0.5f, 0.5f}}, &unchanged);
+  EXPECT_EQ(unchanged, (std::vector<uint8_t>{1, 1, 1}));  // nothing to change from
+  analyzer.Add(Image{3, 1, {-0.0f, 0, 0, nan, 1, 1, 0.5f, 0.5f, 0.75f}}, &unchanged);
+  EXPECT_EQ(unchanged, (std::vector<uint8_t>{0, 1, 0}));
+  EXPECT_NEAR(analyzer.frameToFrame().Mean(), 1.0 / 3.0, 1e-12);
 }
 
 TEST(SequenceAnalysisTest, StaticSequenceIsOneFullEventPerPixel) {
