@@ -5,7 +5,10 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <string>
+#include <unordered_map>
 #include <utility>
+#include <vector>
 
 namespace tcfarm {
 
@@ -65,7 +68,12 @@ class Database {
     }
     sqlite3_extended_result_codes(handle_, 1);
   }
-  ~Database() { sqlite3_close(handle_); }  // statements are finalized before, by RAII
+  ~Database() {
+    for (auto& [sql, idle] : idleStatements_) {
+      for (sqlite3_stmt* statement : idle) sqlite3_finalize(statement);
+    }
+    sqlite3_close(handle_);  // statements in use are finalized before, by RAII
+  }
   Database(const Database&) = delete;
   Database& operator=(const Database&) = delete;
 
@@ -87,6 +95,29 @@ class Database {
     }
   }
 
+  // A prepared statement for `sql`: one used before and given back, or a new one. Each is
+  // parsed once per connection, not per call: parsing was most of what recording a
+  // frame cost.
+  sqlite3_stmt* TakeStatement(const std::string& sql) {
+    std::vector<sqlite3_stmt*>& idle = idleStatements_[sql];
+    if (!idle.empty()) {
+      sqlite3_stmt* statement = idle.back();
+      idle.pop_back();
+      return statement;
+    }
+    sqlite3_stmt* statement = nullptr;
+    if (sqlite3_prepare_v3(handle_, sql.c_str(), -1, SQLITE_PREPARE_PERSISTENT, &statement, nullptr) != SQLITE_OK) {
+      Throw("prepare " + sql);
+    }
+    return statement;
+  }
+  // Resets the statement and keeps it for the next TakeStatement of its SQL.
+  void GiveBack(const std::string& sql, sqlite3_stmt* statement) {
+    sqlite3_reset(statement);
+    sqlite3_clear_bindings(statement);
+    idleStatements_[sql].push_back(statement);
+  }
+
   int Changes() const { return sqlite3_changes(handle_); }
   int64_t LastInsertRowId() const { return sqlite3_last_insert_rowid(handle_); }
 
@@ -105,16 +136,13 @@ class Database {
 
   std::string path_;
   sqlite3* handle_ = nullptr;
+  std::unordered_map<std::string, std::vector<sqlite3_stmt*>> idleStatements_;
 };
 
 class Statement {
  public:
-  Statement(Database& db, const std::string& sql) : db_(db) {
-    if (sqlite3_prepare_v2(db.handle(), sql.c_str(), -1, &handle_, nullptr) != SQLITE_OK) {
-      db.Throw("prepare " + sql);
-    }
-  }
-  ~Statement() { sqlite3_finalize(handle_); }
+  Statement(Database& db, std::string sql) : db_(db), sql_(std::move(sql)), handle_(db.TakeStatement(sql_)) {}
+  ~Statement() { db_.GiveBack(sql_, handle_); }
   Statement(const Statement&) = delete;
   Statement& operator=(const Statement&) = delete;
 
@@ -162,6 +190,7 @@ class Statement {
   }
 
   Database& db_;
+  std::string sql_;
   sqlite3_stmt* handle_ = nullptr;
 };
 
