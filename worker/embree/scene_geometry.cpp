@@ -44,10 +44,9 @@ unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape, bool 
   return id;
 }
 
-// Robust traversal closes the hairline cracks between adjacent triangles (terrain).
-RTCScene NewStaticScene(RTCDevice device) {
+RTCScene NewStaticScene(RTCDevice device, bool robust) {
   RTCScene scene = rtcNewScene(device);
-  rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  if (robust) rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
   return scene;
 }
@@ -73,6 +72,12 @@ unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Af
 
 }  // namespace
 
+bool NeedsRobustTraversal(const Scene& scene) {
+  return std::any_of(scene.shapes.begin(), scene.shapes.end(), [](const Shape& shape) {
+    return shape.type == Shape::Type::kMesh || shape.type == Shape::Type::kTerrain;
+  });
+}
+
 void FrameGeometry::SetNormalTransform(int shape, const Affine& worldFromObject) {
   if (normalFromObject_.size() <= static_cast<size_t>(shape)) normalFromObject_.resize(shape + 1);
   NormalTransform& out = normalFromObject_[shape];
@@ -88,7 +93,8 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
 }
 
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
-    : device_(device), scene_(scene), staticScene_(NewStaticScene(device.get())),
+    : device_(device), scene_(scene), robust_(NeedsRobustTraversal(scene)),
+      staticScene_(NewStaticScene(device.get(), robust_)),
       settlesTies_(SceneMayTie(scene)),
       normals_(PerShapeOncePerMesh<SurfaceNormals>(scene.shapes, [](const Shape& shape) {
         return SurfaceNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)};
@@ -135,7 +141,7 @@ SceneHandle SceneGeometry::ObjectScene(const Shape& shape) {
 }
 
 SceneHandle SceneGeometry::NewObjectScene(const Shape& shape) const {
-  SceneHandle scene(NewStaticScene(device_.get()));
+  SceneHandle scene(NewStaticScene(device_.get(), robust_));
   AttachShape(device_.get(), scene.get(), shape, settlesTies_);
   rtcCommitScene(scene.get());
   return scene;
@@ -146,7 +152,7 @@ std::shared_ptr<FrameGeometry> SceneGeometry::BuildFrame(int frame) const {
   RTCScene top = rtcNewScene(device_.get());
   // A handful of instances: a fast build beats a good tree.
   rtcSetSceneBuildQuality(top, RTC_BUILD_QUALITY_LOW);
-  rtcSetSceneFlags(top, RTC_SCENE_FLAG_ROBUST);
+  if (robust_) rtcSetSceneFlags(top, RTC_SCENE_FLAG_ROBUST);
   placed->top_ = SceneHandle(top);
   placed->staticShapeOfGeometry_ = &staticShapeOfGeometry_;
   placed->settlesTies_ = settlesTies_;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "embree/scene_geometry.h"
 #include "shapes/shape_kind.h"
 #include "trace/camera.h"
 #include "trace/float3.h"
@@ -18,9 +19,9 @@ constexpr float kInfinity = std::numeric_limits<float>::infinity();
 // Shadow rays start this far off the surface, relative to the hit's coordinates (the tracer's offset).
 constexpr float kRelativeOffset = 1e-5f;
 
-void ApplyFlags(RTCScene scene, BareEmbreeLoop::Flags flags) {
+void ApplyFlags(RTCScene scene, BareEmbreeLoop::Flags flags, bool robust) {
   if (flags != BareEmbreeLoop::Flags::kTracers) return;
-  rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  if (robust) rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
 }
 
@@ -60,7 +61,8 @@ struct LaneHit {
 }  // namespace
 
 BareEmbreeLoop::BareEmbreeLoop(RTCDevice device, const Scene& scene, Flags flags)
-    : device_(device), scene_(scene), flags_(flags) {
+    : device_(device), scene_(scene), flags_(flags),
+      robust_(flags == Flags::kTracers && NeedsRobustTraversal(scene)) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
     RTCScene target;
@@ -98,7 +100,7 @@ bool BareEmbreeLoop::Covers(const Scene& scene) {
 
 RTCScene BareEmbreeLoop::NewShapesScene() const {
   RTCScene scene = rtcNewScene(device_);
-  ApplyFlags(scene, flags_);
+  ApplyFlags(scene, flags_, robust_);
   return scene;
 }
 
@@ -112,7 +114,7 @@ const BareEmbreeLoop::Placed& BareEmbreeLoop::Place(int frame) {
   }
   placed.scene = rtcNewScene(device_);
   rtcSetSceneBuildQuality(placed.scene, RTC_BUILD_QUALITY_LOW);
-  if (flags_ == Flags::kTracers) rtcSetSceneFlags(placed.scene, RTC_SCENE_FLAG_ROBUST);
+  if (robust_) rtcSetSceneFlags(placed.scene, RTC_SCENE_FLAG_ROBUST);
   if (still_) {
     AttachInstance(device_, placed.scene, still_, Affine{});
     placed.shapeOfInstance.push_back(-1);

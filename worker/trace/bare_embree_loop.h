@@ -22,7 +22,8 @@ namespace tcfarm {
 class BareEmbreeLoop {
  public:
   // Embree's defaults (medium-quality trees, fast traversal), or with the tracer's flags:
-  // robust traversal and high-quality trees for the scenes of shapes.
+  // high-quality trees for the scenes of shapes, traversed robustly where the scene holds
+  // triangle meshes (NeedsRobustTraversal).
   enum class Flags { kEmbreeDefaults, kTracers };
 
   // The scene must outlive the loop.
@@ -50,6 +51,7 @@ class BareEmbreeLoop {
   RTCDevice device_;
   const Scene& scene_;
   Flags flags_;
+  bool robust_;  // the tracer's flags, on a scene that needs robust traversal
   RTCScene still_ = nullptr;            // the still shapes, null when there are none
   std::vector<int> stillShapeOfGeometry_;
   std::vector<std::pair<int, RTCScene>> movers_;  // shape, its own scene

@@ -9,6 +9,7 @@
 #include <numeric>
 #include <random>
 
+#include "embree/scene_geometry.h"
 #include "frame/frame_io.h"
 #include "trace/scaled_scene.h"
 
@@ -291,6 +292,16 @@ TEST(TracerTest, NoPerFramePlacementWhenNothingMoves) {
   for (Shape& shape : scene.shapes) shape.motion = Motion{};
   RenderFrame(scene, 4, 0, nullptr, &builds);
   EXPECT_EQ(builds, 0u);
+}
+
+// Robust traversal closes the edges triangles share; scenes of spheres and quads have none
+// and trace with Embree's faster kernels.
+TEST(TracerTest, RobustTraversalOnlyWhereTheSceneHoldsTriangleMeshes) {
+  EXPECT_FALSE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/paper_a_one_sphere.json")));
+  EXPECT_FALSE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/paper_b_twelve_spheres.json")));
+  EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/paper_c_terrain_flyover.json")));
+  EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/mesh_with_normals_and_uvs.json")));
+  EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/imports_an_obj.json")));
 }
 
 TEST(TracerTest, MovingShapeIsPlacedAtItsFramePosition) {
