@@ -20,9 +20,9 @@ std::vector<JobCoherence::ChangeMask> JobCoherence::Add(int frame, const Image& 
 
 // The first frame has nothing to change from, so its mask is all white.
 JobCoherence::ChangeMask JobCoherence::TakeInOrder(const Image& frame) {
-  ChangeMask mask{nextFrame_++, {}};
-  analyzer_.Add(frame, &mask.unchanged);
-  return mask;
+  std::vector<uint8_t> unchanged;
+  analyzer_.Add(frame, &unchanged);  // may throw: the frame's turn stays
+  return ChangeMask{nextFrame_++, std::move(unchanged)};
 }
 
 }  // namespace tcfarm

@@ -31,7 +31,8 @@ class JobCoherence {
   // oldest first: none while `frame` is ahead of its turn, several when it was the one
   // the waiting frames needed. Throws FrameIoError when a waiting frame cannot be spilled
   // or read back.
-  // A frame taken in its turn is not copied; one ahead of it is, to wait.
+  // A frame taken in its turn is copied only into the analysis (as the previous frame);
+  // one ahead of it is copied to wait.
   std::vector<ChangeMask> Add(int frame, const Image& image);
 
   const SequenceAnalyzer& analysis() const { return analyzer_; }

@@ -72,7 +72,7 @@ class Database {
     for (auto& [sql, idle] : idleStatements_) {
       for (sqlite3_stmt* statement : idle) sqlite3_finalize(statement);
     }
-    sqlite3_close(handle_);  // statements in use are finalized before, by RAII
+    sqlite3_close(handle_);  // every Statement has given its statement back by now (RAII)
   }
   Database(const Database&) = delete;
   Database& operator=(const Database&) = delete;

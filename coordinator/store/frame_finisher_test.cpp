@@ -74,18 +74,19 @@ TEST_F(FrameFinisherTest, WaitsForTheFarmThenCompressesAndPreviewsBitForBit) {
 // grace keeps it waiting.
 TEST_F(FrameFinisherTest, WaitsForTheFarmToStayIdleForItsGrace) {
   FrameWriterOptions stored;
-  FrameFinisher finisher(store_, stored, std::chrono::milliseconds(400));
+  constexpr std::chrono::milliseconds kGrace{1500};
+  FrameFinisher finisher(store_, stored, kGrace);
   finisher.SetFarmBusy(true);
   finisher.Add(7, 10, 12);
   finisher.SetFarmBusy(false);
-  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
   finisher.SetFarmBusy(true);  // the next job, within the grace
   finisher.SetFarmBusy(false);
   const auto idle = std::chrono::steady_clock::now();
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_EQ(finisher.FramesFinished(), 0u);  // 350 ms since the first idle, 200 since the last
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  EXPECT_EQ(finisher.FramesFinished(), 0u);  // 1.7 s since the first idle, 0.7 s since the last
   ASSERT_TRUE(WaitFor([&] { return finisher.Idle() && FrameFinisher::IsFinished(store_, 7); }));
-  EXPECT_GE(std::chrono::steady_clock::now() - idle, std::chrono::milliseconds(400));
+  EXPECT_GE(std::chrono::steady_clock::now() - idle, kGrace);
   EXPECT_EQ(finisher.FramesFinished(), 3u);
 }
 

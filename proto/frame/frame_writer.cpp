@@ -16,7 +16,8 @@ FrameWriter::FrameWriter(std::filesystem::path directory, FrameWriterOptions opt
   options_.maxQueuedFrames = std::max<size_t>(1, options_.maxQueuedFrames);
   // The writer's own threads encode frames in parallel; OpenEXR's pool would only hand
   // each frame's blocks from thread to thread (a tenth of the coordinator's CPU went to
-  // those switches while a job rendered). -1: OpenEXR encodes on the calling thread.
+  // those switches while a job rendered). -1: OpenEXR reads and writes on the calling
+  // thread, for the whole process (OIIO holds one setting).
   OIIO::attribute("exr_threads", -1);
   for (unsigned i = 0; i < std::max(1u, options_.threads); ++i) {
     threads_.emplace_back([this] { Run(); });

@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
+#include <new>
 #include <string>
 
 #include "frame/frame_io.h"
@@ -18,27 +19,27 @@ size_t RoundUpToPage(size_t bytes) {
   return (bytes + kDirectIoAlignment - 1) / kDirectIoAlignment * kDirectIoAlignment;
 }
 
-std::string Why(const std::filesystem::path& path, const char* doing) {
-  return "cannot write " + path.string() + ": " + doing + ": " + std::strerror(errno);
+std::string Why(const std::filesystem::path& path, const char* doing, int error) {
+  return "cannot write " + path.string() + ": " + doing + ": " + std::strerror(error);
 }
 
-// Writes bytes [from, to) of `data` at their own offsets. With O_DIRECT set, `from` and the
-// length are page multiples; a file system that refuses a direct write midway (EINVAL) gets
-// the rest buffered.
+// Writes bytes [from, to) of `data` at their own offsets. A direct write that the file
+// system refuses (EINVAL: an offset or length it cannot take, as after a short write)
+// turns the rest of the file buffered.
 void WriteAll(int fd, const uint8_t* data, size_t from, size_t to, const std::filesystem::path& path) {
   while (from < to) {
     const ssize_t written = ::pwrite(fd, data + from, to - from, static_cast<off_t>(from));
+    const int error = written < 0 ? errno : EIO;
     if (written > 0) {
       from += static_cast<size_t>(written);
       continue;
     }
-    if (written < 0 && errno == EINTR) continue;
-    const int flags = ::fcntl(fd, F_GETFL);
-    if (written < 0 && errno == EINVAL && flags >= 0 && (flags & O_DIRECT)) {
-      if (::fcntl(fd, F_SETFL, flags & ~O_DIRECT) == 0) continue;
+    if (written < 0 && error == EINTR) continue;
+    if (error == EINVAL) {
+      const int flags = ::fcntl(fd, F_GETFL);
+      if (flags >= 0 && (flags & O_DIRECT) && ::fcntl(fd, F_SETFL, flags & ~O_DIRECT) == 0) continue;
     }
-    if (written == 0) errno = EIO;
-    throw FrameIoError(Why(path, "write"));
+    throw FrameIoError(Why(path, "write", error));
   }
 }
 
@@ -54,8 +55,8 @@ void PageAlignedOutput::Reset() {
 }
 
 void PageAlignedOutput::Reserve(size_t bytes) {
-  // One page beyond the bytes: the padding a direct write rounds up to is always there.
-  const size_t wanted = RoundUpToPage(bytes) + kDirectIoAlignment;
+  // Whole pages: the padding a direct write rounds up to is always there.
+  const size_t wanted = RoundUpToPage(bytes);
   if (wanted <= capacity_) return;
   const size_t capacity = std::max(wanted, RoundUpToPage(capacity_ + capacity_ / 2));
   auto* grown = static_cast<uint8_t*>(std::aligned_alloc(kDirectIoAlignment, capacity));
@@ -69,7 +70,12 @@ void PageAlignedOutput::Reserve(size_t bytes) {
 size_t PageAlignedOutput::pwrite(const void* bytes, size_t size, int64_t offset) {
   if (offset < 0) return 0;
   const size_t end = static_cast<size_t>(offset) + size;
-  Reserve(end);
+  try {
+    Reserve(end);
+  } catch (const std::bad_alloc&) {
+    error("out of memory for an image of " + std::to_string(end) + " bytes");
+    return 0;
+  }
   // A seek past the end leaves a hole: zeros, as in a file.
   if (static_cast<size_t>(offset) > size_) std::memset(data_ + size_, 0, static_cast<size_t>(offset) - size_);
   std::memcpy(data_ + offset, bytes, size);
@@ -91,19 +97,23 @@ void PageAlignedOutput::ZeroPadding() {
 
 void WriteFileAroundCache(const std::filesystem::path& path, PageAlignedOutput& output) {
   constexpr int kCreate = O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC;
-  int fd = ::open(path.c_str(), kCreate | O_DIRECT, 0666);
-  if (fd < 0 && errno == EINVAL) fd = ::open(path.c_str(), kCreate, 0666);  // e.g. tmpfs
-  if (fd < 0) throw FrameIoError(Why(path, "open"));
+  const bool large = output.size() >= kDirectIoMinBytes;
+  int fd = ::open(path.c_str(), kCreate | (large ? O_DIRECT : 0), 0666);
+  if (fd < 0 && large && errno == EINVAL) fd = ::open(path.c_str(), kCreate, 0666);  // e.g. tmpfs before Linux 6.6
+  if (fd < 0) throw FrameIoError(Why(path, "open", errno));
   try {
-    const bool direct = (::fcntl(fd, F_GETFL) & O_DIRECT) != 0;
+    const int flags = ::fcntl(fd, F_GETFL);
+    const bool direct = flags >= 0 && (flags & O_DIRECT) != 0;
     if (direct) output.ZeroPadding();
     WriteAll(fd, output.data(), 0, direct ? output.PaddedSize() : output.size(), path);
-    if (direct && ::ftruncate(fd, static_cast<off_t>(output.size())) != 0) throw FrameIoError(Why(path, "truncate"));
+    if (direct && ::ftruncate(fd, static_cast<off_t>(output.size())) != 0) {
+      throw FrameIoError(Why(path, "truncate", errno));
+    }
   } catch (...) {
     ::close(fd);
     throw;
   }
-  if (::close(fd) != 0) throw FrameIoError(Why(path, "close"));
+  if (::close(fd) != 0) throw FrameIoError(Why(path, "close", errno));
 }
 
 }  // namespace tcfarm

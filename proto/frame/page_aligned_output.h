@@ -21,7 +21,11 @@ class PageAlignedOutput : public OIIO::Filesystem::IOProxy {
  public:
   PageAlignedOutput();
   ~PageAlignedOutput() override;
+  PageAlignedOutput(const PageAlignedOutput&) = delete;
+  PageAlignedOutput& operator=(const PageAlignedOutput&) = delete;
   const char* proxytype() const override { return "page-aligned"; }
+  // Both return 0 when memory runs out, as a full disk would: encoders call them from C
+  // (libpng), where an exception must not unwind.
   size_t write(const void* bytes, size_t size) override;
   size_t pwrite(const void* bytes, size_t size, int64_t offset) override;
   size_t size() const override { return size_; }
@@ -42,10 +46,14 @@ class PageAlignedOutput : public OIIO::Filesystem::IOProxy {
 };
 
 // Writes `output`'s bytes as the file `path` (created or truncated), bypassing the page
-// cache when the file system supports it. Throws FrameIoError on failure, naming the path.
+// cache when the file is large enough to gain from it and the file system supports it.
+// Throws FrameIoError on failure, naming the path.
 void WriteFileAroundCache(const std::filesystem::path& path, PageAlignedOutput& output);
 
 // Page size used for alignment.
 constexpr size_t kDirectIoAlignment = 4096;
+// Smaller files (masks, previews: kilobytes) are written buffered: a direct write waits
+// for the device, and the page cache is cheap at that size.
+constexpr size_t kDirectIoMinBytes = size_t{1} << 20;
 
 }  // namespace tcfarm

@@ -72,10 +72,10 @@ unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Af
 
 }  // namespace
 
+bool HasSharedEdges(const Shape& shape) { return shape.type != Shape::Type::kSphere; }
+
 bool NeedsRobustTraversal(const Scene& scene) {
-  return std::any_of(scene.shapes.begin(), scene.shapes.end(), [](const Shape& shape) {
-    return shape.type == Shape::Type::kMesh || shape.type == Shape::Type::kTerrain;
-  });
+  return std::any_of(scene.shapes.begin(), scene.shapes.end(), HasSharedEdges);
 }
 
 void FrameGeometry::SetNormalTransform(int shape, const Affine& worldFromObject) {
@@ -141,7 +141,7 @@ SceneHandle SceneGeometry::ObjectScene(const Shape& shape) {
 }
 
 SceneHandle SceneGeometry::NewObjectScene(const Shape& shape) const {
-  SceneHandle scene(NewStaticScene(device_.get(), robust_));
+  SceneHandle scene(NewStaticScene(device_.get(), HasSharedEdges(shape)));
   AttachShape(device_.get(), scene.get(), shape, settlesTies_);
   rtcCommitScene(scene.get());
   return scene;

@@ -24,10 +24,13 @@
 
 namespace tcfarm {
 
-// Whether the scene's trees are traversed robustly (RTC_SCENE_FLAG_ROBUST): only when it
-// holds triangle meshes, whose rays may slip through the edge two triangles share. Spheres
-// and quads have no such edges, and robust traversal cost the paper's sphere scenes 10 to
-// 15 % of their tracing for the same bits.
+// Robust traversal (RTC_SCENE_FLAG_ROBUST, Embree's watertight triangle test) keeps rays
+// from slipping through the edge two triangles share: a mesh's, or a quad's diagonal. A
+// sphere has no edge, and its own trees skip the robust kernels, which cost the paper's
+// sphere animations 10 to 15 % of their tracing for the same bits.
+bool HasSharedEdges(const Shape& shape);
+// Whether any shape has shared edges: the still shapes' tree and each frame's top level
+// are then traversed robustly.
 bool NeedsRobustTraversal(const Scene& scene);
 
 // The traceable geometry of one frame.

@@ -67,10 +67,10 @@ BareEmbreeLoop::BareEmbreeLoop(RTCDevice device, const Scene& scene, Flags flags
     const Shape& shape = scene.shapes[i];
     RTCScene target;
     if (shape.motion.IsNone()) {
-      if (!still_) still_ = NewShapesScene();
+      if (!still_) still_ = NewShapesScene(robust_);
       target = still_;
     } else {
-      movers_.emplace_back(static_cast<int>(i), NewShapesScene());
+      movers_.emplace_back(static_cast<int>(i), NewShapesScene(robust_ && HasSharedEdges(shape)));
       target = movers_.back().second;
     }
     RTCGeometry geometry = KindOf(shape).NewGeometry(device, shape);
@@ -98,9 +98,9 @@ bool BareEmbreeLoop::Covers(const Scene& scene) {
   return !scene.AnyMaterialReflects() && !scene.AnyMaterialRefracts();
 }
 
-RTCScene BareEmbreeLoop::NewShapesScene() const {
+RTCScene BareEmbreeLoop::NewShapesScene(bool robust) const {
   RTCScene scene = rtcNewScene(device_);
-  ApplyFlags(scene, flags_, robust_);
+  ApplyFlags(scene, flags_, robust);
   return scene;
 }
 

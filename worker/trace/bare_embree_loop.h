@@ -22,8 +22,8 @@ namespace tcfarm {
 class BareEmbreeLoop {
  public:
   // Embree's defaults (medium-quality trees, fast traversal), or with the tracer's flags:
-  // high-quality trees for the scenes of shapes, traversed robustly where the scene holds
-  // triangle meshes (NeedsRobustTraversal).
+  // high-quality trees for the scenes of shapes, traversed robustly where shapes share
+  // edges (scene_geometry.h).
   enum class Flags { kEmbreeDefaults, kTracers };
 
   // The scene must outlive the loop.
@@ -46,12 +46,13 @@ class BareEmbreeLoop {
     std::vector<std::array<float, 9>> normalToWorld;
   };
   const Placed& Place(int frame);
-  RTCScene NewShapesScene() const;
+  // robust: the tracer's flags hold robust traversal for this scene's shapes.
+  RTCScene NewShapesScene(bool robust) const;
 
   RTCDevice device_;
   const Scene& scene_;
   Flags flags_;
-  bool robust_;  // the tracer's flags, on a scene that needs robust traversal
+  bool robust_;  // the tracer's flags, on a scene with shared edges
   RTCScene still_ = nullptr;            // the still shapes, null when there are none
   std::vector<int> stillShapeOfGeometry_;
   std::vector<std::pair<int, RTCScene>> movers_;  // shape, its own scene

@@ -294,12 +294,22 @@ TEST(TracerTest, NoPerFramePlacementWhenNothingMoves) {
   EXPECT_EQ(builds, 0u);
 }
 
-// Robust traversal closes the edges triangles share; scenes of spheres and quads have none
-// and trace with Embree's faster kernels.
-TEST(TracerTest, RobustTraversalOnlyWhereTheSceneHoldsTriangleMeshes) {
-  EXPECT_FALSE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/paper_a_one_sphere.json")));
-  EXPECT_FALSE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/paper_b_twelve_spheres.json")));
+// Robust traversal closes the edges triangles share (a mesh's, a quad's diagonal); a scene
+// of spheres alone has none and traces with Embree's faster kernels.
+TEST(TracerTest, RobustTraversalWhereShapesShareEdges) {
+  const Scene spheres = LoadSceneFile("tests/scenes/paper_b_twelve_spheres.json");
+  for (const Shape& shape : spheres.shapes) {
+    EXPECT_EQ(HasSharedEdges(shape), shape.type != Shape::Type::kSphere) << shape.name;
+  }
+  EXPECT_TRUE(NeedsRobustTraversal(spheres));  // its backdrop is a quad
+  Scene onlySpheres = spheres;
+  onlySpheres.shapes.erase(std::remove_if(onlySpheres.shapes.begin(), onlySpheres.shapes.end(),
+                                          [](const Shape& shape) { return shape.type != Shape::Type::kSphere; }),
+                           onlySpheres.shapes.end());
+  ASSERT_FALSE(onlySpheres.shapes.empty());
+  EXPECT_FALSE(NeedsRobustTraversal(onlySpheres));
   EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/paper_c_terrain_flyover.json")));
+  EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/quad.json")));
   EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/mesh_with_normals_and_uvs.json")));
   EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/imports_an_obj.json")));
 }
