@@ -227,6 +227,10 @@ def recorded_frames(database, job_id):
 def test_a_killed_coordinator_resumes_the_job_without_retracing_written_frames(tmp_path, strategy, bin_width):
     frames, width, height = 36, 240, 180
     scene = small_scene(ONE_SPHERE, width, height, frames)
+    # Four samples a pixel: the second half of the job must last longer than noticing the
+    # first half and killing the coordinator takes (at one sample a guarded job wrote its
+    # last 18 frames within that).
+    scene["render"]["samples_per_pixel"] = 4
     with LocalFarm(tmp_path, workers=1) as farm:
         farm.wait_for_workers(1)
         job = farm.client.submit(scene, strategy=strategy, bin_width=bin_width)
