@@ -189,6 +189,8 @@ def test_a_canceled_job_retried_keeps_its_frames_and_matches_a_straight_run(one_
     farm = one_worker_farm
     frames = 36
     scene = small_scene(scenes_dir / "paper_a_one_sphere.json", 240, 180, frames)
+    # Four samples a pixel: the job must outlast noticing its third frame and canceling.
+    scene["render"]["samples_per_pixel"] = 4
     if camera == "moving":
         scene = moving_camera(scene)
     job = farm.client.submit(scene, strategy=strategy, bin_width=bin_width)
