@@ -80,11 +80,13 @@ def wait_for(condition, what, timeout=WAIT_S):
 class RogueWorker(threading.Thread):
     """A DEALER that never traces. It says READY (unless ready=False), answers every TASK it
     is given with ERROR, and with guess=True keeps sending grey RESULTs and ERRORs for task
-    ids it guesses (they are sequential from 1), and a grey RESULT for each task it failed,
-    which by then belongs to another worker. `curve`: (secret key file, coordinator's
+    ids it guesses (they are sequential from 1), and for each task it failed, again and
+    again for a while: the coordinator gives that task to another worker, and some of these
+    replies arrive while that worker holds it. `curve`: (secret key file, coordinator's
     public key file), or none for no CURVE at all."""
 
     GUESSED_IDS = 400
+    REPLY_TO_FAILED_SECONDS = 2.0
 
     def __init__(self, endpoint, curve=None, ready=True, guess=False):
         super().__init__(daemon=True)
@@ -107,6 +109,7 @@ class RogueWorker(threading.Thread):
         if self.ready:
             self.send(socket, READY, {"capacity": 4, "threads": 1, "name": "rogue"})
         guess, last_heartbeat = 1, 0.0
+        failed = {}  # task id -> until when its replies go on
         while not self.stop.is_set():
             if socket.poll(20):
                 version, command, header, payload = socket.recv_multipart()
@@ -117,8 +120,14 @@ class RogueWorker(threading.Thread):
                     self.send(socket, ERROR, {"task_id": task["task_id"], "scene_hash": task["scene_hash"],
                                               "message": "this worker fails every task"})
                     if self.guess:  # the task now goes to another worker: answer it anyway
-                        self.send_guesses(socket, task["task_id"])
+                        failed[task["task_id"]] = time.monotonic() + self.REPLY_TO_FAILED_SECONDS
             if self.guess:
+                now = time.monotonic()
+                for task_id, until in list(failed.items()):
+                    if now < until:
+                        self.send_guesses(socket, task_id)
+                    else:
+                        del failed[task_id]
                 for _ in range(20):
                     self.send_guesses(socket, guess)
                     guess = guess % self.GUESSED_IDS + 1
@@ -259,8 +268,14 @@ def test_local_workers_get_keys_of_their_own(keys, scene, reference, tmp_path):
 
 # --- tasks belong to their worker -----------------------------------------------------------
 
-def test_replies_for_guessed_task_ids_change_nothing(scene, reference, tmp_path):
-    with LocalFarm(tmp_path, workers=1) as farm:
+def test_replies_for_guessed_task_ids_change_nothing(scenes_dir, tmp_path):
+    # Tasks that take the honest worker tens of milliseconds: the rogue's replies for the
+    # tasks it failed reach the coordinator while the honest worker holds them.
+    scene = small_scene(scenes_dir / "paper_a_one_sphere.json", width=256, height=192, frames=8)
+    scene["render"]["samples_per_pixel"] = 4
+    reference = render_reference(scene, tmp_path / "reference")
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=1) as farm:
         farm.wait_for_workers(1)
         rogue = RogueWorker(farm.zmq, guess=True)
         rogue.start()
