@@ -72,7 +72,7 @@ unsigned AttachInstance(RTCDevice device, RTCScene top, RTCScene child, const Af
 
 }  // namespace
 
-bool HasSharedEdges(const Shape& shape) { return shape.type != Shape::Type::kSphere; }
+bool HasSharedEdges(const Shape& shape) { return KindOf(shape).SharesEdges(); }
 
 bool NeedsRobustTraversal(const Scene& scene) {
   return std::any_of(scene.shapes.begin(), scene.shapes.end(), HasSharedEdges);

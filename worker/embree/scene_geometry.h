@@ -26,8 +26,8 @@ namespace tcfarm {
 
 // Robust traversal (RTC_SCENE_FLAG_ROBUST, Embree's watertight triangle test) keeps rays
 // from slipping through the edge two triangles share: a mesh's, or a quad's diagonal. A
-// sphere has no edge, and its own trees skip the robust kernels, which cost the paper's
-// sphere animations 10 to 15 % of their tracing for the same bits.
+// shape without such edges (ShapeKind::SharesEdges: a sphere) gets its own tree without
+// the robust kernels.
 bool HasSharedEdges(const Shape& shape);
 // Whether any shape has shared edges: the still shapes' tree and each frame's top level
 // are then traversed robustly.

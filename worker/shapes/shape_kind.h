@@ -79,6 +79,9 @@ class ShapeKind {
   virtual std::vector<Float3> VertexNormals(const Shape&) const { return {}; }
   // Bounds of the shape in its rest pose.
   virtual BoundingSphere Bounds(const Shape& shape) const = 0;
+  // Whether its primitives share edges (a mesh's triangles, a quad's two halves), through
+  // which a ray may slip unless Embree traverses robustly (scene_geometry.h).
+  virtual bool SharesEdges() const { return true; }
 };
 
 const ShapeKind& KindOf(const Shape& shape);

@@ -253,8 +253,8 @@ void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
 // see the same load from whatever else shares the cores: tracer_ms, bare_ms and their
 // ratio in elapsed time, and the same in the process's CPU time (cpu_ratio; time the
 // threads wait for the cores does not count there); bare_tracer_flags_ms is the bare loop
-// with the tracer's Embree flags (high-quality trees, robust traversal where the scene holds
-// triangle meshes), the part of the ratio that is Embree's own.
+// with the tracer's Embree flags (high-quality trees, robust traversal where shapes share
+// edges: scene_geometry.h), the part of the ratio that is Embree's own.
 void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
   if (!BareEmbreeLoop::Covers(scene)) {
@@ -297,8 +297,8 @@ void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
   state.counters["tracer_cpu_ms"] = ms(tracerCpu);
   state.counters["bare_cpu_ms"] = ms(bareCpu);
   state.counters["cpu_ratio"] = tracerCpu / bareCpu;
-  // Like for like: the bare loop with the tracer's scene flags (on a scene of meshes,
-  // robust traversal and watertight triangles, which close the cracks between triangles).
+  // Like for like: the bare loop with the tracer's scene flags (robust traversal and
+  // watertight triangles wherever shapes share edges).
   state.counters["bare_tracer_flags_ms"] = ms(bareFlagsTime);
   state.counters["bare_tracer_flags_cpu_ms"] = ms(bareFlagsCpu);
   state.counters["cpu_ratio_same_flags"] = tracerCpu / bareFlagsCpu;
