@@ -29,12 +29,12 @@ std::string Why(const std::filesystem::path& path, const char* doing, int error)
 void WriteAll(int fd, const uint8_t* data, size_t from, size_t to, const std::filesystem::path& path) {
   while (from < to) {
     const ssize_t written = ::pwrite(fd, data + from, to - from, static_cast<off_t>(from));
-    const int error = written < 0 ? errno : EIO;
     if (written > 0) {
       from += static_cast<size_t>(written);
       continue;
     }
-    if (written < 0 && error == EINTR) continue;
+    const int error = written < 0 ? errno : EIO;  // 0 bytes written: no errno to tell
+    if (error == EINTR) continue;
     if (error == EINVAL) {
       const int flags = ::fcntl(fd, F_GETFL);
       if (flags >= 0 && (flags & O_DIRECT) && ::fcntl(fd, F_SETFL, flags & ~O_DIRECT) == 0) continue;

@@ -124,12 +124,13 @@ size_t SequenceAnalyzer::AdvanceRuns(const Image& frame, std::vector<uint8_t>* u
 
 void SequenceAnalyzer::Add(const Image& frame, std::vector<uint8_t>* unchanged) {
   CheckShape(frame);
-  if (unchanged) unchanged->assign(frame.PixelCount(), 1);
   if (frames_ == 0) {
+    if (unchanged) unchanged->assign(frame.PixelCount(), 1);
     Start(frame);
     frames_ = 1;
     return;
   }
+  if (unchanged) unchanged->resize(frame.PixelCount());  // AdvanceRuns sets every pixel
   ++frames_;
   // A run can now last up to frames_ frames: index frames_ must exist.
   closedEventsByDuration_.resize(frames_ + 1, 0);
