@@ -6,12 +6,14 @@ to set beside the standalone renderer (`tcfarm-worker render`) on the same frame
 
 With --pair STRATEGY it renders the scene twice on the same farm, brute force and then
 STRATEGY, and prints the job wall and the trace CPU of the second over the first's: what a
-user waits for beside what the job costs.
+user waits for beside what the job costs. Each job's line also gives the CPU the coordinator
+process and the worker processes spent while it ran (their own, tracing or not).
 
   python tests/bench/farm_job.py tests/scenes/paper_b_twelve_spheres.json --pair auto --size 1280x720 --spp 4
 """
 import argparse
 import json
+import os
 import pathlib
 import sys
 import tempfile
@@ -20,13 +22,41 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 from farm_harness import LocalFarm  # noqa: E402
 
 
+def process_cpu_seconds(pid):
+    """User and system CPU seconds of a process so far (Linux /proc), its ended threads included."""
+    fields = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def children_of(parent):
+    pids = []
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            if stat.read_text().rsplit(")", 1)[1].split()[1] == str(parent):
+                pids.append(int(stat.parent.name))
+        except OSError:
+            pass  # gone meanwhile
+    return pids
+
+
+def farm_cpu_seconds(farm):
+    """CPU seconds so far of the coordinator and, together, of the worker processes it started."""
+    workers = children_of(farm.coordinator.pid)
+    return process_cpu_seconds(farm.coordinator.pid), sum(process_cpu_seconds(pid) for pid in workers)
+
+
 def run(farm, scene, strategy, bin_width):
+    coordinator_before, workers_before = farm_cpu_seconds(farm)
     job = farm.client.submit(scene, strategy=strategy, bin_width=bin_width)
     job = farm.client.wait(job["id"], poll_seconds=0.05, timeout=3600)
+    coordinator_after, workers_after = farm_cpu_seconds(farm)
     stats = job["stats"]
+    # Beside the tracing threads' CPU, the processes' own: what shares the cores with tracing.
     print(f"{strategy}: {job['state']}: traced-pixel ratio {job['traced_pixel_ratio']:.4f}, "
           f"wall {stats['wall_seconds']:.2f} s, trace {stats['trace_seconds']:.2f} s, "
-          f"trace CPU {stats.get('trace_cpu_seconds', float('nan')):.2f} s")
+          f"trace CPU {stats.get('trace_cpu_seconds', float('nan')):.2f} s; "
+          f"coordinator process CPU {coordinator_after - coordinator_before:.2f} s, "
+          f"worker processes CPU {workers_after - workers_before:.2f} s")
     return job
 
 
