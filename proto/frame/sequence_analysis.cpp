@@ -13,11 +13,6 @@ std::string SizeText(int width, int height) {
   return std::to_string(width) + "x" + std::to_string(height);
 }
 
-bool SamePixel(const Image& a, const Image& b, size_t pixel) {
-  // Bitwise, as Coherence: the farm copies bits, so an event ends at any change of bits.
-  return std::memcmp(&a.rgb[3 * pixel], &b.rgb[3 * pixel], 3 * sizeof(float)) == 0;
-}
-
 nlohmann::json StatsJson(const RunningStats& stats, const std::vector<double>& byFrame) {
   if (stats.count == 0) {
     return {{"mean", nullptr}, {"min", nullptr}, {"max", nullptr}, {"by_frame", byFrame}};
@@ -104,17 +99,25 @@ void SequenceAnalyzer::Start(const Image& frame) {
   closedEventsByDuration_.assign(2, 0);
 }
 
-size_t SequenceAnalyzer::AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged) {
-  size_t equal = 0;
+SequenceAnalyzer::Equal SequenceAnalyzer::AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged) {
+  // One pass over the frame: it is compared with the previous frame and the first, and
+  // the previous frame becomes this one pixel by pixel, only where it changed.
+  Equal equal;
   uint8_t* mask = unchanged ? unchanged->data() : nullptr;
+  float* previous = previous_.rgb.data();
+  const float* current = frame.rgb.data();
+  const float* first = first_.rgb.data();
   for (size_t pixel = 0; pixel < runLength_.size(); ++pixel) {
-    const bool same = SamePixel(previous_, frame, pixel);
+    const size_t at = 3 * pixel;
+    equal.toFirst += std::memcmp(first + at, current + at, 3 * sizeof(float)) == 0;
+    const bool same = std::memcmp(previous + at, current + at, 3 * sizeof(float)) == 0;
     if (mask) mask[pixel] = same;
     if (same) {
       ++runLength_[pixel];
-      ++equal;
+      ++equal.toPrevious;
       continue;
     }
+    std::memcpy(previous + at, current + at, 3 * sizeof(float));
     ++closedEventsByDuration_[runLength_[pixel]];
     runLength_[pixel] = 1;
     changed_[pixel] = 1;
@@ -134,13 +137,13 @@ void SequenceAnalyzer::Add(const Image& frame, std::vector<uint8_t>* unchanged) 
   ++frames_;
   // A run can now last up to frames_ frames: index frames_ must exist.
   closedEventsByDuration_.resize(frames_ + 1, 0);
-  double frameToFrame = double(AdvanceRuns(frame, unchanged)) / double(runLength_.size());
-  double longTerm = Coherence(first_, frame);
+  const Equal equal = AdvanceRuns(frame, unchanged);
+  const double pixels = double(runLength_.size());
+  const double frameToFrame = double(equal.toPrevious) / pixels, longTerm = double(equal.toFirst) / pixels;
   frameToFrame_.Add(frameToFrame);
   longTerm_.Add(longTerm);
   frameToFrameByFrame_.push_back(frameToFrame);
   longTermByFrame_.push_back(longTerm);
-  previous_ = frame;
 }
 
 std::vector<uint64_t> SequenceAnalyzer::EventsIncludingOpenRuns() const {

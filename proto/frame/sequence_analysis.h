@@ -59,8 +59,13 @@ class SequenceAnalyzer {
  private:
   void CheckShape(const Image& frame) const;
   void Start(const Image& frame);
-  // Returns the pixels equal to the previous frame; marks them in `unchanged` when given.
-  size_t AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged);
+  // Pixels bitwise equal (the farm copies bits, so an event ends at any change of bits).
+  struct Equal {
+    size_t toPrevious = 0, toFirst = 0;
+  };
+  // Compares the frame with the previous and the first; marks the pixels equal to the
+  // previous in `unchanged` when given; the previous frame becomes this one.
+  Equal AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged);
   std::vector<uint64_t> EventsIncludingOpenRuns() const;
 
   int frames_ = 0, width_ = 0, height_ = 0;

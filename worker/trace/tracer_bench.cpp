@@ -11,6 +11,7 @@
 #include <chrono>
 #include <ctime>
 #include <string>
+#include <random>
 #include <vector>
 
 #include "embree/device.h"
@@ -222,7 +223,8 @@ void ExactNeedlessTraces(benchmark::State& state, const std::string& file) {
 // sparse patterns, and the set `exact` traces at frame 30. Sparseness itself costs
 // nothing; exact's pixels cost more because they are the dear ones (moving spheres,
 // shadow edges).
-enum class Subset { kFull, kCheckerboard, kEveryOtherRow, kTiles16, kExactAt30 };
+// kSpotCheck: one pixel in a hundred at random, as a spot check of a frame asks (verification.h).
+enum class Subset { kFull, kCheckerboard, kEveryOtherRow, kTiles16, kExactAt30, kSpotCheck };
 
 void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
   Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/paper_b_twelve_spheres.json");
@@ -233,6 +235,11 @@ void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
   std::vector<uint32_t> pixels;
   if (subset == Subset::kExactAt30) {
     pixels = ExactPixelSets(tracer, scene)[frame - scene.render.firstFrame];
+  } else if (subset == Subset::kSpotCheck) {
+    std::mt19937 random(1);
+    for (uint32_t p = 0; p < static_cast<uint32_t>(scene.render.width * scene.render.height); ++p) {
+      if (random() % 100 == 0) pixels.push_back(p);
+    }
   } else {
     for (uint32_t y = 0; y < static_cast<uint32_t>(scene.render.height); ++y) {
       for (uint32_t x = 0; x < static_cast<uint32_t>(scene.render.width); ++x) {
@@ -317,6 +324,8 @@ BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, checkerboard, Subset::kCheckerboard)->Me
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, every_other_row, Subset::kEveryOtherRow)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, tiles16, Subset::kTiles16)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, exact_set_at_30, Subset::kExactAt30)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, spot_check, Subset::kSpotCheck)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, spot_check, Subset::kSpotCheck)->MeasureProcessCPUTime()->UseRealTime();
 
 BENCHMARK_CAPTURE(TraceExactSequence, a_one_sphere, "paper_a_one_sphere.json")
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
