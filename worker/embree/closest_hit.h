@@ -37,7 +37,9 @@ inline float HitDistance(const RTCRay& ray, bool settlesTies) {
   __builtin_memcpy(&distance, &ray.id, sizeof distance);
   return distance;
 }
-inline float HitDistance(const RTCRay8& rays, int lane, bool settlesTies) {
+// Of lane `lane` of a packet (RTCRay8, RTCRay16).
+template <typename Rays>
+inline float HitDistance(const Rays& rays, int lane, bool settlesTies) {
   if (!settlesTies) return rays.tfar[lane];
   float distance;
   __builtin_memcpy(&distance, &rays.id[lane], sizeof distance);

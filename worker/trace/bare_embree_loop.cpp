@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "embree/ray_packets.h"
 #include "embree/scene_geometry.h"
 #include "shapes/shape_kind.h"
 #include "trace/camera.h"
@@ -14,7 +15,6 @@
 namespace tcfarm {
 namespace {
 
-constexpr int kLanes = 8;
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
 // Shadow rays start this far off the surface, relative to the hit's coordinates (the tracer's offset).
 constexpr float kRelativeOffset = 1e-5f;
@@ -61,7 +61,10 @@ struct LaneHit {
 }  // namespace
 
 BareEmbreeLoop::BareEmbreeLoop(RTCDevice device, const Scene& scene, Flags flags)
-    : device_(device), scene_(scene), flags_(flags),
+    : device_(device),
+      scene_(scene),
+      flags_(flags),
+      packetWidth_(NativePacketWidth(device)),
       robust_(flags == Flags::kTracers && NeedsRobustTraversal(scene)) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
@@ -132,107 +135,121 @@ const BareEmbreeLoop::Placed& BareEmbreeLoop::Place(int frame) {
 
 void BareEmbreeLoop::TraceFrame(int frame, TracingThreads& threads, float* rgb) {
   const Placed& placed = Place(frame);
-  const PerspectiveCamera camera = MakeCamera(scene_, frame);
-  const std::vector<ShadingLight> lights = MakeLights(scene_, frame);
-  const std::vector<ShadingMaterial> materials = MakeMaterials(scene_);
-  const Float3 background = ToFloat3(scene_.background);
-  const auto width = static_cast<uint32_t>(scene_.render.width);
-  const size_t pixels = size_t{width} * scene_.render.height;
-  const int spp = scene_.render.samplesPerPixel;
+  const FrameParts parts{placed,
+                         MakeCamera(scene_, frame),
+                         MakeLights(scene_, frame),
+                         MakeMaterials(scene_),
+                         ToFloat3(scene_.background),
+                         static_cast<uint32_t>(scene_.render.width),
+                         scene_.render.samplesPerPixel};
+  const size_t pixels = size_t{parts.width} * scene_.render.height;
   const size_t chunk = std::max<size_t>(128, pixels / (threads.ThreadCount() * 16));
   threads.ParallelFor(pixels, chunk, [&](size_t begin, size_t end) {
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
     std::fill(rgb + 3 * begin, rgb + 3 * end, 0.0f);
-    const size_t items = (end - begin) * spp;
-    for (size_t first = 0; first < items; first += kLanes) {
-      const int lanes = static_cast<int>(std::min<size_t>(kLanes, items - first));
-      alignas(32) int valid[kLanes] = {};
-      alignas(32) RTCRayHit8 packet{};
-      for (int lane = 0; lane < lanes; ++lane) {
-        const size_t item = first + lane, pixel = begin + item / spp;
-        float px, py;
-        SamplePosition(pixel % width, pixel / width, static_cast<int>(item % spp), spp, &px, &py);
-        Float3 o, d;
-        camera.Ray(px, py, &o, &d);
-        valid[lane] = -1;
-        packet.ray.org_x[lane] = o.x, packet.ray.org_y[lane] = o.y, packet.ray.org_z[lane] = o.z;
-        packet.ray.dir_x[lane] = d.x, packet.ray.dir_y[lane] = d.y, packet.ray.dir_z[lane] = d.z;
-        packet.ray.tfar[lane] = kInfinity;
-        packet.ray.mask[lane] = ~0u;
-        packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
-        packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
-      }
-      rtcIntersect8(valid, placed.scene, &context, &packet);
-
-      LaneHit hits[kLanes];
-      Float3 color[kLanes];
-      bool hasHit[kLanes] = {};
-      for (int lane = 0; lane < lanes; ++lane) {
-        if (packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) {
-          color[lane] = background;
-          continue;
-        }
-        hasHit[lane] = true;
-        const unsigned instance = packet.hit.instID[0][lane];
-        int shape;
-        Float3 n{packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]};
-        if (instance == RTC_INVALID_GEOMETRY_ID || placed.shapeOfInstance[instance] < 0) {
-          shape = stillShapeOfGeometry_[packet.hit.geomID[lane]];
-        } else {
-          shape = placed.shapeOfInstance[instance];
-          const auto& m = placed.normalToWorld[instance];
-          n = {m[0] * n.x + m[1] * n.y + m[2] * n.z, m[3] * n.x + m[4] * n.y + m[5] * n.z,
-               m[6] * n.x + m[7] * n.y + m[8] * n.z};
-        }
-        const Float3 o{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
-        const Float3 d{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
-        const float t = packet.ray.tfar[lane];
-        n = Normalize(n);
-        LaneHit& hit = hits[lane];
-        hit = {o + d * t, Dot(n, d) > 0 ? -n : n, d, kRelativeOffset * (MaxAbsComponent(o) + t),
-               &materials[scene_.shapes[shape].material]};
-        color[lane] = ShadingMaterial::Ambient(hit.material->diffuse);
-      }
-      for (const ShadingLight& light : lights) {
-        alignas(32) int shadowValid[kLanes] = {};
-        alignas(32) RTCRay8 shadow{};
-        Float3 toLight[kLanes];
-        float distance[kLanes];
-        for (int lane = 0; lane < lanes; ++lane) {
-          if (!hasHit[lane]) continue;
-          const LaneHit& hit = hits[lane];
-          if (light.isPoint) {  // spot cones left out: a point light's cost
-            const Float3 v = light.position - hit.position;
-            distance[lane] = Length(v);
-            toLight[lane] = v * (1.0f / distance[lane]);
-          } else {
-            toLight[lane] = light.towardLight;
-            distance[lane] = kInfinity;
-          }
-          if (!(Dot(toLight[lane], hit.normal) > 0)) continue;
-          const Float3 start = hit.position + hit.normal * hit.offset;
-          shadowValid[lane] = -1;
-          shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
-          shadow.dir_x[lane] = toLight[lane].x, shadow.dir_y[lane] = toLight[lane].y;
-          shadow.dir_z[lane] = toLight[lane].z;
-          shadow.tfar[lane] = distance[lane];
-          shadow.mask[lane] = ~0u;
-        }
-        rtcOccluded8(shadowValid, placed.scene, &context, &shadow);
-        for (int lane = 0; lane < lanes; ++lane) {
-          if (!shadowValid[lane] || shadow.tfar[lane] < 0) continue;
-          const LaneHit& hit = hits[lane];
-          color[lane] += hit.material->Reflected(toLight[lane], hit.normal, hit.arriving, hit.material->diffuse) *
-                         light.intensity * light.Falloff(distance[lane]);
-        }
-      }
-      for (int lane = 0; lane < lanes; ++lane) {
-        float* out = rgb + 3 * (begin + (first + lane) / spp);
-        out[0] += color[lane].x / spp, out[1] += color[lane].y / spp, out[2] += color[lane].z / spp;
-      }
+    if (packetWidth_ == 16) {
+      TracePixels<16>(parts, begin, end, rgb);
+    } else {
+      TracePixels<8>(parts, begin, end, rgb);
     }
   });
+}
+
+template <int Width>
+void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t end, float* rgb) const {
+  using Packet = RayPacket<Width>;
+  const Placed& placed = parts.placed;
+  const auto width = parts.width;
+  const int spp = parts.spp;
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  const size_t items = (end - begin) * spp;
+  for (size_t first = 0; first < items; first += Width) {
+    const int lanes = static_cast<int>(std::min<size_t>(Width, items - first));
+    alignas(64) int valid[Width] = {};
+    alignas(64) typename Packet::RayHit packet{};
+    for (int lane = 0; lane < lanes; ++lane) {
+      const size_t item = first + lane, pixel = begin + item / spp;
+      float px, py;
+      SamplePosition(pixel % width, pixel / width, static_cast<int>(item % spp), spp, &px, &py);
+      Float3 o, d;
+      parts.camera.Ray(px, py, &o, &d);
+      valid[lane] = -1;
+      packet.ray.org_x[lane] = o.x, packet.ray.org_y[lane] = o.y, packet.ray.org_z[lane] = o.z;
+      packet.ray.dir_x[lane] = d.x, packet.ray.dir_y[lane] = d.y, packet.ray.dir_z[lane] = d.z;
+      packet.ray.tfar[lane] = kInfinity;
+      packet.ray.mask[lane] = ~0u;
+      packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+      packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
+    }
+    Packet::Intersect(valid, placed.scene, &context, &packet);
+
+    LaneHit hits[Width];
+    Float3 color[Width];
+    bool hasHit[Width] = {};
+    for (int lane = 0; lane < lanes; ++lane) {
+      if (packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) {
+        color[lane] = parts.background;
+        continue;
+      }
+      hasHit[lane] = true;
+      const unsigned instance = packet.hit.instID[0][lane];
+      int shape;
+      Float3 n{packet.hit.Ng_x[lane], packet.hit.Ng_y[lane], packet.hit.Ng_z[lane]};
+      if (instance == RTC_INVALID_GEOMETRY_ID || placed.shapeOfInstance[instance] < 0) {
+        shape = stillShapeOfGeometry_[packet.hit.geomID[lane]];
+      } else {
+        shape = placed.shapeOfInstance[instance];
+        const auto& m = placed.normalToWorld[instance];
+        n = {m[0] * n.x + m[1] * n.y + m[2] * n.z, m[3] * n.x + m[4] * n.y + m[5] * n.z,
+             m[6] * n.x + m[7] * n.y + m[8] * n.z};
+      }
+      const Float3 o{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
+      const Float3 d{packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]};
+      const float t = packet.ray.tfar[lane];
+      n = Normalize(n);
+      LaneHit& hit = hits[lane];
+      hit = {o + d * t, Dot(n, d) > 0 ? -n : n, d, kRelativeOffset * (MaxAbsComponent(o) + t),
+             &parts.materials[scene_.shapes[shape].material]};
+      color[lane] = ShadingMaterial::Ambient(hit.material->diffuse);
+    }
+    for (const ShadingLight& light : parts.lights) {
+      alignas(64) int shadowValid[Width] = {};
+      alignas(64) typename Packet::Ray shadow{};
+      Float3 toLight[Width];
+      float distance[Width];
+      for (int lane = 0; lane < lanes; ++lane) {
+        if (!hasHit[lane]) continue;
+        const LaneHit& hit = hits[lane];
+        if (light.isPoint) {  // spot cones left out: a point light's cost
+          const Float3 v = light.position - hit.position;
+          distance[lane] = Length(v);
+          toLight[lane] = v * (1.0f / distance[lane]);
+        } else {
+          toLight[lane] = light.towardLight;
+          distance[lane] = kInfinity;
+        }
+        if (!(Dot(toLight[lane], hit.normal) > 0)) continue;
+        const Float3 start = hit.position + hit.normal * hit.offset;
+        shadowValid[lane] = -1;
+        shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
+        shadow.dir_x[lane] = toLight[lane].x, shadow.dir_y[lane] = toLight[lane].y;
+        shadow.dir_z[lane] = toLight[lane].z;
+        shadow.tfar[lane] = distance[lane];
+        shadow.mask[lane] = ~0u;
+      }
+      Packet::Occluded(shadowValid, placed.scene, &context, &shadow);
+      for (int lane = 0; lane < lanes; ++lane) {
+        if (!shadowValid[lane] || shadow.tfar[lane] < 0) continue;
+        const LaneHit& hit = hits[lane];
+        color[lane] += hit.material->Reflected(toLight[lane], hit.normal, hit.arriving, hit.material->diffuse) *
+                       light.intensity * light.Falloff(distance[lane]);
+      }
+    }
+    for (int lane = 0; lane < lanes; ++lane) {
+      float* out = rgb + 3 * (begin + (first + lane) / spp);
+      out[0] += color[lane].x / spp, out[1] += color[lane].y / spp, out[2] += color[lane].z / spp;
+    }
+  }
 }
 
 }  // namespace tcfarm

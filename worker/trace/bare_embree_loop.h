@@ -3,7 +3,7 @@
 // rule, horizons, ray counts). The same shapes as the same Embree primitives
 // (ShapeKind::NewGeometry), placed per frame as the tracer places them (still shapes in one
 // scene; each moving shape in its own scene, instanced at its motion's matrix), the same
-// camera rays, 8-wide primary packets, one shadow packet per light, Phong with Embree's own
+// camera rays, primary packets as wide as the tracer's (embree/ray_packets.h), one shadow packet per light, Phong with Embree's own
 // normals, on the same threads. Placed frames are kept, as the tracer's frame cache keeps
 // them. Mirrors and refraction are not traced: a scene with them is not measured.
 #pragma once
@@ -15,6 +15,10 @@
 #include <vector>
 
 #include "scene/scene.h"
+#include "trace/camera.h"
+#include "trace/float3.h"
+#include "trace/lights.h"
+#include "trace/materials.h"
 #include "util/tracing_threads.h"
 
 namespace tcfarm {
@@ -46,12 +50,25 @@ class BareEmbreeLoop {
     std::vector<std::array<float, 9>> normalToWorld;
   };
   const Placed& Place(int frame);
+  // What every chunk of a frame shares.
+  struct FrameParts {
+    const Placed& placed;
+    PerspectiveCamera camera;
+    std::vector<ShadingLight> lights;
+    std::vector<ShadingMaterial> materials;
+    Float3 background;
+    uint32_t width;
+    int spp;
+  };
+  template <int Width>
+  void TracePixels(const FrameParts& parts, size_t begin, size_t end, float* rgb) const;
   // robust: the tracer's flags hold robust traversal for this scene's shapes.
   RTCScene NewShapesScene(bool robust) const;
 
   RTCDevice device_;
   const Scene& scene_;
   Flags flags_;
+  int packetWidth_;
   bool robust_;  // the tracer's flags, on a scene with shared edges
   RTCScene still_ = nullptr;            // the still shapes, null when there are none
   std::vector<int> stillShapeOfGeometry_;

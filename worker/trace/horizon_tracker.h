@@ -5,18 +5,16 @@
 
 #include <algorithm>
 
+#include "embree/ray_packets.h"
 #include "trace/float3.h"
 #include "trace/horizons.h"
 #include "trace/segment_fan.h"
 
 namespace tcfarm {
 
-// Camera samples traced together as one Embree packet.
-constexpr int kPacketWidth = 8;
-
 struct HorizonTracker {
   const HorizonOracle* oracle = nullptr;
-  int horizon[kPacketWidth];
+  int horizon[kMaxPacketWidth];  // by lane of the packet being traced
   int lane = 0;  // the sample whose secondary rays are being traced
   // Segments that fan out from the camera's eye, or toward light i, are recorded in their
   // fan and searched frame by frame once the chunk is traced (FanFirstMeetings), where

@@ -5,9 +5,12 @@
 #include <ctime>
 #include <limits>
 #include <memory>
+#include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "embree/closest_hit.h"
+#include "embree/ray_packets.h"
 #include "shapes/shape_kind.h"
 #include "trace/camera.h"
 #include "trace/float3.h"
@@ -119,6 +122,8 @@ class Tracer::PixelTracer {
       : frame_(frame), scene_(scene), context_(frame.geometry.get()) {}
 
   // Traces `count` (<= 8) camera samples and writes their colours.
+  // Width: the packet's (ray_packets.h); count <= Width lanes are used.
+  template <int Width>
   void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
   Float3 TraceRay(Float3 origin, Float3 direction, int depth);
   const RayCounts& counts() const { return counts_; }
@@ -182,7 +187,9 @@ class Tracer::PixelTracer {
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
   // Folds a packet's shadow rays toward one light into their samples' horizons.
-  void ShadowHorizons(size_t light, const RTCRay8& query, const int* valid, const int* blocked);
+  template <int Width>
+  void ShadowHorizons(size_t light, const typename RayPacket<Width>::Ray& query, const int* valid,
+                      const int* blocked);
   // A shadow ray found blocked, as it was asked, to be followed over the frames ahead.
   struct BlockedShadowRay {
     uint32_t sample;  // in the chunk
@@ -373,10 +380,11 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
   return Combine(hit, local, depth);
 }
 
+template <int Width>
 void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count,
                                              Float3* color) {
-  alignas(32) int valid[kPacketWidth] = {};
-  alignas(32) RTCRayHit8 packet{};
+  alignas(64) int valid[Width] = {};
+  alignas(64) typename RayPacket<Width>::RayHit packet{};
   const auto width = static_cast<uint32_t>(scene_.render.width);
   for (int lane = 0; lane < count; ++lane) {
     float px, py;
@@ -396,10 +404,10 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     packet.hit.instID[0][lane] = RTC_INVALID_GEOMETRY_ID;
   }
   counts_.primary += count;
-  rtcIntersect8(valid, frame_.geometry->scene(), &context_.embree, &packet);
+  RayPacket<Width>::Intersect(valid, frame_.geometry->scene(), &context_.embree, &packet);
 
-  SurfaceHit hits[kPacketWidth];
-  bool hasHit[kPacketWidth] = {};
+  SurfaceHit hits[Width];
+  bool hasHit[Width] = {};
   for (int lane = 0; lane < count; ++lane) {
     hasHit[lane] = packet.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
     Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
@@ -427,10 +435,10 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
 
   // Shadow rays of one light for the whole packet: they share a target, so they stay coherent.
   for (size_t light = 0; light < frame_.lights.size(); ++light) {
-    alignas(32) int shadowValid[kPacketWidth] = {};
-    alignas(32) RTCRay8 shadow{};
-    Float3 toLight[kPacketWidth];
-    float distance[kPacketWidth];
+    alignas(64) int shadowValid[Width] = {};
+    alignas(64) typename RayPacket<Width>::Ray shadow{};
+    Float3 toLight[Width];
+    float distance[Width];
     int shadowCount = 0;
     for (int lane = 0; lane < count; ++lane) {
       if (!hasHit[lane] || !ShadowRay(hits[lane], light, &toLight[lane], &distance[lane])) continue;
@@ -447,16 +455,16 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     }
     if (shadowCount == 0) continue;
     counts_.shadow += shadowCount;
-    alignas(32) RTCRay8 query;
+    alignas(64) typename RayPacket<Width>::Ray query;
     if (horizons_) query = shadow;  // as asked: Embree overwrites tfar with the answer
-    rtcOccluded8(shadowValid, frame_.geometry->scene(), &context_.embree, &shadow);
-    int blocked[kPacketWidth] = {};
+    RayPacket<Width>::Occluded(shadowValid, frame_.geometry->scene(), &context_.embree, &shadow);
+    int blocked[Width] = {};
     for (int lane = 0; lane < count; ++lane) {
       if (!shadowValid[lane]) continue;
       blocked[lane] = shadow.tfar[lane] < 0;
       if (!blocked[lane]) color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
     }
-    if (horizons_) ShadowHorizons(light, query, shadowValid, blocked);
+    if (horizons_) ShadowHorizons<Width>(light, query, shadowValid, blocked);
   }
   if (!frame_.anySecondary) return;
   for (int lane = 0; lane < count; ++lane) {
@@ -466,9 +474,10 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
   }
 }
 
-void Tracer::PixelTracer::ShadowHorizons(size_t light, const RTCRay8& query, const int* valid,
-                                         const int* blocked) {
-  for (int lane = 0; lane < kPacketWidth; ++lane) {
+template <int Width>
+void Tracer::PixelTracer::ShadowHorizons(size_t light, const typename RayPacket<Width>::Ray& query,
+                                         const int* valid, const int* blocked) {
+  for (int lane = 0; lane < Width; ++lane) {
     if (!valid[lane]) continue;
     const RaySegment segment{{query.org_x[lane], query.org_y[lane], query.org_z[lane]},
                              {query.dir_x[lane], query.dir_y[lane], query.dir_z[lane]},
@@ -512,7 +521,11 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
 }
 
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads)
-    : device_(device), scene_(scene), geometry_(device, scene), threads_(threads) {
+    : device_(device),
+      scene_(scene),
+      geometry_(device, scene),
+      threads_(threads),
+      packetWidth_(NativePacketWidth(device.get())) {
   uvs_ = PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [](const Shape& shape) {
     ShapeUvs uvs;
     for (const auto& uv : shape.Mesh().uvs) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
@@ -623,10 +636,14 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       tracker.lightFans = &lightFans;
       tracer.TrackHorizons(&tracker);
     }
-    for (size_t item = 0; item < items; item += kPacketWidth) {
-      int lanes = static_cast<int>(std::min<size_t>(kPacketWidth, items - item));
+    for (size_t item = 0; item < items; item += packetWidth_) {
+      int lanes = static_cast<int>(std::min<size_t>(packetWidth_, items - item));
       if (oracle) tracker.Reset(), tracker.sample = static_cast<uint32_t>(item);
-      tracer.TracePrimaryPacket(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
+      if (packetWidth_ == 16) {
+        tracer.TracePrimaryPacket<16>(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
+      } else {
+        tracer.TracePrimaryPacket<8>(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
+      }
       for (int lane = 0; oracle && lane < lanes; ++lane) {
         sampleHorizon[item + lane] = tracker.horizon[lane];
       }
@@ -661,6 +678,13 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     refraction_ += c.refraction;
     cpuNanoseconds_ += ThreadCpuNanoseconds() - cpuAtStart;
   });
+}
+
+void Tracer::SetPacketWidth(int width) {
+  if (width != 8 && width != 16) {
+    throw std::invalid_argument("packet width " + std::to_string(width) + "; expected 8 or 16");
+  }
+  packetWidth_ = width;
 }
 
 void Tracer::TraceFrame(int frame, float* rgb) {

@@ -64,6 +64,10 @@ class Tracer {
   // Deforming meshes' poses and vertices (all 0 in a scene without skins or morphs).
   SceneGeometry::DeformationWork DeformationCounts() const { return geometry_.DeformationCounts(); }
   const Scene& scene() const { return scene_; }
+  // Camera samples cast together as one Embree packet: 16 where Embree runs that natively,
+  // else 8 (embree/ray_packets.h). Every width gives the same bits; tests set each.
+  int PacketWidth() const { return packetWidth_; }
+  void SetPacketWidth(int width);
 
  private:
   struct FrameContext;
@@ -86,6 +90,7 @@ class Tracer {
   using ShapeColors = std::vector<Float3>;
   std::vector<std::shared_ptr<const ShapeColors>> colors_;
   TracingThreads& threads_;
+  int packetWidth_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};
   std::atomic<uint64_t> cpuNanoseconds_{0};
 };

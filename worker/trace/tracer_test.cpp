@@ -80,7 +80,8 @@ std::string ShowcaseScene(int width = 96, int height = 72, int samples = 1) {
 }
 
 // Also far from the origin, where packets of neighbouring rays are hardest to traverse
-// together: a pixel's bits may not depend on its packet mates there either.
+// together: a pixel's bits may not depend on its packet mates there either, nor on the
+// packet's width.
 TEST(TracerTest, PixelSubsetsMatchTheFullFrameBitForBit) {
   const std::pair<int, Vec3> cases[] = {{1, {0, 0, 0}}, {4, {0, 0, 0}}, {1, {0, 0, 1e4}}, {1, {3e4, 3e4, 3e4}}};
   for (const auto& [samples, offset] : cases) {
@@ -93,6 +94,7 @@ TEST(TracerTest, PixelSubsetsMatchTheFullFrameBitForBit) {
     for (unsigned threads : {1u, 2u, 3u}) {
       TracingThreads pool(threads);
       Tracer tracer(device, scene, pool);
+      tracer.SetPacketWidth(threads == 2 ? 8 : 16);
       for (int trial = 0; trial < 4; ++trial) {
         // A random subset in random order, so lanes, chunks and threads all differ.
         std::vector<uint32_t> pixels(full.size() / 3);
@@ -104,12 +106,41 @@ TEST(TracerTest, PixelSubsetsMatchTheFullFrameBitForBit) {
         for (size_t i = 0; i < pixels.size(); ++i) {
           ASSERT_EQ(0, std::memcmp(&rgb[3 * i], &full[3 * pixels[i]], 3 * sizeof(float)))
               << "pixel " << pixels[i] << " traced among " << pixels.size() << " on " << threads
-              << " threads, " << samples << " samples, scene moved by " << offset.x << ","
+              << " threads, " << tracer.PacketWidth() << "-wide packets, " << samples
+              << " samples, scene moved by " << offset.x << ","
               << offset.y << "," << offset.z;
         }
       }
     }
   }
+}
+
+// Exact copies a pixel for as long as its horizon says: a horizon may not depend on the
+// width of the packet its samples were cast in, any more than the pixel's bits may.
+TEST(TracerTest, PacketWidthsGiveTheSameBitsAndHorizons) {
+  const Scene scene = ParseScene(ShowcaseScene(98, 72, 2));
+  EmbreeDevice device;
+  TracingThreads pool(2);
+  const int frame = 3, window = 12;
+  std::vector<uint32_t> pixels(static_cast<size_t>(scene.render.width) * scene.render.height);
+  std::iota(pixels.begin(), pixels.end(), 0u);
+  std::vector<float> rgb[2];
+  std::vector<int32_t> horizons[2];
+  for (int i = 0; i < 2; ++i) {
+    Tracer tracer(device, scene, pool);
+    tracer.SetPacketWidth(i == 0 ? 8 : 16);
+    rgb[i].resize(3 * pixels.size());
+    horizons[i].resize(pixels.size());
+    tracer.TracePixels(frame, pixels.data(), pixels.size(), rgb[i].data(), window, horizons[i].data());
+  }
+  EXPECT_EQ(DifferingPixels(rgb[0], rgb[1]), 0u);
+  EXPECT_EQ(horizons[0], horizons[1]);
+  EXPECT_NE(std::count(horizons[0].begin(), horizons[0].end(), frame + window + 1), 0)
+      << "some pixel should stay valid through the window";
+  EXPECT_NE(std::count(horizons[0].begin(), horizons[0].end(), frame + 1), 0)
+      << "some pixel should change next frame";
+  Tracer tracer(device, scene, pool);
+  EXPECT_THROW(tracer.SetPacketWidth(4), std::invalid_argument);
 }
 
 // The paper's 12 balls before a backdrop that fills the view, moved 1e4 and more from the
