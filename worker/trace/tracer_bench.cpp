@@ -310,6 +310,7 @@ void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
   state.counters["bare_tracer_flags_cpu_ms"] = ms(bareFlagsCpu);
   state.counters["cpu_ratio_same_flags"] = tracerCpu / bareFlagsCpu;
   state.counters["threads"] = pool.ThreadCount();
+  state.counters["packet_width"] = tracer.PacketWidth();  // the bare loop's too
 }
 
 BENCHMARK_CAPTURE(TracerAgainstBareEmbree, a_one_sphere, "paper_a_one_sphere.json")
