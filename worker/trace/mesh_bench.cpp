@@ -1,6 +1,6 @@
 // A real shot's load: about 100,000 triangles of smooth meshes that move and turn over a
 // floor, 640x480, one point light. The tracer's time per frame beside a bare Embree loop
-// over the very same triangles and placements (8-wide primary packets, one shadow ray,
+// over the very same triangles and placements (primary packets as wide as the tracer's, one shadow ray,
 // Phong with Embree's own normals; trace/bare_embree_loop.h): the price of everything the
 // tracer adds (exact normals, smooth shading, ties, horizons bookkeeping, ray counting).
 //   build/worker/mesh_bench [--benchmark_min_time=2]

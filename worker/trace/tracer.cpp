@@ -29,7 +29,7 @@ namespace {
 // 1e-5 is ~170 float ulps: well above Embree's intersection error, well below any
 // feature a scene can usefully resolve.
 constexpr float kRelativeRayOffset = 1e-5f;
-// Pixels handed to a thread at a time: at least enough to fill 8-wide packets many times,
+// Pixels handed to a thread at a time: at least enough to fill 16-wide packets many times,
 // and about kChunksPerThread chunks a thread, so that threads stay balanced while the
 // fixed cost of a chunk (its thread's CPU clock, read twice through a system call, and
 // its tracer) stays small against a large task's tracing.
@@ -599,7 +599,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
   threads_.ParallelFor(pixelCount, chunk, [&](size_t begin, size_t end) {
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
-    // Every (pixel, sample) of the chunk, in order, then packets of 8 over them. The
+    // Every (pixel, sample) of the chunk, in order, then packets over them. The
     // buffers live per thread: allocating them per chunk showed up in profiles. With one
     // sample a pixel, the items are the pixels themselves, all of sample 0.
     thread_local std::vector<uint32_t> itemPixel;

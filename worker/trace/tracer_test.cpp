@@ -144,7 +144,7 @@ TEST(TracerTest, PacketWidthsGiveTheSameBitsAndHorizons) {
 }
 
 // The paper's 12 balls before a backdrop that fills the view, moved 1e4 and more from the
-// origin, at a width that puts packets of 8 rays across the image's centre: no ray may
+// origin, at a width that puts packets of 8 or 16 rays across the image's centre: no ray may
 // slip through the backdrop, and no pixel may change with the packet it is traced in.
 TEST(TracerTest, FarFromTheOriginPacketsMissNothing) {
   for (Vec3 offset : {Vec3{0, 0, 1e4}, Vec3{3e4, 3e4, 3e4}}) {
