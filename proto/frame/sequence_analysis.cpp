@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "frame/compare.h"
+
 namespace tcfarm {
 namespace {
 
@@ -109,8 +111,8 @@ SequenceAnalyzer::Equal SequenceAnalyzer::AdvanceRuns(const Image& frame, std::v
   const float* first = first_.rgb.data();
   for (size_t pixel = 0; pixel < runLength_.size(); ++pixel) {
     const size_t at = 3 * pixel;
-    equal.toFirst += std::memcmp(first + at, current + at, 3 * sizeof(float)) == 0;
-    const bool same = std::memcmp(previous + at, current + at, 3 * sizeof(float)) == 0;
+    equal.toFirst += SameBits(first + at, current + at);
+    const bool same = SameBits(previous + at, current + at);
     if (mask) mask[pixel] = same;
     if (same) {
       ++runLength_[pixel];

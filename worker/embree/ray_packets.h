@@ -6,6 +6,8 @@
 
 #include <embree3/rtcore.h>
 
+#include <type_traits>
+
 namespace tcfarm {
 
 constexpr int kMaxPacketWidth = 16;
@@ -40,6 +42,17 @@ struct RayPacket<16> {
 // 16 where the device runs 16-wide packets natively, 8 elsewhere.
 inline int NativePacketWidth(RTCDevice device) {
   return rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) ? 16 : 8;
+}
+
+// Calls trace(std::integral_constant<int, W>{}) for W = width (16, else 8): the packet
+// loop is compiled once per width and chosen once per chunk, not per packet.
+template <typename Trace>
+void WithPacketWidth(int width, Trace&& trace) {
+  if (width == 16) {
+    trace(std::integral_constant<int, 16>{});
+  } else {
+    trace(std::integral_constant<int, 8>{});
+  }
 }
 
 }  // namespace tcfarm

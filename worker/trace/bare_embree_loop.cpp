@@ -146,11 +146,7 @@ void BareEmbreeLoop::TraceFrame(int frame, TracingThreads& threads, float* rgb) 
   const size_t chunk = std::max<size_t>(128, pixels / (threads.ThreadCount() * 16));
   threads.ParallelFor(pixels, chunk, [&](size_t begin, size_t end) {
     std::fill(rgb + 3 * begin, rgb + 3 * end, 0.0f);
-    if (packetWidth_ == 16) {
-      TracePixels<16>(parts, begin, end, rgb);
-    } else {
-      TracePixels<8>(parts, begin, end, rgb);
-    }
+    WithPacketWidth(packetWidth_, [&](auto width) { TracePixels<decltype(width)::value>(parts, begin, end, rgb); });
   });
 }
 

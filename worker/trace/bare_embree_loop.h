@@ -3,8 +3,8 @@
 // rule, horizons, ray counts). The same shapes as the same Embree primitives
 // (ShapeKind::NewGeometry), placed per frame as the tracer places them (still shapes in one
 // scene; each moving shape in its own scene, instanced at its motion's matrix), the same
-// camera rays, primary packets as wide as the tracer's (embree/ray_packets.h), one shadow packet per light, Phong with Embree's own
-// normals, on the same threads. Placed frames are kept, as the tracer's frame cache keeps
+// camera rays, primary packets as wide as the tracer's (embree/ray_packets.h), one shadow
+// packet per light, Phong with Embree's own normals, on the same threads. Placed frames are kept, as the tracer's frame cache keeps
 // them. Mirrors and refraction are not traced: a scene with them is not measured.
 #pragma once
 

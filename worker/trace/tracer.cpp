@@ -121,8 +121,8 @@ class Tracer::PixelTracer {
   PixelTracer(const FrameContext& frame, const Scene& scene)
       : frame_(frame), scene_(scene), context_(frame.geometry.get()) {}
 
-  // Traces `count` (<= 8) camera samples and writes their colours.
-  // Width: the packet's (ray_packets.h); count <= Width lanes are used.
+  // Traces `count` (<= Width, the packet's: ray_packets.h) camera samples and writes their
+  // colours.
   template <int Width>
   void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
   Float3 TraceRay(Float3 origin, Float3 direction, int depth);
@@ -636,18 +636,17 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       tracker.lightFans = &lightFans;
       tracer.TrackHorizons(&tracker);
     }
-    for (size_t item = 0; item < items; item += packetWidth_) {
-      int lanes = static_cast<int>(std::min<size_t>(packetWidth_, items - item));
-      if (oracle) tracker.Reset(), tracker.sample = static_cast<uint32_t>(item);
-      if (packetWidth_ == 16) {
-        tracer.TracePrimaryPacket<16>(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
-      } else {
-        tracer.TracePrimaryPacket<8>(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
+    WithPacketWidth(packetWidth_, [&](auto packetWidth) {
+      constexpr int kWidth = decltype(packetWidth)::value;
+      for (size_t item = 0; item < items; item += kWidth) {
+        const int lanes = static_cast<int>(std::min<size_t>(kWidth, items - item));
+        if (oracle) tracker.Reset(), tracker.sample = static_cast<uint32_t>(item);
+        tracer.TracePrimaryPacket<kWidth>(itemPixels + item, &itemSample[item], lanes, &sampleColor[item]);
+        for (int lane = 0; oracle && lane < lanes; ++lane) {
+          sampleHorizon[item + lane] = tracker.horizon[lane];
+        }
       }
-      for (int lane = 0; oracle && lane < lanes; ++lane) {
-        sampleHorizon[item + lane] = tracker.horizon[lane];
-      }
-    }
+    });
     // The fans' searches first: blocked shadow rays are followed only up to the horizons
     // they leave, the dearest search last.
     if (oracle) {
