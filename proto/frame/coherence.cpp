@@ -30,25 +30,14 @@ void RunningStats::Add(double value) {
   ++count;
 }
 
-void CoherenceTracker::Add(const Image& frame) {
-  if (!haveFirst_) {
-    first_ = previous_ = frame;
-    haveFirst_ = true;
-    return;
-  }
-  frameToFrame_.Add(Coherence(previous_, frame));
-  longTerm_.Add(Coherence(first_, frame));
-  previous_ = frame;
-}
-
-std::string CoherenceTracker::Summary() const {
-  if (frameToFrame_.count == 0) return "coherence: needs at least two frames";
+std::string CoherenceSummary(const RunningStats& frameToFrame, const RunningStats& longTerm) {
+  if (frameToFrame.count == 0) return "coherence: needs at least two frames";
   char text[256];
   std::snprintf(text, sizeof text,
                 "coherence: frame-to-frame mean %.2f%% (min %.2f%%, max %.2f%%), "
                 "long-term mean %.2f%% (min %.2f%%, max %.2f%%)",
-                100 * frameToFrame_.Mean(), 100 * frameToFrame_.min, 100 * frameToFrame_.max,
-                100 * longTerm_.Mean(), 100 * longTerm_.min, 100 * longTerm_.max);
+                100 * frameToFrame.Mean(), 100 * frameToFrame.min, 100 * frameToFrame.max,
+                100 * longTerm.Mean(), 100 * longTerm.min, 100 * longTerm.max);
   return text;
 }
 

@@ -21,19 +21,8 @@ struct RunningStats {
   double Mean() const { return count ? sum / count : 0; }
 };
 
-// Feed frames in order; keeps only the first and the previous frame.
-class CoherenceTracker {
- public:
-  void Add(const Image& frame);
-  const RunningStats& frameToFrame() const { return frameToFrame_; }
-  const RunningStats& longTerm() const { return longTerm_; }
-  // "coherence: frame-to-frame mean 95.06% (min 91.57%, max 97.48%), long-term ..."
-  std::string Summary() const;
-
- private:
-  Image first_, previous_;
-  bool haveFirst_ = false;
-  RunningStats frameToFrame_, longTerm_;
-};
+// "coherence: frame-to-frame mean 95.06% (min 91.57%, max 97.48%), long-term ..." for the
+// running figures of a sequence (SequenceAnalyzer keeps them while frames arrive).
+std::string CoherenceSummary(const RunningStats& frameToFrame, const RunningStats& longTerm);
 
 }  // namespace tcfarm

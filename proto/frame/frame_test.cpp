@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "frame/coherence.h"
+#include "frame/sequence_analysis.h"
 #include "frame/compare.h"
 #include "frame/frame_io.h"
 #include "frame/frame_writer.h"
@@ -191,15 +192,18 @@ TEST(CoherenceTest, CountsBitwiseEqualPixels) {
   Image other = Gradient(5, 5);
   EXPECT_THROW(Coherence(a, other), std::invalid_argument);
 
-  CoherenceTracker tracker;
-  tracker.Add(a);
-  tracker.Add(b);
-  tracker.Add(a);
-  EXPECT_EQ(tracker.frameToFrame().count, 2u);
-  EXPECT_DOUBLE_EQ(tracker.frameToFrame().Mean(), 0.98);
-  EXPECT_DOUBLE_EQ(tracker.longTerm().min, 0.98);
-  EXPECT_DOUBLE_EQ(tracker.longTerm().max, 1.0);
-  EXPECT_NE(tracker.Summary().find("frame-to-frame mean 98.00%"), std::string::npos);
+  SequenceAnalyzer running;
+  running.Add(a);
+  running.Add(b);
+  running.Add(a);
+  EXPECT_EQ(running.frameToFrame().count, 2u);
+  EXPECT_DOUBLE_EQ(running.frameToFrame().Mean(), 0.98);
+  EXPECT_DOUBLE_EQ(running.longTerm().min, 0.98);
+  EXPECT_DOUBLE_EQ(running.longTerm().max, 1.0);
+  const std::string summary = CoherenceSummary(running.frameToFrame(), running.longTerm());
+  EXPECT_NE(summary.find("frame-to-frame mean 98.00%"), std::string::npos);
+  EXPECT_NE(summary.find("long-term mean 99.00% (min 98.00%, max 100.00%)"), std::string::npos);
+  EXPECT_EQ(CoherenceSummary({}, {}), "coherence: needs at least two frames");
 }
 
 TEST(CompareTest, CountsDifferingPixelsAndTheirSize) {

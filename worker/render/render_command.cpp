@@ -6,7 +6,7 @@
 #include <stdexcept>
 
 #include "embree/device.h"
-#include "frame/coherence.h"
+#include "frame/sequence_analysis.h"
 #include "frame/frame_io.h"
 #include "frame/frame_writer.h"
 #include "scene/import/scene_import.h"
@@ -145,7 +145,7 @@ int RunRender(const RenderOptions& requested) {
   Tracer tracer(device, scene, pool);
   std::filesystem::create_directories(options.outDirectory);
   FrameWriter writer(options.outDirectory, options.output);
-  CoherenceTracker coherence;
+  SequenceAnalyzer coherence;
 
   const int width = scene.render.width, height = scene.render.height;
   double traceSeconds = 0;
@@ -181,7 +181,7 @@ int RunRender(const RenderOptions& requested) {
               static_cast<unsigned long long>(deformed.posesComputed),
               static_cast<unsigned long long>(deformed.posesShared),
               static_cast<unsigned long long>(deformed.verticesDeformed));
-  std::printf("%s\n", coherence.Summary().c_str());
+  std::printf("%s\n", CoherenceSummary(coherence.frameToFrame(), coherence.longTerm()).c_str());
   return 0;
 }
 

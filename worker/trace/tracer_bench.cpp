@@ -326,7 +326,6 @@ BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, every_other_row, Subset::kEveryOtherRow)
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, tiles16, Subset::kTiles16)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, exact_set_at_30, Subset::kExactAt30)->MeasureProcessCPUTime()->UseRealTime();
 BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, spot_check, Subset::kSpotCheck)->MeasureProcessCPUTime()->UseRealTime();
-BENCHMARK_CAPTURE(TraceSubsetsOfAFrame, spot_check, Subset::kSpotCheck)->MeasureProcessCPUTime()->UseRealTime();
 
 BENCHMARK_CAPTURE(TraceExactSequence, a_one_sphere, "paper_a_one_sphere.json")
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(3);
