@@ -10,6 +10,7 @@
 #include <random>
 
 #include "embree/scene_geometry.h"
+#include "shapes/shape_kind.h"
 #include "frame/frame_io.h"
 #include "trace/scaled_scene.h"
 
@@ -343,6 +344,64 @@ TEST(TracerTest, RobustTraversalWhereShapesShareEdges) {
   EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/quad.json")));
   EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/mesh_with_normals_and_uvs.json")));
   EXPECT_TRUE(NeedsRobustTraversal(LoadSceneFile("tests/scenes/valid/imports_an_obj.json")));
+}
+
+// Rays aimed at points of the edge two triangles share (a quad's diagonal, corner + u to
+// corner + v), cast as the tracer casts them: 16-wide packets into the frame's scene.
+// Returns how many miss.
+size_t MissesOnTheSharedEdge(RTCScene scene, const Vec3& corner, const Vec3& u, const Vec3& v) {
+  std::mt19937 random(7);
+  std::uniform_real_distribution<float> along(0.02f, 0.98f), offset(-3, 3), height(3, 8);
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  size_t misses = 0;
+  for (int packet = 0; packet < 20000; ++packet) {
+    alignas(64) RTCRayHit16 rays{};
+    alignas(64) int valid[16];
+    const float ox = offset(random), oy = height(random), oz = offset(random);
+    for (int lane = 0; lane < 16; ++lane) {
+      const float a = along(random);
+      const float px = static_cast<float>(corner.x + u.x) + a * static_cast<float>(v.x - u.x);
+      const float py = static_cast<float>(corner.y + u.y) + a * static_cast<float>(v.y - u.y);
+      const float pz = static_cast<float>(corner.z + u.z) + a * static_cast<float>(v.z - u.z);
+      const float dx = px - ox, dy = py - oy, dz = pz - oz;
+      const float length = std::sqrt(dx * dx + dy * dy + dz * dz);
+      valid[lane] = -1;
+      rays.ray.org_x[lane] = ox, rays.ray.org_y[lane] = oy, rays.ray.org_z[lane] = oz;
+      rays.ray.dir_x[lane] = dx / length, rays.ray.dir_y[lane] = dy / length, rays.ray.dir_z[lane] = dz / length;
+      rays.ray.tnear[lane] = 0;
+      rays.ray.tfar[lane] = std::numeric_limits<float>::infinity();
+      rays.ray.mask[lane] = ~0u;
+      rays.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+    }
+    rtcIntersect16(valid, scene, &context, &rays);
+    for (int lane = 0; lane < 16; ++lane) misses += rays.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID;
+  }
+  return misses;
+}
+
+// What robust traversal buys: no ray aimed at a quad's diagonal slips between its two
+// triangles. The same rays into a scene without it find the crack, so the check can fail.
+TEST(TracerTest, NoRaySlipsThroughAQuadsDiagonal) {
+  const Vec3 corner{-10.3, -1, -7.1}, u{20.1, 0.3, -1.2}, v{1.4, 0.2, 20.3};
+  Scene scene = ParseScene(R"({
+    "camera": {"position": [0, 5, 0], "look_at": [0, 0, 0.1]},
+    "shapes": [{"type": "quad", "corner": [-10.3, -1, -7.1], "edge_u": [20.1, 0.3, -1.2],
+                "edge_v": [1.4, 0.2, 20.3]}],
+    "render": {"width": 4, "height": 4}
+  })");
+  EmbreeDevice device;
+  SceneGeometry geometry(device, scene);
+  EXPECT_EQ(MissesOnTheSharedEdge(geometry.ForFrame(0)->scene(), corner, u, v), 0u);
+
+  RTCScene fast = rtcNewScene(device.get());  // Embree's default flags
+  RTCGeometry quad = KindOf(scene.shapes[0]).NewGeometry(device.get(), scene.shapes[0]);
+  rtcCommitGeometry(quad);
+  rtcAttachGeometry(fast, quad);
+  rtcReleaseGeometry(quad);
+  rtcCommitScene(fast);
+  EXPECT_GT(MissesOnTheSharedEdge(fast, corner, u, v), 0u);
+  rtcReleaseScene(fast);
 }
 
 TEST(TracerTest, MovingShapeIsPlacedAtItsFramePosition) {
