@@ -8,9 +8,10 @@ equation 3 with the measured d, pixels traced and error against brute force.
 Relative cost is the job's tracing time over the brute-force job's tracing time, both
 summed over tasks as the workers report them, measured in the same run: CPU seconds of
 the tracing threads, which waiting for shared cores does not inflate. "rel. wall" is
-the jobs' elapsed time, encoding of the frame files included. Brute force is run before
-and after each scene's strategies (after one unmeasured job that warms the farm and
-loads the scene), and both ratios are over the mean of the two.
+the jobs' elapsed time, encoding of the frame files included. Brute force is run first and
+again after every few jobs (--brute-every; after one unmeasured job that warms the farm
+and loads the scene), and each job's ratios are over the mean of the brute-force runs
+just before and just after it.
 """
 import argparse
 import json
@@ -52,29 +53,35 @@ def exact_relative_cost(frames, length, d):
     return (segments + (frames - segments) * d) / frames
 
 
-def measure_scene(farm, name, strategies, widths, exact_lengths):
+def measure_scene(farm, name, strategies, widths, exact_lengths, brute_every):
     scene = json.loads((ROOT / "tests" / "scenes" / f"{name}.json").read_text())
     # The scene's first job pays for sending and loading it, and the first job on a farm
-    # for warming the processes: run once, not measured. Brute force is then run before
-    # and after the strategies, and their mean is the yardstick, so that the machine's
-    # drift over the scene's runs falls on both sides alike.
+    # for warming the processes: run once, not measured.
     farm.run_job(scene, timeout=3600, strategy="brute")
-    brute = farm.run_job(scene, timeout=3600, strategy="brute")
-    frames = brute["frames"]["count"]
-    d = 1 - brute["stats"]["coherence"]["frame_to_frame"]["mean"]
-    rows = []
     runs = [(s, w) for s in strategies if s != "auto" for w in widths]
     runs += [("exact", l) for l in exact_lengths]
     if "auto" in strategies:
         runs.append(("auto", None))  # it chooses its own strategy and width
-    jobs = [(strategy, width, farm.run_job(scene, timeout=3600, strategy=strategy, bin_width=width or 10))
-            for strategy, width in runs]
-    brute_after = farm.run_job(scene, timeout=3600, strategy="brute")
-    brute_cost = (trace_cost_seconds(brute["stats"]) + trace_cost_seconds(brute_after["stats"])) / 2
-    brute_wall = (brute["stats"]["wall_seconds"] + brute_after["stats"]["wall_seconds"]) / 2
-    drift = trace_cost_seconds(brute_after["stats"]) / trace_cost_seconds(brute["stats"])
-    print(f"{name}: brute force after the strategies / before: {drift:.3f} in CPU", flush=True)
-    for strategy, width, job in jobs:
+    # Brute force again every brute_every jobs, and each job priced against the mean of the
+    # brute-force runs just before and just after it: the machine's speed drifts (by a sixth
+    # over one scene's runs on a shared machine), and so both sides of a ratio see the same.
+    brutes = [farm.run_job(scene, timeout=3600, strategy="brute")]
+    jobs = []
+    for index, (strategy, width) in enumerate(runs):
+        job = farm.run_job(scene, timeout=3600, strategy=strategy, bin_width=width or 10)
+        jobs.append((strategy, width, job, len(brutes) - 1))
+        if (index + 1) % brute_every == 0 or index + 1 == len(runs):
+            brutes.append(farm.run_job(scene, timeout=3600, strategy="brute"))
+    brute = brutes[0]
+    frames = brute["frames"]["count"]
+    d = 1 - brute["stats"]["coherence"]["frame_to_frame"]["mean"]
+    costs = [trace_cost_seconds(b["stats"]) for b in brutes]
+    print(f"{name}: brute force's CPU over the runs, against its first: "
+          + " ".join(f"{c / costs[0]:.3f}" for c in costs), flush=True)
+    rows = []
+    for strategy, width, job, before in jobs:
+        brute_cost = (costs[before] + costs[before + 1]) / 2
+        brute_wall = (brutes[before]["stats"]["wall_seconds"] + brutes[before + 1]["stats"]["wall_seconds"]) / 2
         error = compare(farm.store / str(brute["id"]), farm.store / str(job["id"]))
         if strategy == "auto":
             chosen = job["stats"]["strategy"]
@@ -84,7 +91,7 @@ def measure_scene(farm, name, strategies, widths, exact_lengths):
             "scene": name, "strategy": strategy, "bin_width": width, "d": d,
             "relative_cost": trace_cost_seconds(job["stats"]) / brute_cost,
             "relative_wall": job["stats"]["wall_seconds"] / brute_wall,
-            "brute_drift": drift,
+            "brute_drift": costs[before + 1] / costs[before],
             "theoretical": (exact_relative_cost(frames, width, d) if "exact" in strategy
                             else equation3_relative_cost(frames, width, d)),
             "wall_seconds": job["stats"]["wall_seconds"],
@@ -173,6 +180,7 @@ def main():
     parser.add_argument("--strategies", default="search")
     parser.add_argument("--exact-lengths", default="", type=lambda t: parse_widths(t) if t else [])
     parser.add_argument("--scenes", default=",".join(SCENES))
+    parser.add_argument("--brute-every", type=int, default=4, help="jobs between brute-force runs")
     parser.add_argument("--plots")
     parser.add_argument("--replot", help="redraw --plots from a --json file, render nothing")
     parser.add_argument("--markdown")
@@ -187,7 +195,7 @@ def main():
             farm.wait_for_workers(1)
             for name in args.scenes.split(","):
                 rows += measure_scene(farm, name, args.strategies.split(","), args.bin_widths,
-                                      args.exact_lengths)
+                                      args.exact_lengths, args.brute_every)
                 print(markdown([r for r in rows if r["scene"] == name]).split("\n", 2)[2],
                       flush=True)
     table = markdown(rows)
