@@ -6,10 +6,11 @@ W workers share a few cores; wall time does not, there.
   .venv/bin/python tests/bench/scale_out.py                      # W = 1, 4, 16, 64
   .venv/bin/python tests/bench/scale_out.py --workers 1,16 --scenes b --strategies auto
 
-Each job runs --repeat times (2); the run with the least work counts. Per row: the
+Each job runs --repeat times (3), in rounds: every strategy once, then brute force. A
+job's relative CPU cost is its work over the mean of the brute-force runs either side of
+it on the same farm, and the round whose cost is the median counts. Per row: the
 strategy as resolved (and its bin width or segment length), the traced-pixel
-ratio, the relative CPU cost (the job's work over brute force's, both measured in this
-run on this farm), the work and span in CPU seconds of tracing, parallelism (work / span:
+ratio, the relative CPU cost, the work and span in CPU seconds of tracing, parallelism (work / span:
 the most workers the job can keep busy), and the job's wall seconds. Every job renders
 its scene as a first render does (see `fresh`). Last, per scene and strategy, the CPU cost
 at each W over the smallest W's: the job's work, and its cost against brute force.
@@ -76,10 +77,29 @@ def run_job(farm, scene, strategy, bin_width):
             "wall": stats["wall_seconds"]}
 
 
-def least_work(farm, scene, asked, repeat):
-    """The run of `repeat` whose work is least: on shared cores CPU time only grows with
-    what else runs (caches, migrations), never shrinks."""
-    return min((run_job(farm, scene, *STRATEGIES[asked]) for _ in range(max(1, repeat))), key=lambda r: r["work"])
+def measured_round(farm, scene, strategies, previous_brute):
+    """One round: each strategy once, then brute force. Each strategy's cost is its work over
+    the mean of the brute-force runs either side of it (`previous_brute`, the one that ends
+    this round), so that the machine's drift falls on both sides of the ratio alike."""
+    rows = {asked: run_job(farm, scene, *STRATEGIES[asked]) for asked in strategies if asked != "brute"}
+    brute = run_job(farm, scene, *STRATEGIES["brute"])
+    yardstick = (previous_brute["work"] + brute["work"]) / 2
+    for row in rows.values():
+        row["cost"] = row["work"] / yardstick
+    rows["brute"] = dict(brute, cost=brute["work"] / yardstick)
+    return rows, brute
+
+
+def measure(farm, scene, strategies, repeat):
+    """Per strategy, the round of `repeat` whose cost is the median, so that one round
+    slowed by whatever else shares the cores neither lowers nor raises it."""
+    previous = run_job(farm, scene, *STRATEGIES["brute"])
+    rounds = []
+    for _ in range(max(1, repeat)):
+        rows, previous = measured_round(farm, scene, strategies, previous)
+        rounds.append(rows)
+    return {asked: sorted((r[asked] for r in rounds), key=lambda row: row["cost"])[len(rounds) // 2]
+            for asked in strategies}
 
 
 def main():
@@ -89,8 +109,8 @@ def main():
     parser.add_argument("--strategies", default="brute,search,exact,auto")
     parser.add_argument("--size", default="640x480")
     parser.add_argument("--frames", type=int, default=60)
-    parser.add_argument("--repeat", type=int, default=2,
-                        help="runs of each job; the least work counts (CPU time only grows with noise)")
+    parser.add_argument("--repeat", type=int, default=3,
+                        help="rounds of every job; the round of median cost counts")
     args = parser.parse_args()
     width, height = map(int, args.size.split("x"))
     sizes = [int(w) for w in args.workers.split(",")]
@@ -109,14 +129,10 @@ def main():
                 # first pages) is paid here, not by the first job measured.
                 run_job(farm, load_scene("a", directory, 64, 48, 2), "brute", 2)
                 for name, scene in scenes.items():
-                    brute_work = least_work(farm, scene, "brute", args.repeat)["work"]
-                    for asked in strategies:
-                        row = least_work(farm, scene, asked, args.repeat)
-                        row["cost"] = row["work"] / brute_work
+                    for asked, row in measure(farm, scene, strategies, args.repeat).items():
                         results[name, asked, workers] = row
-                        cost = "-" if row["cost"] is None else f"{row['cost']:.3f}"
                         print(f"{name:6} {workers:3} {asked:8} {row['strategy']:11} {row['traced']:7.4f} "
-                              f"{cost:>8} {row['work']:7.2f} {row['span']:7.3f} {row['parallelism']:8.1f} "
+                              f"{row['cost']:8.3f} {row['work']:7.2f} {row['span']:7.3f} {row['parallelism']:8.1f} "
                               f"{row['wall']:7.2f}", flush=True)
     # The same job on every farm: its work should not grow with W. Beside it, the cost
     # against each farm's own brute force, which also carries that job's noise.
