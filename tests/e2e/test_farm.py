@@ -25,6 +25,17 @@ def holds_tasks(farm, worker_name):
     return workers["queued_tasks"] > 0 and held and held[0] > 0
 
 
+def kill_the_first_worker_while_it_holds_tasks(farm, job):
+    """SIGKILL for worker test-0 once it holds tasks with more queued: it dies owing pixels."""
+    deadline = time.monotonic() + 120
+    while not holds_tasks(farm, "test-0"):
+        state = farm.client.job(job["id"])["state"]
+        assert state in ("queued", "running"), f"the job ended ({state}) before a worker held tasks"
+        assert time.monotonic() < deadline, "no worker held tasks"
+        time.sleep(0.01)
+    farm.workers[0].send_signal(signal.SIGKILL)
+
+
 @pytest.fixture(scope="module")
 def twelve_spheres(scenes_dir):
     return small_scene(scenes_dir / "paper_b_twelve_spheres.json")
@@ -77,19 +88,32 @@ def test_a_worker_killed_mid_job_loses_no_pixel(tmp_path, twelve_spheres):
     with LocalFarm(tmp_path / "farm", workers=2) as farm:
         farm.wait_for_workers(2)
         job = farm.client.submit(scene, strategy="brute")
-        deadline = time.monotonic() + 120
-        # Killed while it holds tasks, so it dies owing pixels.
-        while not holds_tasks(farm, "test-0"):
-            state = farm.client.job(job["id"])["state"]
-            assert state in ("queued", "running"), f"the job ended ({state}) before a worker held tasks"
-            assert time.monotonic() < deadline, "no worker held tasks"
-            time.sleep(0.01)
-        farm.workers[0].send_signal(signal.SIGKILL)
+        kill_the_first_worker_while_it_holds_tasks(farm, job)
         job = farm.client.wait(job["id"], timeout=300)
         assert job["state"] == "completed", job
         error = compare(reference, farm.store / str(job["id"]))
         assert error["differing_pixels"] == 0
         assert counter(farm.metrics(), "tcfarm_tasks_requeued_total") > 0
+
+
+def test_a_worker_killed_mid_exact_segment_leaves_the_output_bit_identical(tmp_path, scenes_dir):
+    # exact spreads each frame's pixel set over both workers and each task returns the
+    # horizons later frames are planned from: a worker killed holding such tasks must cost
+    # no pixel and no horizon. Full size, so the segment lasts long enough to catch it.
+    scene = json.loads((scenes_dir / "paper_b_twelve_spheres.json").read_text())
+    (tmp_path / "farm").mkdir()
+    reference = render_reference(scene, tmp_path / "reference")
+    with LocalFarm(tmp_path / "farm", workers=2) as farm:
+        farm.wait_for_workers(2)
+        job = farm.client.submit(scene, strategy="exact", bin_width=60)
+        kill_the_first_worker_while_it_holds_tasks(farm, job)
+        job = farm.client.wait(job["id"], timeout=300)
+        assert job["state"] == "completed", job
+        assert counter(farm.metrics(), "tcfarm_tasks_requeued_total") > 0
+        assert job["traced_pixel_ratio"] < 0.5  # it still copied most pixels
+        error = compare(reference, farm.store / str(job["id"]))
+        assert error["frames"] == 60
+        assert error["differing_pixels"] == 0, error
 
 
 def test_frames_that_finish_ahead_wait_on_disk_when_memory_is_short(tmp_path, twelve_spheres,
