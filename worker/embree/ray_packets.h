@@ -12,32 +12,28 @@ namespace tcfarm {
 
 constexpr int kMaxPacketWidth = 16;
 
+// One width's packet types and calls, named once: RayPacket<Width>::RayHit, ::Ray,
+// ::Intersect(valid, scene, context, packet) and ::Occluded(...).
+template <typename RayHitType, typename RayType,
+          void (*IntersectCall)(const int*, RTCScene, RTCIntersectContext*, RayHitType*),
+          void (*OccludedCall)(const int*, RTCScene, RTCIntersectContext*, RayType*)>
+struct EmbreePacket {
+  using RayHit = RayHitType;
+  using Ray = RayType;
+  static void Intersect(const int* valid, RTCScene scene, RTCIntersectContext* context, RayHit* packet) {
+    IntersectCall(valid, scene, context, packet);
+  }
+  static void Occluded(const int* valid, RTCScene scene, RTCIntersectContext* context, Ray* packet) {
+    OccludedCall(valid, scene, context, packet);
+  }
+};
+
 template <int Width>
 struct RayPacket;
-
 template <>
-struct RayPacket<8> {
-  using RayHit = RTCRayHit8;
-  using Ray = RTCRay8;
-  static void Intersect(const int* valid, RTCScene scene, RTCIntersectContext* context, RayHit* packet) {
-    rtcIntersect8(valid, scene, context, packet);
-  }
-  static void Occluded(const int* valid, RTCScene scene, RTCIntersectContext* context, Ray* packet) {
-    rtcOccluded8(valid, scene, context, packet);
-  }
-};
-
+struct RayPacket<8> : EmbreePacket<RTCRayHit8, RTCRay8, rtcIntersect8, rtcOccluded8> {};
 template <>
-struct RayPacket<16> {
-  using RayHit = RTCRayHit16;
-  using Ray = RTCRay16;
-  static void Intersect(const int* valid, RTCScene scene, RTCIntersectContext* context, RayHit* packet) {
-    rtcIntersect16(valid, scene, context, packet);
-  }
-  static void Occluded(const int* valid, RTCScene scene, RTCIntersectContext* context, Ray* packet) {
-    rtcOccluded16(valid, scene, context, packet);
-  }
-};
+struct RayPacket<16> : EmbreePacket<RTCRayHit16, RTCRay16, rtcIntersect16, rtcOccluded16> {};
 
 // 16 where the device runs 16-wide packets natively, 8 elsewhere.
 inline int NativePacketWidth(RTCDevice device) {

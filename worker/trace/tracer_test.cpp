@@ -9,6 +9,7 @@
 #include <numeric>
 #include <random>
 
+#include "embree/ray_packets.h"
 #include "embree/scene_geometry.h"
 #include "shapes/shape_kind.h"
 #include "frame/frame_io.h"
@@ -356,7 +357,7 @@ size_t MissesOnTheSharedEdge(RTCScene scene, const Vec3& corner, const Vec3& u, 
   rtcInitIntersectContext(&context);
   size_t misses = 0;
   for (int packet = 0; packet < 20000; ++packet) {
-    alignas(64) RTCRayHit16 rays{};
+    alignas(64) RayPacket<16>::RayHit rays{};
     alignas(64) int valid[16];
     const float ox = offset(random), oy = height(random), oz = offset(random);
     for (int lane = 0; lane < 16; ++lane) {
@@ -374,7 +375,7 @@ size_t MissesOnTheSharedEdge(RTCScene scene, const Vec3& corner, const Vec3& u, 
       rays.ray.mask[lane] = ~0u;
       rays.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
     }
-    rtcIntersect16(valid, scene, &context, &rays);
+    RayPacket<16>::Intersect(valid, scene, &context, &rays);
     for (int lane = 0; lane < 16; ++lane) misses += rays.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID;
   }
   return misses;
