@@ -99,8 +99,10 @@ def test_a_worker_killed_mid_job_loses_no_pixel(tmp_path, twelve_spheres):
 def test_a_worker_killed_mid_exact_segment_leaves_the_output_bit_identical(tmp_path, scenes_dir):
     # exact spreads each frame's pixel set over both workers and each task returns the
     # horizons later frames are planned from: a worker killed holding such tasks must cost
-    # no pixel and no horizon. Full size, so the segment lasts long enough to catch it.
+    # no pixel and no horizon. Full size and four samples a pixel, so the segment outlasts
+    # the farm's notice that a worker holds tasks (one sample: over in half a second).
     scene = json.loads((scenes_dir / "paper_b_twelve_spheres.json").read_text())
+    scene["render"]["samples_per_pixel"] = 4
     (tmp_path / "farm").mkdir()
     reference = render_reference(scene, tmp_path / "reference")
     with LocalFarm(tmp_path / "farm", workers=2) as farm:
