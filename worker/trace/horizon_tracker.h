@@ -22,6 +22,9 @@ struct HorizonTracker {
   SegmentFan* eyeFan = nullptr;
   std::vector<SegmentFan>* lightFans = nullptr;  // by light; a fan without cones: none
   uint32_t sample = 0;
+  // By sample in the chunk: the mover its camera segment's search leaves out (-1: none),
+  // for the eye fan's search.
+  int32_t* eyeExcept = nullptr;
 
   void Reset() {
     for (int& h : horizon) h = oracle->CameraCap();
@@ -32,6 +35,19 @@ struct HorizonTracker {
   }
   void EyeSegment(int forLane, Float3 origin, Float3 direction, float length) {
     FanSegment(eyeFan, forLane, origin, direction, length);
+  }
+  // A camera segment that ends on `mover`'s surface, searched for every other mover (see
+  // HorizonOracle::UnlitSphereHolds).
+  void EyeSegmentExcept(int forLane, const RaySegment& segment, int mover) {
+    if (horizon[forLane] == oracle->frame() + 1) return;
+    if (eyeFan && eyeFan->cones() && eyeExcept) {
+      if (!oracle->NearAnyMover(segment)) return;
+      if (eyeFan->Add(sample + static_cast<uint32_t>(forLane), segment)) {
+        eyeExcept[sample + static_cast<uint32_t>(forLane)] = mover;
+        return;
+      }
+    }
+    horizon[forLane] = oracle->FirstMeeting(segment, horizon[forLane], mover);
   }
   void LightSegment(int forLane, size_t light, Float3 origin, Float3 direction, float length) {
     FanSegment(lightFans ? &(*lightFans)[light] : nullptr, forLane, origin, direction, length);

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "shapes/shape_kind.h"
+#include "trace/lights.h"
 #include "trace/segment_fan.h"
 
 namespace tcfarm {
@@ -98,6 +99,7 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const De
   });
   int last = std::min(frame + window, scene.render.LastFrame());
   shapeChange_.assign(scene.shapes.size(), SurfaceChanges::kNever);
+  sphereOfShape_.assign(scene.shapes.size(), -1);
   partChanges_.resize(scene.shapes.size());
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
@@ -108,6 +110,7 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const De
     } else {
       const BoundingSphere rest = KindOf(shape).Bounds(shape);
       AddMover(shape, last, [&](int) { return rest; });
+      sphereOfShape_[i] = sphereOfMover_.back();
     }
   }
   std::vector<Box> swept;
@@ -478,7 +481,7 @@ HorizonOracle::Box HorizonOracle::EmptyBox() {
   return {{INFINITY, INFINITY, INFINITY}, {-INFINITY, -INFINITY, -INFINITY}};
 }
 
-int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
+int HorizonOracle::FirstMeeting(const RaySegment& segment, int before, int exceptMover) const {
   before = std::min(before, Unbounded());
   if (movers_.empty() || before <= frame_ + 1 || !NearAnyMover(segment)) return before;
   const SlabRay ray(segment);
@@ -497,7 +500,7 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before) const {
   // it: each mover is searched only before the earliest meeting found so far.
   size_t earliest = static_cast<size_t>(before - frame_);  // as a frame offset; none found yet
   for (size_t m = 0; m < movers_.size(); ++m) {
-    if (!near[m]) continue;
+    if (!near[m] || static_cast<int>(m) == exceptMover) continue;
     const Mover& mover = movers_[m];
     uint8_t* chunkMet = scratch(mover.chunkLo[0].size(), stackChunks, heapChunks);
     BoxesMet(ray, mover.chunkLo, mover.chunkHi, chunkMet);
@@ -537,7 +540,7 @@ double HorizonOracle::FanSlack(const Vec3& point) const {
   return 1e-3 * (1 + magnitude);
 }
 
-void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon) const {
+void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon, const int32_t* exceptMover) const {
   if (fan.empty() || movers_.empty()) return;
   FanCones& cones = *fan.cones();
   const size_t frames = cones.Frames();
@@ -566,7 +569,10 @@ void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon) co
       for (int face : fan.Faces()) {
         fan.ForEachIn(face, conesOn[face][m * frames + offset], [&](const SegmentFan::Entry& entry) {
           int32_t& h = horizon[entry.sample];
-          if (h > frame && SegmentMeetsSphere(entry.segment, sphere)) h = frame;
+          if (h > frame && SegmentMeetsSphere(entry.segment, sphere) &&
+              !(exceptMover && exceptMover[entry.sample] == static_cast<int32_t>(m))) {
+            h = frame;
+          }
         });
       }
     }
@@ -581,5 +587,66 @@ int HorizonOracle::MoverThatMayBlock(const RaySegment& segment) const {
 }
 
 int HorizonOracle::SphereOfMover(int mover) const { return sphereOfMover_[static_cast<size_t>(mover)]; }
+
+namespace {
+
+// A camera ray against a translating sphere at one frame, in double.
+struct RayAgainstSphere {
+  double along;   // distance along the ray to the point nearest the centre
+  double missBy2;  // squared distance from the centre to the ray's line
+  double startBy2;  // squared distance from the centre to the ray's origin
+  RayAgainstSphere(const Vec3& o, const Vec3& d, const Vec3& c) {
+    const double ocx = c.x - o.x, ocy = c.y - o.y, ocz = c.z - o.z;
+    along = ocx * d.x + ocy * d.y + ocz * d.z;
+    startBy2 = ocx * ocx + ocy * ocy + ocz * ocz;
+    missBy2 = std::max(0.0, startBy2 - along * along);
+  }
+};
+
+// The margin of UnlitSphere's tests, as TestSureBlock's: a thousandth of the radius and
+// far above the tracer's float rounding at the coordinates' magnitude.
+double UnlitSlack(const Vec3& o, const Vec3& c, double radius) {
+  const double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), std::fabs(o.x), std::fabs(o.y),
+                                     std::fabs(o.z)}) + radius;
+  return 1e-3 * radius + 1e-5 * magnitude;
+}
+
+Vec3 UnitInDouble(const Float3& v) {
+  const double inverse = 1 / std::sqrt(double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z);
+  return {v.x * inverse, v.y * inverse, v.z * inverse};
+}
+
+}  // namespace
+
+int HorizonOracle::UnlitSphereHolds(int sphere, const RaySegment& hit, const std::vector<ShadingLight>& lights,
+                                    int before) const {
+  const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
+  const Vec3 o{hit.origin.x, hit.origin.y, hit.origin.z}, d = UnitInDouble(hit.direction);
+  before = std::min(before, Unbounded());
+  for (int frame = frame_ + 1; frame < before; ++frame) {
+    const size_t index = static_cast<size_t>(frame - frame_);
+    if (index >= s.centers.size()) return frame;
+    const Vec3& c = s.centers[index];
+    const double slack = UnlitSlack(o, c, s.radius), inner = s.radius - slack, outer = s.radius + slack;
+    const RayAgainstSphere at(o, d, c);
+    // From outside, well inside the rim, and well before the hit at frame().
+    if (at.startBy2 <= outer * outer || at.missBy2 >= inner * inner) return frame;
+    const double t = at.along - std::sqrt(s.radius * s.radius - at.missBy2);
+    if (!(t > slack && t < double(hit.length) - slack)) return frame;
+    const Vec3 p{o.x + t * d.x, o.y + t * d.y, o.z + t * d.z};
+    const Vec3 outward{p.x - c.x, p.y - c.y, p.z - c.z};  // the normal, radius long
+    // Every light well behind the surface: the cosine between the normal and the way to
+    // the light below -2 * slack / radius (compared squared: no root, no division).
+    const double most = 2 * slack;  // cosine times radius
+    for (const ShadingLight& light : lights) {
+      Vec3 toward{light.towardLight.x, light.towardLight.y, light.towardLight.z};
+      if (light.isPoint) toward = {light.position.x - p.x, light.position.y - p.y, light.position.z - p.z};
+      const double along = outward.x * toward.x + outward.y * toward.y + outward.z * toward.z;
+      const double length2 = toward.x * toward.x + toward.y * toward.y + toward.z * toward.z;
+      if (!(along < 0 && along * along > most * most * length2)) return frame;
+    }
+  }
+  return before;
+}
 
 }  // namespace tcfarm

@@ -10,7 +10,8 @@
 // of its points is inside, so a segment that starts inside counts too. Segments are
 // tested from frame a+1 on: the trace at a found them clear of every shape (a segment
 // ends at the first surface it meets, and a surface that moves caps the horizon at a+1
-// by itself), so the shapes' places at a cannot change the pixel. A camera that changes
+// by itself, unless it is a sphere's side no light reaches: UnlitSphereHolds), so the
+// shapes' places at a cannot change the pixel. A camera that changes
 // caps every horizon, and so does a light that changes, for every pixel that sees a
 // surface.
 //
@@ -44,6 +45,7 @@
 namespace tcfarm {
 
 class SegmentFan;
+struct ShadingLight;
 
 struct RaySegment {
   Float3 origin;
@@ -80,7 +82,8 @@ class HorizonOracle {
   // clear of every shape at frame(). A pixel's horizon is the least over its segments, so
   // each segment need only be searched up to the horizon the pixel has so far: frames
   // beyond it cannot lower it, and most of the search is skipped.
-  int FirstMeeting(const RaySegment& segment, int before) const;
+  // exceptMover: a mover left out of the search (-1: none).
+  int FirstMeeting(const RaySegment& segment, int before, int exceptMover = -1) const;
   int FirstMeeting(const RaySegment& segment) const { return FirstMeeting(segment, Unbounded()); }
   // For a surface seen at frame(): the first frame after it at which the surface may
   // look different. A rigid shape that moves changes at frame() + 1; a deforming mesh
@@ -107,12 +110,31 @@ class HorizonOracle {
   // which answered "clear" for 99 % of them on the paper's twelve spheres.
   bool OnlyTranslatingSpheresMove() const { return spheres_.size() == movers_.size(); }
 
+  // A camera ray that meets a moving sphere no light reaches (every light is behind the
+  // surface there) shows the sphere's ambient colour, and keeps showing it while the ray
+  // meets that sphere first, on a side every light is behind. Without this rule a pixel on
+  // a sphere changes at every frame the sphere moves; on the paper's spheres the unlit
+  // ones were nearly all of exact's needless traces.
+  // UnlitSphereHolds: the first frame in (frame(), before) at which that may stop
+  // holding, else `before`: the ray, `hit` long at frame(), must meet the sphere from
+  // outside, well inside its rim, well before `hit`, and every light must be well behind
+  // the point it meets. Before `hit` the trace at frame() found nothing still on the ray,
+  // so the sphere is met first wherever no other mover's bounds meet the ray (the
+  // caller's FirstMeeting, leaving out the sphere's own mover). Only spheres that merely
+  // translate (their centres are known to the tracer's precision); margins as
+  // TestSureBlock's. Lights as at frame() (LightCap caps the horizon where they change).
+  int SphereOfShape(int shape) const { return sphereOfShape_[static_cast<size_t>(shape)]; }
+  int MoverOfSphere(int sphere) const { return static_cast<int>(spheres_[static_cast<size_t>(sphere)].mover); }
+  int UnlitSphereHolds(int sphere, const RaySegment& hit, const std::vector<ShadingLight>& lights, int before) const;
+
   // FirstMeeting for many segments at once, frame by frame: the segments of a fan
   // (segment_fan.h), which share a point their lines pass through. For each frame ahead,
   // each mover's bounds visit only the segments whose directions fall in their cone from
   // that point, instead of each segment searching every mover's path. Lowers the
   // horizon of each segment's sample (horizon[entry.sample]) to its first meeting.
-  void FanFirstMeetings(const SegmentFan& fan, int32_t* horizon) const;
+  // exceptMover, by sample where given: a mover left out of that sample's search (-1:
+  // none), as FirstMeeting's.
+  void FanFirstMeetings(const SegmentFan& fan, int32_t* horizon, const int32_t* exceptMover = nullptr) const;
   // A moving shape's bounds at frame() + offset (offset 0 .. window()), as the tests read
   // them; a negative radius where it has nothing that changed (it meets nothing).
   struct MoverSphere {
@@ -189,6 +211,7 @@ class HorizonOracle {
   static void LayBoxesOut(const std::vector<Box>& boxes, std::vector<float> (&lo)[3], std::vector<float> (&hi)[3]);
   std::vector<MovingSphere> spheres_;
   std::vector<int> sphereOfMover_;  // by mover: its index in spheres_, -1 for none
+  std::vector<int> sphereOfShape_;  // by shape: its index in spheres_, -1 for none
   Box all_;  // bounds of every proxy: most segments miss it and cost one test
 };
 

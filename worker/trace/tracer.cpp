@@ -186,6 +186,11 @@ class Tracer::PixelTracer {
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
+  // For a camera sample whose hit faces no light, once its packet's lights are done: when
+  // the hit is on a moving sphere (whose surface alone set the horizon to the next frame),
+  // the horizon by HorizonOracle::UnlitSphereHolds instead, and the camera segment's
+  // search for the other movers.
+  void SettleUnlitMovingSphere(int lane, const SurfaceHit& hit, const RaySegment& eye);
   // Folds a packet's shadow rays toward one light into their samples' horizons.
   template <int Width>
   void ShadowHorizons(size_t light, const typename RayPacket<Width>::Ray& query, const int* valid,
@@ -408,6 +413,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
 
   SurfaceHit hits[Width];
   bool hasHit[Width] = {};
+  bool facesALight[Width] = {};
   for (int lane = 0; lane < count; ++lane) {
     hasHit[lane] = packet.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
     Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
@@ -442,6 +448,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     int shadowCount = 0;
     for (int lane = 0; lane < count; ++lane) {
       if (!hasHit[lane] || !ShadowRay(hits[lane], light, &toLight[lane], &distance[lane])) continue;
+      facesALight[lane] = true;
       Float3 start = Spawn(hits[lane], false);
       shadowValid[lane] = -1;
       shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
@@ -465,6 +472,13 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       if (!blocked[lane]) color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
     }
     if (horizons_) ShadowHorizons<Width>(light, query, shadowValid, blocked);
+  }
+  for (int lane = 0; horizons_ && lane < count; ++lane) {
+    if (!hasHit[lane] || facesALight[lane]) continue;
+    const RaySegment eye{{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]},
+                         {packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]},
+                         HitDistance(packet.ray, lane, frame_.geometry->SettlesTies())};
+    SettleUnlitMovingSphere(lane, hits[lane], eye);
   }
   if (!frame_.anySecondary) return;
   for (int lane = 0; lane < count; ++lane) {
@@ -516,6 +530,21 @@ void Tracer::PixelTracer::FollowBlockedShadowRays(int32_t* sampleHorizon) {
   walks_.clear();
 }
 
+void Tracer::PixelTracer::SettleUnlitMovingSphere(int lane, const SurfaceHit& hit, const RaySegment& eye) {
+  const HorizonOracle& oracle = *horizons_->oracle;
+  const int sphere = oracle.SphereOfShape(hit.shape);
+  // Ties need no care: where the rule holds, nothing else is on the ray as near as the
+  // sphere (see UnlitSphereHolds).
+  if (sphere < 0 || hit.fromInside) return;
+  if (frame_.shapes[static_cast<size_t>(hit.shape)].VariesDiffuse()) return;
+  if ((*frame_.materials)[hit.material].MirrorsOrRefracts()) return;
+  // No light faces the hit, so nothing but the sample's camera and its surface has lowered
+  // its horizon so far.
+  int& horizon = horizons_->horizon[lane];
+  horizon = oracle.UnlitSphereHolds(sphere, eye, frame_.lights, std::min(oracle.CameraCap(), oracle.LightCap()));
+  horizons_->EyeSegmentExcept(lane, eye, oracle.MoverOfSphere(sphere));
+}
+
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
   horizons_->Surface(lane, hit.shape, hit.primitive);
 }
@@ -545,10 +574,11 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
 }
 
 namespace {
-void SearchFan(const HorizonOracle& oracle, SegmentFan& fan, int32_t* sampleHorizon) {
+void SearchFan(const HorizonOracle& oracle, SegmentFan& fan, int32_t* sampleHorizon,
+               const int32_t* exceptMover = nullptr) {
   if (fan.empty()) return;
   fan.Index();
-  oracle.FanFirstMeetings(fan, sampleHorizon);
+  oracle.FanFirstMeetings(fan, sampleHorizon, exceptMover);
 }
 }  // namespace
 
@@ -626,8 +656,11 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     // Fans live per thread too: their buffers grow to a chunk's segments once.
     thread_local SegmentFan eyeFan;
     thread_local std::vector<SegmentFan> lightFans;
+    thread_local std::vector<int32_t> eyeExcept;
     if (oracle) {
       sampleHorizon.resize(items);
+      eyeExcept.assign(items, -1);
+      tracker.eyeExcept = eyeExcept.data();
       tracker.oracle = oracle.get();
       eyeFan.Reset(eyeCones.get());
       lightFans.resize(lightCones.size());
@@ -650,7 +683,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     // The fans' searches first: blocked shadow rays are followed only up to the horizons
     // they leave, the dearest search last.
     if (oracle) {
-      SearchFan(*oracle, eyeFan, sampleHorizon.data());
+      SearchFan(*oracle, eyeFan, sampleHorizon.data(), eyeExcept.data());
       for (SegmentFan& fan : lightFans) SearchFan(*oracle, fan, sampleHorizon.data());
       tracer.FollowBlockedShadowRays(sampleHorizon.data());
     }
