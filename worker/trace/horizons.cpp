@@ -579,9 +579,9 @@ void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon, co
   }
 }
 
-int HorizonOracle::MoverThatMayBlock(const RaySegment& segment) const {
+int HorizonOracle::MoverThatMayBlock(const RaySegment& segment, int exceptMover) const {
   for (size_t m = 0; m < movers_.size(); ++m) {
-    if (movers_[m].atFrame[3] >= 0 && SegmentMeetsSphere(segment, movers_[m].atFrame)) return static_cast<int>(m);
+    if (static_cast<int>(m) != exceptMover && movers_[m].atFrame[3] >= 0 && SegmentMeetsSphere(segment, movers_[m].atFrame)) return static_cast<int>(m);
   }
   return -1;
 }
@@ -619,9 +619,10 @@ Vec3 UnitInDouble(const Float3& v) {
 }  // namespace
 
 int HorizonOracle::UnlitSphereHolds(int sphere, const RaySegment& hit, const std::vector<ShadingLight>& lights,
-                                    int before) const {
+                                    const int* blockers, int before) const {
   const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
   const Vec3 o{hit.origin.x, hit.origin.y, hit.origin.z}, d = UnitInDouble(hit.direction);
+  const double originMagnitude = std::max({std::fabs(o.x), std::fabs(o.y), std::fabs(o.z)});
   before = std::min(before, Unbounded());
   for (int frame = frame_ + 1; frame < before; ++frame) {
     const size_t index = static_cast<size_t>(frame - frame_);
@@ -635,18 +636,41 @@ int HorizonOracle::UnlitSphereHolds(int sphere, const RaySegment& hit, const std
     if (!(t > slack && t < double(hit.length) - slack)) return frame;
     const Vec3 p{o.x + t * d.x, o.y + t * d.y, o.z + t * d.z};
     const Vec3 outward{p.x - c.x, p.y - c.y, p.z - c.z};  // the normal, radius long
-    // Every light well behind the surface: the cosine between the normal and the way to
-    // the light below -2 * slack / radius (compared squared: no root, no division).
-    const double most = 2 * slack;  // cosine times radius
-    for (const ShadingLight& light : lights) {
-      Vec3 toward{light.towardLight.x, light.towardLight.y, light.towardLight.z};
-      if (light.isPoint) toward = {light.position.x - p.x, light.position.y - p.y, light.position.z - p.z};
-      const double along = outward.x * toward.x + outward.y * toward.y + outward.z * toward.z;
-      const double length2 = toward.x * toward.x + toward.y * toward.y + toward.z * toward.z;
-      if (!(along < 0 && along * along > most * most * length2)) return frame;
+    // The shadow rays leave the surface as the tracer's do: off it by 1e-5 of the hit's
+    // coordinates' magnitude (tracer.cpp's kRelativeRayOffset).
+    const double offset = 1e-5 * (originMagnitude + t) / s.radius;
+    const Vec3 start{p.x + offset * outward.x, p.y + offset * outward.y, p.z + offset * outward.z};
+    for (size_t light = 0; light < lights.size(); ++light) {
+      if (!LightUnseen(lights[light], p, outward, slack, start, blockers[light], frame)) return frame;
     }
   }
   return before;
+}
+
+bool HorizonOracle::LightUnseen(const ShadingLight& light, const Vec3& p, const Vec3& outward, double slack,
+                                const Vec3& start, int blocker, int frame) const {
+  Vec3 toward{light.towardLight.x, light.towardLight.y, light.towardLight.z};
+  if (light.isPoint) toward = {light.position.x - p.x, light.position.y - p.y, light.position.z - p.z};
+  // Well behind the surface: the cosine between the normal and the way to the light
+  // below -2 * slack / radius (compared squared: no root, no division).
+  const double along = outward.x * toward.x + outward.y * toward.y + outward.z * toward.z;
+  const double length2 = toward.x * toward.x + toward.y * toward.y + toward.z * toward.z;
+  if (along < 0 && along * along > 4 * slack * slack * length2) return true;
+  if (blocker < 0 || !(length2 > 0)) return false;
+  // Else surely blocked by the sphere that blocked it at frame().
+  double length = INFINITY;
+  if (light.isPoint) {
+    toward = {light.position.x - start.x, light.position.y - start.y, light.position.z - start.z};
+    length = std::sqrt(toward.x * toward.x + toward.y * toward.y + toward.z * toward.z);
+  } else {
+    length = std::sqrt(length2);
+  }
+  const RaySegment shadow{{float(start.x), float(start.y), float(start.z)},
+                          {float(toward.x / length), float(toward.y / length), float(toward.z / length)},
+                          light.isPoint ? float(length) : INFINITY};
+  const MovingSphere& b = spheres_[static_cast<size_t>(blocker)];
+  const size_t index = static_cast<size_t>(frame - frame_);
+  return index < b.centers.size() && TestSureBlock(BlockedRay(shadow), b.centers[index], b.radius, b.step).blocked;
 }
 
 }  // namespace tcfarm

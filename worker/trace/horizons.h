@@ -94,7 +94,7 @@ class HorizonOracle {
   // for a blocked shadow ray, what may block it. When none may, a still shape blocks it,
   // and keeps blocking it at every frame. The moving sphere a mover is (-1: none): the
   // likely blocker, the first one FirstNotSurelyBlocked tries.
-  int MoverThatMayBlock(const RaySegment& segment) const;
+  int MoverThatMayBlock(const RaySegment& segment, int exceptMover = -1) const;
   int SphereOfMover(int mover) const;
   // For a blocked shadow ray: the first frame in [from, before) at which no moving sphere
   // surely blocks it, else `before`. A sphere surely blocks a segment that runs through
@@ -111,21 +111,23 @@ class HorizonOracle {
   bool OnlyTranslatingSpheresMove() const { return spheres_.size() == movers_.size(); }
 
   // A camera ray that meets a moving sphere no light reaches (every light is behind the
-  // surface there) shows the sphere's ambient colour, and keeps showing it while the ray
-  // meets that sphere first, on a side every light is behind. Without this rule a pixel on
-  // a sphere changes at every frame the sphere moves; on the paper's spheres the unlit
-  // ones were nearly all of exact's needless traces.
+  // surface there, or blocked) shows the sphere's ambient colour, and keeps showing it
+  // while the ray meets that sphere first, at a point no light reaches. Without this rule
+  // a pixel on a sphere changes at every frame the sphere moves; on the paper's spheres
+  // their unlit and shadowed sides were nearly all of exact's needless traces.
   // UnlitSphereHolds: the first frame in (frame(), before) at which that may stop
   // holding, else `before`: the ray, `hit` long at frame(), must meet the sphere from
-  // outside, well inside its rim, well before `hit`, and every light must be well behind
-  // the point it meets. Before `hit` the trace at frame() found nothing still on the ray,
-  // so the sphere is met first wherever no other mover's bounds meet the ray (the
-  // caller's FirstMeeting, leaving out the sphere's own mover). Only spheres that merely
-  // translate (their centres are known to the tracer's precision); margins as
-  // TestSureBlock's. Lights as at frame() (LightCap caps the horizon where they change).
+  // outside, well inside its rim and well before `hit`; at the point it meets, each light
+  // must be well behind the surface, or its shadow ray surely blocked (TestSureBlock's
+  // margins) by the moving sphere `blockers[light]` (-1: none). Before `hit` the trace at
+  // frame() found nothing still on the ray, so the sphere is met first wherever no other
+  // mover's bounds meet the ray (the caller's FirstMeeting, leaving out the sphere's own
+  // mover). Only spheres that merely translate (their centres are known to the tracer's
+  // precision). Lights as at frame() (LightCap caps the horizon where they change).
   int SphereOfShape(int shape) const { return sphereOfShape_[static_cast<size_t>(shape)]; }
   int MoverOfSphere(int sphere) const { return static_cast<int>(spheres_[static_cast<size_t>(sphere)].mover); }
-  int UnlitSphereHolds(int sphere, const RaySegment& hit, const std::vector<ShadingLight>& lights, int before) const;
+  int UnlitSphereHolds(int sphere, const RaySegment& hit, const std::vector<ShadingLight>& lights,
+                       const int* blockers, int before) const;
 
   // FirstMeeting for many segments at once, frame by frame: the segments of a fan
   // (segment_fan.h), which share a point their lines pass through. For each frame ahead,
@@ -177,6 +179,11 @@ class HorizonOracle {
     size_t mover;     // its index in movers_
   };
   static Box EmptyBox();
+  // For UnlitSphereHolds at one frame: whether the light adds nothing at p (on a sphere,
+  // `outward` its normal radius long): well behind it, or its shadow ray from `start`
+  // surely blocked by moving sphere `blocker`.
+  bool LightUnseen(const ShadingLight& light, const Vec3& p, const Vec3& outward, double slack, const Vec3& start,
+                   int blocker, int frame) const;
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);
   static uint32_t LaneMask(size_t chunkBegin, size_t from, size_t to);
   // objectBounds(f): the shape's object-space bounds at frame f, a negative radius where

@@ -210,6 +210,37 @@ TEST(HorizonsTest, UnlitSidesOfMovingSpheresKeepTheirColourOnlyWhileTheyStayUnli
   }
 }
 
+// The same rule where the light faces the spheres but other moving spheres block it: a
+// ball floating between the light and two moving spheres casts its shadow on them, then
+// drifts off, so the shadowed sides come into the light part by part.
+TEST(HorizonsTest, ShadowedSidesOfMovingSpheresKeepTheirColourOnlyWhileTheyStayShadowed) {
+  Scene scene = Small(R"({
+    "camera": {"position": [0, 1, 9], "look_at": [0, 0, 0]},
+    "lights": [{"type": "point", "position": [0.5, 1.5, 12], "intensity": [300, 300, 300]}],
+    "materials": {"floor": {"diffuse": [0.6, 0.6, 0.6]},
+                  "ball": {"diffuse": [0.8, 0.2, 0.2], "specular": [0.4, 0.4, 0.4]},
+                  "blue": {"diffuse": [0.2, 0.3, 0.8]}},
+    "background": [0.1, 0.1, 0.2],
+    "shapes": [
+      {"type": "quad", "corner": [-10, -1, -10], "edge_u": [0, 0, 20], "edge_v": [20, 0, 0], "material": "floor"},
+      {"type": "sphere", "center": [0, 0, 0], "radius": 1.2, "material": "ball",
+       "motion": {"polynomial": [[0, 0.03], [0], [0, 0.1]]}},
+      {"type": "sphere", "center": [-2.2, 0, -0.5], "radius": 0.9, "material": "ball",
+       "motion": {"polynomial": [[0, -0.04], [0, 0.02], [0, -0.1]]}},
+      {"type": "sphere", "center": [0.3, 1.2, 10], "radius": 0.4, "material": "blue",
+       "motion": {"polynomial": [[-0.2, 0.06], [0], [0]]}}
+    ],
+    "render": {"width": 64, "height": 48, "frames": {"start": 0, "count": 12}}
+  })");
+  for (int a : {0, 4}) {
+    HorizonCheck check = Check(scene, a);
+    EXPECT_EQ(check.broken, 0u) << "frame " << a;
+    EXPECT_GT(check.changed, 50u) << "frame " << a;
+    // 98 and 64; 230 and 266 when a shadowed side is traced again at every frame.
+    EXPECT_LT(check.needless, check.unbounded / 16) << "frame " << a;
+  }
+}
+
 // Every frame of an `exact` sequence assembled as the coordinator does (a segment's first
 // frame in full, then each frame only the pixels due there, the rest copied). Returns the
 // pixels that differ from brute force, and the pixels traced.

@@ -186,10 +186,10 @@ class Tracer::PixelTracer {
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
-  // For a camera sample whose hit faces no light, once its packet's lights are done: when
-  // the hit is on a moving sphere (whose surface alone set the horizon to the next frame),
-  // the horizon by HorizonOracle::UnlitSphereHolds instead, and the camera segment's
-  // search for the other movers.
+  // For a camera sample whose hit no light reaches, once its packet's lights are done:
+  // when the hit is on a moving sphere (whose surface alone set the horizon to the next
+  // frame), the horizon by HorizonOracle::UnlitSphereHolds instead, and the camera
+  // segment's search for the other movers.
   void SettleUnlitMovingSphere(int lane, const SurfaceHit& hit, const RaySegment& eye);
   // Folds a packet's shadow rays toward one light into their samples' horizons.
   template <int Width>
@@ -202,6 +202,7 @@ class Tracer::PixelTracer {
     RTCRay ray;
   };
   std::vector<BlockedShadowRay> walks_;
+  std::vector<int> blockers_;  // by light, for SettleUnlitMovingSphere
   Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
     return hit.position + hit.faceNormal * (transmitted ? -hit.offset : hit.offset);
   }
@@ -413,7 +414,7 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
 
   SurfaceHit hits[Width];
   bool hasHit[Width] = {};
-  bool facesALight[Width] = {};
+  bool lit[Width] = {};  // some light reaches the hit
   for (int lane = 0; lane < count; ++lane) {
     hasHit[lane] = packet.hit.geomID[lane] != RTC_INVALID_GEOMETRY_ID;
     Float3 origin{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]};
@@ -448,7 +449,6 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     int shadowCount = 0;
     for (int lane = 0; lane < count; ++lane) {
       if (!hasHit[lane] || !ShadowRay(hits[lane], light, &toLight[lane], &distance[lane])) continue;
-      facesALight[lane] = true;
       Float3 start = Spawn(hits[lane], false);
       shadowValid[lane] = -1;
       shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
@@ -469,12 +469,14 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
     for (int lane = 0; lane < count; ++lane) {
       if (!shadowValid[lane]) continue;
       blocked[lane] = shadow.tfar[lane] < 0;
-      if (!blocked[lane]) color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
+      if (blocked[lane]) continue;
+      color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
+      lit[lane] = true;
     }
     if (horizons_) ShadowHorizons<Width>(light, query, shadowValid, blocked);
   }
   for (int lane = 0; horizons_ && lane < count; ++lane) {
-    if (!hasHit[lane] || facesALight[lane]) continue;
+    if (!hasHit[lane] || lit[lane]) continue;
     const RaySegment eye{{packet.ray.org_x[lane], packet.ray.org_y[lane], packet.ray.org_z[lane]},
                          {packet.ray.dir_x[lane], packet.ray.dir_y[lane], packet.ray.dir_z[lane]},
                          HitDistance(packet.ray, lane, frame_.geometry->SettlesTies())};
@@ -538,11 +540,25 @@ void Tracer::PixelTracer::SettleUnlitMovingSphere(int lane, const SurfaceHit& hi
   if (sphere < 0 || hit.fromInside) return;
   if (frame_.shapes[static_cast<size_t>(hit.shape)].VariesDiffuse()) return;
   if ((*frame_.materials)[hit.material].MirrorsOrRefracts()) return;
-  // No light faces the hit, so nothing but the sample's camera and its surface has lowered
-  // its horizon so far.
+  // Each light the hit faces was blocked: by which moving sphere, to follow it.
+  const int mover = oracle.MoverOfSphere(sphere);
+  blockers_.resize(frame_.lights.size());
+  for (size_t light = 0; light < frame_.lights.size(); ++light) {
+    Float3 direction;
+    float distance;
+    blockers_[light] = -1;
+    if (!ShadowRay(hit, light, &direction, &distance)) continue;
+    const int blocker = oracle.MoverThatMayBlock({Spawn(hit, false), direction, distance}, mover);
+    if (blocker < 0 || oracle.SphereOfMover(blocker) < 0) return;  // a still shape, or one not followed
+    blockers_[light] = oracle.SphereOfMover(blocker);
+  }
+  // Nothing but the sample's camera and its surface has lowered its horizon so far: the
+  // lights it faces are blocked, and their rays were not followed with the horizon at the
+  // next frame already.
   int& horizon = horizons_->horizon[lane];
-  horizon = oracle.UnlitSphereHolds(sphere, eye, frame_.lights, std::min(oracle.CameraCap(), oracle.LightCap()));
-  horizons_->EyeSegmentExcept(lane, eye, oracle.MoverOfSphere(sphere));
+  horizon = oracle.UnlitSphereHolds(sphere, eye, frame_.lights, blockers_.data(),
+                                    std::min(oracle.CameraCap(), oracle.LightCap()));
+  horizons_->EyeSegmentExcept(lane, eye, mover);
 }
 
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
