@@ -11,13 +11,12 @@
 #include "trace/float3.h"
 #include "trace/lights.h"
 #include "trace/materials.h"
+#include "trace/ray_offset.h"
 
 namespace tcfarm {
 namespace {
 
 constexpr float kInfinity = std::numeric_limits<float>::infinity();
-// Shadow rays start this far off the surface, relative to the hit's coordinates (the tracer's offset).
-constexpr float kRelativeOffset = 1e-5f;
 
 void ApplyFlags(RTCScene scene, BareEmbreeLoop::Flags flags, bool robust) {
   if (flags != BareEmbreeLoop::Flags::kTracers) return;
@@ -204,7 +203,7 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
       const float t = packet.ray.tfar[lane];
       n = Normalize(n);
       LaneHit& hit = hits[lane];
-      hit = {o + d * t, Dot(n, d) > 0 ? -n : n, d, kRelativeOffset * (MaxAbsComponent(o) + t),
+      hit = {o + d * t, Dot(n, d) > 0 ? -n : n, d, kRelativeRayOffset * (MaxAbsComponent(o) + t),
              &parts.materials[scene_.shapes[shape].material]};
       color[lane] = ShadingMaterial::Ambient(hit.material->diffuse);
     }

@@ -35,6 +35,7 @@ inline Float3 ToFloat3(const Vec3& v) {
 // Double-precision helpers for what is built from the scene once per frame (the camera
 // basis, light directions), where float would lose digits far from the origin.
 inline Vec3 SubtractD(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline double DotD(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 inline Vec3 CrossD(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }

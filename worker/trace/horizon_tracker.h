@@ -23,7 +23,7 @@ struct HorizonTracker {
   std::vector<SegmentFan>* lightFans = nullptr;  // by light; a fan without cones: none
   uint32_t sample = 0;
   // By sample in the chunk: the mover its camera segment's search leaves out (-1: none),
-  // for the eye fan's search.
+  // for the eye fan's search; set wherever eyeFan is.
   int32_t* eyeExcept = nullptr;
 
   void Reset() {
@@ -33,32 +33,28 @@ struct HorizonTracker {
     if (horizon[forLane] == oracle->frame() + 1) return;  // cannot get any earlier
     horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
   }
-  void EyeSegment(int forLane, Float3 origin, Float3 direction, float length) {
-    FanSegment(eyeFan, forLane, origin, direction, length);
-  }
-  // A camera segment that ends on `mover`'s surface, searched for every other mover (see
-  // HorizonOracle::UnlitSphereHolds).
-  void EyeSegmentExcept(int forLane, const RaySegment& segment, int mover) {
-    if (horizon[forLane] == oracle->frame() + 1) return;
-    if (eyeFan && eyeFan->cones() && eyeExcept) {
-      if (!oracle->NearAnyMover(segment)) return;
-      if (eyeFan->Add(sample + static_cast<uint32_t>(forLane), segment)) {
-        eyeExcept[sample + static_cast<uint32_t>(forLane)] = mover;
-        return;
-      }
-    }
-    horizon[forLane] = oracle->FirstMeeting(segment, horizon[forLane], mover);
+  // exceptMover: a mover the segment's search leaves out (-1: none), the one whose
+  // surface it ends on (see HorizonOracle::UnlitSphereHolds).
+  void EyeSegment(int forLane, Float3 origin, Float3 direction, float length, int exceptMover = -1) {
+    FanSegment(eyeFan, forLane, origin, direction, length, exceptMover, eyeExcept);
   }
   void LightSegment(int forLane, size_t light, Float3 origin, Float3 direction, float length) {
     FanSegment(lightFans ? &(*lightFans)[light] : nullptr, forLane, origin, direction, length);
   }
-  void FanSegment(SegmentFan* fan, int forLane, Float3 origin, Float3 direction, float length) {
+  // exceptOf: the fan's record of each sample's exceptMover, where one is given.
+  void FanSegment(SegmentFan* fan, int forLane, Float3 origin, Float3 direction, float length,
+                  int exceptMover = -1, int32_t* exceptOf = nullptr) {
     if (horizon[forLane] == oracle->frame() + 1) return;
-    if (fan && fan->cones()) {
-      if (!oracle->NearAnyMover({origin, direction, length})) return;
-      if (fan->Add(sample + static_cast<uint32_t>(forLane), {origin, direction, length})) return;
+    const RaySegment segment{origin, direction, length};
+    if (fan && fan->cones() && (exceptMover < 0 || exceptOf)) {
+      if (!oracle->NearAnyMover(segment)) return;
+      const uint32_t at = sample + static_cast<uint32_t>(forLane);
+      if (fan->Add(at, segment)) {
+        if (exceptMover >= 0) exceptOf[at] = exceptMover;
+        return;
+      }
     }
-    horizon[forLane] = oracle->FirstMeeting({origin, direction, length}, horizon[forLane]);
+    horizon[forLane] = oracle->FirstMeeting(segment, horizon[forLane], exceptMover);
   }
   // A surface seen: the pixel may change when the surface does (a deforming mesh's parts
   // that hold still do not), or when a light does.

@@ -8,6 +8,7 @@
 
 #include "shapes/shape_kind.h"
 #include "trace/lights.h"
+#include "trace/ray_offset.h"
 #include "trace/segment_fan.h"
 
 namespace tcfarm {
@@ -352,15 +353,17 @@ struct SureBlock {
   double inner = 0;  // the radius the ray must pass within, at this frame
 };
 
+// The margin of the arithmetic tests against a sphere of `radius` whose centre and ray
+// reach coordinates of `magnitude`: the tracer rounds in float, relative to the
+// coordinates' magnitude (~1e-7 of it per operation); this is a hundred times that, and a
+// thousandth of the radius.
+double SureSlack(double magnitude, double radius) { return 1e-3 * radius + 1e-5 * (magnitude + radius); }
+
 // Whether the sphere surely blocks the ray: it runs through the sphere well inside, from
 // outside to outside, with margins far above the rounding of the tracer's own ray-sphere
 // test, so that test says "blocked" too.
 SureBlock TestSureBlock(const BlockedRay& ray, const Vec3& c, double radius, double step) {
-  // Margins: the tracer rounds in float, relative to the coordinates' magnitude (~1e-7
-  // of it per operation); these are a hundred times that and a thousandth of the radius.
-  const double magnitude =
-      std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), ray.originMagnitude}) + radius;
-  const double slack = 1e-3 * radius + 1e-5 * magnitude;
+  const double slack = SureSlack(std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), ray.originMagnitude}), radius);
   const double inner = radius - slack, outer = radius + slack;
   if (inner <= 0) return {};
   const double ocx = c.x - ray.ox, ocy = c.y - ray.oy, ocz = c.z - ray.oz;
@@ -581,7 +584,8 @@ void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon, co
 
 int HorizonOracle::MoverThatMayBlock(const RaySegment& segment, int exceptMover) const {
   for (size_t m = 0; m < movers_.size(); ++m) {
-    if (static_cast<int>(m) != exceptMover && movers_[m].atFrame[3] >= 0 && SegmentMeetsSphere(segment, movers_[m].atFrame)) return static_cast<int>(m);
+    if (static_cast<int>(m) == exceptMover || movers_[m].atFrame[3] < 0) continue;
+    if (SegmentMeetsSphere(segment, movers_[m].atFrame)) return static_cast<int>(m);
   }
   return -1;
 }
@@ -592,53 +596,42 @@ namespace {
 
 // A camera ray against a translating sphere at one frame, in double.
 struct RayAgainstSphere {
-  double along;   // distance along the ray to the point nearest the centre
-  double missBy2;  // squared distance from the centre to the ray's line
+  double along;     // distance along the ray to the point nearest the centre
+  double missBy2;   // squared distance from the centre to the ray's line
   double startBy2;  // squared distance from the centre to the ray's origin
   RayAgainstSphere(const Vec3& o, const Vec3& d, const Vec3& c) {
-    const double ocx = c.x - o.x, ocy = c.y - o.y, ocz = c.z - o.z;
-    along = ocx * d.x + ocy * d.y + ocz * d.z;
-    startBy2 = ocx * ocx + ocy * ocy + ocz * ocz;
+    const Vec3 oc = SubtractD(c, o);
+    along = DotD(oc, d);
+    startBy2 = DotD(oc, oc);
     missBy2 = std::max(0.0, startBy2 - along * along);
   }
 };
 
-// The margin of UnlitSphere's tests, as TestSureBlock's: a thousandth of the radius and
-// far above the tracer's float rounding at the coordinates' magnitude.
-double UnlitSlack(const Vec3& o, const Vec3& c, double radius) {
-  const double magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), std::fabs(o.x), std::fabs(o.y),
-                                     std::fabs(o.z)}) + radius;
-  return 1e-3 * radius + 1e-5 * magnitude;
-}
-
-Vec3 UnitInDouble(const Float3& v) {
-  const double inverse = 1 / std::sqrt(double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z);
-  return {v.x * inverse, v.y * inverse, v.z * inverse};
-}
+double MaxAbs(const Vec3& v) { return std::max({std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)}); }
 
 }  // namespace
 
 int HorizonOracle::UnlitSphereHolds(int sphere, const RaySegment& hit, const std::vector<ShadingLight>& lights,
                                     const int* blockers, int before) const {
   const MovingSphere& s = spheres_[static_cast<size_t>(sphere)];
-  const Vec3 o{hit.origin.x, hit.origin.y, hit.origin.z}, d = UnitInDouble(hit.direction);
-  const double originMagnitude = std::max({std::fabs(o.x), std::fabs(o.y), std::fabs(o.z)});
+  const Vec3 o{hit.origin.x, hit.origin.y, hit.origin.z};
+  const Vec3 d = NormalizeD({hit.direction.x, hit.direction.y, hit.direction.z});
   before = std::min(before, Unbounded());
   for (int frame = frame_ + 1; frame < before; ++frame) {
     const size_t index = static_cast<size_t>(frame - frame_);
     if (index >= s.centers.size()) return frame;
     const Vec3& c = s.centers[index];
-    const double slack = UnlitSlack(o, c, s.radius), inner = s.radius - slack, outer = s.radius + slack;
+    const double slack = SureSlack(std::max(MaxAbs(c), MaxAbs(o)), s.radius);
+    const double inner = s.radius - slack, outer = s.radius + slack;
     const RayAgainstSphere at(o, d, c);
     // From outside, well inside the rim, and well before the hit at frame().
     if (at.startBy2 <= outer * outer || at.missBy2 >= inner * inner) return frame;
     const double t = at.along - std::sqrt(s.radius * s.radius - at.missBy2);
     if (!(t > slack && t < double(hit.length) - slack)) return frame;
     const Vec3 p{o.x + t * d.x, o.y + t * d.y, o.z + t * d.z};
-    const Vec3 outward{p.x - c.x, p.y - c.y, p.z - c.z};  // the normal, radius long
-    // The shadow rays leave the surface as the tracer's do: off it by 1e-5 of the hit's
-    // coordinates' magnitude (tracer.cpp's kRelativeRayOffset).
-    const double offset = 1e-5 * (originMagnitude + t) / s.radius;
+    const Vec3 outward = SubtractD(p, c);  // the normal, radius long
+    // The shadow rays leave the surface where the tracer's do (ray_offset.h).
+    const double offset = kRelativeRayOffset * (MaxAbs(o) + t) / s.radius;
     const Vec3 start{p.x + offset * outward.x, p.y + offset * outward.y, p.z + offset * outward.z};
     for (size_t light = 0; light < lights.size(); ++light) {
       if (!LightUnseen(lights[light], p, outward, slack, start, blockers[light], frame)) return frame;
@@ -649,28 +642,23 @@ int HorizonOracle::UnlitSphereHolds(int sphere, const RaySegment& hit, const std
 
 bool HorizonOracle::LightUnseen(const ShadingLight& light, const Vec3& p, const Vec3& outward, double slack,
                                 const Vec3& start, int blocker, int frame) const {
-  Vec3 toward{light.towardLight.x, light.towardLight.y, light.towardLight.z};
-  if (light.isPoint) toward = {light.position.x - p.x, light.position.y - p.y, light.position.z - p.z};
+  const Vec3 position{light.position.x, light.position.y, light.position.z};
+  const Vec3 toward = light.isPoint ? SubtractD(position, p)
+                                    : Vec3{light.towardLight.x, light.towardLight.y, light.towardLight.z};
   // Well behind the surface: the cosine between the normal and the way to the light
   // below -2 * slack / radius (compared squared: no root, no division).
-  const double along = outward.x * toward.x + outward.y * toward.y + outward.z * toward.z;
-  const double length2 = toward.x * toward.x + toward.y * toward.y + toward.z * toward.z;
+  const double along = DotD(outward, toward), length2 = DotD(toward, toward);
   if (along < 0 && along * along > 4 * slack * slack * length2) return true;
   if (blocker < 0 || !(length2 > 0)) return false;
   // Else surely blocked by the sphere that blocked it at frame().
-  double length = INFINITY;
-  if (light.isPoint) {
-    toward = {light.position.x - start.x, light.position.y - start.y, light.position.z - start.z};
-    length = std::sqrt(toward.x * toward.x + toward.y * toward.y + toward.z * toward.z);
-  } else {
-    length = std::sqrt(length2);
-  }
-  const RaySegment shadow{{float(start.x), float(start.y), float(start.z)},
-                          {float(toward.x / length), float(toward.y / length), float(toward.z / length)},
-                          light.isPoint ? float(length) : INFINITY};
+  const Vec3 shadow = light.isPoint ? SubtractD(position, start) : toward;
+  const double length = std::sqrt(DotD(shadow, shadow));
+  const RaySegment segment{{float(start.x), float(start.y), float(start.z)},
+                           {float(shadow.x / length), float(shadow.y / length), float(shadow.z / length)},
+                           light.isPoint ? float(length) : INFINITY};
   const MovingSphere& b = spheres_[static_cast<size_t>(blocker)];
   const size_t index = static_cast<size_t>(frame - frame_);
-  return index < b.centers.size() && TestSureBlock(BlockedRay(shadow), b.centers[index], b.radius, b.step).blocked;
+  return index < b.centers.size() && TestSureBlock(BlockedRay(segment), b.centers[index], b.radius, b.step).blocked;
 }
 
 }  // namespace tcfarm

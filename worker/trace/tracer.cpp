@@ -19,16 +19,11 @@
 #include "trace/segment_fan.h"
 #include "trace/lights.h"
 #include "trace/materials.h"
+#include "trace/ray_offset.h"
 
 namespace tcfarm {
 namespace {
 
-// Secondary rays start this fraction of the hit's coordinate magnitude (|origin| + t)
-// off the surface: float rounding of the hit point grows with that magnitude, so a
-// relative offset clears it at any scene scale where a fixed epsilon would not.
-// 1e-5 is ~170 float ulps: well above Embree's intersection error, well below any
-// feature a scene can usefully resolve.
-constexpr float kRelativeRayOffset = 1e-5f;
 // Pixels handed to a thread at a time: at least enough to fill 16-wide packets many times,
 // and about kChunksPerThread chunks a thread, so that threads stay balanced while the
 // fixed cost of a chunk (its thread's CPU clock, read twice through a system call, and
@@ -558,7 +553,7 @@ void Tracer::PixelTracer::SettleUnlitMovingSphere(int lane, const SurfaceHit& hi
   int& horizon = horizons_->horizon[lane];
   horizon = oracle.UnlitSphereHolds(sphere, eye, frame_.lights, blockers_.data(),
                                     std::min(oracle.CameraCap(), oracle.LightCap()));
-  horizons_->EyeSegmentExcept(lane, eye, mover);
+  horizons_->EyeSegment(lane, eye.origin, eye.direction, eye.length, mover);
 }
 
 void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {

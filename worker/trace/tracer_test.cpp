@@ -350,7 +350,8 @@ TEST(TracerTest, RobustTraversalWhereShapesShareEdges) {
 // Rays aimed at points of the edge two triangles share (a quad's diagonal, corner + u to
 // corner + v), cast as the tracer casts them: 16-wide packets into the frame's scene.
 // Returns how many miss.
-size_t MissesOnTheSharedEdge(RTCScene scene, const Vec3& corner, const Vec3& u, const Vec3& v) {
+size_t MissesOnTheSharedEdge(RTCScene scene, const Shape& quad) {
+  const Vec3 &corner = quad.corner, &u = quad.edgeU, &v = quad.edgeV;
   std::mt19937 random(7);
   std::uniform_real_distribution<float> along(0.02f, 0.98f), offset(-3, 3), height(3, 8);
   RTCIntersectContext context;
@@ -384,7 +385,6 @@ size_t MissesOnTheSharedEdge(RTCScene scene, const Vec3& corner, const Vec3& u, 
 // What robust traversal buys: no ray aimed at a quad's diagonal slips between its two
 // triangles. The same rays into a scene without it find the crack, so the check can fail.
 TEST(TracerTest, NoRaySlipsThroughAQuadsDiagonal) {
-  const Vec3 corner{-10.3, -1, -7.1}, u{20.1, 0.3, -1.2}, v{1.4, 0.2, 20.3};
   Scene scene = ParseScene(R"({
     "camera": {"position": [0, 5, 0], "look_at": [0, 0, 0.1]},
     "shapes": [{"type": "quad", "corner": [-10.3, -1, -7.1], "edge_u": [20.1, 0.3, -1.2],
@@ -393,15 +393,16 @@ TEST(TracerTest, NoRaySlipsThroughAQuadsDiagonal) {
   })");
   EmbreeDevice device;
   SceneGeometry geometry(device, scene);
-  EXPECT_EQ(MissesOnTheSharedEdge(geometry.ForFrame(0)->scene(), corner, u, v), 0u);
+  const Shape& quad = scene.shapes[0];
+  EXPECT_EQ(MissesOnTheSharedEdge(geometry.ForFrame(0)->scene(), quad), 0u);
 
   RTCScene fast = rtcNewScene(device.get());  // Embree's default flags
-  RTCGeometry quad = KindOf(scene.shapes[0]).NewGeometry(device.get(), scene.shapes[0]);
-  rtcCommitGeometry(quad);
-  rtcAttachGeometry(fast, quad);
-  rtcReleaseGeometry(quad);
+  RTCGeometry geometryOfQuad = KindOf(quad).NewGeometry(device.get(), quad);
+  rtcCommitGeometry(geometryOfQuad);
+  rtcAttachGeometry(fast, geometryOfQuad);
+  rtcReleaseGeometry(geometryOfQuad);
   rtcCommitScene(fast);
-  EXPECT_GT(MissesOnTheSharedEdge(fast, corner, u, v), 0u);
+  EXPECT_GT(MissesOnTheSharedEdge(fast, quad), 0u);
   rtcReleaseScene(fast);
 }
 
