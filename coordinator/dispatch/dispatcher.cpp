@@ -23,6 +23,11 @@ constexpr uint64_t kLoggedSamples = 10;
 
 }  // namespace
 
+std::string PrincipalOf(const wire::Peer& peer, const std::string& name) {
+  if (!peer.curveKey.empty()) return "key:" + peer.curveKey;
+  return "name:" + name + "@" + (peer.address.empty() ? "local" : peer.address);
+}
+
 Dispatcher::Dispatcher(const std::string& endpoint, const Clock& clock, HeartbeatPolicy policy,
                        const AssetSource* assets, std::optional<CurveServerKeys> curve)
     : clock_(clock),
@@ -199,7 +204,8 @@ void Dispatcher::SendAssetPieces() {
 
 void Dispatcher::ReceiveAll(DispatchSink& sink) {
   for (int i = 0; i < kMaxMessagesPerPoll; ++i) {
-    auto parts = wire::ReceiveParts(socket_);
+    wire::Peer peer;
+    auto parts = wire::ReceivePartsFrom(socket_, peer);
     if (!parts) {
       lastDrained_ = clock_.Now();
       return;
@@ -211,7 +217,7 @@ void Dispatcher::ReceiveAll(DispatchSink& sink) {
     std::string identity = std::move(parts->front());
     parts->erase(parts->begin());
     try {
-      Handle(identity, wire::Decode(*parts), sink);
+      Handle(identity, peer, wire::Decode(*parts), sink);
     } catch (const wire::WireError& e) {
       if (counters_.malformed++ < 10) {
         std::fprintf(stderr, "coordinator: dropped a malformed message: %s\n", e.what());
@@ -226,7 +232,7 @@ void Dispatcher::ReceiveAll(DispatchSink& sink) {
   }
 }
 
-void Dispatcher::Handle(const std::string& identity, wire::Message message,
+void Dispatcher::Handle(const std::string& identity, const wire::Peer& peer, wire::Message message,
                         DispatchSink& sink) {
   SteadyTime now = clock_.Now();
   if (distrusted_.count(identity)) {
@@ -234,9 +240,7 @@ void Dispatcher::Handle(const std::string& identity, wire::Message message,
     return;
   }
   if (auto* ready = std::get_if<wire::Ready>(&message)) {
-    const WorkerState* known = registry_.Find(identity);
-    const std::string name = known ? known->name : ready->name;
-    RequeueLost(name, "restarted", registry_.OnReady(identity, *ready, now));
+    OnReady(identity, peer, *ready);
     return;
   }
   if (!registry_.OnHeard(identity, now)) {
@@ -267,6 +271,24 @@ void Dispatcher::Handle(const std::string& identity, wire::Message message,
   } else if (!std::holds_alternative<wire::Heartbeat>(message)) {
     ++counters_.unexpected;  // TASK or SCENE from a worker: not its role
   }
+}
+
+void Dispatcher::OnReady(const std::string& identity, const wire::Peer& peer, const wire::Ready& ready) {
+  const WorkerState* known = registry_.Find(identity);
+  // A connection keeps the principal it first said READY as: a new name on the same
+  // connection is no new worker.
+  const std::string principal = known ? known->principal : PrincipalOf(peer, ready.name);
+  if (banned_.count(principal)) {
+    // A banned worker back on a new connection: as deaf to it as to the old one.
+    distrusted_.insert(identity);
+    if (counters_.bannedReconnects++ < kLoggedSamples) {
+      std::fprintf(stderr, "coordinator: ignored worker %s: %s is banned for returning wrong values\n",
+                   ready.name.c_str(), principal.c_str());
+    }
+    return;
+  }
+  const std::string name = known ? known->name : ready.name;
+  RequeueLost(name, "restarted", registry_.OnReady(identity, ready, principal, clock_.Now()));
 }
 
 bool Dispatcher::IsHolder(const std::string& identity, uint64_t taskId) {
@@ -313,10 +335,40 @@ void Dispatcher::DropWorker(const std::string& identity, const std::string& why)
   Send(identity, wire::Disconnect{});
 }
 
-void Dispatcher::Distrust(const std::string& identity, const std::string& why) {
-  if (!distrusted_.insert(identity).second) return;
+bool Dispatcher::Distrust(const std::string& principal, const std::string& why) {
+  if (!banned_.insert(principal).second) return false;
   ++counters_.workersDistrusted;
-  if (registry_.Find(identity)) DropWorker(identity, "it returned wrong values: " + why);
+  for (const std::string& identity : registry_.IdentitiesOf(principal)) {
+    DropWorker(identity, "it returned wrong values: " + why);
+    distrusted_.insert(identity);
+  }
+  return true;
+}
+
+const WorkerState* Dispatcher::FindPrincipal(const std::string& principal) const {
+  for (const auto& [identity, worker] : registry_.workers()) {
+    if (worker.principal == principal) return &worker;
+  }
+  return nullptr;
+}
+
+std::vector<DispatchTask> Dispatcher::TakeStranded() {
+  std::vector<DispatchTask> stranded;
+  for (auto& [jobId, job] : jobs_) {
+    for (auto it = job.pending.begin(); it != job.pending.end();) {
+      auto entry = tasks_.find(*it);
+      if (!entry->second.task.refereeMayTrace || AnyWorkerMayTake(entry->second)) {
+        ++it;
+        continue;
+      }
+      stranded.push_back(std::move(entry->second.task));
+      tasks_.erase(entry);
+      --pendingCount_;
+      ++counters_.tasksStranded;
+      it = job.pending.erase(it);
+    }
+  }
+  return stranded;
 }
 
 void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
@@ -342,7 +394,8 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
   const double latency = std::chrono::duration<double>(clock_.Now() - entry->second.sentAt).count();
   const DispatchTask answered = std::move(entry->second.task);
   tasks_.erase(entry);
-  sink.OnResult(answered, std::move(result), latency, identity);
+  const WorkerState* worker = registry_.Find(identity);
+  sink.OnResult(answered, std::move(result), latency, worker ? worker->principal : identity);
 }
 
 void Dispatcher::OnError(const std::string& identity, const wire::Error& error,
@@ -405,20 +458,18 @@ void Dispatcher::SendHeartbeats(SteadyTime now) {
   for (const auto& [identity, worker] : registry_.workers()) Send(identity, wire::Heartbeat{});
 }
 
-bool Dispatcher::EveryWorkerIn(const std::set<std::string>& identities) const {
+bool Dispatcher::AnyWorkerMayTake(const TaskEntry& entry) const {
   for (const auto& [identity, worker] : registry_.workers()) {
-    if (!identities.count(identity)) return false;
+    if (MayTake(entry, worker)) return true;
   }
-  return true;
+  return false;
 }
 
-bool Dispatcher::MayTake(const TaskEntry& entry, const std::string& worker) const {
-  if (entry.failedBy.count(worker)) return false;  // a rule: it failed there once
-  // A preference: a check by the worker it checks beats none when no one else is here.
-  return !entry.task.avoid.count(worker) || EveryWorkerIn(entry.task.avoid);
+bool Dispatcher::MayTake(const TaskEntry& entry, const WorkerState& worker) {
+  return !entry.failedBy.count(worker.identity) && !entry.task.avoid.count(worker.principal);
 }
 
-uint64_t Dispatcher::TakeTaskFor(const std::string& worker) {
+uint64_t Dispatcher::TakeTaskFor(const WorkerState& worker) {
   std::vector<JobQueue*> order;
   for (auto& [id, job] : jobs_) {
     if (!job.pending.empty()) order.push_back(&job);
@@ -443,7 +494,7 @@ void Dispatcher::DispatchPending() {
   while (pendingCount_ > 0) {
     WorkerState* worker = registry_.MostAvailable(nothingFor);
     if (!worker) return;
-    const uint64_t id = TakeTaskFor(worker->identity);
+    const uint64_t id = TakeTaskFor(*worker);
     if (id == 0) {
       nothingFor.insert(worker->identity);
       continue;

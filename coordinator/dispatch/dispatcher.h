@@ -32,6 +32,7 @@
 #include "pixel_set/pixel_set.h"
 #include "wire/liveness.h"
 #include "wire/wire.h"
+#include "wire/zmq_io.h"
 
 namespace tcfarm {
 
@@ -41,19 +42,28 @@ struct DispatchTask {
   int frame = 0;  // absolute frame number (the scene's)
   PixelSet pixels;
   int window = 0;
-  // Workers it should not go to: a check is worth something only when someone other than
-  // the worker whose values it checks traces it. A preference, not a rule: when every
-  // worker present is listed, any may take it (a check by the same worker beats none).
+  // Workers (principals, see PrincipalOf) it must not go to: a check is worth something
+  // only when someone other than the worker whose values it checks traces it. A rule:
+  // a check by the worker it checks proves nothing, so such a task waits for someone
+  // else, and where nobody else is connected it is handed back (TakeStranded).
   std::set<std::string> avoid;
+  // A check or repair the coordinator's referee may trace when no connected worker may
+  // (TakeStranded); planner tasks never go to the referee.
+  bool refereeMayTrace = false;
 };
+
+// Who a worker is, beyond one connection: its CURVE public key where the coordinator
+// authenticates keys (ZAP accepted it, so it cannot be claimed by anyone else); otherwise
+// the name it gives and the address it connects from, which is all there is to go on.
+std::string PrincipalOf(const wire::Peer& peer, const std::string& name);
 
 // Where the dispatcher delivers what workers send back.
 class DispatchSink {
  public:
   virtual ~DispatchSink() = default;
   // task: the one the result answers. latencySeconds: from sending the task to
-  // receiving its result. worker: the identity that traced it (for checks that must go
-  // to someone else, and for finding who returned wrong values).
+  // receiving its result. worker: the principal that traced it (PrincipalOf: for checks
+  // that must go to someone else, and for finding who returned wrong values).
   virtual void OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
                         const std::string& worker) = 0;
   virtual void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) = 0;
@@ -83,7 +93,9 @@ struct DispatcherCounters {
   uint64_t duplicateResults = 0;  // results of tasks no longer outstanding (ignored)
   uint64_t foreignReplies = 0;    // RESULT or ERROR for a task in flight with another worker: dropped
   uint64_t workersDropped = 0;    // forgotten for a malformed RESULT of their own task
-  uint64_t workersDistrusted = 0;  // found returning wrong values: dropped, never taken back
+  uint64_t workersDistrusted = 0;  // found returning wrong values: banned, dropped
+  uint64_t bannedReconnects = 0;   // READY from a banned principal on a new connection: ignored
+  uint64_t tasksStranded = 0;      // checks no connected worker could take: to the referee
   uint64_t distrustedMessages = 0;  // messages from them afterwards: dropped
   uint64_t taskErrorsRetried = 0;  // a worker's ERROR: the task went back for a different worker
   uint64_t tasksFailed = 0;       // ERRORs from two different workers: the task failed
@@ -145,10 +157,21 @@ class Dispatcher {
   // waits (briefly, bounded) for the goodbyes to leave.
   void SayGoodbye();
 
-  // A worker found returning wrong values (farm/exactness_audit.h): it is dropped, its
-  // tasks go to others, and nothing it sends is heard again, READY included, for the
-  // life of this dispatcher. Its name when known, for messages.
-  void Distrust(const std::string& identity, const std::string& why);
+  // A worker found returning wrong values (farm/exactness_audit.h): its principal is
+  // banned. Every connection of it is dropped, its tasks go to others, and nothing it
+  // sends is heard again, READY included, on this connection or any new one, until
+  // Unban. False when it was banned already.
+  bool Distrust(const std::string& principal, const std::string& why);
+  // Bans kept from before (the job store's), applied before any worker is heard.
+  void Ban(const std::string& principal) { banned_.insert(principal); }
+  // Lifts a ban (an operator's decision); false when the principal was not banned.
+  bool Unban(const std::string& principal) { return banned_.erase(principal) > 0; }
+  bool IsBanned(const std::string& principal) const { return banned_.count(principal) > 0; }
+  // Pending tasks that may go to the referee (refereeMayTrace) and that no connected
+  // worker may take, taken off the queue: the caller traces them elsewhere.
+  std::vector<DispatchTask> TakeStranded();
+  // A connected worker of the principal, or nullptr.
+  const WorkerState* FindPrincipal(const std::string& principal) const;
 
   size_t PendingTasks() const;
   size_t InFlightTasks() const { return tasks_.size() - PendingTasks(); }
@@ -173,7 +196,8 @@ class Dispatcher {
   };
 
   void ReceiveAll(DispatchSink& sink);
-  void Handle(const std::string& identity, wire::Message message, DispatchSink& sink);
+  void Handle(const std::string& identity, const wire::Peer& peer, wire::Message message, DispatchSink& sink);
+  void OnReady(const std::string& identity, const wire::Peer& peer, const wire::Ready& ready);
   void OnResult(const std::string& identity, wire::Result&& result, DispatchSink& sink);
   void OnError(const std::string& identity, const wire::Error& error, DispatchSink& sink);
   // A RESULT or ERROR that names a task: false (and counted) unless `identity` holds it.
@@ -194,12 +218,11 @@ class Dispatcher {
   void DispatchPending();
   // The next task `worker` may take (stride order over jobs, skipping tasks it failed),
   // taken off its job's queue; 0 when there is none for it.
-  uint64_t TakeTaskFor(const std::string& worker);
-  // Whether every worker present is one of these.
-  // Whether `worker` may take the task: never one it answered ERROR for; one that avoids
-  // it only when every worker present is avoided.
-  bool MayTake(const TaskEntry& entry, const std::string& worker) const;
-  bool EveryWorkerIn(const std::set<std::string>& identities) const;
+  uint64_t TakeTaskFor(const WorkerState& worker);
+  // Whether `worker` may take the task: never one it answered ERROR for, nor one that
+  // avoids its principal.
+  static bool MayTake(const TaskEntry& entry, const WorkerState& worker);
+  bool AnyWorkerMayTake(const TaskEntry& entry) const;
   // False when the peer is gone or its queue is full.
   bool Send(const std::string& identity, const wire::Message& message);
 
@@ -211,7 +234,8 @@ class Dispatcher {
   std::unique_ptr<CurveAuthenticator> authenticator_;
   std::string publicKey_;
   zmq::socket_t socket_;
-  std::set<std::string> distrusted_;  // identities never heard again (Distrust)
+  std::set<std::string> banned_;      // principals never heard again (Distrust, Ban)
+  std::set<std::string> distrusted_;  // connections of banned principals: never heard again
   WorkerRegistry registry_;
   std::unordered_map<uint64_t, TaskEntry> tasks_;
   std::map<uint64_t, JobQueue> jobs_;

@@ -100,25 +100,33 @@ class DispatcherTest : public ::testing::Test {
   RecordingSink sink_;
 };
 
-// A check goes to a worker other than the one whose values it checks; when no other is
-// present, to that one rather than to nobody.
-TEST_F(DispatcherTest, ATaskAvoidsTheWorkersItNamesWhileAnotherIsPresent) {
+// A check goes to a worker other than the one whose values it checks, by principal: a
+// check by the worker it checks proves nothing. With nobody else present it is handed
+// back to be traced elsewhere (the referee), never given to the worker it avoids.
+TEST_F(DispatcherTest, ATaskNeverGoesToAWorkerItAvoids) {
   FakeWorker checked(context_, dispatcher_.BoundEndpoint(), 4);
   Pump();
   ASSERT_EQ(dispatcher_.registry().workers().size(), 1u);
-  const std::string checkedIdentity = dispatcher_.registry().workers().begin()->first;
-  dispatcher_.Enqueue({1, 100, 0, PixelSet::Full(16), 0, {checkedIdentity}});
+  const std::string principal = dispatcher_.registry().workers().begin()->second.principal;
+  EXPECT_EQ(principal.rfind("name:fake-", 0), 0u) << principal;
+  DispatchTask check{1, 100, 0, PixelSet::Full(16), 0, {principal}, /*refereeMayTrace=*/true};
+  DispatchTask plannerTask{1, 99, 0, PixelSet::Full(16), 0, {principal}, /*refereeMayTrace=*/false};
+  dispatcher_.Enqueue(check);
+  dispatcher_.Enqueue(plannerTask);
   Pump();
-  ASSERT_EQ(checked.Tasks().size(), 1u);  // the only worker: better it than nobody
+  EXPECT_TRUE(checked.Tasks().empty());  // it had credit to spare, yet got neither
+  const std::vector<DispatchTask> stranded = dispatcher_.TakeStranded();
+  ASSERT_EQ(stranded.size(), 1u);  // the check, not the planner's task
+  EXPECT_EQ(stranded[0].plannerTaskId, 100u);
+  EXPECT_EQ(dispatcher_.PendingTasks(), 1u);
   FakeWorker other(context_, dispatcher_.BoundEndpoint(), 4);
   Pump();
   ASSERT_EQ(dispatcher_.registry().workers().size(), 2u);
-  for (uint64_t id = 101; id < 104; ++id) {
-    dispatcher_.Enqueue({1, id, 0, PixelSet::Full(16), 0, {checkedIdentity}});
-  }
+  for (uint64_t id = 101; id < 104; ++id) dispatcher_.Enqueue({1, id, 0, PixelSet::Full(16), 0, {principal}, true});
+  EXPECT_TRUE(dispatcher_.TakeStranded().empty());  // someone else may take them now
   Pump();
-  EXPECT_TRUE(checked.Tasks().empty());  // it had credit to spare, yet got none
-  EXPECT_EQ(other.Tasks().size(), 3u);
+  EXPECT_TRUE(checked.Tasks().empty());
+  EXPECT_EQ(other.Tasks().size(), 4u);  // the three checks and the waiting planner task
 }
 
 TEST_F(DispatcherTest, CreditLimitsTasksInFlight) {
@@ -227,29 +235,46 @@ TEST_F(DispatcherTest, AResultOfTheWrongSizeDropsTheWorker) {
   EXPECT_EQ(sink_.results.size(), 2u);
 }
 
-// A worker found returning wrong values is dropped for good: its tasks go to others, and
-// whatever it sends afterwards, READY included, is not heard.
+// A worker found returning wrong values is banned: its tasks go to others, and whatever
+// it sends afterwards, READY included, is not heard, on this connection or a new one.
 TEST_F(DispatcherTest, ADistrustedWorkerIsNeverHeardAgain) {
-  FakeWorker liar(context_, dispatcher_.BoundEndpoint(), 2);
+  FakeWorker liar(context_, dispatcher_.BoundEndpoint(), 2, "liar");
   EnqueueTasks(1, 2);
   Pump();
   const std::vector<wire::Task> held = liar.Tasks();
   ASSERT_EQ(held.size(), 2u);
-  const std::string identity = dispatcher_.registry().workers().begin()->first;
-  dispatcher_.Distrust(identity, "its values are not the referee's");
+  const std::string principal = dispatcher_.registry().workers().begin()->second.principal;
+  EXPECT_TRUE(dispatcher_.Distrust(principal, "its values are not the referee's"));
+  EXPECT_FALSE(dispatcher_.Distrust(principal, "again"));
   EXPECT_EQ(dispatcher_.counters().workersDistrusted, 1u);
   EXPECT_TRUE(dispatcher_.registry().workers().empty());
   EXPECT_EQ(dispatcher_.PendingTasks(), 2u);
   liar.Answer(held[0]);         // too late: not its task any more
   liar.Send(wire::Ready{2, 1, "liar"});  // and it may not come back
+  FakeWorker reconnected(context_, dispatcher_.BoundEndpoint(), 2, "liar");  // nor on a new connection
   Pump();
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_TRUE(dispatcher_.registry().workers().empty());
   EXPECT_GE(dispatcher_.counters().distrustedMessages, 2u);
+  EXPECT_EQ(dispatcher_.counters().bannedReconnects, 1u);
+  EXPECT_TRUE(reconnected.Tasks().empty());
   EXPECT_EQ(AnotherWorkerFinishesWhatIsOwed(), 2u);
   EXPECT_EQ(sink_.results.size(), 2u);
-  EXPECT_TRUE(liar.Tasks().empty());
 }
+
+// A ban an operator lifts lets the worker in on its next connection.
+TEST_F(DispatcherTest, ALiftedBanLetsTheWorkerBackIn) {
+  dispatcher_.Ban("name:liar@127.0.0.1");
+  FakeWorker banned(context_, dispatcher_.BoundEndpoint(), 2, "liar");
+  Pump();
+  EXPECT_TRUE(dispatcher_.registry().workers().empty());
+  EXPECT_TRUE(dispatcher_.Unban("name:liar@127.0.0.1"));
+  EXPECT_FALSE(dispatcher_.Unban("name:liar@127.0.0.1"));
+  FakeWorker back(context_, dispatcher_.BoundEndpoint(), 2, "liar");
+  Pump();
+  EXPECT_EQ(dispatcher_.registry().workers().size(), 1u);
+}
+
 
 TEST_F(DispatcherTest, HorizonsOutsideTheWindowDropTheWorker) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);

@@ -16,11 +16,14 @@ namespace tcfarm {
 
 class FakeWorker {
  public:
-  FakeWorker(zmq::context_t& context, const std::string& endpoint, uint32_t capacity)
+  // name: what it says in READY; by default one of its own, so that fake workers are
+  // different principals (without CURVE a worker is its name and address).
+  FakeWorker(zmq::context_t& context, const std::string& endpoint, uint32_t capacity, std::string name = "")
       : socket_(context, zmq::socket_type::dealer) {
+    static int made = 0;
     socket_.set(zmq::sockopt::linger, 0);
     socket_.connect(endpoint);
-    Send(wire::Ready{capacity, 1, "fake"});
+    Send(wire::Ready{capacity, 1, name.empty() ? "fake-" + std::to_string(made++) : name});
   }
   void Send(const wire::Message& message) { ASSERT_TRUE(wire::SendMessage(socket_, message)); }
   void SendRaw(const std::vector<std::string>& parts) {

@@ -10,13 +10,15 @@ std::vector<uint64_t> TasksOf(const WorkerState& worker) {
 }  // namespace
 
 std::vector<uint64_t> WorkerRegistry::OnReady(const std::string& identity,
-                                              const wire::Ready& ready, SteadyTime now) {
+                                              const wire::Ready& ready, const std::string& principal,
+                                              SteadyTime now) {
   std::vector<uint64_t> lost;
   auto it = workers_.find(identity);
   if (it != workers_.end()) lost = TasksOf(it->second);
   WorkerState& worker = workers_[identity];
   worker = WorkerState{};
   worker.identity = identity;
+  worker.principal = principal;
   worker.name = ready.name;
   worker.capacity = std::max<uint32_t>(1, ready.capacity);
   worker.threads = std::max<uint32_t>(1, ready.threads);
@@ -78,6 +80,14 @@ bool WorkerRegistry::Release(const std::string& identity, uint64_t taskId) {
 
 void WorkerRegistry::Forget(uint64_t taskId) {
   for (auto& [identity, worker] : workers_) worker.inFlight.erase(taskId);
+}
+
+std::vector<std::string> WorkerRegistry::IdentitiesOf(const std::string& principal) const {
+  std::vector<std::string> identities;
+  for (const auto& [identity, worker] : workers_) {
+    if (worker.principal == principal) identities.push_back(identity);
+  }
+  return identities;
 }
 
 WorkerState* WorkerRegistry::Find(const std::string& identity) {

@@ -16,6 +16,9 @@ namespace tcfarm {
 
 struct WorkerState {
   std::string identity;  // the ROUTER's routing id for this connection
+  // Who it is beyond this connection (PrincipalOf): what checks avoid and bans name, so
+  // that reconnecting does not make a worker someone else.
+  std::string principal;
   std::string name;
   uint32_t capacity = 1;  // tasks it accepts in flight (its credit)
   uint32_t threads = 1;
@@ -38,7 +41,7 @@ class WorkerRegistry {
   // READY. A worker that says READY again has restarted its connection state: whatever
   // it held is lost and returned for requeueing.
   std::vector<uint64_t> OnReady(const std::string& identity, const wire::Ready& ready,
-                                SteadyTime now);
+                                const std::string& principal, SteadyTime now);
   // Any message: refreshes liveness. False for an identity that never said READY.
   bool OnHeard(const std::string& identity, SteadyTime now);
   // Workers silent past the timeout are forgotten; their names and tasks are returned.
@@ -62,6 +65,8 @@ class WorkerRegistry {
   // Forgets a task wherever it is held (its job went away); the credit returns at once.
   void Forget(uint64_t taskId);
 
+  // Connections of the principal (a worker may hold several at once).
+  std::vector<std::string> IdentitiesOf(const std::string& principal) const;
   WorkerState* Find(const std::string& identity);
   const WorkerState* Find(const std::string& identity) const;
   const std::map<std::string, WorkerState>& workers() const { return workers_; }

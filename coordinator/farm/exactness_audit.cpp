@@ -5,10 +5,8 @@
 
 namespace tcfarm {
 
-ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee,
-                               bool promisesExact)
-    : jobId_(jobId), firstFrame_(firstFrame), frameCount_(frameCount), referee_(referee),
-      promisesExact_(promisesExact) {}
+ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee)
+    : jobId_(jobId), firstFrame_(firstFrame), frameCount_(frameCount), referee_(referee) {}
 
 void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<SceneRef()>& scene) {
   for (Dispute& dispute : disputes) {
@@ -68,7 +66,8 @@ void ExactnessAudit::ForgetBefore(int frame) {
 }
 
 void ExactnessAudit::Distrust(const std::string& worker, const std::string& why, std::vector<Verdict>& verdicts) {
-  if (worker.empty() || distrusted_.count(worker)) return;
+  // The referee is the truth: its values are never the ones found wrong.
+  if (worker.empty() || worker == Referee::kName || distrusted_.count(worker)) return;
   for (const Verdict& verdict : verdicts) {
     if (verdict.worker == worker) return;
   }

@@ -33,16 +33,18 @@ namespace tcfarm {
 class ExactnessAudit {
  public:
   // referee: null leaves disputes unsettled (reported as such), as in unit tests of the
-  // parts around it. firstFrame: the job's first frame in the scene's numbering.
-  // promisesExact: only such a job disputes, so only it keeps which pixels each worker
-  // traced; the others keep who traced each frame (their checks avoid them).
-  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee, bool promisesExact = true);
+  // parts around it. firstFrame: the job's first frame in the scene's numbering. Every
+  // job disputes wrong traces (Verification's trace checks), so every job keeps which
+  // pixels each worker traced, for as long as a dispute can need them (ForgetBefore).
+  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee);
 
-  // The job's values: which worker traced which pixels.
-  void OnTraced(int frame, const std::string& worker, const PixelSet& pixels, int window) {
-    ledger_.Record(frame, worker, promisesExact_ ? pixels : PixelSet(), window);
+  // The job's values: which worker traced which pixels; reach: the frames after `frame`
+  // into which the job may copy them.
+  void OnTraced(int frame, const std::string& worker, const PixelSet& pixels, int reach) {
+    ledger_.Record(frame, worker, pixels, reach);
   }
-  std::set<std::string> WorkersOf(int frame) const { return ledger_.WorkersOf(frame); }
+  // Workers whose values frame may show, traced there or copied: its checks avoid them.
+  std::set<std::string> WorkersReaching(int frame) const { return ledger_.WorkersReaching(frame); }
   // No check below `frame` is outstanding any more (the job's numbering): what only a
   // dispute there could need is forgotten, as far as open disputes allow.
   void ForgetBefore(int frame);
@@ -85,7 +87,6 @@ class ExactnessAudit {
   uint64_t jobId_;
   int firstFrame_, frameCount_;
   Referee* referee_;
-  bool promisesExact_;
   TracerLedger ledger_;
   std::optional<SceneRef> scene_;  // asked for with the first dispute
   uint64_t nextDispute_ = 1;

@@ -14,11 +14,11 @@ constexpr int kFrames = 10;
 class TableReferee : public Referee {
  public:
   void Ask(Question question) override { questions.push_back(std::move(question)); }
-  std::vector<Answer> TakeAnswers(uint64_t jobId) override {
+  std::vector<Answer> TakeAnswers(uint64_t jobId, Purpose purpose) override {
     std::vector<Answer> answers;
     for (const Question& q : questions) {
-      if (q.jobId != jobId) continue;
-      Answer answer{q.id, {}, error};
+      if (q.jobId != jobId || q.purpose != purpose) continue;
+      Answer answer{q.id, {}, error, 0, 0};
       if (error.empty()) answer.rgb.assign(3 * q.pixels.size(), truth);
       answers.push_back(std::move(answer));
     }
@@ -73,6 +73,21 @@ TEST(TracerLedgerTest, FindsWhoTracedTheValueAFrameShows) {
   EXPECT_FALSE(ledger.SourceOf(1, 5));            // never traced at or before frame 1
   EXPECT_FALSE(ledger.SourceOf(4, 7));
   EXPECT_EQ(ledger.WorkersOf(3), (std::set<std::string>{"b"}));
+}
+
+// A frame's checks avoid every worker whose values it may show: traced there, or copied
+// from an earlier frame whose window reaches it.
+TEST(TracerLedgerTest, TheWorkersReachingAFrameIncludeThoseItCopiesFrom) {
+  TracerLedger ledger;
+  ledger.Record(2, "a", PixelSet::Full(4), 3);
+  ledger.Record(4, "b", PixelSet::Full(4), 0);
+  ledger.Record(6, "c", PixelSet(), 1);
+  EXPECT_EQ(ledger.WorkersReaching(4), (std::set<std::string>{"a", "b"}));
+  EXPECT_EQ(ledger.WorkersReaching(5), (std::set<std::string>{"a"}));
+  EXPECT_EQ(ledger.WorkersReaching(6), (std::set<std::string>{"c"}));
+  EXPECT_EQ(ledger.WorkersReaching(7), (std::set<std::string>{"c"}));
+  EXPECT_TRUE(ledger.WorkersReaching(8).empty());
+  EXPECT_TRUE(ledger.WorkersReaching(1).empty());
 }
 
 TEST(TracerLedgerTest, AWorkersValuesReachItsFramesAndTheirWindows) {

@@ -14,6 +14,9 @@ constexpr Milliseconds kClaimInterval{100};
 constexpr Milliseconds kSnapshotInterval{200};
 // Poll timeout of the loop when idle; bounds the latency of cancellation and stop.
 constexpr Milliseconds kIdlePoll{50};
+// A worker on probation has done at most this many tasks since it joined: its frames are
+// checked more (Verification's probation share). One that reconnects starts over.
+constexpr uint64_t kProbationTasks = 16;
 
 double SecondsBetween(SteadyTime earlier, SteadyTime later) {
   return std::chrono::duration<double>(later - earlier).count();
@@ -64,8 +67,13 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       frameStore_(options_.storeRoot),
       assets_(options_.storeRoot / "assets"),
       dispatcher_(options_.endpoint, clock, options_.heartbeat, &assets_, options_.curve),
-      referee_(options_.storeRoot / "assets"),
-      finisher_(frameStore_, options_.output) {}
+      ownReferee_(options_.referee ? nullptr : std::make_unique<TracingReferee>(options_.storeRoot / "assets")),
+      referee_(options_.referee ? options_.referee : ownReferee_.get()),
+      bans_(options_.storeRoot / "worker_bans.json"),
+      finisher_(frameStore_, options_.output) {
+  for (const WorkerBan& ban : bans_.List()) dispatcher_.Ban(ban.principal);
+}
+
 
 Farm::~Farm() = default;
 
@@ -96,6 +104,7 @@ void Farm::Step(Milliseconds pollTimeout) {
   dispatcher_.Flush();
   dispatcher_.Receive(pollTimeout, *this);
   PumpTasks();
+  RouteStrandedChecks();
   dispatcher_.Flush();
   CollectFrames();
   DistrustWrongWorkers();
@@ -147,7 +156,7 @@ void Farm::StartJob(const JobRecord& record) {
     settings.workers = LiveWorkers();
     settings.pendingFrameBytes = options_.pendingFrameBytes;
     settings.jobMemoryBytes = options_.jobMemoryBytes;
-    settings.referee = &referee_;
+    settings.referee = referee_;
     settings.segmentPrices = segmentPrices_;
     auto run = std::make_unique<JobRun>(record, frameStore_, settings);
     const FrameSize size = run->frameSize();
@@ -193,12 +202,15 @@ void Farm::ApplyRequests() {
   std::set<uint64_t> cancels;
   std::map<uint64_t, int> priorities;
   std::vector<std::pair<uint64_t, uint64_t>> releases;
+  std::vector<std::string> lifted;
   {
     std::lock_guard<std::mutex> lock(shared_);
+    lifted.swap(liftedBans_);
     cancels.swap(cancelRequests_);
     priorities.swap(priorityRequests_);
     releases.swap(releaseRequests_);
   }
+  for (const std::string& principal : lifted) dispatcher_.Unban(principal);
   for (const auto& [id, ticket] : releases) cancels.insert(id);
   std::set<uint64_t> unread;  // asked again by the next step
   for (uint64_t id : cancels) {
@@ -275,8 +287,10 @@ void Farm::OnResult(const DispatchTask& task, wire::Result&& result, double late
   const uint64_t jobId = task.jobId;
   auto run = runs_.find(jobId);
   if (run == runs_.end()) return;
+  const WorkerState* tracer = dispatcher_.FindPrincipal(worker);
+  const bool onProbation = tracer && tracer->tasksDone <= kProbationTasks;
   try {
-    if (!run->second->OnResult(task, result, worker)) return;
+    if (!run->second->OnResult(task, result, worker, onProbation)) return;
   } catch (const std::invalid_argument& e) {
     // The dispatcher checked sizes; a planner complaint here means values it refuses
     // (non-finite). The pixels are lost, so the job cannot finish correctly.
@@ -321,13 +335,43 @@ void Farm::DistrustWrongWorkers() {
     for (ExactnessAudit::Verdict& verdict : run->TakeVerdicts()) verdicts.push_back(std::move(verdict));
   }
   for (const ExactnessAudit::Verdict& verdict : verdicts) {
-    const WorkerState* worker = dispatcher_.registry().Find(verdict.worker);
+    const WorkerState* worker = dispatcher_.FindPrincipal(verdict.worker);
     const std::string name = worker ? worker->name : "a worker no longer connected";
-    std::fprintf(stderr, "coordinator: distrusted worker %s: %s; the frames its values reached are traced again\n",
-                 name.c_str(), verdict.why.c_str());
-    dispatcher_.Distrust(verdict.worker, verdict.why);
+    std::fprintf(stderr,
+                 "coordinator: distrusted worker %s (%s): %s; it is banned and the frames its values reached are "
+                 "traced again\n",
+                 name.c_str(), verdict.worker.c_str(), verdict.why.c_str());
+    if (dispatcher_.Distrust(verdict.worker, verdict.why)) {
+      try {
+        bans_.Add({verdict.worker, name, verdict.why, JobStore::SystemNowMs()});
+      } catch (const std::exception& e) {
+        // The ban holds in this process all the same; only a restart would forget it.
+        std::fprintf(stderr, "coordinator: the ban of %s could not be kept in the store: %s\n",
+                     verdict.worker.c_str(), e.what());
+      }
+    }
     for (auto& [id, run] : runs_) run->OnWorkerDistrusted(verdict.worker, name);
   }
+}
+
+void Farm::RouteStrandedChecks() {
+  for (DispatchTask& task : dispatcher_.TakeStranded()) {
+    auto run = runs_.find(task.jobId);
+    if (run == runs_.end()) continue;
+    const uint64_t jobId = task.jobId;
+    try {
+      run->second->TraceByReferee(std::move(task), store_);
+    } catch (const std::exception& e) {
+      FailJob(jobId, e.what());
+    }
+  }
+}
+
+bool Farm::LiftBan(const std::string& principal) {
+  if (!bans_.Remove(principal)) return false;
+  std::lock_guard<std::mutex> lock(shared_);
+  liftedBans_.push_back(principal);
+  return true;
 }
 
 void Farm::FinishJob(uint64_t jobId) {
@@ -470,7 +514,7 @@ void Farm::PublishSnapshot() {
   lastSnapshot_ = now;
   FarmSnapshot snapshot;
   for (const auto& [identity, w] : dispatcher_.registry().workers()) {
-    snapshot.workers.push_back({w.name, w.capacity, w.threads,
+    snapshot.workers.push_back({w.name, w.principal, w.capacity, w.threads,
                                 static_cast<uint32_t>(w.inFlight.size()), w.tasksDone,
                                 w.pixelsDone, w.traceSeconds, SecondsBetween(w.lastHeard, now),
                                 SecondsBetween(w.connectedAt, now)});

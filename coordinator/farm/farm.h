@@ -51,6 +51,9 @@ struct FarmOptions {
   size_t pendingFrameBytes = JobRunSettings::kDefaultPendingFrameBytes;
   // Per job: the coordinator's memory for its frames (0: no limit); see FramesHeldPerJob.
   uint64_t jobMemoryBytes = 0;
+  // Who settles disputes and traces the checks no worker may; none: the farm's own
+  // TracingReferee. Tests whose workers trace nothing give one that knows their values.
+  Referee* referee = nullptr;
 };
 
 class Farm : public FarmControl, private DispatchSink {
@@ -76,6 +79,8 @@ class Farm : public FarmControl, private DispatchSink {
   void RequestPriority(uint64_t jobId, int priority) override;
   bool ReleaseJob(uint64_t jobId) override;
   FarmSnapshot Snapshot() const override;
+  std::vector<WorkerBan> Bans() const override { return bans_.List(); }
+  bool LiftBan(const std::string& principal) override;
 
  private:
   void OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
@@ -94,9 +99,11 @@ class Farm : public FarmControl, private DispatchSink {
   void RecordEvents();
   void PumpTasks();
   void CollectFrames();
-  // Workers the jobs' referee verdicts found returning wrong values: dropped for good,
-  // and every running job repairs the frames their values reached.
+  // Workers the jobs' referee verdicts found returning wrong values: banned (by key, in
+  // the store), and every running job repairs the frames their values reached.
   void DistrustWrongWorkers();
+  // Checks and repairs no connected worker may trace go to the referee.
+  void RouteStrandedChecks();
   void FinishJob(uint64_t jobId);
   void FailJob(uint64_t jobId, const std::string& why);
   // A job done rendering (completed, or failed with `why`) whose records are still owed.
@@ -135,7 +142,9 @@ class Farm : public FarmControl, private DispatchSink {
   StoredAssets assets_;
   FarmMetrics metrics_;
   Dispatcher dispatcher_;
-  TracingReferee referee_;  // settles disputes of jobs that promise exactness
+  std::unique_ptr<TracingReferee> ownReferee_;  // unless the options name a referee
+  Referee* referee_;  // settles disputes, traces the checks no worker may
+  WorkerBans bans_;         // applied to the dispatcher at start
   SegmentPrices segmentPrices_;  // as the last exact job measured them (auto's model)
   FrameFinisher finisher_;       // compresses and previews jobs' frames when no job renders
   // Jobs a previous coordinator left unfinished (FrameFinisher) go back to the finisher.
@@ -151,6 +160,7 @@ class Farm : public FarmControl, private DispatchSink {
 
   mutable std::mutex shared_;  // guards the requests, stopped_ and snapshot_
   std::set<uint64_t> cancelRequests_;
+  std::vector<std::string> liftedBans_;  // lifted in the store, not yet in the dispatcher
   std::map<uint64_t, int> priorityRequests_;
   std::vector<std::pair<uint64_t, uint64_t>> releaseRequests_;  // (job, ticket), not yet taken
   uint64_t nextReleaseTicket_ = 1;

@@ -10,10 +10,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include "farm/worker_bans.h"
+
 namespace tcfarm {
 
 struct WorkerSnapshot {
   std::string name;
+  std::string principal;  // who it is beyond this connection (its CURVE key, or name@address)
   uint32_t capacity = 0, threads = 0, inFlight = 0;
   uint64_t tasksDone = 0, pixelsDone = 0;
   double traceSeconds = 0;
@@ -43,6 +46,10 @@ class FarmControl {
   // stopped and cannot promise that.
   virtual bool ReleaseJob(uint64_t jobId) = 0;
   virtual FarmSnapshot Snapshot() const = 0;
+  // Workers banned for returning wrong values (farm/worker_bans.h), and lifting a ban:
+  // false when the principal was not banned.
+  virtual std::vector<WorkerBan> Bans() const = 0;
+  virtual bool LiftBan(const std::string& principal) = 0;
 };
 
 }  // namespace tcfarm

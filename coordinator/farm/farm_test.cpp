@@ -28,6 +28,25 @@ constexpr Milliseconds kTurnPoll{5};
 // Turns before a test gives up: seconds of polling at most, never a hang.
 constexpr int kMaxTurns = 400;
 
+// The referee of a farm whose fake workers answer every pixel with one value: it knows
+// that value, so the checks it traces (every check, on a one-worker farm) agree.
+class ConstantReferee : public Referee {
+ public:
+  void Ask(Question question) override {
+    Answer answer{question.id, std::vector<float>(3 * question.pixels.size(), value), "", 0, 0};
+    answers_[{question.jobId, question.purpose}].push_back(std::move(answer));
+  }
+  std::vector<Answer> TakeAnswers(uint64_t jobId, Purpose purpose) override {
+    std::vector<Answer> answers;
+    answers.swap(answers_[{jobId, purpose}]);
+    return answers;
+  }
+  float value = 0.5f;
+
+ private:
+  std::map<std::pair<uint64_t, Purpose>, std::vector<Answer>> answers_;
+};
+
 class FarmTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -40,6 +59,7 @@ class FarmTest : public ::testing::Test {
     options.endpoint = "tcp://127.0.0.1:*";
     options.storeRoot = folder_ / "store";
     options.output.threads = 1;
+    options.referee = &referee_;
     farm_ = std::make_unique<Farm>(*store_, options, clock_);
     clock_.Advance(Milliseconds(1000));  // past the first look for new jobs
   }
@@ -79,6 +99,7 @@ class FarmTest : public ::testing::Test {
   }
   // Steps until `id` completes, `worker` answering every task it gets with `value`.
   bool ServeUntilComplete(FakeWorker& worker, uint64_t id, float value = 0.5f) {
+    referee_.value = value;
     return TurnUntil([&] {
       for (const wire::Task& task : worker.Tasks()) worker.Answer(task, value);
       return StateOf(id) == JobState::kCompleted;
@@ -86,6 +107,7 @@ class FarmTest : public ::testing::Test {
   }
 
   fs::path folder_;
+  ConstantReferee referee_;
   FakeClock clock_;
   zmq::context_t context_;
   std::unique_ptr<JobStore> store_;
@@ -118,7 +140,8 @@ TEST_F(FarmTest, ASmallJobCompletesAndItsFramesAreWritten) {
 }
 
 TEST_F(FarmTest, ASilentWorkersTasksAreRequeuedAfterTheTimeout) {
-  FakeWorker silent(context_, farm_->BoundEndpoint(), 4);
+  const std::string lostName = "silent";
+  FakeWorker silent(context_, farm_->BoundEndpoint(), 4, lostName);
   const uint64_t id = Submit(2);
   size_t held = 0;
   ASSERT_TRUE(TurnUntil([&] {
@@ -150,7 +173,8 @@ TEST_F(FarmTest, ASilentWorkersTasksAreRequeuedAfterTheTimeout) {
   const std::vector<JobEvent> lost = EventsOf(id, "worker_lost");
   ASSERT_EQ(lost.size(), 1u);
   EXPECT_EQ(lost[0].fields["requeued_tasks"], held);
-  EXPECT_EQ(lost[0].message, "worker fake went silent; " + std::to_string(held) + " of its tasks of this job were requeued");
+  EXPECT_EQ(lost[0].message, "worker " + lostName + " went silent; " + std::to_string(held) +
+                                " of its tasks of this job were requeued");
 }
 
 TEST_F(FarmTest, AJobsEventsTellItsStoryInOrder) {
@@ -179,6 +203,7 @@ TEST_F(FarmTest, AJobsEventsTellItsStoryInOrder) {
 TEST_F(FarmTest, ACanceledJobRetriedAtOnceResumesFromItsFrames) {
   FakeWorker worker(context_, farm_->BoundEndpoint(), 1);
   const uint64_t id = Submit(8);
+  referee_.value = 0.75f;  // what the worker answers, so the checks agree
   ASSERT_TRUE(TurnUntil([&] {
     for (const wire::Task& task : worker.Tasks()) worker.Answer(task, 0.75f);
     return store_->Get(id)->framesDone >= 3;

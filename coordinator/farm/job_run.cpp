@@ -169,8 +169,8 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
-      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee,
-             PromisesExact(resolved_.strategy)),
+      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
+      referee_(settings.referee),
       written_(kept_.kept),
       writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
       coherence_(store.SpillFolder(record.id), settings.pendingFrameBytes),
@@ -193,27 +193,84 @@ std::vector<DispatchTask> JobRun::TakeTasks(int workers) {
   for (TraceTask& t : writerBehind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
     taskChains_[t.id] = {t.chain, t.step};
     ++tasksOut_[spec_.firstFrame + t.frame];
-    tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}});
+    tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}, false});
   }
   // Checks go to a worker other than the ones whose values they check, so that a worker
-  // that returns wrong values never checks itself.
+  // that returns wrong values never checks itself; where no such worker is connected, the
+  // referee traces them (the dispatcher hands them back: TakeStranded).
   for (Verification::Request& r : verification_.TakeRequests()) {
+    std::set<std::string> avoid = audit_.WorkersReaching(r.frame);
+    avoid.insert(audit_.Distrusted().begin(), audit_.Distrusted().end());
     tasks.push_back({id_, r.id | kVerificationTask, spec_.firstFrame + r.frame, std::move(r.pixels), 0,
-                     audit_.WorkersOf(r.frame)});
+                     std::move(avoid), /*refereeMayTrace=*/true});
   }
   for (int frame : audit_.TakeFramesToRepair([this](int f) { return written_[static_cast<size_t>(f)]; })) {
     tasks.push_back({id_, kRepairTask | static_cast<uint64_t>(frame), spec_.firstFrame + frame,
-                     PixelSet::Full(static_cast<uint32_t>(PixelsPerFrame())), 0, audit_.Distrusted()});
+                     PixelSet::Full(static_cast<uint32_t>(PixelsPerFrame())), 0, audit_.Distrusted(),
+                     /*refereeMayTrace=*/true});
   }
   return tasks;
 }
 
-bool JobRun::OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
+void JobRun::TraceByReferee(DispatchTask task, const JobStore& store) {
+  if (!referee_) throw std::runtime_error("no worker may trace a check of frame " + std::to_string(task.frame) +
+                                          " and this farm has no referee to trace it");
+  const uint64_t id = nextRefereeCheck_++;
+  std::vector<uint32_t> pixels;
+  pixels.reserve(task.pixels.size());
+  task.pixels.ForEach([&](uint32_t pixel) { pixels.push_back(pixel); });
+  referee_->Ask({id_, id, spec_.sceneHash, SceneJson(store), task.frame, std::move(pixels),
+                 Referee::Purpose::kCheck});
+  refereeChecks_[id] = std::move(task);
+}
+
+void JobRun::HearRefereeChecks() {
+  if (!referee_ || refereeChecks_.empty()) return;
+  for (Referee::Answer& answer : referee_->TakeAnswers(id_, Referee::Purpose::kCheck)) {
+    auto asked = refereeChecks_.find(answer.id);
+    if (asked == refereeChecks_.end()) continue;
+    const DispatchTask task = std::move(asked->second);
+    refereeChecks_.erase(asked);
+    if (!answer.error.empty()) {
+      throw std::runtime_error("the coordinator's referee could not trace a check of frame " +
+                               std::to_string(task.frame) + ": " + answer.error);
+    }
+    wire::Result result;
+    result.jobId = id_;
+    result.frame = task.frame;
+    result.rgb = std::move(answer.rgb);
+    result.traceSeconds = answer.seconds;
+    result.traceCpuSeconds = answer.cpuSeconds;
+    OnResult(task, result, Referee::kName);
+  }
+}
+
+const std::string& JobRun::SceneJson(const JobStore& store) {
+  if (sceneJson_.empty()) {
+    std::optional<JobRecord> record = store.Get(id_);
+    if (record) sceneJson_ = std::move(record->spec.sceneJson);
+  }
+  return sceneJson_;
+}
+
+int JobRun::CopyReach(int window) const {
+  switch (resolved_.strategy) {
+    case Strategy::kBrute:
+      return 0;
+    case Strategy::kExact:
+      return window;  // copies only as far as the horizons the task returned
+    default:
+      return std::max(window, plannerOptions_.binWidth);  // copies across a bin
+  }
+}
+
+bool JobRun::OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
+                      bool onProbation) {
   if (task.plannerTaskId & kVerificationTask) {
     return OnVerificationResult(task.plannerTaskId & ~kVerificationTask, result, worker);
   }
   if (task.plannerTaskId & kRepairTask) return OnRepairResult(task, result, worker);
-  return OnPlannerResult(task, result, worker);
+  return OnPlannerResult(task, result, worker, onProbation);
 }
 
 bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result, const std::string& worker) {
@@ -258,17 +315,17 @@ std::vector<ExactnessAudit::Verdict> JobRun::TakeVerdicts() {
 }
 
 void JobRun::Audit(const JobStore& store) {
-  audit_.Open(verification_.TakeDisputes(), [&] {
-    std::optional<JobRecord> record = store.Get(id_);
-    return ExactnessAudit::SceneRef{spec_.sceneHash, record ? record->spec.sceneJson : std::string()};
-  });
+  HearRefereeChecks();
+  audit_.Open(verification_.TakeDisputes(),
+              [&] { return ExactnessAudit::SceneRef{spec_.sceneHash, SceneJson(store)}; });
   for (ExactnessAudit::Verdict& verdict : audit_.HearReferee()) verdicts_.push_back(std::move(verdict));
   // Frames below the coherence's next are finished and handed on; their checks are
   // scheduled as they finish, so below both nothing can be disputed any more.
   audit_.ForgetBefore(verification_.LowestPendingFrame(coherence_.NextFrame()));
 }
 
-bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
+bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
+                             bool onProbation) {
   const uint64_t taskId = task.plannerTaskId;
   // Workers speak absolute frames; the planner counts from the job's first frame.
   std::vector<int32_t> horizons(result.horizons);
@@ -285,7 +342,8 @@ bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& resul
   } else {
     cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
   }
-  audit_.OnTraced(result.frame - spec_.firstFrame, worker, task.pixels, task.window);
+  audit_.OnTraced(result.frame - spec_.firstFrame, worker, task.pixels, CopyReach(task.window));
+  if (onProbation) probationFrames_.insert(result.frame - spec_.firstFrame);
   return true;
 }
 
@@ -406,7 +464,8 @@ void JobRun::FinishFrame(FinishedFrame frame) {
   writing_[absolute] = frame.tracedCount;
   cost_.OnFrameFinished(frame.frame, frame.tracedCount);
   Image image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)};
-  verification_.OnFrameFinished(frame.frame, image.rgb, frame.traced);
+  const bool probation = probationFrames_.erase(frame.frame) > 0;
+  verification_.OnFrameFinished(frame.frame, image.rgb, frame.traced, probation);
   WriteMask(MaskKind::kTraced, absolute, std::move(frame.traced));
   for (JobCoherence::ChangeMask& mask : coherence_.Add(frame.frame, image)) {
     WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));

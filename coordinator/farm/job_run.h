@@ -89,9 +89,15 @@ class JobRun {
   // workers: live now; the planner spreads each trace request over them.
   std::vector<DispatchTask> TakeTasks(int workers = 1);
   // Feeds a result to the planner, the verification or a repair. False when it had it
-  // already. worker: who traced it; checks of a frame then go to someone else where
-  // possible, and a worker found returning wrong values is traced back through it.
-  bool OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
+  // already. worker: who traced it (a principal, or Referee::kName); checks of a frame
+  // then go to someone else, and a worker found returning wrong values is traced back
+  // through it. onProbation: the worker joined lately, so the frame is checked more.
+  bool OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
+                bool onProbation = false);
+  // A check or repair of this job that no connected worker may trace (the dispatcher's
+  // TakeStranded): the referee traces it, and its answer comes back as a result by
+  // Referee::kName. Throws std::runtime_error when the job has no referee.
+  void TraceByReferee(DispatchTask task, const JobStore& store);
   // Workers this job's disputes showed returning wrong values, since the last call. The
   // farm distrusts them and tells every job (OnWorkerDistrusted).
   std::vector<ExactnessAudit::Verdict> TakeVerdicts();
@@ -108,7 +114,8 @@ class JobRun {
   // the first frame that could not be written, once what was written is recorded.
   int CollectFinishedFrames(JobStore& store);
   bool Done() const {
-    return planner_->Done() && !verification_.Pending() && !audit_.Pending() && unwritten_.empty() &&
+    return planner_->Done() && !verification_.Pending() && !audit_.Pending() && refereeChecks_.empty() &&
+           unwritten_.empty() &&
            writer_.Idle() && writing_.empty() && !RecordsOwed();
   }
   // Records what the writer has put in place since the last call, and what is owed from
@@ -152,7 +159,15 @@ class JobRun {
   // How long one CollectFinishedFrames call may spend on frames.
   static constexpr std::chrono::milliseconds kFinishingTurn{20};
 
-  bool OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
+  bool OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
+                       bool onProbation);
+  // The referee's answers to checks it traced, fed back as results. Throws
+  // std::runtime_error for a check it could not trace: the job cannot keep its promise.
+  void HearRefereeChecks();
+  // The job's scene, read from the job store once (the run does not keep it otherwise).
+  const std::string& SceneJson(const JobStore& store);
+  // The frames after a traced one into which the job may copy its values.
+  int CopyReach(int window) const;
   bool OnVerificationResult(uint64_t taskId, const wire::Result& result, const std::string& worker);
   // A frame traced again in full: rewritten where it differs from what was written.
   bool OnRepairResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
@@ -182,6 +197,11 @@ class JobRun {
   PixelTally reported_;
   Verification verification_;
   ExactnessAudit audit_;
+  Referee* referee_;
+  std::map<uint64_t, DispatchTask> refereeChecks_;  // out with the referee, by question id
+  uint64_t nextRefereeCheck_ = 1;
+  std::set<int> probationFrames_;  // frames (the job's) a worker on probation traced part of
+  std::string sceneJson_;          // read once, when the referee first needs it
   std::vector<ExactnessAudit::Verdict> verdicts_;
   // Planner tasks in flight: their chain and step (TraceTask), for the job's span.
   std::unordered_map<uint64_t, std::pair<int, int>> taskChains_;

@@ -1,5 +1,7 @@
 #include "farm/referee.h"
 
+#include <algorithm>
+#include <chrono>
 #include <exception>
 #include <optional>
 
@@ -31,7 +33,9 @@ class TracingReferee::Tracing {
 
  private:
   EmbreeDevice device_;
-  TracingThreads threads_{1};  // a few pixels: the farm loop keeps the other cores
+  // A check can be a whole reference frame: every core, as a worker would use. The farm
+  // loop's own work is short and waits on its socket most of the time.
+  TracingThreads threads_{std::max(1u, std::thread::hardware_concurrency())};
   std::string hash_;
   std::unique_ptr<Scene> scene_;
   std::unique_ptr<Tracer> tracer_;  // refers to scene_
@@ -57,9 +61,9 @@ void TracingReferee::Ask(Question question) {
   wake_.notify_all();
 }
 
-std::vector<Referee::Answer> TracingReferee::TakeAnswers(uint64_t jobId) {
+std::vector<Referee::Answer> TracingReferee::TakeAnswers(uint64_t jobId, Purpose purpose) {
   std::lock_guard<std::mutex> lock(mutex_);
-  auto found = answers_.find(jobId);
+  auto found = answers_.find({jobId, purpose});
   if (found == answers_.end()) return {};
   std::vector<Answer> answers = std::move(found->second);
   answers_.erase(found);
@@ -78,7 +82,7 @@ void TracingReferee::Serve() {
     }
     Answer answer = Trace(question);
     std::lock_guard<std::mutex> lock(mutex_);
-    answers_[question.jobId].push_back(std::move(answer));
+    answers_[{question.jobId, question.purpose}].push_back(std::move(answer));
   }
 }
 
@@ -89,7 +93,11 @@ Referee::Answer TracingReferee::Trace(const Question& question) {
     if (!tracing_) tracing_ = std::make_unique<Tracing>();
     Tracer& tracer = tracing_->TracerFor(question.sceneHash, question.sceneJson, assetRoot_);
     answer.rgb.resize(3 * question.pixels.size());
+    const double cpuBefore = tracer.CpuSeconds();
+    const auto started = std::chrono::steady_clock::now();
     tracer.TracePixels(question.frame, question.pixels.data(), question.pixels.size(), answer.rgb.data());
+    answer.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    answer.cpuSeconds = tracer.CpuSeconds() - cpuBefore;
   } catch (const std::exception& e) {
     answer.rgb.clear();
     answer.error = e.what();

@@ -5,9 +5,9 @@
 // texture bytes the workers were sent, so its values are the bits an honest worker
 // returns.
 //
-// Disputes are rare and small (kMaxDisputedPixels), so the referee builds a scene only
-// when one arrives, keeps the last one it built, and traces on its own thread: a scene
-// build never stalls the farm loop.
+// Disputes are rare and small (kMaxDisputedPixels), and checks a small share of a job's
+// pixels, so the referee builds a scene only when one arrives, keeps the last one it
+// built, and traces on its own threads: a scene build never stalls the farm loop.
 #pragma once
 
 #include <condition_variable>
@@ -24,8 +24,13 @@
 namespace tcfarm {
 
 // Settles disputes: the pixels' true values. The farm's is a TracingReferee.
+//
+// It also traces the checks that no connected worker may trace (a check is never done by
+// the worker whose values it checks): on a one-worker farm, every check of a job.
 class Referee {
  public:
+  // Why a question is asked; each asker takes only the answers to its own.
+  enum class Purpose { kDispute, kCheck };
   struct Question {
     uint64_t jobId = 0;
     uint64_t id = 0;  // the asker's, returned with the answer
@@ -33,17 +38,24 @@ class Referee {
     std::string sceneJson;
     int frame = 0;  // the scene's numbering
     std::vector<uint32_t> pixels;
+    Purpose purpose = Purpose::kDispute;
   };
   struct Answer {
     uint64_t id = 0;
     std::vector<float> rgb;  // 3 per pixel, in the question's order; empty on error
     std::string error;       // why the pixels could not be traced (a scene that no longer builds)
+    double seconds = 0;      // tracing time, scene build excluded
+    double cpuSeconds = 0;   // CPU time of the tracing threads, summed
   };
+
+  // How the farm names the referee where it names who traced or checked pixels: no
+  // worker's principal (dispatch/dispatcher.h PrincipalOf) can be this.
+  static constexpr const char* kName = "referee";
 
   virtual ~Referee() = default;
   virtual void Ask(Question question) = 0;
-  // Answers for the job's questions that are ready; never waits.
-  virtual std::vector<Answer> TakeAnswers(uint64_t jobId) = 0;
+  // Answers for the job's questions of that purpose that are ready; never waits.
+  virtual std::vector<Answer> TakeAnswers(uint64_t jobId, Purpose purpose = Purpose::kDispute) = 0;
 };
 
 class TracingReferee : public Referee {
@@ -55,7 +67,7 @@ class TracingReferee : public Referee {
   TracingReferee& operator=(const TracingReferee&) = delete;
 
   void Ask(Question question) override;
-  std::vector<Answer> TakeAnswers(uint64_t jobId) override;
+  std::vector<Answer> TakeAnswers(uint64_t jobId, Purpose purpose = Purpose::kDispute) override;
 
  private:
   class Tracing;  // Embree and the scene it last built; lives on the referee's thread
@@ -67,7 +79,7 @@ class TracingReferee : public Referee {
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Question> questions_;
-  std::map<uint64_t, std::vector<Answer>> answers_;  // by job
+  std::map<std::pair<uint64_t, Purpose>, std::vector<Answer>> answers_;  // by job and purpose
   bool stopping_ = false;
   std::thread thread_;
 };

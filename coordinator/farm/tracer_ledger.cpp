@@ -20,6 +20,17 @@ std::set<std::string> TracerLedger::WorkersOf(int frame) const {
   return workers;
 }
 
+std::set<std::string> TracerLedger::WorkersReaching(int frame) const {
+  std::set<std::string> workers;
+  for (auto it = frames_.upper_bound(frame); it != frames_.begin();) {
+    --it;
+    for (const auto& [worker, traced] : it->second) {
+      if (it->first + traced.window >= frame) workers.insert(worker);
+    }
+  }
+  return workers;
+}
+
 std::optional<TracerLedger::Source> TracerLedger::SourceOf(int frame, uint32_t pixel) const {
   // Latest frame first: the value shown is the one traced last.
   for (auto it = frames_.upper_bound(frame); it != frames_.begin();) {

@@ -24,6 +24,9 @@ class TracerLedger {
 
   // Every worker that traced some pixel of the frame.
   std::set<std::string> WorkersOf(int frame) const;
+  // Every worker whose values the frame may show: traced there, or traced in an earlier
+  // frame whose window reaches it.
+  std::set<std::string> WorkersReaching(int frame) const;
 
   struct Source {
     int frame = 0;

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "farm/referee.h"
 #include "frame/ssim.h"
 
 namespace tcfarm {
@@ -61,34 +62,39 @@ uint64_t Verification::Issue(int frame, PixelSet pixels) {
 }
 
 void Verification::OnFrameFinished(int frame, const std::vector<float>& rgb,
-                                   const std::vector<uint8_t>& traced) {
+                                   const std::vector<uint8_t>& traced, bool probation) {
   size_t pixels = traced.size();
   size_t copied = pixels - std::count(traced.begin(), traced.end(), uint8_t{1});
   copiedPixels_ += copied;
   totalPixels_ += pixels;
   if (wantsReference_[frame]) {
-    ScheduleReference(frame, rgb);
-  } else if (copied > 0 && options_.spotCheckShare > 0) {
-    ScheduleSpotCheck(frame, rgb, traced);  // a verified frame needs no estimate
+    ScheduleReference(frame, rgb);  // checks every pixel: no sample needed
+    return;
   }
+  if (copied > 0 && options_.spotCheckShare > 0) {
+    ScheduleSampleCheck(frame, rgb, traced, options_.spotCheckShare, /*ofTraced=*/false);
+  }
+  const double traceShare = probation ? std::max(options_.traceCheckShare, options_.probationCheckShare)
+                                      : options_.traceCheckShare;
+  if (copied < pixels && traceShare > 0) ScheduleSampleCheck(frame, rgb, traced, traceShare, /*ofTraced=*/true);
 }
 
-void Verification::ScheduleSpotCheck(int frame, const std::vector<float>& rgb,
-                                     const std::vector<uint8_t>& traced) {
+void Verification::ScheduleSampleCheck(int frame, const std::vector<float>& rgb,
+                                       const std::vector<uint8_t>& traced, double share, bool ofTraced) {
   size_t pixels = traced.size();
-  auto wanted = static_cast<size_t>(std::ceil(options_.spotCheckShare * pixels));
-  // Sample copied pixels uniformly: draw indices, keep copied ones, bounded attempts.
+  auto wanted = static_cast<size_t>(std::ceil(share * pixels));
+  // Sample uniformly: draw indices, keep those of the kind wanted, bounded attempts.
   std::vector<uint32_t> chosen;
   std::uniform_int_distribution<uint32_t> pick(0, static_cast<uint32_t>(pixels - 1));
   for (size_t attempt = 0; attempt < 8 * wanted && chosen.size() < wanted; ++attempt) {
     uint32_t p = pick(random_);
-    if (!traced[p]) chosen.push_back(p);
+    if ((traced[p] != 0) == ofTraced) chosen.push_back(p);
   }
   if (chosen.empty()) return;
   std::sort(chosen.begin(), chosen.end());
   chosen.erase(std::unique(chosen.begin(), chosen.end()), chosen.end());
-  SpotCheck check{frame, chosen, {}};
-  for (uint32_t p : chosen) check.copied.insert(check.copied.end(), &rgb[3 * p], &rgb[3 * p + 3]);
+  SpotCheck check{frame, chosen, {}, ofTraced};
+  for (uint32_t p : chosen) check.values.insert(check.values.end(), &rgb[3 * p], &rgb[3 * p + 3]);
   uint64_t id = Issue(frame, PixelSet::FromSortedIndices(chosen));
   spotChecks_[id] = std::move(check);
 }
@@ -136,24 +142,31 @@ bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount, co
   outstanding_.erase(outstanding);
   if (auto check = spotChecks_.find(id); check != spotChecks_.end()) {
     const SpotCheck& spot = check->second;
-    if (floatCount != spot.copied.size()) throw std::invalid_argument("spot check size");
+    if (floatCount != spot.values.size()) throw std::invalid_argument("spot check size");
     auto [mismatched, dispute] = Disagreements(
-        spot.frame, floatCount / 3, spot.copied.data(), rgb, [&](size_t i) { return spot.pixels[i]; }, checker);
-    checkedPixels_ += floatCount / 3;
-    mismatchedPixels_ += mismatched;
-    if (mismatched > 0) NoteDisagreement(spot.frame, mismatched, std::move(dispute));
+        spot.frame, floatCount / 3, spot.values.data(), rgb, [&](size_t i) { return spot.pixels[i]; }, checker);
+    CountChecker(checker, floatCount / 3);
+    if (spot.ofTraced) {
+      traceChecked_ += floatCount / 3;
+      traceDisagreements_ += mismatched;
+    } else {
+      checkedPixels_ += floatCount / 3;
+      mismatchedPixels_ += mismatched;
+    }
+    if (mismatched > 0) NoteDisagreement(spot.frame, mismatched, std::move(dispute), spot.ofTraced);
     spotChecks_.erase(check);
     return true;
   }
   auto job = jobFramesAwaitingReference_.find(id);
   if (job == jobFramesAwaitingReference_.end()) return false;
   Image reference{width_, height_, std::vector<float>(rgb, rgb + floatCount)};
+  CountChecker(checker, floatCount / 3);
   const FrameError frameError = CompareImages(reference, job->second);
   if (frameError.differingPixels > 0) {
     auto [differing, dispute] = Disagreements(
         frame, floatCount / 3, job->second.rgb.data(), rgb, [](size_t i) { return static_cast<uint32_t>(i); },
         checker);
-    NoteDisagreement(frame, differing, std::move(dispute));
+    NoteDisagreement(frame, differing, std::move(dispute), /*wrongTrace=*/false);
   }
   reference_ += frameError;
   ssimSum_ += Ssim(reference, job->second);
@@ -162,9 +175,17 @@ bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount, co
   return true;
 }
 
-void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute) {
+void Verification::CountChecker(const std::string& checker, uint64_t pixels) {
+  (checker == Referee::kName ? checkedByReferee_ : checkedByWorkers_) += pixels;
+}
+
+void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute, bool wrongTrace) {
   const bool first = suspectFrames_.empty();
   suspectFrames_[frame] += pixels;
+  if (wrongTrace && !options_.promisesExact) {
+    disputes_.push_back(std::move(dispute));  // a wrong trace, whatever the strategy promises
+    return;
+  }
   if (!options_.promisesExact) return;
   disputes_.push_back(std::move(dispute));
   if (!first) return;
@@ -209,6 +230,10 @@ nlohmann::json Verification::Report() const {
         {"psnr_db", std::isinf(psnr) ? nlohmann::json(nullptr) : nlohmann::json(psnr)},
         {"ssim", referenceFramesDone_ ? ssimSum_ / referenceFramesDone_ : 1.0}};
   }
+  // Traced pixels traced again by someone else: any disagreement is a wrong trace.
+  report["trace_checks"] = {{"pixels_checked", traceChecked_}, {"disagreements", traceDisagreements_}};
+  // Who traced the checks, references included: never the worker whose values they check.
+  report["checked_by"] = {{"referee_pixels", checkedByReferee_}, {"worker_pixels", checkedByWorkers_}};
   report["extra_pixels_traced"] = extraPixels_;
   if (Suspect()) {
     nlohmann::json frames = nlohmann::json::object();

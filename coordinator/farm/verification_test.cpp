@@ -1,5 +1,7 @@
 #include "farm/verification.h"
 
+#include "farm/referee.h"
+
 #include <gtest/gtest.h>
 
 #include <set>
@@ -43,7 +45,9 @@ TEST(VerificationTest, FramesToVerifySpreadEvenly) {
 }
 
 TEST(VerificationTest, SpotChecksStayWithinTwoPercentAndFindNothingWhenCopiesAreRight) {
-  Verification verification(kWidth, kHeight, 4, {{}, 0.5 /* clamped to 2 % */, 1});
+  VerificationOptions options{{}, 0.5 /* clamped to 2 % */, 1};
+  options.traceCheckShare = 0;  // the copies' budget alone
+  Verification verification(kWidth, kHeight, 4, options);
   for (int frame = 0; frame < 4; ++frame) {
     auto [rgb, traced] = Frame();
     verification.OnFrameFinished(frame, rgb, traced);
@@ -114,8 +118,56 @@ TEST(VerificationTest, ADisagreementMarksAJobThatPromisesExactnessSuspect) {
     EXPECT_EQ(report.contains("suspect"), promisesExact) << report.dump();
     if (!promisesExact) continue;
     EXPECT_EQ(report["suspect"]["frames"]["1"], kPixels);  // the reference differs everywhere
-    EXPECT_EQ(report["suspect"]["frames"]["0"], report["spot_checks"]["mismatches"]);
+    EXPECT_EQ(report["suspect"]["frames"]["0"], report["spot_checks"]["mismatches"].get<uint64_t>() +
+                                                    report["trace_checks"]["disagreements"].get<uint64_t>());
   }
+}
+
+// Two traces of one pixel give the same bits: a trace check that disagrees is a wrong
+// trace whatever the strategy promises, so it is disputed even for search; a copy that
+// disagrees is search's approximation, measured and not disputed.
+TEST(VerificationTest, ATraceCheckThatDisagreesIsDisputedForEveryStrategy) {
+  for (const bool promisesExact : {true, false}) {
+    VerificationOptions options;
+    options.promisesExact = promisesExact;
+    Verification verification(kWidth, kHeight, 1, options);
+    auto [rgb, traced] = Frame();
+    verification.OnFrameFinished(0, rgb, traced);
+    std::set<uint32_t> copiesWrong, tracesWrong;
+    for (uint32_t p = 0; p < kPixels; ++p) (traced[p] ? tracesWrong : copiesWrong).insert(p);
+    Answer(verification, copiesWrong);
+    EXPECT_EQ(verification.TakeDisputes().size(), promisesExact ? 1u : 0u);
+    const nlohmann::json checks = verification.Report()["trace_checks"];
+    EXPECT_GT(checks["pixels_checked"].get<uint64_t>(), 0u);
+    EXPECT_EQ(checks["disagreements"], 0);
+
+    Verification again(kWidth, kHeight, 1, options);
+    again.OnFrameFinished(0, rgb, traced);
+    Answer(again, tracesWrong);
+    const std::vector<Dispute> disputes = again.TakeDisputes();
+    ASSERT_EQ(disputes.size(), 1u);
+    for (uint32_t p : disputes[0].pixels) EXPECT_TRUE(traced[p]) << p;
+    EXPECT_GT(again.Report()["trace_checks"]["disagreements"].get<uint64_t>(), 0u);
+  }
+}
+
+// Frames a worker on probation traced are sampled more; the report says who checked.
+TEST(VerificationTest, ProbationSamplesMoreAndTheReportNamesTheChecker) {
+  VerificationOptions options;
+  options.spotCheckShare = 0;
+  Verification usual(kWidth, kHeight, 1, options), probation(kWidth, kHeight, 1, options);
+  auto [rgb, traced] = Frame();
+  usual.OnFrameFinished(0, rgb, traced);
+  probation.OnFrameFinished(0, rgb, traced, /*probation=*/true);
+  EXPECT_GT(probation.ExtraPixels(), 2 * usual.ExtraPixels());
+  for (const auto& request : probation.TakeRequests()) {
+    std::vector<float> values;
+    request.pixels.ForEach([&](uint32_t p) { values.insert(values.end(), &rgb[3 * p], &rgb[3 * p + 3]); });
+    EXPECT_TRUE(probation.OnResult(request.id, values.data(), values.size(), Referee::kName));
+  }
+  const nlohmann::json checkedBy = probation.Report()["checked_by"];
+  EXPECT_EQ(checkedBy["referee_pixels"], probation.ExtraPixels());
+  EXPECT_EQ(checkedBy["worker_pixels"], 0);
 }
 
 TEST(VerificationTest, AJobWhoseChecksAgreeIsNotSuspect) {

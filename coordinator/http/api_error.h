@@ -31,6 +31,7 @@ inline constexpr const char* kForbidden = "forbidden";                  // 403, 
 inline constexpr const char* kNotFound = "not_found";                  // 404, no such route
 inline constexpr const char* kJobNotFound = "job_not_found";           // 404
 inline constexpr const char* kFrameNotReady = "frame_not_ready";       // 404
+inline constexpr const char* kBanNotFound = "ban_not_found";           // 404, lift a ban nobody holds
 inline constexpr const char* kMethodNotAllowed = "method_not_allowed"; // 405
 inline constexpr const char* kJobFinished = "job_finished";            // 409
 inline constexpr const char* kJobActive = "job_active";                // 409, delete a queued or running job

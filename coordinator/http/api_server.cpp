@@ -348,6 +348,7 @@ const std::vector<ApiServer::Route>& ApiServer::Routes() {
       {"PUT", "/api/v1/assets/([^/]+)", Access::kSubmit, nullptr, &ApiServer::PutAsset},
       {"POST", "/api/v1/assets/missing", Access::kSubmit, &ApiServer::FindMissingAssets},
       {"GET", "/api/v1/workers", Access::kRead, &ApiServer::ListWorkers},
+      {"DELETE", "/api/v1/workers/distrusted", Access::kAdmin, &ApiServer::LiftWorkerBan},
       // Liveness probes (Kubernetes, compose) carry no token; the answer holds no data.
       {"GET", "/healthz", Access::kOpen, &ApiServer::Health},
       {"GET", "/metrics", Access::kRead, &ApiServer::Metrics},
@@ -959,8 +960,27 @@ void ApiServer::FindMissingAssets(const httplib::Request&, const std::string& bo
   WriteJson(response, json{{"missing", assetStore_.Missing(http::ParseMissingAssetsQuery(body))}});
 }
 
-void ApiServer::ListWorkers(const httplib::Request&, const std::string&, httplib::Response& response) {
+void ApiServer::ListWorkers(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  // ?distrusted: the workers banned for returning wrong values instead of those connected.
+  if (request.has_param("distrusted")) {
+    WriteJson(response, http::BansJson(farm_.Bans()));
+    return;
+  }
   WriteJson(response, http::WorkersJson(farm_.Snapshot()));
+}
+
+void ApiServer::LiftWorkerBan(const httplib::Request& request, const std::string&, httplib::Response& response) {
+  // A query parameter, not a path segment: a CURVE key's Z85 text may hold '/' and '?'.
+  if (request.get_param_value_count("principal") != 1) {
+    throw ApiError(400, error_code::kInvalidParameter,
+                   "principal: expected once, as in ?principal=key:<Z85 public key> or ?principal=name:<name>@<address> "
+                   "(GET /api/v1/workers?distrusted lists them)");
+  }
+  const std::string principal = request.get_param_value("principal");
+  if (!farm_.LiftBan(principal)) {
+    throw ApiError(404, error_code::kBanNotFound, "no worker is banned as " + principal);
+  }
+  WriteJson(response, json{{"lifted", principal}});
 }
 
 void ApiServer::Health(const httplib::Request&, const std::string&, httplib::Response& response) {

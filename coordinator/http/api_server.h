@@ -166,6 +166,7 @@ class ApiServer {
   void PutAsset(const httplib::Request& request, const BodyPieces& read, httplib::Response& response);
   void FindMissingAssets(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void ListWorkers(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void LiftWorkerBan(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Health(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
 

@@ -59,6 +59,21 @@ class FakeFarm : public FarmControl {
     std::lock_guard<std::mutex> lock(mutex_);
     return snapshot_;
   }
+  std::vector<WorkerBan> Bans() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return bans_;
+  }
+  bool LiftBan(const std::string& principal) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto banned = std::find_if(bans_.begin(), bans_.end(), [&](const WorkerBan& b) { return b.principal == principal; });
+    if (banned == bans_.end()) return false;
+    bans_.erase(banned);
+    return true;
+  }
+  void Ban(WorkerBan ban) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    bans_.push_back(std::move(ban));
+  }
   std::vector<uint64_t> Canceled() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return canceled_;
@@ -88,6 +103,7 @@ class FakeFarm : public FarmControl {
  private:
   mutable std::mutex mutex_;
   std::vector<uint64_t> canceled_;
+  std::vector<WorkerBan> bans_;
   std::vector<std::pair<uint64_t, int>> priorities_;
   std::vector<uint64_t> released_;
   bool stopped_ = false;
@@ -1350,6 +1366,7 @@ TEST_F(ApiServerTest, WorkersComeFromTheFarmSnapshot) {
   FarmSnapshot snapshot;
   WorkerSnapshot worker;
   worker.name = "node-1/4242";
+  worker.principal = "key:rq:rn+=Dq:[!z*gHrFd2kXr!DYIQTrOnH/IJ-r";
   worker.capacity = 4;
   worker.threads = 16;
   worker.inFlight = 3;
@@ -1368,11 +1385,40 @@ TEST_F(ApiServerTest, WorkersComeFromTheFarmSnapshot) {
   ASSERT_EQ(result->status, 200);
   EXPECT_EQ(json::parse(result->body),
             (json{{"workers",
-                   {{{"name", "node-1/4242"}, {"capacity", 4}, {"threads", 16}, {"in_flight", 3},
+                   {{{"name", "node-1/4242"}, {"principal", "key:rq:rn+=Dq:[!z*gHrFd2kXr!DYIQTrOnH/IJ-r"},
+                     {"capacity", 4}, {"threads", 16}, {"in_flight", 3},
                      {"tasks_done", 120}, {"pixels_done", 99999}, {"trace_seconds", 12.5},
                      {"seconds_since_heard", 0.25}, {"connected_seconds", 60.0}}}},
                   {"queued_tasks", 7},
                   {"in_flight_tasks", 3}}));
+}
+
+// ?distrusted lists the bans; lifting one is an admin's right, a principal given once,
+// and an unknown one is a 404. A CURVE key may hold '/': it travels as a query value.
+TEST_F(ApiServerTest, DistrustedWorkersAreListedAndTheirBansLifted) {
+  const std::string principal = "key:rq:rn+=Dq:[!z*gHrFd2kXr!DYIQTrOnH/IJ-r";
+  farm_.Ban({principal, "liar", "grey pixels", kNowMs});
+  httplib::Result listed = Get("/api/v1/workers?distrusted");
+  ASSERT_TRUE(listed);
+  ASSERT_EQ(listed->status, 200);
+  const json bans = json::parse(listed->body)["distrusted"];
+  ASSERT_EQ(bans.size(), 1u);
+  EXPECT_EQ(bans[0]["principal"], principal);
+  EXPECT_EQ(bans[0]["why"], "grey pixels");
+  EXPECT_EQ(bans[0]["banned_at"], "2024-05-01T12:34:56.789Z");
+  httplib::Result missing = client_->Delete("/api/v1/workers/distrusted");
+  ASSERT_TRUE(missing);
+  EXPECT_EQ(missing->status, 400);
+  const std::string query = "/api/v1/workers/distrusted?principal=" + httplib::detail::encode_query_param(principal);
+  httplib::Result lifted = client_->Delete(query.c_str());
+  ASSERT_TRUE(lifted);
+  EXPECT_EQ(lifted->status, 200) << lifted->body;
+  EXPECT_EQ(json::parse(lifted->body)["lifted"], principal);
+  EXPECT_TRUE(farm_.Bans().empty());
+  httplib::Result again = client_->Delete(query.c_str());
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->status, 404);
+  EXPECT_EQ(json::parse(again->body)["error"]["code"], "ban_not_found");
 }
 
 TEST_F(ApiServerTest, Healthz) {

@@ -80,6 +80,7 @@ json WorkersJson(const FarmSnapshot& snapshot) {
   json workers = json::array();
   for (const WorkerSnapshot& worker : snapshot.workers) {
     workers.push_back({{"name", worker.name},
+                       {"principal", worker.principal},
                        {"capacity", worker.capacity},
                        {"threads", worker.threads},
                        {"in_flight", worker.inFlight},
@@ -92,6 +93,17 @@ json WorkersJson(const FarmSnapshot& snapshot) {
   return json{{"workers", std::move(workers)},
               {"queued_tasks", snapshot.queuedTasks},
               {"in_flight_tasks", snapshot.inFlightTasks}};
+}
+
+json BansJson(const std::vector<WorkerBan>& bans) {
+  json distrusted = json::array();
+  for (const WorkerBan& ban : bans) {
+    distrusted.push_back({{"principal", ban.principal},
+                          {"name", ban.name},
+                          {"why", ban.why},
+                          {"banned_at", IsoUtcOrNull(ban.bannedMs)}});
+  }
+  return json{{"distrusted", std::move(distrusted)}};
 }
 
 }  // namespace tcfarm::http

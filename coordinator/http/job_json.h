@@ -28,6 +28,8 @@ nlohmann::json EventJson(const JobEvent& event);
 
 // GET /api/v1/workers body.
 nlohmann::json WorkersJson(const FarmSnapshot& snapshot);
+// GET /api/v1/workers?distrusted: {"distrusted": [{principal, name, why, banned_at}]}.
+nlohmann::json BansJson(const std::vector<WorkerBan>& bans);
 
 std::string JobPath(uint64_t id);  // "/api/v1/jobs/<id>"
 

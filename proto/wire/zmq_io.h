@@ -60,4 +60,33 @@ inline std::optional<std::vector<std::string>> ReceiveParts(zmq::socket_t& socke
   return parts;
 }
 
+// Who sent a message on a ROUTER socket, as ZeroMQ knows it from the connection (not
+// from anything the peer says): the CURVE public key that ZAP accepted (Z85), and the
+// peer's address. Either is empty where the transport has none.
+struct Peer {
+  std::string curveKey;
+  std::string address;
+};
+
+// ReceiveParts, with the connection's Peer read from the message's metadata.
+inline std::optional<std::vector<std::string>> ReceivePartsFrom(zmq::socket_t& socket, Peer& peer) {
+  std::vector<zmq::message_t> frames;
+  auto received = zmq::recv_multipart(socket, std::back_inserter(frames), zmq::recv_flags::dontwait);
+  if (!received) return std::nullopt;
+  // A property the transport does not set is an error (EINVAL) that only means "none".
+  // The ROUTER's routing-id frame is made locally and may carry no metadata: the frames
+  // that came over the connection do, so each is asked until one answers.
+  auto property = [&](const char* name) -> std::string {
+    for (zmq::message_t& frame : frames) {
+      if (const char* value = zmq_msg_gets(frame.handle(), name)) return value;
+    }
+    return "";
+  };
+  peer = Peer{property("User-Id"), property("Peer-Address")};
+  std::vector<std::string> parts;
+  parts.reserve(frames.size());
+  for (auto& frame : frames) parts.emplace_back(frame.to_string());
+  return parts;
+}
+
 }  // namespace tcfarm::wire

@@ -9,6 +9,7 @@
   tcfarm frames JOB --out DIR [--format png|exr]
   tcfarm cancel JOB | retry JOB | delete JOB [--yes] | priority JOB N | rename JOB NAME
   tcfarm workers
+  tcfarm distrusted [--lift PRINCIPAL]   workers banned for returning wrong values
   tcfarm analyze JOB|DIR      coherence of a job's frames (from the farm) or of a folder
 
 Global options: --url (TCFARM_URL), --token (TCFARM_TOKEN) for a farm with API tokens,
@@ -288,6 +289,23 @@ def cmd_workers(client, args):
         print("no workers connected")
     print(f"{len(workers)} workers, {farm.get('queued_tasks', 0)} tasks queued, "
           f"{farm.get('in_flight_tasks', 0)} in flight")
+    return 0
+
+
+def cmd_distrusted(client, args):
+    if args.lift:
+        client.lift_ban(args.lift)
+        print(f"lifted the ban of {args.lift}")
+        return 0
+    bans = client.distrusted_workers()
+    if args.json:
+        print(json.dumps(bans, indent=1))
+        return 0
+    if not bans:
+        print("no worker is banned")
+        return 0
+    rows = [(b["principal"], b["name"], _when(b["banned_at"]), b["why"]) for b in bans]
+    print("\n".join(_table(("principal", "name", "banned", "why"), rows)))
     return 0
 
 
@@ -609,6 +627,12 @@ def _parser():
     frames.add_argument("--format", choices=["png", "exr"], default="png",
                         help="png (8-bit) or exr (the float frames) (default png)")
     command("workers", "the workers connected, what each has done, and the tasks queued")
+    distrusted = command("distrusted", "workers banned for returning wrong values",
+                         "Workers the farm banned for returning wrong values (by CURVE key, or "
+                         "by name and address without CURVE), or --lift one ban (an admin "
+                         "token's right).")
+    distrusted.add_argument("--lift", metavar="PRINCIPAL",
+                            help="let the worker banned as PRINCIPAL work again")
     analyze = command("analyze", "coherence of a job (id) or a folder of frames",
                       "Coherence of a job's frames (by id, from the farm) or of a folder of EXR "
                       f"frames (needs tcfarm-coordinator: ${COORDINATOR_ENV}, PATH or a build/ "
@@ -626,6 +650,7 @@ def main(argv=None):
         return 1
     commands = {
         "submit": cmd_submit, "frames": cmd_frames, "analyze": cmd_analyze, "workers": cmd_workers,
+        "distrusted": cmd_distrusted,
         "status": cmd_status, "list": cmd_list, "delete": cmd_delete, "events": cmd_events,
         "watch": cmd_watch,
         "wait": lambda client, args: _print_job(client.wait(args.job), args),

@@ -195,6 +195,15 @@ class Client:
     def workers(self):
         return self._request("GET", "/api/v1/workers")
 
+    def distrusted_workers(self):
+        """Workers banned for returning wrong values: [{principal, name, why, banned_at}]."""
+        return self._request("GET", "/api/v1/workers?distrusted")["distrusted"]
+
+    def lift_ban(self, principal):
+        """Lets a banned worker (its principal as distrusted_workers names it) work again."""
+        query = urllib.parse.urlencode({"principal": principal})
+        return self._request("DELETE", "/api/v1/workers/distrusted?" + query)
+
     def frame(self, job_id, frame, fmt="png"):
         return self._request("GET", f"/api/v1/jobs/{int(job_id)}/frames/{int(frame)}.{fmt}",
                              raw=True)
