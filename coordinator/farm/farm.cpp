@@ -210,7 +210,12 @@ void Farm::ApplyRequests() {
     priorities.swap(priorityRequests_);
     releases.swap(releaseRequests_);
   }
-  for (const std::string& principal : lifted) dispatcher_.Unban(principal);
+  for (const std::string& principal : lifted) {
+    if (dispatcher_.Unban(principal)) {
+      std::fprintf(stderr, "coordinator: the ban of %s is lifted; it is heard again on its next connection\n",
+                   principal.c_str());
+    }
+  }
   for (const auto& [id, ticket] : releases) cancels.insert(id);
   std::set<uint64_t> unread;  // asked again by the next step
   for (uint64_t id : cancels) {
