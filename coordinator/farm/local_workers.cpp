@@ -1,12 +1,15 @@
 #include "farm/local_workers.h"
 
+#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <stdexcept>
@@ -19,6 +22,71 @@ namespace {
 
 // Time a worker gets to finish its current task and say DISCONNECT.
 constexpr auto kStopGrace = std::chrono::seconds(3);
+
+// The file execve runs: the binary itself when its name has a folder in it, else the first
+// executable of that name in a PATH folder. Looked up before fork, since the child of a
+// threaded process may only make async-signal-safe calls until it execs.
+std::string ResolveExecutable(const std::string& binary) {
+  if (binary.find('/') != std::string::npos) return binary;
+  const char* path = std::getenv("PATH");
+  std::string folders = path ? path : "/usr/local/bin:/usr/bin:/bin";
+  for (size_t begin = 0; begin <= folders.size();) {
+    size_t end = folders.find(':', begin);
+    if (end == std::string::npos) end = folders.size();
+    const std::string folder = end == begin ? "." : folders.substr(begin, end - begin);
+    const std::string candidate = folder + "/" + binary;
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(candidate, ec) && access(candidate.c_str(), X_OK) == 0) return candidate;
+    begin = end + 1;
+  }
+  throw std::runtime_error("cannot start worker " + binary + ": no executable of that name on PATH");
+}
+
+// In the forked child. The worker is killed when the coordinator dies, however it dies
+// (SIGKILL included): an orphan would go on taking tasks from whichever coordinator next
+// listens on the endpoint. SIGKILL rather than SIGTERM: a worker given SIGTERM first
+// finishes its task, whose result nobody would receive. If the coordinator died before
+// prctl, the child was already reparented and exits here. An exec failure's errno goes
+// back through errorFd (closed on exec, so the parent reads nothing when exec succeeds).
+[[noreturn]] void ExecWorker(const char* file, char* const argv[], pid_t coordinator, int errorFd) {
+  if (prctl(PR_SET_PDEATHSIG, SIGKILL) != 0 || getppid() != coordinator) _exit(127);
+  execve(file, argv, environ);
+  const int error = errno;
+  [[maybe_unused]] ssize_t written = write(errorFd, &error, sizeof error);
+  _exit(127);
+}
+
+// The errno the child sent before it exited instead of exec'ing; 0 once it exec'ed.
+int ReadExecError(int fd) {
+  int error = 0;
+  ssize_t got = 0;
+  do {
+    got = read(fd, &error, sizeof error);
+  } while (got < 0 && errno == EINTR);
+  return got == static_cast<ssize_t>(sizeof error) ? error : 0;
+}
+
+// Starts the worker in a child process that dies with this one (ExecWorker); throws when
+// it cannot be started, with the reason.
+pid_t ForkWorker(const std::string& file, char* const argv[]) {
+  int errorPipe[2];
+  if (pipe2(errorPipe, O_CLOEXEC) != 0) {
+    throw std::runtime_error("cannot start worker " + file + ": " + std::strerror(errno));
+  }
+  const pid_t coordinator = getpid();
+  const pid_t pid = fork();
+  if (pid == 0) ExecWorker(file.c_str(), argv, coordinator, errorPipe[1]);
+  const int forkError = errno;
+  close(errorPipe[1]);
+  const int execError = pid > 0 ? ReadExecError(errorPipe[0]) : 0;
+  close(errorPipe[0]);
+  if (pid < 0) throw std::runtime_error("cannot start worker " + file + ": " + std::strerror(forkError));
+  if (execError != 0) {
+    waitpid(pid, nullptr, 0);
+    throw std::runtime_error("cannot start worker " + file + ": " + std::strerror(execError));
+  }
+  return pid;
+}
 
 }  // namespace
 
@@ -49,12 +117,7 @@ pid_t LocalWorkers::Spawn(unsigned index) const {
   std::vector<char*> argv;
   for (auto& arg : args) argv.push_back(arg.data());
   argv.push_back(nullptr);
-  pid_t pid = 0;
-  int error = posix_spawnp(&pid, binary_.c_str(), nullptr, nullptr, argv.data(), environ);
-  if (error != 0) {
-    throw std::runtime_error("cannot start worker " + binary_ + ": " + std::strerror(error));
-  }
-  return pid;
+  return ForkWorker(ResolveExecutable(binary_), argv.data());
 }
 
 void LocalWorkers::Start(unsigned count) {

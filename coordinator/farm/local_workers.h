@@ -1,6 +1,9 @@
 // Worker processes started by the coordinator itself for the embedded local farm. They
 // are ordinary `tcfarm-worker serve` processes on loopback; one that exits is restarted,
-// so a local farm heals the way a cluster's orchestrator would heal it.
+// so a local farm heals the way a cluster's orchestrator would heal it. They die with the
+// coordinator, even one killed with SIGKILL: each asks the kernel (PR_SET_PDEATHSIG) for
+// SIGKILL when the thread that started it exits. So Start and RestartExited are called
+// from a thread that lives as long as the coordinator: the main thread, which runs the farm.
 #pragma once
 
 #include <sys/types.h>

@@ -2,9 +2,12 @@
 
 #include <sqlite3.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
+#include <set>
 #include <string>
 #include <unordered_map>
 #include <utility>
@@ -603,6 +606,29 @@ EventDraft FramesWrittenEvent(const std::vector<int>& frames) {
           {{"first", runs.front().first}, {"last", runs.back().second}, {"count", count}, {"ranges", ranges}}};
 }
 
+// The job's recorded frames that no frames_written event names, ascending: those a
+// coordinator that stopped without its goodbye had recorded but not yet told.
+std::vector<int> RecordedFramesNeverTold(Database& db, uint64_t id) {
+  std::set<int> told;
+  Statement events(db, "SELECT fields FROM job_events WHERE job_id = ?1 AND type = 'frames_written'");
+  events.Bind(1, static_cast<int64_t>(id));
+  while (events.Step()) {
+    const nlohmann::json fields = nlohmann::json::parse(events.Text(0), nullptr, false);
+    if (!fields.is_object() || !fields.contains("ranges") || !fields["ranges"].is_array()) continue;
+    for (const nlohmann::json& range : fields["ranges"]) {
+      if (range.size() != 2 || !range[0].is_number_integer() || !range[1].is_number_integer()) continue;
+      for (int frame = range[0].get<int>(); frame <= range[1].get<int>(); ++frame) told.insert(frame);
+    }
+  }
+  std::vector<int> untold;
+  Statement frames(db, "SELECT frame FROM job_frames WHERE job_id = ?1 ORDER BY frame");
+  frames.Bind(1, static_cast<int64_t>(id));
+  while (frames.Step()) {
+    if (told.count(frames.Int(0)) == 0) untold.push_back(frames.Int(0));
+  }
+  return untold;
+}
+
 std::string FramesOf(const JobRecord& record) {
   return std::to_string(record.framesDone) + " of " + std::to_string(record.FrameCount()) + " frames";
 }
@@ -1041,6 +1067,7 @@ std::vector<uint64_t> JobStore::RequeueInterrupted() {
   db_->Exec("UPDATE jobs SET state = 'queued' WHERE state = 'running'");
   std::vector<JobEvent> recorded;
   for (uint64_t id : ids) {
+    RecordUntoldFramesOfCrash(id, recorded);
     const JobRecord record = *LoadRecordRow(*db_, id);
     Record(id,
            {"requeued",
@@ -1168,6 +1195,18 @@ void JobStore::RecordUntoldFrames(uint64_t id, std::vector<JobEvent>& recorded, 
   if (untold == untold_.end() || untold->second.frames.empty()) return;
   Record(id, FramesWrittenEvent(untold->second.frames), recorded);
   told.push_back(id);
+}
+
+void JobStore::RecordUntoldFramesOfCrash(uint64_t id, std::vector<JobEvent>& recorded) {
+  const std::vector<int> untold = RecordedFramesNeverTold(*db_, id);
+  for (size_t begin = 0; begin < untold.size(); begin += kFramesPerEvent) {
+    const size_t end = std::min(untold.size(), begin + kFramesPerEvent);
+    EventDraft event = FramesWrittenEvent({untold.begin() + static_cast<std::ptrdiff_t>(begin),
+                                           untold.begin() + static_cast<std::ptrdiff_t>(end)});
+    event.message += " (recovered: the coordinator stopped before telling them)";
+    event.fields["recovered"] = true;
+    Record(id, event, recorded);
+  }
 }
 
 void JobStore::Announce(const std::vector<JobEvent>& recorded, const std::vector<uint64_t>& told) {

@@ -281,6 +281,9 @@ class JobStore {
   // For startup: jobs a previous coordinator process left running go back to queued. Their
   // recorded frames (written to the store before they were recorded), counters, startedMs,
   // stats and plan stay, so the next claim resumes them. Returns their ids, ascending.
+  // Frames the previous process recorded but had not told yet (it died before a
+  // frames_written event named them) are told first, in frames_written events marked
+  // "recovered": true, so every recorded frame has its event.
   std::vector<uint64_t> RequeueInterrupted();
 
   // Fixes a running job's plan (JobRecord::plan); false when the job is not running.
@@ -330,6 +333,9 @@ class JobStore {
   // Inside a write transaction: the frames_written event of the job's untold frames (and
   // forgets them once committed, through `told`).
   void RecordUntoldFrames(uint64_t id, std::vector<JobEvent>& recorded, std::vector<uint64_t>& told);
+  // Inside a write transaction: frames_written events (marked recovered) for the job's
+  // recorded frames that no event names, as a crash leaves them.
+  void RecordUntoldFramesOfCrash(uint64_t id, std::vector<JobEvent>& recorded);
   // After the commit.
   void Announce(const std::vector<JobEvent>& recorded, const std::vector<uint64_t>& told);
 

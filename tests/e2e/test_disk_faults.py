@@ -2,7 +2,8 @@
 process stays up, everything recovers), a full frame store (a failed job whose record
 says exactly which frames are on disk), a database that does not belong to its store
 (refused at start), and a coordinator killed mid-job that resumes without tracing its
-written frames again.
+written frames again, with every written frame in its job's event log, and whose local
+workers die with it.
 
 A full disk is a real tmpfs of a few MiB mounted for the test (root only; skipped with
 the reason when mounting is not permitted)."""
@@ -223,6 +224,19 @@ def recorded_frames(database, job_id):
     return {row[0] for row in rows}, plan
 
 
+def frames_told(events):
+    """How many frames_written events name each frame, and how many frames were told as
+    recovered."""
+    times, recovered = {}, 0
+    for event in events:
+        if event["type"] == "frames_written":
+            for first, last in event["ranges"]:
+                for frame in range(first, last + 1):
+                    times[frame] = times.get(frame, 0) + 1
+            recovered += event["count"] if event.get("recovered") else 0
+    return {"times": times, "recovered": recovered}
+
+
 @pytest.mark.parametrize("strategy,bin_width", [("exact", 6), ("search", 6), ("guarded", 6), ("brute", 2)])
 def test_a_killed_coordinator_resumes_the_job_without_retracing_written_frames(tmp_path, strategy, bin_width):
     frames, width, height = 36, 240, 180
@@ -253,6 +267,11 @@ def test_a_killed_coordinator_resumes_the_job_without_retracing_written_frames(t
         assert stats["retraced_pixels"] <= bound
         assert resumed["frames"]["done"] == frames
         assert resumed["submitted_at"] == before
+        # The event log names every frame once, those the killed coordinator had recorded
+        # but not yet told included (told on resume, marked recovered).
+        told = frames_told(farm.client.events(job["id"]))
+        print(f"{strategy}: {told['recovered']} frames told as recovered on resume")
+        assert told["times"] == {frame: 1 for frame in range(frames)}
 
         if strategy in ("search", "guarded"):
             # Not brute force: the resumed job equals an uninterrupted one, bit for bit.
@@ -281,3 +300,42 @@ def test_started_at_survives_the_restart(tmp_path):
         resumed = farm.client.wait(job["id"], timeout=TIMEOUT)
     assert resumed["state"] == "completed"
     assert resumed["started_at"] == started
+
+
+def children_of(pid):
+    """The pids of the live processes whose parent is `pid`, from /proc/*/stat."""
+    children = []
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()  # after "pid (comm)"
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            children.append(int(stat.parent.name))
+    return children
+
+
+def alive(pid):
+    """Whether the process exists and is not a zombie waiting for its reaper."""
+    try:
+        return pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def test_local_workers_die_with_a_killed_coordinator(tmp_path):
+    """Workers the coordinator started itself do not outlive it, even when it is killed
+    with SIGKILL (no goodbye, no cleanup): an orphan would join the next coordinator."""
+    with LocalFarm(tmp_path, workers=0, local_workers=2) as farm:
+        farm.wait_for_workers(2)
+        workers = children_of(farm.coordinator.pid)
+        assert len(workers) == 2, f"the coordinator's children: {workers}"
+        farm.coordinator.send_signal(signal.SIGKILL)
+        farm.coordinator.wait()
+        try:
+            # A liveness bound, not a speed measure: the kernel kills them as the coordinator dies.
+            wait_until(lambda: not any(alive(pid) for pid in workers), timeout=10,
+                       what=f"local workers {workers} to die with their coordinator")
+        finally:
+            for pid in filter(alive, workers):  # orphans left by a failure: not the next test's
+                os.kill(pid, signal.SIGKILL)
