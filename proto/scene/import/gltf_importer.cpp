@@ -28,6 +28,7 @@
 #include <tiny_gltf.h>
 
 #include "wire/content_hash.h"
+#include "scene/import/gltf_data_uris.h"
 #include "scene/import/mesh_geometry.h"
 #include "scene/import/importers.h"
 #include "scene/import/messages.h"
@@ -48,6 +49,14 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr int kMaxFrameCount = 100000;
 constexpr int kMaxMotionDepth = 32;
 constexpr size_t kMaxJoints = 4096;
+// The most elements one accessor may hold: the indices of the most triangles a scene may
+// hold. Far below 2^31, so that no count can ask for more than a few GiB of values.
+constexpr size_t kMaxAccessorCount = 3 * kMaxSceneTriangles;
+// The values all accessor reads together may produce (8 bytes each), per byte of the
+// file's buffers, plus a fixed allowance: an accessor of bytes read once gives 8 per byte,
+// and a short JSON naming one large accessor over and over must not multiply it.
+constexpr uint64_t kValueBytesPerBufferByte = 16;
+constexpr uint64_t kValueBytesAllowance = uint64_t{16} << 20;
 constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
 // glTF's defaults for what a file leaves out.
 constexpr int kDefaultWidth = 640, kDefaultHeight = 480;
@@ -91,11 +100,23 @@ std::string UrlDecode(const std::string& text) {
 }
 
 // tinygltf reads external files only through these, so that a file never reaches outside
-// the scene's folder and data without a folder never reads any.
+// the scene's folder and data without a folder never reads any. They also hand over the
+// file's data URIs, decoded beforehand (gltf_data_uris.h), under the names that replaced them.
 struct FileAccess {
   std::optional<std::filesystem::path> folder;
   std::string prefix;  // folder as tinygltf joins it, with a trailing '/'
+  std::vector<std::vector<unsigned char>>* embedded;
 };
+
+// tinygltf joins a uri to the folder, or to "." (or to nothing, without a folder).
+std::optional<size_t> EmbeddedIndexOf(const FileAccess& access, std::string_view path) {
+  for (std::string_view base : {std::string_view(access.prefix), std::string_view("./")}) {
+    if (!base.empty() && path.substr(0, base.size()) == base) path.remove_prefix(base.size());
+  }
+  const std::optional<size_t> index = gltf::EmbeddedIndex(path);
+  if (!index || *index >= access.embedded->size()) return std::nullopt;
+  return index;
+}
 
 bool Inside(const FileAccess& access, const std::string& path, std::filesystem::path* resolved) {
   if (!access.folder || path.compare(0, access.prefix.size(), access.prefix) != 0) return false;
@@ -109,15 +130,21 @@ bool Inside(const FileAccess& access, const std::string& path, std::filesystem::
 }
 
 bool FileExistsInside(const std::string& path, void* user) {
+  const FileAccess& access = *static_cast<FileAccess*>(user);
   std::filesystem::path resolved;
-  return Inside(*static_cast<FileAccess*>(user), path, &resolved);
+  return EmbeddedIndexOf(access, path) || Inside(access, path, &resolved);
 }
 
 std::string ExpandNothing(const std::string& path, void*) { return path; }
 
 bool ReadFileInside(std::vector<unsigned char>* out, std::string* error, const std::string& path, void* user) {
+  const FileAccess& access = *static_cast<FileAccess*>(user);
+  if (const std::optional<size_t> index = EmbeddedIndexOf(access, path)) {
+    out->swap((*access.embedded)[*index]);  // tinygltf swaps it on into the buffer or image: no copy
+    return true;
+  }
   std::filesystem::path resolved;
-  if (!Inside(*static_cast<FileAccess*>(user), path, &resolved)) {
+  if (!Inside(access, path, &resolved)) {
     if (error) *error = "not a readable file inside the scene folder";
     return false;
   }
@@ -375,9 +402,10 @@ class GltfReader {
   GltfReader(const ImportInput& input) : input_(input), options_(input.options) {}
 
   Scene Read() {
-    std::string jsonText = CheckContainer();
-    PreCheck(jsonText);
+    embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+    PreCheck(embedded_.json);
     Load();
+    embedded_ = {};
     CheckExtensions();
     Scene scene;
     AddMaterials(scene);
@@ -408,7 +436,7 @@ class GltfReader {
   // The GLB container (header, JSON chunk, optional BIN chunk), checked before tinygltf
   // reads it so that a truncated file is refused with the byte offset where it falls short.
   // Returns the JSON text.
-  std::string CheckContainer() const {
+  std::string_view CheckContainer() const {
     const std::string& bytes = input_.bytes;
     if (bytes.size() > std::numeric_limits<unsigned int>::max()) {
       Fail("", "the file holds " + std::to_string(bytes.size()) + " bytes", "a glTF file under 4 GiB");
@@ -447,7 +475,7 @@ class GltfReader {
     } else if (next != bytes.size()) {
       Fail("", "GLB byte " + std::to_string(next) + ": the file ends inside a chunk header", glb);
     }
-    return bytes.substr(20, jsonLength);
+    return std::string_view(bytes).substr(20, jsonLength);
   }
 
   // What tinygltf reports without saying where: extensions this importer lacks, and
@@ -479,8 +507,12 @@ class GltfReader {
       for (size_t i = 0; i < items.size(); ++i) {
         if (!items[i].is_object() || !items[i].contains("uri") || !items[i]["uri"].is_string()) continue;
         std::string uri = items[i]["uri"].get<std::string>();
-        if (uri.compare(0, 5, "data:") == 0) continue;
         std::string pointer = Pointer(collection, i) + "/uri";
+        if (const std::optional<size_t> embedded = gltf::EmbeddedIndex(uri)) {
+          CheckEmbeddedLength(items[i], embedded_.bytes[*embedded].size(), Pointer(collection, i));
+          continue;
+        }
+        if (uri.compare(0, 5, "data:") == 0) continue;  // one the scan did not take out (gltf_data_uris.h): tinygltf decodes it
         std::string what = std::string(collection) == "buffers" ? "buffer file" : "image file";
         if (!input_.baseDirectory) {
           Fail(pointer, what + " " + QuoteInput(uri) + " cannot be read: the file was submitted without a folder",
@@ -501,9 +533,41 @@ class GltfReader {
     }
   }
 
+  // tinygltf would report a buffer whose data URI decodes to another length than its
+  // byteLength under the name that replaced the URI.
+  void CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const {
+    if (!item.contains("byteLength") || !item["byteLength"].is_number()) return;  // not a buffer
+    const nlohmann::json& length = item["byteLength"];
+    if (!length.is_number_unsigned() || length.get<uint64_t>() != decoded) {
+      Fail(pointer + "/byteLength", "a byteLength of " + length.dump() + " for a data URI of " +
+                                        std::to_string(decoded) + " bytes",
+           "the byteLength its data URI decodes to");
+    }
+  }
+
+  // What tinygltf reads: the file with its data URIs replaced by their names. A GLB's
+  // JSON chunk is rebuilt only when it held data URIs.
+  std::string GlbWithJson(const std::string& json) const {
+    const std::string& bytes = input_.bytes;
+    uint32_t oldLength = 0;
+    for (int i = 3; i >= 0; --i) oldLength = oldLength << 8 | static_cast<unsigned char>(bytes[12 + i]);
+    std::string padded = json + std::string((4 - json.size() % 4) % 4, ' ');
+    const std::string_view rest = std::string_view(bytes).substr(20 + oldLength);
+    auto word = [](uint64_t value) {
+      std::string out(4, '\0');
+      for (int i = 0; i < 4; ++i) out[i] = static_cast<char>(value >> (8 * i));
+      return out;
+    };
+    std::string glb = bytes.substr(0, 8) + word(20 + padded.size() + rest.size()) + word(padded.size()) + "JSON";
+    glb.reserve(glb.size() + padded.size() + rest.size());
+    glb += padded;
+    glb.append(rest);
+    return glb;
+  }
+
   void Load() {
     tinygltf::TinyGLTF loader;
-    FileAccess access{input_.baseDirectory, ""};
+    FileAccess access{input_.baseDirectory, "", &embedded_.bytes};
     std::string base;
     if (input_.baseDirectory) {
       base = input_.baseDirectory->string();
@@ -513,12 +577,15 @@ class GltfReader {
     loader.SetImageLoader(&KeepImageEncoded, &model_);
     std::string error, warning;
     bool loaded = false;
-    const auto* data = reinterpret_cast<const unsigned char*>(input_.bytes.data());
-    const auto length = static_cast<unsigned int>(input_.bytes.size());
     if (IsBinary()) {
-      loaded = loader.LoadBinaryFromMemory(&model_, &error, &warning, data, length, base, tinygltf::REQUIRE_VERSION);
+      const std::string rebuilt = embedded_.bytes.empty() ? "" : GlbWithJson(embedded_.json);
+      const std::string& glb = embedded_.bytes.empty() ? input_.bytes : rebuilt;
+      loaded = loader.LoadBinaryFromMemory(&model_, &error, &warning,
+                                           reinterpret_cast<const unsigned char*>(glb.data()),
+                                           static_cast<unsigned int>(glb.size()), base, tinygltf::REQUIRE_VERSION);
     } else {
-      loaded = loader.LoadASCIIFromString(&model_, &error, &warning, input_.bytes.data(), length, base,
+      loaded = loader.LoadASCIIFromString(&model_, &error, &warning, embedded_.json.data(),
+                                          static_cast<unsigned int>(embedded_.json.size()), base,
                                           tinygltf::REQUIRE_VERSION);
     }
     auto oneLine = [](std::string text) {
@@ -550,6 +617,24 @@ class GltfReader {
     double At(size_t element, int component) const { return values[element * components + component]; }
   };
 
+  // Where `count` elements of `elementSize` bytes start in a buffer, and how far apart.
+  struct ViewElements {
+    const unsigned char* base;
+    size_t stride;
+  };
+  // A sparse accessor's substitutions: `count` indices of `indexType`, and as many values.
+  struct SparseLayout {
+    size_t count;
+    int indexType;
+    size_t indexSize;
+    ViewElements indices, values;
+  };
+  // Where an accessor's elements lie: `elements` none when it has no buffer view (all zeros).
+  struct AccessorLayout {
+    std::optional<ViewElements> elements;
+    std::optional<SparseLayout> sparse;
+  };
+
   // An accessor's elements as doubles. `types` are the allowed TINYGLTF_TYPE_*; integer
   // components of a normalized accessor become [0, 1] (or [-1, 1]) as the spec says. A
   // sparse accessor's substitutions are applied over its buffer view's elements (or zeros).
@@ -572,32 +657,34 @@ class GltfReader {
     }
     const int componentSize = tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(accessor.componentType));
     const int components = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(accessor.type));
+    const size_t elementSize = static_cast<size_t>(componentSize) * static_cast<size_t>(components);
+    // Everything the values depend on is checked before they are allocated: a few bytes
+    // of JSON must not be able to ask for gigabytes.
+    const AccessorLayout layout = CheckedLayout(accessor, pointer, elementSize);
+    ChargeValues(accessor.count * static_cast<size_t>(components), pointer);
     AccessorData data;
     data.count = accessor.count;
     data.components = components;
-    if (accessor.count > std::numeric_limits<uint32_t>::max()) {
-      Fail(pointer + "/count", std::to_string(accessor.count) + " elements", "at most 2^32 - 1 elements");
-    }
-    const size_t elementSize = static_cast<size_t>(componentSize) * static_cast<size_t>(components);
-    if (accessor.bufferView < 0 && accessor.count * elementSize > BufferBytes()) {
-      // All zeros, as the spec says; but a few bytes of JSON must not ask for gigabytes.
-      Fail(pointer + "/count",
-           std::to_string(accessor.count) + " elements without a buffer view (" +
-               std::to_string(accessor.count * elementSize) + " bytes of zeros)",
-           "an accessor without a buffer view no larger than the file's buffers (" + std::to_string(BufferBytes()) +
-               " bytes)");
-    }
     data.values.assign(accessor.count * static_cast<size_t>(components), 0.0);
-    if (accessor.bufferView >= 0) {  // without one, all zeros, as the spec says
-      const ViewElements elements = InView(accessor.bufferView, accessor.byteOffset, accessor.count, elementSize,
-                                           true, pointer);
+    if (layout.elements) {
       for (size_t element = 0; element < accessor.count; ++element) {
-        ReadElement(elements.base + element * elements.stride, accessor, componentSize,
+        ReadElement(layout.elements->base + element * layout.elements->stride, accessor, componentSize,
                     &data.values[element * static_cast<size_t>(components)]);
       }
     }
-    if (accessor.sparse.isSparse) ApplySparse(accessor, pointer, componentSize, elementSize, data);
+    if (layout.sparse) ApplySparse(accessor, pointer, componentSize, *layout.sparse, data);
     return data;
+  }
+
+  void ChargeValues(uint64_t values, const std::string& pointer) const {
+    const uint64_t budget = kValueBytesPerBufferByte * BufferBytes() + kValueBytesAllowance;
+    valueBytesRead_ += values * sizeof(double);
+    if (valueBytesRead_ > budget) {
+      Fail(pointer, "reading it brings the values read from the file's accessors to " +
+                        std::to_string(valueBytesRead_) + " bytes",
+           "at most " + std::to_string(kValueBytesPerBufferByte) + " bytes of values per byte of the file's buffers (" +
+               std::to_string(BufferBytes()) + ") + 16 MiB: accessors that are not read over and over");
+    }
   }
 
   size_t BufferBytes() const {
@@ -606,14 +693,34 @@ class GltfReader {
     return bytes;
   }
 
+  // The one gate every read of an accessor passes before anything is allocated per
+  // element: its count below the limit, its elements inside its buffer view and the view
+  // inside its buffer (or, without a view, no more zeros than the file has buffer bytes),
+  // and its sparse substitutions' views likewise. 64-bit arithmetic that cannot overflow.
+  AccessorLayout CheckedLayout(const tinygltf::Accessor& accessor, const std::string& pointer,
+                               size_t elementSize) const {
+    if (accessor.count > kMaxAccessorCount) {
+      Fail(pointer + "/count", std::to_string(accessor.count) + " elements",
+           "at most " + std::to_string(kMaxAccessorCount) + " elements in one accessor");
+    }
+    AccessorLayout layout;
+    if (accessor.bufferView >= 0) {
+      layout.elements = InView(accessor.bufferView, accessor.byteOffset, accessor.count, elementSize, true, pointer);
+    } else if (accessor.count * elementSize > BufferBytes()) {
+      Fail(pointer + "/count",
+           std::to_string(accessor.count) + " elements without a buffer view (" +
+               std::to_string(accessor.count * elementSize) + " bytes of zeros)",
+           "an accessor without a buffer view no larger than the file's buffers (" + std::to_string(BufferBytes()) +
+               " bytes)");
+    }
+    if (accessor.sparse.isSparse) layout.sparse = CheckedSparseLayout(accessor, pointer, elementSize);
+    return layout;
+  }
+
   // Where `count` elements of `elementSize` bytes start in buffer view `viewIndex`, from
   // byteOffset, and how far apart they lie (the view's byteStride, when `strided`, else
   // packed): checked to lie inside the view and the view inside its buffer. `pointer` is
   // the object referring to the view (an accessor, or a sparse accessor's indices or values).
-  struct ViewElements {
-    const unsigned char* base;
-    size_t stride;
-  };
   ViewElements InView(int viewIndex, size_t byteOffset, size_t count, size_t elementSize, bool strided,
                       const std::string& pointer) const {
     if (viewIndex < 0 || static_cast<size_t>(viewIndex) >= model_.bufferViews.size()) {
@@ -629,8 +736,8 @@ class GltfReader {
     const std::vector<unsigned char>& buffer = model_.buffers[static_cast<size_t>(view.buffer)].data;
     if (view.byteOffset > buffer.size() || view.byteLength > buffer.size() - view.byteOffset) {
       Fail(viewPointer,
-           "bytes " + std::to_string(view.byteOffset) + " to " + std::to_string(view.byteOffset + view.byteLength) +
-               " of a buffer of " + std::to_string(buffer.size()) + " bytes",
+           std::to_string(view.byteLength) + " bytes from byte " + std::to_string(view.byteOffset) +
+               " of buffer " + std::to_string(view.buffer) + " (" + std::to_string(buffer.size()) + " bytes)",
            "a buffer view inside its buffer");
     }
     const size_t stride = strided && view.byteStride != 0 ? view.byteStride : elementSize;
@@ -639,12 +746,14 @@ class GltfReader {
            "a stride of " + std::to_string(stride) + " bytes for elements of " + std::to_string(elementSize),
            "a stride at least the element size");
     }
-    if (count > 0 && (byteOffset > view.byteLength || (count - 1) > (view.byteLength - byteOffset) / stride ||
-                      byteOffset + (count - 1) * stride + elementSize > view.byteLength)) {
+    // (count - 1) * stride + elementSize <= byteLength - byteOffset, divided so as not to overflow.
+    if (count > 0 && (byteOffset > view.byteLength || elementSize > view.byteLength - byteOffset ||
+                      (count - 1) > (view.byteLength - byteOffset - elementSize) / stride)) {
       Fail(pointer,
            std::to_string(count) + " elements from byte " + std::to_string(byteOffset) +
                " run past the end of buffer view " + std::to_string(viewIndex) + " (" +
-               std::to_string(view.byteLength) + " bytes)",
+               std::to_string(view.byteLength) + " bytes; elements of " + std::to_string(elementSize) +
+               " bytes, " + std::to_string(stride) + " apart)",
            "an accessor inside its buffer view");
     }
     return {buffer.data() + view.byteOffset + byteOffset, stride};
@@ -661,8 +770,8 @@ class GltfReader {
 
   // A sparse accessor's substitutions: `count` strictly increasing element indices, and as
   // many packed elements of the accessor's own type that replace those elements.
-  void ApplySparse(const tinygltf::Accessor& accessor, const std::string& pointer, int componentSize,
-                   size_t elementSize, AccessorData& data) const {
+  SparseLayout CheckedSparseLayout(const tinygltf::Accessor& accessor, const std::string& pointer,
+                                   size_t elementSize) const {
     const std::string at = pointer + "/sparse";
     const auto& sparse = accessor.sparse;
     if (sparse.count < 1 || static_cast<size_t>(sparse.count) > accessor.count) {
@@ -682,25 +791,31 @@ class GltfReader {
       Fail(at + (sparse.indices.byteOffset < 0 ? "/indices" : "/values") + "/byteOffset", "a negative offset",
            "a byte offset >= 0");
     }
-    const ViewElements indices = InView(sparse.indices.bufferView, static_cast<size_t>(sparse.indices.byteOffset),
-                                        count, indexSize, false, at + "/indices");
-    const ViewElements values = InView(sparse.values.bufferView, static_cast<size_t>(sparse.values.byteOffset), count,
-                                       elementSize, false, at + "/values");
+    return {count, indexType, indexSize,
+            InView(sparse.indices.bufferView, static_cast<size_t>(sparse.indices.byteOffset), count, indexSize, false,
+                   at + "/indices"),
+            InView(sparse.values.bufferView, static_cast<size_t>(sparse.values.byteOffset), count, elementSize, false,
+                   at + "/values")};
+  }
+
+  void ApplySparse(const tinygltf::Accessor& accessor, const std::string& pointer, int componentSize,
+                   const SparseLayout& sparse, AccessorData& data) const {
+    const std::string at = pointer + "/sparse";
     const size_t components = static_cast<size_t>(data.components);
-    for (size_t k = 0; k < count; ++k) {
-      const double index = Component(indices.base + k * indexSize, indexType, false);
+    for (size_t k = 0; k < sparse.count; ++k) {
+      const double index = Component(sparse.indices.base + k * sparse.indexSize, sparse.indexType, false);
       if (!(index < static_cast<double>(accessor.count))) {
         Fail(at + "/indices",
              "substitution " + std::to_string(k) + " names element " +
                  std::to_string(static_cast<uint64_t>(index)) + " of " + std::to_string(accessor.count),
              "indices below the accessor's count");
       }
-      if (k > 0 && !(index > Component(indices.base + (k - 1) * indexSize, indexType, false))) {
+      if (k > 0 && !(index > Component(sparse.indices.base + (k - 1) * sparse.indexSize, sparse.indexType, false))) {
         Fail(at + "/indices", "substitution " + std::to_string(k) + " names element " +
                                   std::to_string(static_cast<uint64_t>(index)) + ", not after the one before it",
              "strictly increasing indices");
       }
-      ReadElement(values.base + k * values.stride, accessor, componentSize,
+      ReadElement(sparse.values.base + k * sparse.values.stride, accessor, componentSize,
                   &data.values[static_cast<size_t>(index) * components]);
     }
   }
@@ -867,10 +982,17 @@ class GltfReader {
            "a PNG or JPEG image in a file, a data URI or a buffer view");
     }
     Texture texture;
-    texture.bytes = std::make_shared<const std::string>(image.image.begin(), image.image.end());
-    texture.asset = wire::Sha256Hex(*texture.bytes);
+    // One copy of an image however many materials use it: a short JSON must not multiply a large image.
+    auto& shared = imageBytes_[source.source];
+    if (!shared.first) {
+      shared.first = std::make_shared<const std::string>(image.image.begin(), image.image.end());
+      shared.second = wire::Sha256Hex(*shared.first);
+    }
+    texture.bytes = shared.first;
+    texture.asset = shared.second;
     // For messages: the file beside the glTF, or where in it an embedded image lies.
-    const bool external = !image.uri.empty() && image.uri.compare(0, 5, "data:") != 0;
+    const bool external =
+        !image.uri.empty() && image.uri.compare(0, 5, "data:") != 0 && !gltf::EmbeddedIndex(image.uri);
     texture.image = external ? UrlDecode(image.uri)
                              : input_.displayName + " at " + Pointer("images", static_cast<size_t>(source.source));
     if (source.sampler >= 0) {
@@ -1999,6 +2121,10 @@ class GltfReader {
   const ImportInput& input_;
   const ImportOptions& options_;
   tinygltf::Model model_;
+  gltf::EmbeddedData embedded_;  // while loading: the data URIs, decoded
+  mutable uint64_t valueBytesRead_ = 0;  // by ReadAccessor, against kValueBytesPerBufferByte
+  // Per glTF image that a material uses: its bytes and their hash (Texture::asset).
+  mutable std::map<int, std::pair<std::shared_ptr<const std::string>, std::string>> imageBytes_;
   std::vector<int> materialIndex_;  // per glTF material, its index in the scene
   struct SharedPrimitive {
     std::string name;  // in Scene::meshes; empty for a primitive without area

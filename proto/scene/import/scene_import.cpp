@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <fstream>
 #include <memory>
-#include <sstream>
 #include <system_error>
 
 #include "scene/import/importers.h"
@@ -107,10 +107,15 @@ Scene ImportScene(const std::filesystem::path& path, const ImportOptions& option
   if (!std::filesystem::is_regular_file(path, error) || !in) {
     FailInput("", "cannot read scene file " + path.string(), "a readable scene file");
   }
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) FailInput("", "read error in scene file " + path.string(), "a readable scene file");
-  std::string bytes = text.str();
+  // Read once into a string of the file's size: a stream's buffer and a copy of it would
+  // hold a large scene file twice.
+  const std::uintmax_t size = std::filesystem::file_size(path, error);
+  if (error) FailInput("", "read error in scene file " + path.string(), "a readable scene file");
+  std::string bytes(static_cast<size_t>(size), '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (in.gcount() != static_cast<std::streamsize>(bytes.size())) {
+    FailInput("", "read error in scene file " + path.string(), "a readable scene file");
+  }
   const SceneImporter* importer = FindImporterForFile(path, bytes);
   if (importer == nullptr) {
     FailInput("", "cannot tell the format of scene file " + QuoteInput(path.string()) +
