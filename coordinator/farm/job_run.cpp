@@ -135,10 +135,13 @@ ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers, const Segm
                          spec.frameSize.Pixels(), prices);
 }
 
+namespace {
+// The job's memory as it runs with this strategy (JobMemoryBytes).
 JobMemoryShape JobShapeFor(const JobSpec& spec, const ResolvedStrategy& resolved, uint64_t pendingFrameBytes) {
   return {spec.frameSize.width, spec.frameSize.height, FrameCountOf(spec), resolved.strategy, resolved.binWidth,
           resolved.surveyBinWidth, pendingFrameBytes};
 }
+}  // namespace
 
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved, uint64_t jobMemoryBytes,
                                  uint64_t pendingFrameBytes) {

@@ -39,8 +39,6 @@ namespace tcfarm {
 // its motion (JobSpec::cameraOrLightsChange) has its scene parsed for it, which throws
 // SceneError if the scene no longer parses.
 ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers, const SegmentPrices& prices = {});
-// The job's memory as it runs with this strategy (JobMemoryBytes).
-JobMemoryShape JobShapeFor(const JobSpec& spec, const ResolvedStrategy& resolved, uint64_t pendingFrameBytes);
 // With jobMemoryBytes > 0, as many live bins (segments) as fit in it (LiveBinsWithin);
 // throws std::invalid_argument naming the shortfall when not even one does.
 PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved, uint64_t jobMemoryBytes = 0,
