@@ -1,5 +1,6 @@
 #include "cli/serve_command.h"
 
+#include <malloc.h>
 #include <stdlib.h>
 
 #include <atomic>
@@ -85,8 +86,9 @@ void ParseHttpAddress(const std::string& text, ServeOptions* options) {
   options->httpPort = ParseInt(text.substr(colon + 1), "--http port", 0, 65535);
 }
 
-// A job's default share of the memory this process may use (its container's limit
-// included): other jobs, workers on this machine and the system need the rest.
+// The running jobs' default share of the memory this process may use (its container's
+// limit included): the HTTP server, the frame finisher, workers on this machine and the
+// system need the rest.
 uint64_t HalfTheUsableMemory() {
   return UsableMemoryBytes().value_or(uint64_t{16} << 30) / 2;  // unknown: assume 16 GiB
 }
@@ -105,7 +107,7 @@ struct ServeFlags {
   unsigned writerThreads = FrameWriterOptions{}.threads;
   std::string dashboard;
   long workerTimeoutMs = HeartbeatPolicy{}.timeout.count();
-  uint64_t jobMemoryMib = 0;
+  uint64_t farmMemoryMib = 0;
   size_t pendingFrameMib = JobRunSettings::kDefaultPendingFrameBytes >> 20;
   uint64_t assetMaxFileMib = ApiOptions{}.assetMaxFileBytes >> 20;
   uint64_t assetMaxJobMib = ApiOptions{}.assetMaxJobBytes >> 20;
@@ -121,7 +123,7 @@ struct ServeFlags {
   // Set when given: their defaults are worked out, not fixed.
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
-  CLI::Option* jobMemoryOption = nullptr;
+  CLI::Option* farmMemoryOption = nullptr;
   CLI::Option* keepDaysOption = nullptr;
 };
 
@@ -179,10 +181,10 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
           ->type_name("MS")
           ->check(IntegerFrom(100, 3600000))
           ->capture_default_str();
-  flags.jobMemoryOption =
-      serve.add_option("--job-memory", flags.jobMemoryMib,
-                       "Per job, the frames it holds at once; larger jobs are refused "
-                       "(default: half the memory this process may use)")
+  flags.farmMemoryOption =
+      serve.add_option("--farm-memory", flags.farmMemoryMib,
+                       "All running jobs together, their frames and state; a job waits queued until it "
+                       "fits, one that never could is refused (default: half the memory this process may use)")
           ->type_name("MIB")
           ->check(IntegerFrom(1, 1 << 30));
   serve.add_option("--pending-frame-memory", flags.pendingFrameMib,
@@ -336,7 +338,7 @@ ServeOptions Resolve(const ServeFlags& flags) {
   if (flags.workerTimeoutOption->count()) {
     options.farm.heartbeat.SetTimeout(Milliseconds(flags.workerTimeoutMs));
   }
-  if (flags.jobMemoryOption->count()) options.farm.jobMemoryBytes = flags.jobMemoryMib << 20;
+  if (flags.farmMemoryOption->count()) options.farm.farmMemoryBytes = flags.farmMemoryMib << 20;
   options.farm.pendingFrameBytes = flags.pendingFrameMib << 20;
   options.assetMaxFileBytes = flags.assetMaxFileMib << 20;
   options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
@@ -356,7 +358,7 @@ ServeOptions Resolve(const ServeFlags& flags) {
     throw std::invalid_argument("--dashboard " + options.dashboard.string() + ": not a folder");
   }
   if (options.database.empty()) options.database = options.farm.storeRoot / "jobs.db";
-  if (options.farm.jobMemoryBytes == 0) options.farm.jobMemoryBytes = HalfTheUsableMemory();
+  if (options.farm.farmMemoryBytes == 0) options.farm.farmMemoryBytes = HalfTheUsableMemory();
   if (!IsLosslessExrCompression(options.farm.output.exrCompression)) {
     throw std::invalid_argument("--exr-compression " + options.farm.output.exrCompression +
                                 ": expected a lossless one: none, rle, zips, zip or piz");
@@ -444,6 +446,10 @@ void ReportRetention(const RetentionPolicy& retention) {
 }
 
 int RunServe(const ServeOptions& options) {
+  // Frames (megabytes each) are mapped on their own and unmapped when freed, whatever
+  // their size: glibc's adaptive threshold would otherwise move them into the heap after
+  // the first one is freed, where a job's frames outlive it in the RSS.
+  mallopt(M_MMAP_THRESHOLD, 1 << 20);
   std::signal(SIGINT, RequestStop);
   std::signal(SIGTERM, RequestStop);
   std::signal(SIGPIPE, SIG_IGN);
@@ -469,7 +475,8 @@ int RunServe(const ServeOptions& options) {
   api.port = options.httpPort;
   api.storeRoot = options.farm.storeRoot;
   api.dashboardDirectory = options.dashboard;
-  api.jobMemoryBytes = options.farm.jobMemoryBytes;
+  api.farmMemoryBytes = options.farm.farmMemoryBytes;
+  api.pendingFrameBytes = options.farm.pendingFrameBytes;
   api.assetMaxFileBytes = options.assetMaxFileBytes;
   api.assetMaxJobBytes = options.assetMaxJobBytes;
   api.tokens = options.tokens;

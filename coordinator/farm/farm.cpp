@@ -5,6 +5,8 @@
 #include <iterator>
 #include <stdexcept>
 
+#include "planner/job_memory.h"
+
 namespace tcfarm {
 namespace {
 
@@ -126,14 +128,52 @@ void Farm::ClaimJobs() {
       interruptedRequeued_ = true;
       RequeueUnfinishedFrames();
     }
+    std::map<uint64_t, SteadyTime> waiting;  // jobs still held back by memory after this look
     while (static_cast<int>(runs_.size()) < options_.maxRunningJobs) {
-      std::optional<JobRecord> record = store_.ClaimNext();
-      if (!record) return;
-      StartJob(*record);
+      uint64_t granted = 0;
+      bool passable = true;
+      std::optional<JobRecord> record = store_.ClaimNext([&](const JobRecord& job) {
+        return passable && AdmitsJob(job, &granted, waiting, &passable);
+      });
+      if (!record) break;
+      StartJob(*record, granted);
     }
+    waitingForMemory_.swap(waiting);
   } catch (const JobStoreFullError& e) {
     NoteRefusedWrite(e);  // claimed nothing; the next interval tries again
   }
+}
+
+bool Farm::AdmitsJob(const JobRecord& job, uint64_t* granted, std::map<uint64_t, SteadyTime>& waiting,
+                     bool* passable) const {
+  if (options_.farmMemoryBytes == 0) return true;
+  const uint64_t used = MemoryGranted();
+  const uint64_t left = options_.farmMemoryBytes - std::min(used, options_.farmMemoryBytes);
+  const JobMemoryShape shape =
+      RequestedJobShape(job.spec.strategy, job.spec.binWidth, job.FrameCount(), job.spec.cameraOrLightsChange,
+                        job.spec.frameSize.width, job.spec.frameSize.height, options_.pendingFrameBytes);
+  if (const int bins = LiveBinsWithin(left, shape, PlannerOptions{}.maxLiveBins); bins > 0) {
+    *granted = JobMemoryBytes(shape, bins);
+    return true;
+  }
+  // Never fits, even alone (queued before the farm's memory shrank): it starts and fails
+  // with the shortfall rather than waiting forever and, past longestMemoryWait, holding
+  // every job behind it.
+  if (LiveBinsWithin(options_.farmMemoryBytes, shape, 1) == 0) {
+    *granted = options_.farmMemoryBytes;
+    return true;
+  }
+  const auto known = waitingForMemory_.find(job.id);
+  const SteadyTime since = known != waitingForMemory_.end() ? known->second : clock_.Now();
+  waiting.emplace(job.id, since);
+  *passable = clock_.Now() - since < options_.longestMemoryWait;
+  return false;
+}
+
+uint64_t Farm::MemoryGranted() const {
+  uint64_t granted = 0;
+  for (const auto& [id, run] : runs_) granted += run->memoryGranted();
+  return granted;
 }
 
 void Farm::RequeueUnfinishedFrames() {
@@ -146,7 +186,7 @@ void Farm::RequeueUnfinishedFrames() {
   }
 }
 
-void Farm::StartJob(const JobRecord& record) {
+void Farm::StartJob(const JobRecord& record, uint64_t granted) {
   // Canceled, retried and claimed again before the cancel reached the loop: the old run
   // goes first, and the job resumes from what it wrote.
   if (runs_.count(record.id)) StopRun(record.id);
@@ -155,7 +195,7 @@ void Farm::StartJob(const JobRecord& record) {
     settings.output = WhileRendering(options_.output);
     settings.workers = LiveWorkers();
     settings.pendingFrameBytes = options_.pendingFrameBytes;
-    settings.jobMemoryBytes = options_.jobMemoryBytes;
+    settings.jobMemoryBytes = granted;
     settings.referee = referee_;
     settings.segmentPrices = segmentPrices_;
     auto run = std::make_unique<JobRun>(record, frameStore_, settings);

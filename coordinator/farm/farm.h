@@ -49,8 +49,14 @@ struct FarmOptions {
   FrameWriterOptions output;
   // Per job: memory for frames that finish ahead of their turn; beyond it they wait on disk.
   size_t pendingFrameBytes = JobRunSettings::kDefaultPendingFrameBytes;
-  // Per job: the coordinator's memory for its frames (0: no limit); see FramesHeldPerJob.
-  uint64_t jobMemoryBytes = 0;
+  // The coordinator's memory for all running jobs together (0: no limit): their working
+  // frames, pending frames, plans and bookkeeping (JobMemoryBytes). A job is claimed once
+  // its need, estimated from its request, fits in what the running jobs leave; until then
+  // it stays queued, and jobs behind it that fit may pass it (see ClaimJobs).
+  uint64_t farmMemoryBytes = 0;
+  // A job that waited for memory this long is passed by no later job: the memory drains
+  // to it as running jobs end.
+  Milliseconds longestMemoryWait{5 * 60 * 1000};
   // Who settles disputes and traces the checks no worker may; none: the farm's own
   // TracingReferee. Tests whose workers trace nothing give one that knows their values.
   Referee* referee = nullptr;
@@ -88,7 +94,15 @@ class Farm : public FarmControl, private DispatchSink {
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override;
 
   void ClaimJobs();
-  void StartJob(const JobRecord& record);
+  // Whether the job's memory fits in what the running jobs leave of the farm's; if so, as
+  // *granted, with as many bins at once as fit. Notes in waiting how long a job left
+  // queued has waited for memory, and in *passable whether later jobs may pass it.
+  bool AdmitsJob(const JobRecord& job, uint64_t* granted, std::map<uint64_t, SteadyTime>& waiting,
+                 bool* passable) const;
+  // Memory the running jobs were given (JobRun::memoryGranted).
+  uint64_t MemoryGranted() const;
+  // granted: the job's share of the farm's memory (0: no limit).
+  void StartJob(const JobRecord& record, uint64_t granted = 0);
   // What other threads asked for: cancels, priority changes, jobs to let go of. Before
   // claims, so that a job canceled and retried at once is stopped before it is claimed again.
   void ApplyRequests();
@@ -153,6 +167,7 @@ class Farm : public FarmControl, private DispatchSink {
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;
   std::map<uint64_t, ClosingJob> closing_;
   bool interruptedRequeued_ = false;  // RequeueInterrupted went through (before any claim)
+  std::map<uint64_t, SteadyTime> waitingForMemory_;  // queued jobs the budget held back, since when
   SteadyTime lastRefusalLogged_{};
   DispatcherCounters lastCounters_;
   uint64_t finishedTraced_ = 0, finishedPixels_ = 0;

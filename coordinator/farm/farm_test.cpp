@@ -15,6 +15,7 @@
 #include <random>
 
 #include "dispatch/fake_worker.h"
+#include "planner/job_memory.h"
 #include "frame/frame_io.h"
 #include "store/frame_store.h"
 
@@ -55,13 +56,26 @@ class FarmTest : public ::testing::Test {
                ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(folder_);
     store_ = std::make_unique<JobStore>(folder_ / "jobs.db");
+    farm_ = std::make_unique<Farm>(*store_, Options(), clock_);
+    clock_.Advance(Milliseconds(1000));  // past the first look for new jobs
+  }
+  FarmOptions Options() const {
     FarmOptions options;
     options.endpoint = "tcp://127.0.0.1:*";
     options.storeRoot = folder_ / "store";
     options.output.threads = 1;
     options.referee = &referee_;
+    return options;
+  }
+  // The farm again, with these options (of Options()).
+  void RestartFarm(const FarmOptions& options) {
+    farm_.reset();
     farm_ = std::make_unique<Farm>(*store_, options, clock_);
-    clock_.Advance(Milliseconds(1000));  // past the first look for new jobs
+  }
+  // Steps past the next look for new jobs, so that jobs are claimed as memory allows.
+  void StepPastAClaim() {
+    clock_.Advance(Milliseconds(200));
+    farm_->Step(kTurnPoll);
   }
   void TearDown() override {
     farm_.reset();
@@ -107,7 +121,7 @@ class FarmTest : public ::testing::Test {
   }
 
   fs::path folder_;
-  ConstantReferee referee_;
+  mutable ConstantReferee referee_;  // Options() hands it out
   FakeClock clock_;
   zmq::context_t context_;
   std::unique_ptr<JobStore> store_;
@@ -304,6 +318,74 @@ TEST_F(FarmTest, ReleaseJobStopsItsRunAndAnswersOnlyWhileTheLoopRuns) {
   std::atomic<bool> stop{true};
   farm_->Run(stop);
   EXPECT_FALSE(farm_->ReleaseJob(id));
+}
+
+// One memory budget for all running jobs: a job claimed takes its share
+// (JobMemoryBytes, from its request); one that does not fit in what the running jobs leave
+// stays queued, a smaller one behind it that fits passes it, and the waiting one starts
+// once memory frees.
+TEST_F(FarmTest, JobsAreClaimedAsTheFarmsMemoryAllows) {
+  JobSpec big = BruteSpec(10);
+  big.frameSize = {64, 64};
+  const JobMemoryShape bigShape{64, 64, 10, Strategy::kBrute, 2, false, 0};
+  const JobMemoryShape smallShape{4, 3, 1, Strategy::kBrute, 2, false, 0};
+  FarmOptions options = Options();
+  options.pendingFrameBytes = 0;
+  // One big job and the small one fit at once, two big ones do not.
+  options.farmMemoryBytes = JobMemoryBytes(bigShape, 1) + JobMemoryBytes(smallShape, 1);
+  ASSERT_LT(options.farmMemoryBytes, 2 * JobMemoryBytes(bigShape, 1));
+  RestartFarm(options);
+  const uint64_t first = store_->Submit(big), second = store_->Submit(big);
+  const uint64_t small = Submit(1);
+  for (int look = 0; look < 3; ++look) StepPastAClaim();
+  EXPECT_EQ(StateOf(first), JobState::kRunning);
+  EXPECT_EQ(StateOf(second), JobState::kQueued);
+  EXPECT_EQ(StateOf(small), JobState::kRunning);  // passed the big one that waits
+
+  FakeWorker worker(context_, farm_->BoundEndpoint(), 4);
+  ASSERT_TRUE(ServeUntilComplete(worker, first));
+  StepPastAClaim();
+  ASSERT_TRUE(ServeUntilComplete(worker, second)) << ToString(StateOf(second));
+}
+
+// A job that waited for memory longer than longestMemoryWait is passed by no later job,
+// so that a stream of small jobs cannot keep it waiting forever.
+TEST_F(FarmTest, AJobWaitingForMemoryTooLongIsPassedByNoOther) {
+  JobSpec big = BruteSpec(10);
+  big.frameSize = {64, 64};
+  const JobMemoryShape bigShape{64, 64, 10, Strategy::kBrute, 2, false, 0};
+  FarmOptions options = Options();
+  options.pendingFrameBytes = 0;
+  options.farmMemoryBytes = JobMemoryBytes(bigShape, 1) * 3 / 2;
+  options.longestMemoryWait = Milliseconds(1000);
+  RestartFarm(options);
+  const uint64_t first = store_->Submit(big), second = store_->Submit(big);
+  StepPastAClaim();
+  ASSERT_EQ(StateOf(first), JobState::kRunning);
+  ASSERT_EQ(StateOf(second), JobState::kQueued);
+  const uint64_t passes = Submit(1);
+  StepPastAClaim();
+  EXPECT_EQ(StateOf(passes), JobState::kRunning);  // the big one has not waited long yet
+  clock_.Advance(Milliseconds(1000));
+  const uint64_t waits = Submit(1);
+  for (int look = 0; look < 3; ++look) StepPastAClaim();
+  EXPECT_EQ(StateOf(waits), JobState::kQueued);
+  EXPECT_EQ(StateOf(second), JobState::kQueued);
+}
+
+// A job queued before the farm's memory shrank, that no longer fits even alone, does not
+// wait forever (holding every job behind it): it starts and fails, saying what it needs.
+TEST_F(FarmTest, AJobThatCanNeverFitFailsInsteadOfWaiting) {
+  JobSpec big = BruteSpec(10);
+  big.frameSize = {64, 64};
+  FarmOptions options = Options();
+  options.pendingFrameBytes = 0;
+  options.farmMemoryBytes = JobMemoryBytes({64, 64, 10, Strategy::kBrute, 2, false, 0}, 1) - 1;
+  RestartFarm(options);
+  const uint64_t id = store_->Submit(big);
+  StepPastAClaim();
+  ASSERT_TRUE(TurnUntil([&] { return StateOf(id) == JobState::kFailed; })) << ToString(StateOf(id));
+  EXPECT_NE(store_->Get(id)->error.find("for all its running jobs"), std::string::npos) << store_->Get(id)->error;
 }
 
 }  // namespace

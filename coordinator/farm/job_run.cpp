@@ -1,5 +1,7 @@
 #include "farm/job_run.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <set>
@@ -133,8 +135,16 @@ ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers, const Segm
                          spec.frameSize.Pixels(), prices);
 }
 
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
-                                 uint64_t jobMemoryBytes) {
+namespace {
+// The job's memory as it runs with this strategy (JobMemoryBytes).
+JobMemoryShape JobShapeFor(const JobSpec& spec, const ResolvedStrategy& resolved, uint64_t pendingFrameBytes) {
+  return {spec.frameSize.width, spec.frameSize.height, FrameCountOf(spec), resolved.strategy, resolved.binWidth,
+          resolved.surveyBinWidth, pendingFrameBytes};
+}
+}  // namespace
+
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved, uint64_t jobMemoryBytes,
+                                 uint64_t pendingFrameBytes) {
   PlannerOptions options;
   options.width = spec.frameSize.width;
   options.height = spec.frameSize.height;
@@ -142,12 +152,9 @@ PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& re
   options.binWidth = resolved.binWidth;
   options.tolerance = static_cast<float>(spec.tolerance);
   if (jobMemoryBytes > 0) {
-    options.maxLiveBins = LiveBinsWithin(jobMemoryBytes, options.width, options.height, resolved.strategy,
-                                         resolved.binWidth, options.maxLiveBins, options.frameCount);
-    if (options.maxLiveBins == 0) {
-      throw std::invalid_argument(MemoryShortfall(jobMemoryBytes, options.width, options.height,
-                                                  resolved.strategy, resolved.binWidth, options.frameCount));
-    }
+    const JobMemoryShape shape = JobShapeFor(spec, resolved, pendingFrameBytes);
+    options.maxLiveBins = LiveBinsWithin(jobMemoryBytes, shape, options.maxLiveBins);
+    if (options.maxLiveBins == 0) throw std::invalid_argument(MemoryShortfall(jobMemoryBytes, shape));
   }
   return options;
 }
@@ -159,13 +166,17 @@ PlannerOptions WithKeptFrames(PlannerOptions options, const KeptFrames& kept) {
 }
 }  // namespace
 
+JobRun::ReturnsFreedMemory::~ReturnsFreedMemory() { malloc_trim(0); }
+
 JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSettings& settings)
     : id_(record.id),
+      memoryGranted_(settings.jobMemoryBytes),
       spec_(record.spec),
       frameStore_(store),
       kept_(FindKeptFrames(record, store, settings.output)),
       resolved_(ResolveForRun(record, settings.workers, settings.segmentPrices)),
-      plannerOptions_(WithKeptFrames(PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes), kept_)),
+      plannerOptions_(WithKeptFrames(
+          PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes, settings.pendingFrameBytes), kept_)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),

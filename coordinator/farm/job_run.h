@@ -28,6 +28,7 @@
 #include "frame/frame_writer.h"
 #include "jobs/job_store.h"
 #include "planner/auto_guarded_planner.h"
+#include "planner/job_memory.h"
 #include "planner/planner.h"
 #include "store/frame_store.h"
 
@@ -38,10 +39,10 @@ namespace tcfarm {
 // its motion (JobSpec::cameraOrLightsChange) has its scene parsed for it, which throws
 // SceneError if the scene no longer parses.
 ResolvedStrategy ResolveJobStrategy(const JobSpec& spec, int workers, const SegmentPrices& prices = {});
-// With jobMemoryBytes > 0, as many live bins (segments) as fit in it (FramesHeldPerJob);
+// With jobMemoryBytes > 0, as many live bins (segments) as fit in it (LiveBinsWithin);
 // throws std::invalid_argument naming the shortfall when not even one does.
-PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved,
-                                 uint64_t jobMemoryBytes = 0);
+PlannerOptions PlannerOptionsFor(const JobSpec& spec, const ResolvedStrategy& resolved, uint64_t jobMemoryBytes = 0,
+                                 uint64_t pendingFrameBytes = 0);
 
 // A plan (JobRecord::plan) as the job store keeps it, and back; nullopt for an empty plan.
 // Throws std::invalid_argument for a plan naming no strategy this coordinator knows.
@@ -66,8 +67,8 @@ struct JobRunSettings {
   // (PendingFrames).
   static constexpr size_t kDefaultPendingFrameBytes = size_t{256} << 20;
   size_t pendingFrameBytes = kDefaultPendingFrameBytes;
-  // The coordinator's memory for this job's frames (0: no limit); the planner works on as
-  // many bins at once as fit in it.
+  // The coordinator's memory the farm gave this job (0: no limit): the planner works on as
+  // many bins at once as fit in it (LiveBinsWithin).
   uint64_t jobMemoryBytes = 0;
   // Settles the disputes of a job that promises exactness (ExactnessAudit); none leaves
   // them unsettled.
@@ -82,6 +83,8 @@ class JobRun {
   JobRun(const JobRecord& record, const FrameStore& store, const JobRunSettings& settings = {});
 
   uint64_t id() const { return id_; }
+  // What the farm gave the job (JobRunSettings::jobMemoryBytes), held until the run ends.
+  uint64_t memoryGranted() const { return memoryGranted_; }
   FrameSize frameSize() const { return spec_.frameSize; }
   int firstFrame() const { return spec_.firstFrame; }
   int lastFrame() const { return spec_.lastFrame; }
@@ -186,7 +189,17 @@ class JobRun {
   int BinWidth() const;
   uint64_t PixelsPerFrame() const { return spec_.frameSize.Pixels(); }
 
+  // Declared first, so destroyed last: once the job's frames are freed, the pages glibc
+  // keeps in its arenas go back to the system (malloc_trim), so the coordinator's RSS
+  // falls back when a job ends or is canceled.
+  struct ReturnsFreedMemory {
+    ReturnsFreedMemory() = default;
+    ReturnsFreedMemory(const ReturnsFreedMemory&) = delete;
+    ReturnsFreedMemory& operator=(const ReturnsFreedMemory&) = delete;
+    ~ReturnsFreedMemory();
+  } returnsFreedMemory_;
   uint64_t id_;
+  uint64_t memoryGranted_;
   JobSpec spec_;
   FrameStore frameStore_;
   KeptFrames kept_;  // from before a restart; nothing for a new job

@@ -19,7 +19,7 @@
 #include "http/api_error.h"
 #include "http/submit_request.h"
 #include "metrics/metric_builders.h"
-#include "planner/planner.h"
+#include "planner/job_memory.h"
 #include "store/frame_finisher.h"
 
 namespace tcfarm {
@@ -587,18 +587,15 @@ void ApiServer::RouteMiss(const httplib::Request& request, const std::string&,
                  request.method + " is not allowed on " + request.path + "; allowed: " + allowed);
 }
 
-// The job's frames at their most, one bin at a time, against the coordinator's memory for
-// a job, with the strategy the farm will resolve. The worker count only sets the length of
-// auto's exact segments, which hold one working frame whatever their length; auto's guarded
-// is taken with the widest bin its survey may pick.
+// The job's memory at its most, alone and one bin at a time, against the farm's memory for
+// all running jobs (RequestedJobShape: the most the strategy the farm resolves may need).
+// A job that fits waits in the queue until the running jobs leave it room.
 void ApiServer::CheckJobFitsInMemory(const JobSpec& spec) const {
-  if (options_.jobMemoryBytes == 0) return;
-  const int frames = spec.lastFrame - spec.firstFrame + 1;
-  const ResolvedStrategy resolved = ResolveStrategy(spec.strategy, spec.binWidth, frames,
-                                                    spec.cameraOrLightsChange.value_or(true), /*workers=*/1,
-                                                    spec.frameSize.Pixels());
-  const std::string shortfall = MemoryShortfall(options_.jobMemoryBytes, spec.frameSize.width,
-                                                spec.frameSize.height, resolved.strategy, resolved.binWidth, frames);
+  if (options_.farmMemoryBytes == 0) return;
+  const JobMemoryShape shape =
+      RequestedJobShape(spec.strategy, spec.binWidth, spec.lastFrame - spec.firstFrame + 1, spec.cameraOrLightsChange,
+                        spec.frameSize.width, spec.frameSize.height, options_.pendingFrameBytes);
+  const std::string shortfall = MemoryShortfall(options_.farmMemoryBytes, shape);
   if (!shortfall.empty()) {
     throw ApiError(413, error_code::kJobTooLarge,
                    shortfall + "; expected fewer pixels a frame, a narrower bin_width or a coordinator with "

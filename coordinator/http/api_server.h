@@ -64,9 +64,11 @@ struct ApiOptions {
   std::filesystem::path storeRoot = "store";  // frames: storeRoot/<job id>/frame_NNNN.{exr,png}
                                               // assets: storeRoot/assets/<sha256>
   std::filesystem::path dashboardDirectory;   // static files served at / when set
-  // The coordinator's memory for one job's frames (0: no limit): a job that would need
-  // more even one bin at a time is refused at submit with 413 job_too_large.
-  uint64_t jobMemoryBytes = 0;
+  // The coordinator's memory for all running jobs (0: no limit): a job that would need
+  // more even alone and one bin at a time is refused at submit with 413 job_too_large.
+  uint64_t farmMemoryBytes = 0;
+  // Each job's memory for frames ahead of their turn, part of what it needs.
+  uint64_t pendingFrameBytes = 0;
   // One uploaded asset (PUT /api/v1/assets/{sha256}), streamed to disk, never held whole;
   // larger is refused with 413 (--asset-max-file-mib).
   uint64_t assetMaxFileBytes = uint64_t{512} << 20;

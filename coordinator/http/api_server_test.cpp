@@ -174,7 +174,7 @@ const fs::path kOpenApiSpec = fs::path(TCFARM_SOURCE_DIR) / "proto" / "openapi.y
 
 class ApiServerTest : public ::testing::Test {
  protected:
-  static constexpr uint64_t kJobMemoryBytes = uint64_t{64} << 20;
+  static constexpr uint64_t kFarmMemoryBytes = uint64_t{64} << 20;
 
   void SetUp() override {
     std::random_device random;
@@ -195,7 +195,7 @@ class ApiServerTest : public ::testing::Test {
     options.port = 0;
     options.maxBodyBytes = kMaxBodyBytes;
     options.storeRoot = folder_ / "store";
-    options.jobMemoryBytes = kJobMemoryBytes;
+    options.farmMemoryBytes = kFarmMemoryBytes;
     options.assetMaxFileBytes = kAssetMaxFileBytes;
     options.assetMaxJobBytes = kAssetMaxJobBytes;
     server_ = std::make_unique<ApiServer>(*store_, farm_, registry_, options);
@@ -395,18 +395,19 @@ TEST_F(ApiServerTest, DeeplyNestedBodiesAreRefusedNotFollowed) {
   SubmitOk(Submission());
 }
 
-// The coordinator holds a job's frames in memory: a job whose frames would not fit even
-// one bin at a time is refused at submit, saying why, instead of exhausting the machine.
-TEST_F(ApiServerTest, JobsWhoseFramesExceedTheMemoryForAJobAreRefused) {
+// The coordinator holds a job's frames in memory: a job whose frames would not fit in the
+// farm's memory even alone and one bin at a time is refused at submit, saying what it
+// needs and what the farm has, instead of waiting forever or exhausting the machine.
+TEST_F(ApiServerTest, JobsWhoseFramesExceedTheFarmsMemoryAreRefused) {
   json scene = SmallScene();
   scene["render"]["width"] = 1024;
   scene["render"]["height"] = 1024;  // 12 MiB a frame; a 10-frame search holds 14 of them
   const json error = ExpectError(Post("/api/v1/jobs", Submission(scene)), 413, "job_too_large");
   EXPECT_EQ(error["pointer"], "/scene/render");
   EXPECT_EQ(error["message"],
-            "a 1024x1024 frame takes 12.0 MiB as float RGB, and this job holds up to 14 of them at once "
-            "(168.0 MiB) even one bin at a time; the coordinator allows 64.0 MiB per job (--job-memory); "
-            "expected fewer pixels a frame, a narrower bin_width or a coordinator with more memory");
+            "a 1024x1024 frame takes 12.0 MiB as float RGB, and this job of 10 frames holds up to 14 of "
+            "them at once even one bin at a time: it needs 168.0 MiB with its other state; the farm has "
+            "64.0 MiB for all its running jobs (--farm-memory); expected fewer pixels a frame, a narrower bin_width or a coordinator with more memory");
   // At 3 MiB a frame over 60 frames, it depends on what the planner holds: a bin of 20
   // frames is too much, a bin of 5 fits, and so does exact's one working frame.
   scene["render"]["width"] = 512;

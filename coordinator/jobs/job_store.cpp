@@ -790,13 +790,20 @@ std::vector<RecordedFrame> JobStore::RecordedFrames(uint64_t id) const {
   return frames;
 }
 
-std::optional<JobRecord> JobStore::ClaimNext() {
+std::optional<JobRecord> JobStore::ClaimNext(const std::function<bool(const JobRecord&)>& admit) {
   std::lock_guard<std::mutex> lock(mutex_);
   Transaction transaction(*db_);
-  Statement next(*db_, "SELECT id FROM jobs WHERE state = 'queued' "
-                       "ORDER BY priority DESC, id LIMIT 1");
-  if (!next.Step()) return std::nullopt;
-  const uint64_t id = next.UInt64(0);
+  std::optional<uint64_t> admitted;
+  {
+    Statement next(*db_, kSelectJobColumns + "WHERE state = 'queued' ORDER BY priority DESC, id LIMIT ?1");
+    next.Bind(1, int64_t{admit ? kClaimLooksAt : 1});
+    while (!admitted && next.Step()) {
+      const JobRecord candidate = ReadRecord(next);
+      if (!admit || admit(candidate)) admitted = candidate.id;
+    }
+  }
+  if (!admitted) return std::nullopt;
+  const uint64_t id = *admitted;
   Transition(*db_, id,
              // A resumed job keeps the time it first started.
              "UPDATE jobs SET state = 'running', "

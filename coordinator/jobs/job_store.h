@@ -227,8 +227,12 @@ class JobStore {
   std::vector<RecordedFrame> RecordedFrames(uint64_t id) const;
 
   // The queued job with the highest priority, oldest first among equals, now running with
-  // startedMs set. nullopt when nothing is queued.
-  std::optional<JobRecord> ClaimNext();
+  // startedMs set. nullopt when nothing is queued. With `admit`, the first such job it
+  // admits, of the first kClaimLooksAt in that order: it is given each one's record without
+  // sceneJson and tracedPerFrame, inside the store's lock (it must not call the store);
+  // nullopt when it admits none.
+  static constexpr int kClaimLooksAt = 64;
+  std::optional<JobRecord> ClaimNext(const std::function<bool(const JobRecord&)>& admit = {});
 
   // queued or running -> canceled (finishedMs set, partial counters kept). false when the
   // job is unknown or already final.

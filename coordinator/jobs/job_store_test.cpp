@@ -196,6 +196,30 @@ TEST_F(JobStoreTest, ClaimNextTakesHighestPriorityThenOldest) {
   EXPECT_EQ(store->CountInState(JobState::kRunning), 5u);
 }
 
+// The farm admits jobs by memory: it is shown the queued jobs in claim order, each without
+// its scene, and the first it admits is claimed; the others stay queued.
+TEST_F(JobStoreTest, ClaimNextClaimsTheFirstJobAdmitted) {
+  auto store = Open();
+  const uint64_t high = store->Submit(Spec(5, "high")), low = store->Submit(Spec(0, "low"));
+  const uint64_t lower = store->Submit(Spec(-1, "lower"));
+  std::vector<uint64_t> shown;
+  const std::optional<JobRecord> claimed = store->ClaimNext([&](const JobRecord& job) {
+    shown.push_back(job.id);
+    EXPECT_TRUE(job.spec.sceneJson.empty());
+    return job.spec.name == "low";
+  });
+  ASSERT_TRUE(claimed.has_value());
+  EXPECT_EQ(claimed->id, low);
+  EXPECT_EQ(claimed->spec.sceneJson, Spec().sceneJson);  // the claimed record is whole
+  EXPECT_EQ(shown, (std::vector<uint64_t>{high, low}));
+  EXPECT_EQ(store->StateOf(low), JobState::kRunning);
+  EXPECT_EQ(store->StateOf(high), JobState::kQueued);
+  EXPECT_FALSE(store->ClaimNext([](const JobRecord&) { return false; }).has_value());
+  EXPECT_EQ(store->CountInState(JobState::kQueued), 2u);
+  EXPECT_EQ(store->ClaimNext()->id, high);
+  EXPECT_EQ(store->ClaimNext()->id, lower);
+}
+
 TEST_F(JobStoreTest, ClaimNextOnEmptyQueueIsEmpty) {
   auto store = Open();
   EXPECT_FALSE(store->ClaimNext().has_value());

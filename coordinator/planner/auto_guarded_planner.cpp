@@ -8,12 +8,6 @@
 namespace tcfarm {
 namespace {
 
-// Three bins of the widest width: enough to see how changes fall in time, few enough that
-// the survey's samples stay a small, bounded share of the job's memory.
-int SurveyFrames(const PlannerOptions& options) {
-  return std::min(options.frameCount, 3 * (options.binWidth - 1) + 1);
-}
-
 CoarseGuard ValidatedGuard(const PlannerOptions& options) {
   planner_internal::ValidateCommonOptions(options);
   planner_internal::RequireOption(options.binWidth >= 2, "binWidth", options.binWidth,
@@ -25,16 +19,22 @@ CoarseGuard ValidatedGuard(const PlannerOptions& options) {
 
 }  // namespace
 
+// Three bins of the widest width: enough to see how changes fall in time, few enough that
+// the survey's samples stay a small, bounded share of the job's memory.
+int AutoGuardedPlanner::SurveyFrames(int frameCount, int widestBin) {
+  return std::min(frameCount, 3 * (widestBin - 1) + 1);
+}
+
 AutoGuardedPlanner::AutoGuardedPlanner(const PlannerOptions& options)
     : options_(options), guard_(ValidatedGuard(options)) {
   survey_.width = static_cast<uint32_t>(options.width);
   survey_.height = static_cast<uint32_t>(options.height);
   survey_.tile = static_cast<uint32_t>(options.coarseTile);
   survey_.tolerance = options.tolerance;
-  const int frames = SurveyFrames(options);
+  const int frames = SurveyFrames(options.frameCount, options.binWidth);
   surveyedFrames_ = frames;
-  const size_t floatsPerFrame = 3 * size_t{guard_.Samples().size()};
-  survey_.samples.assign(static_cast<size_t>(frames), std::vector<float>(floatsPerFrame));
+  // Each frame's samples take memory from its first result on (OnResult).
+  survey_.samples.assign(static_cast<size_t>(frames), {});
   chunks_ = guard_.Samples().Split(options.maxTaskPixels);
   size_t offset = 0;
   for (const PixelSet& chunk : chunks_) {
@@ -79,7 +79,9 @@ bool AutoGuardedPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floa
   if (surveyed_[index]) return false;  // a re-delivery
   const size_t frame = index / chunks_.size(), chunk = index % chunks_.size();
   planner_internal::ValidateRgb(taskId, static_cast<int>(frame), chunks_[chunk].size(), rgb, floatCount);
-  std::copy(rgb, rgb + floatCount, survey_.samples[frame].begin() + static_cast<std::ptrdiff_t>(chunkOffsets_[chunk]));
+  std::vector<float>& samples = survey_.samples[frame];
+  if (samples.empty()) samples.resize(3 * size_t{guard_.Samples().size()});
+  std::copy(rgb, rgb + floatCount, samples.begin() + static_cast<std::ptrdiff_t>(chunkOffsets_[chunk]));
   surveyed_[index] = true;
   if (--surveyLeft_ == 0) StartGuarded();
   return true;

@@ -42,6 +42,8 @@ class AutoGuardedPlanner : public Planner {
   // Each width's predicted traced share of the surveyed frames; empty while surveying.
   const std::vector<std::pair<int, double>>& Predictions() const { return choice_.predicted; }
   int SurveyedFrames() const { return surveyedFrames_; }
+  // Frames the survey samples for a job of frameCount frames and the widest bin considered.
+  static int SurveyFrames(int frameCount, int widestBin);
 
  private:
   // Survey task ids carry this bit; GuardedPlanner's ids count up from 1 and never reach it.

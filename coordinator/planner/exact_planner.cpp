@@ -85,9 +85,8 @@ void ExactPlanner::StartSegment(size_t index) {
   segment.first = segmentFrames_[index].first;
   segment.last = segmentFrames_[index].second;
   segment.frame = segment.first;
-  segment.rgb.assign(size_t{pixelCount_} * 3, 0.0f);
-  // Nothing is known at a segment's first frame: it is traced in full.
-  segment.nextTrace.assign(pixelCount_, segment.first);
+  // Nothing is known at a segment's first frame: it is traced in full. Its pixels take
+  // memory from the first result on (WriteResult): a job waiting for workers holds none.
   segment.tracing = PixelSet::Full(pixelCount_);
   IssueTasks(index, segment);
 }
@@ -140,6 +139,10 @@ void ExactPlanner::IssueTasks(size_t index, Segment& segment) {
 }
 
 void ExactPlanner::WriteResult(Segment& segment, const PendingTask& task, const float* rgb, const int32_t* horizons) {
+  if (segment.nextTrace.empty()) {
+    segment.rgb.assign(size_t{pixelCount_} * 3, 0.0f);
+    segment.nextTrace.assign(pixelCount_, segment.first);
+  }
   float* values = segment.rgb.data();
   int32_t* nextTrace = segment.nextTrace.data();
   size_t i = 0;

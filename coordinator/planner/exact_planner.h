@@ -57,7 +57,8 @@ class ExactPlanner : public Planner {
     int frame = 0;            // being assembled; every earlier frame of the segment is finished
     std::vector<float> rgb;   // each pixel's value from its latest trace
     // Per pixel, the frame it must be traced at next; last + 1 means never again. Never
-    // below `frame`: a pixel cannot be left without a value.
+    // below `frame`: a pixel cannot be left without a value. Both are empty until the
+    // segment's first result.
     std::vector<int32_t> nextTrace;
     PixelSet tracing;         // the pixels traced at `frame`
     size_t tasksLeft = 0;     // tasks of `frame` whose results are not yet in

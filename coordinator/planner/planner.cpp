@@ -11,44 +11,6 @@
 
 namespace tcfarm {
 
-int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCount) {
-  const long width = strategy == Strategy::kBrute ? 2 : binWidth;
-  const long planner = strategy == Strategy::kExact ? liveBins : liveBins * (width + 1);
-  return static_cast<int>(std::min<long>(planner + kFarmFramesPerJob, long{frameCount} + 4));
-}
-
-uint64_t FrameBytes(int width, int height) { return uint64_t(width) * uint64_t(height) * 3 * sizeof(float); }
-
-int LiveBinsWithin(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
-                   int maxLiveBins, int frameCount) {
-  for (int bins = maxLiveBins; bins >= 1; --bins) {
-    const long double need = static_cast<long double>(FrameBytes(width, height)) *
-                             FramesHeldPerJob(strategy, binWidth, bins, frameCount);
-    if (need <= budgetBytes) return bins;
-  }
-  return 0;
-}
-
-std::string MemoryShortfall(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
-                            int frameCount) {
-  if (LiveBinsWithin(budgetBytes, width, height, strategy, binWidth, 1, frameCount) > 0) return "";
-  const uint64_t frameBytes = FrameBytes(width, height);
-  const int frames = FramesHeldPerJob(strategy, binWidth, 1, frameCount);
-  auto gib = [](long double bytes) {
-    char text[32];
-    if (bytes < (1u << 30)) {
-      std::snprintf(text, sizeof text, "%.1Lf MiB", bytes / (1u << 20));
-    } else {
-      std::snprintf(text, sizeof text, "%.2Lf GiB", bytes / (1u << 30));
-    }
-    return std::string(text);
-  };
-  return "a " + std::to_string(width) + "x" + std::to_string(height) + " frame takes " + gib(frameBytes) +
-         " as float RGB, and this job holds up to " + std::to_string(frames) + " of them at once (" +
-         gib(static_cast<long double>(frameBytes) * frames) + ") even one bin at a time; the coordinator allows " +
-         gib(budgetBytes) + " per job (--job-memory)";
-}
-
 std::unique_ptr<Planner> MakePlanner(Strategy strategy, const PlannerOptions& options) {
   switch (strategy) {
     case Strategy::kBrute: {

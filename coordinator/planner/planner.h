@@ -128,27 +128,6 @@ std::vector<T> TakeAll(std::vector<T>& queue) {
   return taken;
 }
 
-// The coordinator's memory for one job (of a resolved strategy), in frames of width x
-// height float RGB (12 bytes a pixel), at most: the planner's working frames with `liveBins` bins (segments) at once
-// (a search or guarded bin holds its own frames, an exact segment one working frame),
-// plus kFarmFramesPerJob the farm keeps (frames waiting for the writer and queued in it,
-// the coherence analysis), and never more than the job's own frames plus those the farm
-// copies. Measured peaks (RSS) stay below it: 5 frames for a one-frame job, 47 for a
-// 60-frame search at n = 10.
-constexpr int kFarmFramesPerJob = 14;
-int FramesHeldPerJob(Strategy strategy, int binWidth, int liveBins, int frameCount);
-// Bytes of one width x height frame as the coordinator holds it (float RGB).
-uint64_t FrameBytes(int width, int height);
-// The most bins (segments), 1 .. maxLiveBins, whose frames fit in `budgetBytes`; 0 when
-// not even one bin's do.
-int LiveBinsWithin(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
-                   int maxLiveBins, int frameCount);
-
-// Why a job of width x height frames cannot fit in `budgetBytes` even one bin at a time
-// ("a 16384x16384 frame takes 3.00 GiB ..."); "" when it can.
-std::string MemoryShortfall(uint64_t budgetBytes, int width, int height, Strategy strategy, int binWidth,
-                            int frameCount);
-
 // brute is search with binWidth 2 (options.binWidth is ignored for it). Throws
 // std::invalid_argument naming the bad option and its expected range, or for kAuto
 // (resolve it first: ResolveStrategy).

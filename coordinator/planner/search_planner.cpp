@@ -172,6 +172,8 @@ void SearchPlanner::SearchPreparedBin(size_t binIndex) {
   std::vector<const float*> frameRgb;
   for (int frame = bin.left; frame <= bin.right; ++frame) {
     const Frame& state = frames_.at(frame);
+    Check(!state.state.empty(), "frame " + std::to_string(frame) + " has no value when bin " +
+                                    std::to_string(binIndex) + " is searched");
     guard_->Samples().ForEach([&](uint32_t sample) {
       if (state.state[sample] != kTraced) {
         Check(false, "coarse sample " + std::to_string(sample) + " of frame " + std::to_string(frame) +
@@ -290,6 +292,7 @@ void SearchPlanner::AddContinuation(uint64_t request, Continuation continuation)
 }
 
 void SearchPlanner::WriteTraced(Frame& frame, int frameIndex, const PixelSet& pixels, const float* rgb) {
+  AllocatePixels(frame);
   for (const Span& span : pixels.spans()) {
     MarkKnown(frame, frameIndex, span, kTraced);
     const size_t floats = size_t{span.size()} * 3;
@@ -303,6 +306,7 @@ void SearchPlanner::WriteTraced(Frame& frame, int frameIndex, const PixelSet& pi
 
 void SearchPlanner::CopyPixels(const Frame& source, Frame& destination, int destinationIndex,
                                const PixelSet& pixels) {
+  AllocatePixels(destination);
   for (const Span& span : pixels.spans()) {
     MarkKnown(destination, destinationIndex, span, kCopied);
     const size_t offset = size_t{span.begin} * 3;
@@ -330,10 +334,15 @@ SearchPlanner::Frame& SearchPlanner::FrameAt(int frame) {
   auto found = frames_.find(frame);
   if (found != frames_.end()) return found->second;
   Check(!released_[static_cast<size_t>(frame)], "frame " + std::to_string(frame) + " is needed after its release");
-  Frame& created = frames_[frame];
-  created.rgb.assign(size_t{pixelCount_} * 3, 0.0f);
-  created.state.assign(pixelCount_, kUnknown);
-  return created;
+  return frames_[frame];
+}
+
+// A frame's pixels take memory from its first value on, not from when a bin first names
+// it: a job waiting for workers holds no frames.
+void SearchPlanner::AllocatePixels(Frame& frame) const {
+  if (!frame.state.empty()) return;
+  frame.rgb.assign(size_t{pixelCount_} * 3, 0.0f);
+  frame.state.assign(pixelCount_, kUnknown);
 }
 
 void SearchPlanner::AddReader(int frame) { ++FrameAt(frame).readers; }

@@ -80,8 +80,8 @@ class SearchPlanner : public Planner {
   };
 
   struct Frame {
-    std::vector<float> rgb;
-    std::vector<uint8_t> state;  // PixelState per pixel
+    std::vector<float> rgb;      // empty until the frame's first value (AllocatePixels)
+    std::vector<uint8_t> state;  // PixelState per pixel; empty with rgb
     uint64_t knownCount = 0;
     uint64_t tracedCount = 0;
     int readers = 0;                 // bins and waiting searches that will read this frame
@@ -126,7 +126,9 @@ class SearchPlanner : public Planner {
   void WriteTraced(Frame& frame, int frameIndex, const PixelSet& pixels, const float* rgb);
   void CopyPixels(const Frame& source, Frame& destination, int destinationIndex, const PixelSet& pixels);
   void MarkKnown(Frame& frame, int frameIndex, Span span, PixelState how);
+  // The frame's state, without its pixels until AllocatePixels.
   Frame& FrameAt(int frame);
+  void AllocatePixels(Frame& frame) const;
   void AddReader(int frame);
   void RemoveReader(int frame);
   void ReleaseFinishedFrames();

@@ -574,27 +574,3 @@ TEST(SearchPlanner, RandomizedAgreesWithSequentialAlgorithm) {
 
 }  // namespace
 }  // namespace tcfarm
-
-namespace tcfarm {
-namespace {
-
-// What a job holds at once grows with bins and bin width, is capped by the job's own
-// frames, and decides how many bins fit in a budget.
-TEST(JobMemoryTest, FramesHeldAndLiveBinsWithinABudget) {
-  EXPECT_EQ(FramesHeldPerJob(Strategy::kSearch, 10, 4, 60), 4 * 11 + kFarmFramesPerJob);
-  EXPECT_EQ(FramesHeldPerJob(Strategy::kSearch, 10, 4, 10), 14);  // a 10-frame job
-  EXPECT_EQ(FramesHeldPerJob(Strategy::kBrute, 500, 1, 60), 3 + kFarmFramesPerJob);  // bins of 2
-  EXPECT_EQ(FramesHeldPerJob(Strategy::kExact, 60, 4, 60), 4 + kFarmFramesPerJob);
-  const uint64_t frame = FrameBytes(10, 10);
-  EXPECT_EQ(frame, 1200u);
-  EXPECT_EQ(LiveBinsWithin(58 * frame, 10, 10, Strategy::kSearch, 10, 4, 60), 4);
-  EXPECT_EQ(LiveBinsWithin(57 * frame, 10, 10, Strategy::kSearch, 10, 4, 60), 3);
-  EXPECT_EQ(LiveBinsWithin(25 * frame, 10, 10, Strategy::kSearch, 10, 4, 60), 1);
-  EXPECT_EQ(LiveBinsWithin(24 * frame, 10, 10, Strategy::kSearch, 10, 4, 60), 0);
-  EXPECT_EQ(MemoryShortfall(25 * 12 * 100, 10, 10, Strategy::kSearch, 10, 60), "");
-  EXPECT_NE(MemoryShortfall(24 * 12 * 100, 10, 10, Strategy::kSearch, 10, 60).find("holds up to 25 of them"),
-            std::string::npos);
-}
-
-}  // namespace
-}  // namespace tcfarm

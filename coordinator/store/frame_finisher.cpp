@@ -1,5 +1,7 @@
 #include "store/frame_finisher.h"
 
+#include <malloc.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
@@ -106,6 +108,9 @@ void FrameFinisher::Run() {
       dropCurrent_ = false;
     }
     Finish(job);
+    // The frames it read and encoded are freed; the pages glibc keeps for this thread's
+    // arena go back to the system, so the coordinator's RSS falls back once a job is done.
+    malloc_trim(0);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       current_.reset();

@@ -16,7 +16,7 @@ HELP_CASES = [
     (COORDINATOR, [], ["serve", "compare", "analyze", "keygen"]),
     (COORDINATOR, ["serve"], ["--http", "127.0.0.1:8080", "--zmq", "tcp://127.0.0.1:5555", "--store",
                               "--db", "--local-workers", "--worker-threads", "--worker-timeout",
-                              "--exr-compression", "--dashboard", "--job-memory",
+                              "--exr-compression", "--dashboard", "--farm-memory",
                               "--pending-frame-memory", "--asset-max-file-mib", "MIB=512",
                               "--asset-max-job-mib", "MIB=2048", "--curve-secret", "TCFARM_CURVE_SECRET",
                               "--worker-keys", "TCFARM_WORKER_KEYS", "--insecure-no-auth"]),

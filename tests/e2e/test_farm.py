@@ -142,10 +142,12 @@ def test_frames_that_finish_ahead_wait_on_disk_when_memory_is_short(tmp_path, tw
 
 def test_a_coordinator_short_of_memory_works_on_fewer_bins_at_once(tmp_path, twelve_spheres,
                                                                    farm):
-    # 160x120 frames take 225 KiB; 5 MiB for the job holds one bin of 4 frames at a time
-    # with what the farm keeps, not four. The frames are the same either way.
+    # 160x120 frames take 225 KiB; 5 MiB for the farm's jobs (none of it for frames ahead
+    # of their turn) holds one bin of 4 frames at a time with what the farm keeps, not
+    # four. The frames are the same either way.
     (tmp_path / "short").mkdir()
-    with LocalFarm(tmp_path / "short", workers=2, coordinator_args=("--job-memory", "5")) as short:
+    with LocalFarm(tmp_path / "short", workers=2,
+                   coordinator_args=("--farm-memory", "5", "--pending-frame-memory", "0")) as short:
         short.wait_for_workers(2)
         narrow = short.run_job(twelve_spheres, strategy="search", bin_width=4)
         wide = farm.run_job(twelve_spheres, strategy="search", bin_width=4)
