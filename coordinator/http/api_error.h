@@ -39,6 +39,7 @@ inline constexpr const char* kJobNotRetryable = "job_not_retryable";  // 409, re
 inline constexpr const char* kPayloadTooLarge = "payload_too_large";   // 413
 inline constexpr const char* kJobTooLarge = "job_too_large";           // 413, frames beyond memory
 inline constexpr const char* kInternal = "internal";                   // 500
+inline constexpr const char* kNotImplemented = "not_implemented";      // 501, a method no route takes
 inline constexpr const char* kTooManyStreams = "too_many_streams";    // 503, event streams at their limit
 inline constexpr const char* kShuttingDown = "shutting_down";          // 503, the coordinator is stopping
 inline constexpr const char* kInsufficientStorage = "insufficient_storage";  // 507, the disk refused

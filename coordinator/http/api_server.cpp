@@ -17,15 +17,25 @@
 
 #include "frame/frame_io.h"
 #include "http/api_error.h"
+#include "http/query_params.h"
 #include "http/submit_request.h"
 #include "metrics/metric_builders.h"
+#include "net/guarded_server.h"
 #include "planner/job_memory.h"
+#include "planner/planner.h"
 #include "store/frame_finisher.h"
 
 namespace tcfarm {
 namespace {
 
+using http::AllDigits;
 using http::ApiError;
+using http::ParseInteger;
+using http::ParseJobId;
+using http::ParseNameFilter;
+using http::ParseStateFilter;
+using http::ParseStrategyFilter;
+using http::RequireAtMostOnce;
 using nlohmann::json;
 namespace error_code = http::error_code;
 
@@ -71,27 +81,28 @@ bool TakesBody(const std::string& method) {
   return method == "POST" || method == "PUT" || method == "PATCH" || method == "DELETE";
 }
 
-// Reads the whole body but keeps at most maxBytes of it; past that the rest is read and
-// dropped, so memory stays bounded and the connection stays in step for its next request.
-// httplib 0.11.4 enforces its payload limit only on bodies with a Content-Length, not on
-// chunked ones, nor on what a compressed body inflates to; this covers all three.
-// nullopt when the body is too large (413) or could not be read (400): the error is in
-// response already.
+// The connection ends after this response: the rest of the request's body is never read
+// (net/guarded_server.h).
+void CloseAfterResponse() {
+  if (GuardedConnection* connection = GuardedConnection::Current()) connection->CloseAfterResponse();
+}
+
+// Reads the whole body, at most maxBytes of it: past that reading stops and the connection
+// closes after the 413. A Content-Length over the limit never gets here (the server's gate
+// refuses it before reading); a chunked body, or what a compressed one inflates to, is
+// counted here as it comes. nullopt when the body is too large (413) or could not be read
+// (400): the error is in response already.
 std::optional<std::string> ReadLimitedBody(const httplib::ContentReader& reader, size_t maxBytes,
                                            httplib::Response& response) {
   std::string body;
   bool tooLarge = false;
   const bool complete = reader([&](const char* data, size_t length) {
-    if (tooLarge || length > maxBytes - body.size()) {
-      tooLarge = true;
-      std::string().swap(body);
-    } else {
-      body.append(data, length);
-    }
-    return true;
+    tooLarge = length > maxBytes - body.size();
+    if (!tooLarge) body.append(data, length);
+    return !tooLarge;
   });
-  // 413 here: httplib refused a Content-Length over its limit before reading anything.
-  if (tooLarge || response.status == 413) {
+  if (tooLarge) {
+    CloseAfterResponse();
     WriteError(response, PayloadTooLarge(maxBytes));
     return std::nullopt;
   }
@@ -102,114 +113,25 @@ std::optional<std::string> ReadLimitedBody(const httplib::ContentReader& reader,
   return body;
 }
 
-// A refused request's body is read and dropped as it comes, never kept: the connection
-// stays in step for its next request, and an anonymous client cannot fill memory or disk.
-void DiscardBody(const httplib::Request& request, const httplib::ContentReader& reader) {
-  if (!request.has_header("Content-Length") && !request.has_header("Transfer-Encoding")) return;
-  reader([](const char*, size_t) { return true; });
+// A refused request's body is never read: an anonymous client cannot fill memory or disk,
+// nor hold a thread while it sends. The connection closes after the answer instead, so
+// the body's bytes are never taken for a next request.
+void RefuseBody(const httplib::Request& request) {
+  if (request.has_header("Content-Length") || request.has_header("Transfer-Encoding")) CloseAfterResponse();
 }
 
-// The token of "Authorization: Bearer TOKEN" (scheme case-insensitive, RFC 6750);
-// nullopt when the header is missing or another scheme.
-std::optional<std::string> BearerToken(const httplib::Request& request) {
-  const std::string header = request.get_header_value("Authorization");
-  constexpr size_t kSchemeLength = 6;  // "Bearer"
-  if (header.size() <= kSchemeLength || header[kSchemeLength] != ' ') return std::nullopt;
-  std::string scheme = header.substr(0, kSchemeLength);
-  std::transform(scheme.begin(), scheme.end(), scheme.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (scheme != "bearer") return std::nullopt;
-  const size_t begin = header.find_first_not_of(' ', kSchemeLength);
-  const size_t end = header.find_last_not_of(" \t");
-  if (begin == std::string::npos) return std::nullopt;
-  return header.substr(begin, end - begin + 1);
-}
-
-bool AllDigits(const std::string& text) {
-  return !text.empty() &&
-         std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
-}
-
-// Path and query parameters are parsed as plain decimal integers, never used as text: no
-// sign, no spaces, no "..", so nothing a client sends can name a path outside the store.
-uint64_t ParseJobId(const std::string& text) {
-  constexpr size_t kMaxDigits = 19;  // every 19-digit number fits in uint64_t
-  const std::string expected = "expected a positive integer up to 9223372036854775807";
-  if (!AllDigits(text) || text.size() > kMaxDigits ||
-      std::stoull(text) > static_cast<uint64_t>(std::numeric_limits<int64_t>::max())) {
-    throw ApiError(400, error_code::kInvalidParameter,
-                   "job id " + http::ShowValue(text) + " is not a job id; " + expected);
-  }
-  return std::stoull(text);
-}
-
-// A query parameter given twice is refused rather than one of its values picked.
-void RequireAtMostOnce(const httplib::Request& request, const char* name) {
-  if (request.get_param_value_count(name) > 1) {
-    throw ApiError(400, error_code::kInvalidParameter,
-                   std::string(name) + " is given " + std::to_string(request.get_param_value_count(name)) +
-                       " times; expected it at most once");
-  }
-}
-
-// "queued,running": a comma-separated list of names, each one `parse` knows; empty when the
-// parameter is absent. `expected` lists the names.
-template <typename T, typename Parse>
-std::vector<T> ParseNameList(const httplib::Request& request, const char* name, Parse parse,
-                             const std::string& what, const std::string& expected) {
-  RequireAtMostOnce(request, name);
-  if (!request.has_param(name)) return {};
-  const std::string text = request.get_param_value(name);
-  std::vector<T> values;
-  size_t begin = 0;
-  for (;;) {
-    const size_t comma = text.find(',', begin);
-    const std::string item = text.substr(begin, comma == std::string::npos ? std::string::npos : comma - begin);
-    const std::optional<T> value = parse(item);
-    if (!value) {
-      throw ApiError(400, error_code::kInvalidParameter,
-                     std::string(name) + " " + http::ShowValue(item) + " is not " + what + "; expected one of " +
-                         expected + ", or several separated by commas");
-    }
-    values.push_back(*value);
-    if (comma == std::string::npos) return values;
-    begin = comma + 1;
-  }
-}
-
-std::vector<JobState> ParseStateFilter(const httplib::Request& request) {
-  return ParseNameList<JobState>(request, "state", JobStateFromString, "a job state",
-                                 "queued, running, completed, failed, canceled");
-}
-
-std::vector<Strategy> ParseStrategyFilter(const httplib::Request& request) {
-  std::string names;
-  for (const StrategyNameEntry& entry : kStrategyNames) names += (names.empty() ? "" : ", ") + std::string(entry.name);
-  return ParseNameList<Strategy>(request, "strategy", StrategyFromString, "a strategy", names);
-}
-
-std::string ParseNameFilter(const httplib::Request& request) {
-  RequireAtMostOnce(request, "name");
-  const std::string text = request.get_param_value("name");
-  if (text.size() > http::kMaxNameBytes) {
-    throw ApiError(400, error_code::kInvalidParameter,
-                   "name is " + std::to_string(text.size()) + " bytes long; expected at most " +
-                       std::to_string(http::kMaxNameBytes) + " bytes, the longest a job's name can be");
-  }
-  return text;
-}
-
-// A decimal integer in [low, high], or `fallback` when the parameter is absent.
-int64_t ParseInteger(const httplib::Request& request, const char* name, int64_t low, int64_t high, int64_t fallback) {
-  RequireAtMostOnce(request, name);
-  if (!request.has_param(name)) return fallback;
-  const std::string text = request.get_param_value(name);
-  const std::string expected = "expected an integer in [" + std::to_string(low) + ", " + std::to_string(high) + "]";
-  constexpr size_t kMaxDigits = 18;  // below 2^63
-  if (!AllDigits(text) || text.size() > kMaxDigits || std::stoll(text) < low || std::stoll(text) > high) {
-    throw ApiError(400, error_code::kInvalidParameter,
-                   std::string(name) + " " + http::ShowValue(text) + " is out of range; " + expected);
-  }
-  return std::stoll(text);
+// The Authorization header exactly as the client sent it. httplib 0.11.4 percent-decodes
+// every header value it parses (detail::parse_header calls decode_url), so its
+// Request::headers would take "Bearer TOK%45N" for "Bearer TOKEN" and cut
+// "Bearer TOKEN%00junk" at the NUL; the connection keeps the raw head instead. None when the
+// header is missing, given twice (which one counts would be a guess) or the raw head is
+// not at hand.
+std::optional<std::string> RawAuthorization() {
+  const GuardedConnection* connection = GuardedConnection::Current();
+  if (connection == nullptr) return std::nullopt;
+  std::vector<std::string> values = RawHeaderValues(connection->rawHead(), "Authorization");
+  if (values.size() != 1) return std::nullopt;
+  return std::move(values.front());
 }
 
 int ParseLimit(const httplib::Request& request) {
@@ -274,10 +196,14 @@ bool ServeFile(httplib::Response& response, const std::filesystem::path& path, c
 }
 
 // For errors the HTTP library answers itself, before any route runs.
-ApiError LibraryError(const httplib::Request& request, int status, size_t maxBodyBytes) {
+ApiError LibraryError(const httplib::Request& request, int status, const ApiError& tooLarge) {
   switch (status) {
     case 413:
-      return PayloadTooLarge(maxBodyBytes);
+      return tooLarge;
+    case 501:
+      return ApiError(501, error_code::kNotImplemented,
+                      "method " + http::ShowValue(request.method) +
+                          " is not implemented; expected GET, HEAD, POST, PUT, PATCH, DELETE or OPTIONS");
     case 404:
       return ApiError(404, error_code::kNotFound, "no route for " + request.method + " " + request.path);
     default:
@@ -358,10 +284,14 @@ const std::vector<ApiServer::Route>& ApiServer::Routes() {
 
 int ApiServer::Start() {
   std::unique_ptr<httplib::Server> server;
+  ConnectionGuard* guard = nullptr;
   if (options_.tlsCertFile.empty()) {
-    server = std::make_unique<httplib::Server>();
+    auto plain = std::make_unique<GuardedServer>();
+    guard = plain.get();
+    server = std::move(plain);
   } else {
-    auto tls = std::make_unique<httplib::SSLServer>(options_.tlsCertFile.c_str(), options_.tlsKeyFile.c_str());
+    auto tls = std::make_unique<GuardedTlsServer>(options_.tlsCertFile.c_str(), options_.tlsKeyFile.c_str());
+    guard = tls.get();
     if (!tls->is_valid()) {
       throw std::runtime_error("TLS: --tls-cert " + options_.tlsCertFile.string() + " and --tls-key " +
                                options_.tlsKeyFile.string() +
@@ -369,6 +299,7 @@ int ApiServer::Start() {
     }
     server = std::move(tls);
   }
+  guard->set_body_limit([this](const httplib::Request& request) { return BodyLimitOf(request); });
   Configure(*server);
   return listener_.Start(std::move(server), options_.host, options_.port);
 }
@@ -400,11 +331,12 @@ void ApiServer::Configure(httplib::Server& server) {
     Register(server, method, ".*", Access::kOpen, &ApiServer::RouteMiss);
   }
   // The library runs this for every status >= 400; a body already there came from a
-  // handler and is kept.
+  // handler and is kept. Replaces the guard's error handler, so does its mapping too.
   server.set_error_handler(httplib::Server::HandlerWithResponse(
       [this](const httplib::Request& request, httplib::Response& response) {
         if (!response.body.empty()) return httplib::Server::HandlerResponse::Unhandled;
-        WriteError(response, LibraryError(request, response.status, options_.maxBodyBytes));
+        response.status = ConnectionGuard::LibraryStatus(request, response.status);
+        WriteError(response, LibraryError(request, response.status, TooLarge(request)));
         return httplib::Server::HandlerResponse::Handled;
       }));
   if (!options_.dashboardDirectory.empty() &&
@@ -412,6 +344,21 @@ void ApiServer::Configure(httplib::Server& server) {
     throw std::runtime_error("dashboard directory " + options_.dashboardDirectory.string() +
                              " is not a readable folder");
   }
+}
+
+uint64_t ApiServer::BodyLimitOf(const httplib::Request& request) const {
+  for (size_t i = 0; i < Routes().size(); ++i) {
+    if (Routes()[i].stream != nullptr && request.method == Routes()[i].method &&
+        std::regex_match(request.path, routePatterns_[i])) {
+      return options_.assetMaxFileBytes;
+    }
+  }
+  return options_.maxBodyBytes;
+}
+
+ApiError ApiServer::TooLarge(const httplib::Request& request) const {
+  const uint64_t limit = BodyLimitOf(request);
+  return limit == options_.maxBodyBytes ? PayloadTooLarge(options_.maxBodyBytes) : AssetTooLarge(limit);
 }
 
 void ApiServer::Register(httplib::Server& server, const std::string& method, const std::string& pattern,
@@ -430,7 +377,7 @@ void ApiServer::Register(httplib::Server& server, const std::string& method, con
         [this, access, handle](const httplib::Request& request, httplib::Response& response,
                                const httplib::ContentReader& reader) {
           if (!Admit(request, access, response)) {
-            DiscardBody(request, reader);
+            RefuseBody(request);
             return;
           }
           // httplib 0.11.4 reads a POST with neither header until the client closes (or its
@@ -466,16 +413,22 @@ void ApiServer::RegisterStream(httplib::Server& server, const std::string& patte
   server.Put(pattern, [this, access, stream](const httplib::Request& request, httplib::Response& response,
                                              const httplib::ContentReader& reader) {
     if (!Admit(request, access, response)) {
-      DiscardBody(request, reader);
+      RefuseBody(request);
       return;
     }
     BodyPieces read;
     // As in Register: neither length header means no body (RFC 9112).
     if (request.has_header("Content-Length") || request.has_header("Transfer-Encoding")) {
-      read = [&reader](const std::function<void(const char*, size_t)>& piece) {
-        return reader([&piece](const char* data, size_t length) {
+      read = [this, &reader](const std::function<void(const char*, size_t)>& piece) {
+        uint64_t received = 0;
+        return reader([this, &piece, &received](const char* data, size_t length) {
           piece(data, length);
-          return true;  // read on to the end whatever happens, so the connection stays in step
+          received += length;
+          if (received <= options_.assetMaxFileBytes) return true;
+          // Past the limit (a chunked body: the gate refused a Content-Length over it) the
+          // answer is 413 whatever follows: stop reading, and close after it.
+          CloseAfterResponse();
+          return false;
         });
       };
     }
@@ -513,7 +466,9 @@ void ApiServer::Guard(const httplib::Request& request, httplib::Response& respon
 
 std::optional<http::Caller> ApiServer::CallerOf(const httplib::Request& request) const {
   if (!options_.tokens) return std::nullopt;
-  const std::optional<std::string> token = BearerToken(request);
+  if (!request.has_header("Authorization")) return std::nullopt;
+  const std::optional<std::string> header = RawAuthorization();
+  const std::optional<std::string> token = header ? http::BearerToken(*header) : std::nullopt;
   if (!token) return std::nullopt;
   return options_.tokens->Find(*token);
 }
@@ -892,7 +847,7 @@ void ApiServer::GetFrameMask(const httplib::Request& request, const std::string&
 
 // The body streams to a temp file, hashed on the way; the asset is stored only when the
 // hash is the one in the path. The body is read to its end even when the answer is known
-// before (a bad hash, too large), so that the connection stays usable.
+// before (a bad hash), so that the connection stays usable; past the size limit it is not.
 void ApiServer::PutAsset(const httplib::Request& request, const BodyPieces& read, httplib::Response& response) {
   const std::string hash = request.matches[1];
   const bool validHash = IsAssetHash(hash);
@@ -909,12 +864,11 @@ void ApiServer::PutAsset(const httplib::Request& request, const BodyPieces& read
   bool tooLarge = false;
   const bool complete = !read || read([&](const char* data, size_t length) {
     received += length;
-    if (!upload) return;
     if (received > options_.assetMaxFileBytes) {
       tooLarge = true;
       upload.reset();
-      return;
     }
+    if (!upload) return;
     try {
       upload->Write(std::string_view(data, length));
     } catch (const std::runtime_error& error) {

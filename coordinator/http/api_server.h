@@ -5,8 +5,12 @@
 //
 // With tokens (ApiOptions::tokens) every route but /healthz and the dashboard's static
 // files needs "Authorization: Bearer TOKEN" of a role high enough: 401 without a known
-// token, 403 with one whose role is too low (http/api_tokens.h). Refused requests never
-// have their bodies read into memory or onto disk.
+// token, 403 with one whose role is too low (http/api_tokens.h). The token is read from
+// the Authorization header byte for byte, as sent. Refused requests never have their
+// bodies read: the connection closes after the answer. Every request passes the server's
+// gate first (net/guarded_server.h): a body over its route's limit is refused with 413
+// before any of it is read, whatever the method, and a method the server does not route
+// gets 501.
 //
 // The server only reads and writes the JobStore and asks the FarmControl for cancels,
 // priority changes and snapshots; it never touches the farm's state directly, so a slow
@@ -33,6 +37,7 @@
 #include <vector>
 
 #include "farm/farm_control.h"
+#include "http/api_error.h"
 #include "http/api_tokens.h"
 #include "http/job_json.h"
 #include "http/submit_request.h"
@@ -137,6 +142,9 @@ class ApiServer {
   void Register(httplib::Server& server, const std::string& method, const std::string& pattern,
                 Access access, Handler handle);
   void RegisterStream(httplib::Server& server, const std::string& pattern, Access access, StreamHandler stream);
+  // The largest body the request's route takes: an asset upload's or a JSON body's.
+  uint64_t BodyLimitOf(const httplib::Request& request) const;
+  http::ApiError TooLarge(const httplib::Request& request) const;  // the 413 naming that limit
   // Throws ApiError 401 (no known token) or 403 (a role too low). Without tokens, allows all.
   void Authorize(const httplib::Request& request, Access access) const;
   // Authorize, answering the error itself: false when the request is refused.

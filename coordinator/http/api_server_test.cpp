@@ -1705,6 +1705,26 @@ TEST_F(ApiServerWithTokensTest, EveryRouteButHealthzNeedsAKnownToken) {
   ExpectError(basic.Get("/api/v1/jobs"), 401, "unauthorized");
 }
 
+// The header counts as sent, byte for byte: httplib percent-decodes header values, so each
+// of these once reached the token check as the read token itself.
+TEST_F(ApiServerWithTokensTest, TheAuthorizationHeaderIsTakenByteForByte) {
+  const auto statusWith = [this](const std::string& authorization) {
+    const std::string answer = RawExchange(tokenPort_, "GET /api/v1/jobs HTTP/1.1\r\nHost: x\r\nAuthorization: " +
+                                                           authorization + "\r\nConnection: close\r\n\r\n");
+    return answer.substr(0, answer.find("\r\n"));
+  };
+  EXPECT_EQ(statusWith("Bearer " + kReadToken), "HTTP/1.1 200 OK");
+  ASSERT_EQ(kReadToken[0], 'r');
+  for (const std::string& near : {"Bearer " + kReadToken + "%00junk", "Bearer %72" + kReadToken.substr(1),
+                                  "Bearer " + kReadToken + "junk", "Bearer " + kReadToken + std::string(1, '\0') + "junk",
+                                  "Bearer " + kReadToken + "%20x"}) {
+    EXPECT_EQ(statusWith(near), "HTTP/1.1 401 Unauthorized") << near;
+  }
+  // Two headers: which one would count is a guess, so neither does.
+  EXPECT_EQ(statusWith("Bearer " + kReadToken + "\r\nAuthorization: Bearer " + kReadToken),
+            "HTTP/1.1 401 Unauthorized");
+}
+
 TEST_F(ApiServerWithTokensTest, RolesDecideWhatATokenMayDo) {
   const json readOnly = ExpectError(As(kReadToken).Post("/api/v1/jobs", Submission().dump(), "application/json"),
                                     403, "forbidden");

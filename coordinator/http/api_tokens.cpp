@@ -101,6 +101,16 @@ std::optional<Role> RoleFromName(std::string_view name) {
   return std::nullopt;
 }
 
+std::optional<std::string> BearerToken(std::string_view header) {
+  constexpr std::string_view kScheme = "bearer";
+  if (header.size() <= kScheme.size() || header[kScheme.size()] != ' ') return std::nullopt;
+  if (Lowercase(header.substr(0, kScheme.size())) != kScheme) return std::nullopt;
+  const size_t begin = header.find_first_not_of(' ', kScheme.size());
+  const size_t end = header.find_last_not_of(" \t");
+  if (begin == std::string_view::npos) return std::nullopt;
+  return std::string(header.substr(begin, end - begin + 1));
+}
+
 std::string TokenId(std::string_view token) { return wire::Sha256Hex(token).substr(0, kTokenIdLength); }
 
 ApiTokens ApiTokens::Load(const std::filesystem::path& file) {

@@ -36,6 +36,11 @@ struct Caller {
 // The first 12 hex characters of the token's SHA-256.
 std::string TokenId(std::string_view token);
 
+// The token of an Authorization header value "Bearer TOKEN" (the scheme case-insensitive,
+// RFC 6750), taken as it is: every byte after the spaces that follow the scheme, up to
+// trailing spaces and tabs. Nullopt for another scheme or no token.
+std::optional<std::string> BearerToken(std::string_view header);
+
 class ApiTokens {
  public:
   // Shortest token taken without a warning: 16 characters of a random alphabet are beyond

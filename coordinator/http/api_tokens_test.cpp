@@ -86,6 +86,32 @@ TEST(ApiTokensTest, PaddedBase64TokensAreAccepted) {
   EXPECT_NE(ParseError("read abcdefghij=klmnop\n"), "");
 }
 
+// The header is taken byte for byte: nothing but the exact token matches, whatever a
+// decoding or a C string would have made of the rest.
+TEST(ApiTokensTest, OnlyTheExactTokenIsFound) {
+  const ApiTokens tokens = ApiTokens::Parse("admin " + kAdmin + "\n", "tokens.txt");
+  ASSERT_TRUE(tokens.Find(kAdmin));
+  const std::string withNul = kAdmin + std::string(1, '\0') + "junk";
+  const std::string percentEncoded = kAdmin.substr(0, 2) + "%" + "6D" + kAdmin.substr(3);  // 'm' is %6D
+  ASSERT_EQ(kAdmin[2], 'm');
+  for (const std::string& near : {withNul, kAdmin + "%00junk", kAdmin + "junk", kAdmin + "\t",
+                                  percentEncoded, kAdmin.substr(0, kAdmin.size() - 1), std::string()}) {
+    EXPECT_FALSE(tokens.Find(near)) << near;
+  }
+}
+
+TEST(BearerTokenTest, TheTokenIsEveryByteAfterTheScheme) {
+  EXPECT_EQ(BearerToken("Bearer abc"), "abc");
+  EXPECT_EQ(BearerToken("bEARER   abc \t"), "abc");
+  EXPECT_EQ(BearerToken("Bearer TOK%45N"), "TOK%45N");
+  EXPECT_EQ(BearerToken("Bearer TOKEN%00junk"), "TOKEN%00junk");
+  EXPECT_EQ(BearerToken(std::string("Bearer TOKEN\0junk", 17)), std::string("TOKEN\0junk", 10));
+  EXPECT_EQ(BearerToken("Bearer a b"), "a b");
+  for (const char* none : {"", "Bearer", "Bearer ", "Bearer   ", "Basic abc", "Bearerabc", "Token abc"}) {
+    EXPECT_FALSE(BearerToken(none)) << none;
+  }
+}
+
 TEST(ApiTokensTest, AnUnreadableFileIsNamed) {
   try {
     ApiTokens::Load("/nonexistent/tokens.txt");

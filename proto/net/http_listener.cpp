@@ -55,6 +55,9 @@ void GrowingThreadPool::Work() {
 
 int HttpListener::Start(std::unique_ptr<httplib::Server> server, const std::string& host, int port) {
   if (server_) throw std::logic_error("HttpListener::Start: already started");
+  if (dynamic_cast<ConnectionGuard*>(server.get()) == nullptr) {
+    throw std::logic_error("HttpListener::Start: expected a GuardedServer or GuardedTlsServer, whose requests are bounded");
+  }
   // httplib's default sets SO_REUSEPORT, with which a second process on the same port
   // would silently share it instead of failing to start. The callback also sees the
   // listening socket, whose backlog is raised once it is bound.
@@ -67,6 +70,9 @@ int HttpListener::Start(std::unique_ptr<httplib::Server> server, const std::stri
   server->set_read_timeout(kReadTimeout);
   server->set_write_timeout(kWriteTimeout);
   server->set_keep_alive_timeout(kKeepAliveTimeout.count());
+  // Answers at once on every keep-alive request (GuardedConnection sets it on each
+  // connection; this is the listening socket's).
+  server->set_tcp_nodelay(true);
   server->new_task_queue = [] { return new GrowingThreadPool(kMaxThreads); };
   int bound = port;
   if (port == 0) {

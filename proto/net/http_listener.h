@@ -5,7 +5,9 @@
 // Slow or many clients cannot stall it: every connection has read and write timeouts, the
 // listen backlog holds bursts of connections, and requests run on a pool that grows with
 // the connections open (up to kMaxThreads), since httplib gives each connection one thread
-// for as long as it stays open, an idle or trickling one included.
+// for as long as it stays open, an idle or trickling one included. Large or endless
+// requests cannot fill its memory: it serves only a GuardedServer or GuardedTlsServer
+// (net/guarded_server.h), which bound every request before httplib reads it.
 #pragma once
 
 #include <atomic>
@@ -21,6 +23,8 @@
 #include <vector>
 
 #include <httplib.h>
+
+#include "net/guarded_server.h"
 
 namespace tcfarm {
 
@@ -70,7 +74,8 @@ class HttpListener {
   ~HttpListener() { Stop(); }
 
   // Binds host:port (port 0: any free port) and serves `server` on a new thread. Returns
-  // the port bound; throws std::runtime_error naming the address when it cannot listen.
+  // the port bound; throws std::runtime_error naming the address when it cannot listen,
+  // std::logic_error when `server` is not a ConnectionGuard.
   int Start(std::unique_ptr<httplib::Server> server, const std::string& host, int port);
   void Stop();
   bool running() const { return server_ != nullptr; }

@@ -11,7 +11,7 @@ MetricsEndpoint::MetricsEndpoint(std::shared_ptr<prometheus::Registry> registry,
     : registry_(std::move(registry)), health_(std::move(health)) {}
 
 int MetricsEndpoint::Start(const std::string& host, int port) {
-  auto server = std::make_unique<httplib::Server>();
+  auto server = std::make_unique<GuardedServer>();  // GETs only: every request body is refused
   server->Get("/metrics", [this](const httplib::Request&, httplib::Response& response) {
     response.set_content(prometheus::TextSerializer().Serialize(registry_->Collect()),
                          "text/plain; version=0.0.4; charset=utf-8");
