@@ -15,7 +15,8 @@ Tracer* SceneCache::Find(const std::string& hash) {
 }
 
 SceneCache::Built SceneCache::Build(const std::string& sceneJson, const AssetCache& assets) const {
-  return Finish(std::make_unique<Scene>(ParseScene(sceneJson)), assets);
+  auto scene = std::make_unique<Scene>(ParseScene(sceneJson, std::nullopt, [this] { ThrowIfStopRequested(stop_); }));
+  return Finish(std::move(scene), assets);
 }
 
 SceneCache::Built SceneCache::Finish(std::unique_ptr<Scene> scene, const AssetCache& assets) const {
@@ -32,7 +33,8 @@ SceneCache::Built SceneCache::Finish(std::unique_ptr<Scene> scene, const AssetCa
   built.scene = std::move(scene);
   if (!built.missingAssets.empty()) return built;
   PrepareForTracing(*built.scene);  // as the reference renderer does: the same bits
-  built.tracer = std::make_unique<Tracer>(device_, *built.scene, pool_);
+  ThrowIfStopRequested(stop_);
+  built.tracer = std::make_unique<Tracer>(device_, *built.scene, pool_, stop_);
   return built;
 }
 

@@ -56,7 +56,7 @@ WorkerDaemon::WorkerDaemon(WorkerOptions options, const Clock& clock)
     : options_(std::move(options)),
       clock_(clock),
       pool_(options_.threads),
-      scenes_(device_, pool_),
+      scenes_(device_, pool_, &stopBuilds_),
       coordinator_(options_.heartbeat, clock.Now()),
       backoff_(options_.heartbeat),
       assets_(AssetCacheDir(options_.assetCache), options_.maxAssetBytes),
@@ -139,6 +139,12 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
     if (coordinator_.ShouldSendHeartbeat(now)) Send(wire::Heartbeat{});
   }
   Send(wire::Disconnect{});
+  StopBuilds();
+}
+
+void WorkerDaemon::StopBuilds() {
+  stopBuilds_ = true;
+  building_.clear();  // waits for each build, which now throws BuildStopped at its next look
 }
 
 void WorkerDaemon::CheckHandshake() {

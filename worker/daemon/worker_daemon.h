@@ -62,7 +62,8 @@ class WorkerDaemon {
   WorkerDaemon(WorkerOptions options, const Clock& clock);
   ~WorkerDaemon();
 
-  // Runs until *stop becomes true; then says DISCONNECT and returns.
+  // Runs until *stop becomes true; then says DISCONNECT, stops the scene builds under way
+  // and returns (the loop notices `stop` within its 100 ms poll, a build at its next look).
   void Run(const std::atomic<bool>& stop);
   const WorkerMetrics& metrics() const { return metrics_; }
   // Safe from any thread (the metrics endpoint asks): the loop stalls when it has not
@@ -88,6 +89,7 @@ class WorkerDaemon {
   void FailTasks(const std::vector<wire::Task>& tasks, const std::string& sceneHash, const std::string& why);
   // Scenes whose build has finished: cached, and their tasks made ready (or failed).
   void CollectBuiltScenes();
+  void StopBuilds();
   void TraceNext();
   void Send(const wire::Message& message);
 
@@ -95,6 +97,9 @@ class WorkerDaemon {
   const Clock& clock_;
   EmbreeDevice device_;
   TracingThreads pool_;
+  // Set when Run ends: builds under way give up (util/build_stop.h) rather than hold the
+  // worker's exit for as long as a huge scene takes to build.
+  std::atomic<bool> stopBuilds_{false};
   SceneCache scenes_;
   zmq::context_t context_;
   std::unique_ptr<zmq::socket_t> socket_;
