@@ -60,7 +60,8 @@ class WorkerRegistry {
   // Returns the credit of a finished (or failed) task; false if that worker did not hold it.
   bool Release(const std::string& identity, uint64_t taskId);
   // Forgets a task wherever it is held (its job went away); the credit returns at once.
-  void Forget(uint64_t taskId);
+  // Returns the identity of the worker that held it, "" when none did.
+  std::string Forget(uint64_t taskId);
 
   WorkerState* Find(const std::string& identity);
   const WorkerState* Find(const std::string& identity) const;

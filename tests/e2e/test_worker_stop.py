@@ -1,6 +1,7 @@
 """A worker told to stop (SIGTERM) while it builds a huge scene stops at once instead of
-finishing the build first, and stopping builds changes nothing in what workers render.
-Real coordinator and worker processes on loopback."""
+finishing the build first; a worker whose job is canceled mid-build gives the build up;
+and stopping builds changes nothing in what workers render. Real coordinator and worker
+processes on loopback."""
 import re
 import signal
 import subprocess
@@ -38,17 +39,25 @@ def farm(tmp_path):
         yield farm
 
 
-def test_sigterm_stops_a_worker_in_the_middle_of_a_scene_build(farm):
+def start_huge_build(farm):
+    """A worker with metrics, in the middle of building HUGE_SCENE: (process, url, job id)."""
     worker, url = farm.add_worker_with_metrics()
     farm.wait_for_workers(1)
-    farm.client.submit(HUGE_SCENE, strategy="brute")
+    job = farm.client.submit(HUGE_SCENE, strategy="brute")
     wait_until(lambda: worker_counter(url, "tcfarm_worker_scene_cache_misses_total") >= 1,
                "the worker to ask for the scene", timeout=30)
-    time.sleep(1.5)  # the scene arrives and its build starts
+    wait_until(lambda: worker_counter(url, "tcfarm_worker_scene_builds") == 1,
+               "the worker to start building the scene", timeout=30)
+    time.sleep(0.5)
     # Still building: nothing traced, nothing failed.
+    assert worker_counter(url, "tcfarm_worker_scene_builds") == 1
     assert worker_counter(url, "tcfarm_worker_tasks_total") == 0
     assert worker_counter(url, "tcfarm_worker_scene_errors_total") == 0
+    return worker, url, job["id"]
 
+
+def test_sigterm_stops_a_worker_in_the_middle_of_a_scene_build(farm):
+    worker, _, _ = start_huge_build(farm)
     worker.send_signal(signal.SIGTERM)
     sent = time.monotonic()
     try:
@@ -58,6 +67,18 @@ def test_sigterm_stops_a_worker_in_the_middle_of_a_scene_build(farm):
     print(f"worker exited {time.monotonic() - sent:.2f} s after SIGTERM, mid-build")
     assert worker.returncode == 0, farm.worker_log(0).read_text()
     assert farm.metric("tcfarm_task_results_total") == 0
+
+
+def test_canceling_the_job_stops_the_build_of_its_scene(farm):
+    worker, url, job_id = start_huge_build(farm)
+    farm.client.cancel(job_id)
+    canceled = time.monotonic()
+    wait_until(lambda: worker_counter(url, "tcfarm_worker_scene_builds") == 0,
+               "the worker to give up the build of the canceled job's scene", timeout=EXIT_BOUND_S)
+    print(f"build given up {time.monotonic() - canceled:.2f} s after the cancel")
+    assert worker.poll() is None  # the worker lives on
+    assert worker_counter(url, "tcfarm_worker_scene_errors_total") == 0  # giving up is no failure
+    assert worker_counter(url, "tcfarm_worker_tasks_total") == 0
 
 
 def test_a_worker_that_can_stop_its_builds_renders_as_the_reference_does(farm, tmp_path):

@@ -21,10 +21,8 @@ class SceneCache {
   // Scenes kept built: several jobs share a farm, each with its own scene.
   static constexpr size_t kDefaultCapacity = 4;
 
-  // Builds under way throw BuildStopped once `stop` is set (util/build_stop.h).
-  SceneCache(const EmbreeDevice& device, TracingThreads& pool, BuildStop stop = nullptr,
-             size_t capacity = kDefaultCapacity)
-      : device_(device), pool_(pool), stop_(stop), capacity_(capacity) {}
+  SceneCache(const EmbreeDevice& device, TracingThreads& pool, size_t capacity = kDefaultCapacity)
+      : device_(device), pool_(pool), capacity_(capacity) {}
 
   // A scene parsed and built, not yet in the cache; or parsed only, waiting for the
   // assets it names (missingAssets) to arrive.
@@ -37,12 +35,12 @@ class SceneCache {
   // The tracer of a cached scene, or nullptr; a hit makes it most recently used.
   Tracer* Find(const std::string& hash);
   // Parses a scene received from the coordinator and, when `assets` holds every texture
-  // it names, builds it. Throws SceneError (bad scene), TextureError, EmbreeError or
-  // BuildStopped. Safe
-  // beside tracing and the cache's other calls: the worker builds scenes off its loop.
-  Built Build(const std::string& sceneJson, const AssetCache& assets) const;
+  // it names, builds it. Throws SceneError (bad scene), TextureError, EmbreeError, or
+  // BuildStopped once `stop` is set (util/build_stop.h). Safe beside tracing and the
+  // cache's other calls: the worker builds scenes off its loop.
+  Built Build(const std::string& sceneJson, const AssetCache& assets, BuildStop stop = nullptr) const;
   // Builds a parsed scene whose assets have arrived since (or reports the ones still missing).
-  Built Finish(std::unique_ptr<Scene> scene, const AssetCache& assets) const;
+  Built Finish(std::unique_ptr<Scene> scene, const AssetCache& assets, BuildStop stop = nullptr) const;
   // Caches a built scene, evicting the least recently used beyond capacity.
   Tracer* Insert(const std::string& hash, Built built);
 
@@ -56,7 +54,6 @@ class SceneCache {
   };
   const EmbreeDevice& device_;
   TracingThreads& pool_;
-  BuildStop stop_;
   size_t capacity_;
   std::list<Entry> entries_;  // most recently used first
   uint64_t hits_ = 0, misses_ = 0;

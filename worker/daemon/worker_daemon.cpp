@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <iterator>
 #include <thread>
 
 #include "curve/socket_events.h"
@@ -56,7 +57,7 @@ WorkerDaemon::WorkerDaemon(WorkerOptions options, const Clock& clock)
     : options_(std::move(options)),
       clock_(clock),
       pool_(options_.threads),
-      scenes_(device_, pool_, &stopBuilds_),
+      scenes_(device_, pool_),
       coordinator_(options_.heartbeat, clock.Now()),
       backoff_(options_.heartbeat),
       assets_(AssetCacheDir(options_.assetCache), options_.maxAssetBytes),
@@ -143,8 +144,15 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
 }
 
 void WorkerDaemon::StopBuilds() {
-  stopBuilds_ = true;
+  for (auto& [hash, build] : building_) *build.stop = true;
   building_.clear();  // waits for each build, which now throws BuildStopped at its next look
+}
+
+void WorkerDaemon::StopBuild(const std::string& sceneHash) {
+  auto build = building_.find(sceneHash);
+  if (build == building_.end()) return;
+  *build->second.stop = true;
+  build->second.tasks.clear();  // CollectBuiltScenes forgets the build once it has given up
 }
 
 void WorkerDaemon::CheckHandshake() {
@@ -222,12 +230,17 @@ void WorkerDaemon::OnScene(const wire::SceneData& scene) {
     FailTasks(tasks, scene.sceneHash, "scene bytes do not match hash " + scene.sceneHash);
     return;
   }
-  StartBuild(scene.sceneHash, [this, json = scene.sceneJson] { return scenes_.Build(json, assets_); }, std::move(tasks));
+  StartBuild(scene.sceneHash,
+             [this, json = scene.sceneJson](BuildStop stop) { return scenes_.Build(json, assets_, stop); },
+             std::move(tasks));
 }
 
-void WorkerDaemon::StartBuild(const std::string& sceneHash, std::function<SceneCache::Built()> build,
+void WorkerDaemon::StartBuild(const std::string& sceneHash, std::function<SceneCache::Built(BuildStop)> build,
                               std::vector<wire::Task> tasks) {
-  building_[sceneHash] = SceneBuild{std::async(std::launch::async, std::move(build)), std::move(tasks)};
+  auto stop = std::make_unique<std::atomic<bool>>(false);
+  auto built = std::async(std::launch::async, std::move(build), stop.get());
+  building_[sceneHash] = SceneBuild{std::move(built), std::move(tasks), std::move(stop)};
+  metrics_.sceneBuilds.Set(static_cast<double>(building_.size()));
 }
 
 void WorkerDaemon::FailTasks(const std::vector<wire::Task>& tasks, const std::string& sceneHash, const std::string& why) {
@@ -236,6 +249,7 @@ void WorkerDaemon::FailTasks(const std::vector<wire::Task>& tasks, const std::st
 }
 
 void WorkerDaemon::CollectBuiltScenes() {
+  std::vector<wire::Task> askAgain;  // came for a scene whose build had been stopped
   for (auto build = building_.begin(); build != building_.end();) {
     if (build->second.built.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
       ++build;
@@ -243,12 +257,17 @@ void WorkerDaemon::CollectBuiltScenes() {
     }
     std::string problem;
     SceneCache::Built built;
+    bool stopped = false;
     try {
       built = build->second.built.get();
+    } catch (const BuildStopped&) {
+      stopped = true;
     } catch (const std::exception& e) {
       problem = e.what();
     }
-    if (!problem.empty()) {
+    if (stopped) {
+      std::move(build->second.tasks.begin(), build->second.tasks.end(), std::back_inserter(askAgain));
+    } else if (!problem.empty()) {
       FailTasks(build->second.tasks, build->first, problem);
     } else if (!built.missingAssets.empty()) {
       AwaitAssets(build->first, std::move(built), std::move(build->second.tasks));
@@ -258,6 +277,8 @@ void WorkerDaemon::CollectBuiltScenes() {
     }
     build = building_.erase(build);
   }
+  metrics_.sceneBuilds.Set(static_cast<double>(building_.size()));
+  for (auto& task : askAgain) OnTask(std::move(task));
 }
 
 void WorkerDaemon::AwaitAssets(const std::string& sceneHash, SceneCache::Built built, std::vector<wire::Task> tasks) {
@@ -292,7 +313,8 @@ void WorkerDaemon::OnAssetPiece(const wire::AssetPiece& piece) {
     wait->second.missing.erase(piece.assetHash);
     if (wait->second.missing.empty()) {
       auto scene = std::make_shared<std::unique_ptr<Scene>>(std::move(wait->second.scene));
-      StartBuild(wait->first, [this, scene] { return scenes_.Finish(std::move(*scene), assets_); },
+      StartBuild(wait->first,
+                 [this, scene](BuildStop stop) { return scenes_.Finish(std::move(*scene), assets_, stop); },
                  std::move(wait->second.tasks));
       wait = waitingForAssets_.erase(wait);
     } else {
@@ -304,11 +326,12 @@ void WorkerDaemon::OnAssetPiece(const wire::AssetPiece& piece) {
   }
 }
 
-// The coordinator cannot serve a scene or an asset we asked for (its job is gone): the
-// tasks that wait on it are dropped, or failed with its reason. The reason names the asset
+// The coordinator cannot serve a scene or an asset we asked for, or says unasked that no
+// job uses a scene any more (its job is gone): the tasks that wait on it are dropped (the
+// scene's build stopped), or failed with its reason. The reason names the asset
 // as a download's own failures do: the coordinator's message need not.
 void WorkerDaemon::OnCoordinatorError(const wire::Error& error) {
-  if (!error.sceneHash.empty()) waitingForScene_.erase(error.sceneHash);
+  if (!error.sceneHash.empty()) ForgetScene(error.sceneHash);
   if (error.assetHash.empty()) return;
   if (!assets_.IsExpected(error.assetHash)) return;
   assets_.AbandonDownload(error.assetHash);
@@ -321,6 +344,17 @@ void WorkerDaemon::OnCoordinatorError(const wire::Error& error) {
       ++wait;
     }
   }
+}
+
+// No job uses the scene any more (the last was canceled or deleted): its tasks are gone
+// from the coordinator, so whatever waits here for the scene is dropped, and its build,
+// however long it would take, stopped.
+void WorkerDaemon::ForgetScene(const std::string& sceneHash) {
+  waitingForScene_.erase(sceneHash);
+  waitingForAssets_.erase(sceneHash);
+  StopBuild(sceneHash);
+  ready_.erase(std::remove_if(ready_.begin(), ready_.end(), [&](const wire::Task& task) { return task.sceneHash == sceneHash; }),
+               ready_.end());
 }
 
 void WorkerDaemon::TraceNext() {

@@ -83,9 +83,13 @@ class WorkerDaemon {
   void OnScene(const wire::SceneData& scene);
   void OnAssetPiece(const wire::AssetPiece& piece);
   void OnCoordinatorError(const wire::Error& error);
+  void ForgetScene(const std::string& sceneHash);
   // A parsed scene that names assets this worker lacks: ask for each (once), build later.
   void AwaitAssets(const std::string& sceneHash, SceneCache::Built built, std::vector<wire::Task> tasks);
-  void StartBuild(const std::string& sceneHash, std::function<SceneCache::Built()> build, std::vector<wire::Task> tasks);
+  void StartBuild(const std::string& sceneHash, std::function<SceneCache::Built(BuildStop)> build,
+                  std::vector<wire::Task> tasks);
+  // The build gives up at its next look (util/build_stop.h); its tasks are dropped.
+  void StopBuild(const std::string& sceneHash);
   void FailTasks(const std::vector<wire::Task>& tasks, const std::string& sceneHash, const std::string& why);
   // Scenes whose build has finished: cached, and their tasks made ready (or failed).
   void CollectBuiltScenes();
@@ -97,9 +101,6 @@ class WorkerDaemon {
   const Clock& clock_;
   EmbreeDevice device_;
   TracingThreads pool_;
-  // Set when Run ends: builds under way give up (util/build_stop.h) rather than hold the
-  // worker's exit for as long as a huge scene takes to build.
-  std::atomic<bool> stopBuilds_{false};
   SceneCache scenes_;
   zmq::context_t context_;
   std::unique_ptr<zmq::socket_t> socket_;
@@ -112,10 +113,13 @@ class WorkerDaemon {
   std::map<std::string, std::vector<wire::Task>> waitingForScene_;
   // Scenes being built off the loop, with the tasks that wait for them: the loop keeps
   // answering heartbeats meanwhile. A scene of millions of triangles takes longer to build
-  // than the coordinator waits for a silent worker.
+  // than the coordinator waits for a silent worker. A build is stopped when its scene's
+  // jobs are gone or the worker stops, rather than hold the worker for as long as a huge
+  // scene takes to build.
   struct SceneBuild {
     std::future<SceneCache::Built> built;
     std::vector<wire::Task> tasks;
+    std::unique_ptr<std::atomic<bool>> stop;  // at a fixed address: the build thread reads it
   };
   std::map<std::string, SceneBuild> building_;
   AssetCache assets_;
