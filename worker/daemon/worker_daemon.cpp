@@ -71,7 +71,8 @@ WorkerHealth WorkerDaemon::Health() const {
   return WorkerHealth{clock_.Now() - lastTurn < kStallAfter, coordinatorAnswers_.load()};
 }
 
-WorkerDaemon::~WorkerDaemon() = default;
+// Also when Run ended by an exception: the builds under way must not hold the exit.
+WorkerDaemon::~WorkerDaemon() { StopBuilds(); }
 
 void WorkerDaemon::Connect() {
   socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
