@@ -97,18 +97,21 @@ void Dispatcher::RemoveJob(uint64_t jobId) {
   if (job == jobs_.end()) return;
   std::string hash = job->second.sceneHash;
   jobs_.erase(job);
+  std::set<std::string> holders;  // workers that held its tasks, and may be building its scene
   for (auto it = tasks_.begin(); it != tasks_.end();) {
     if (it->second.task.jobId != jobId) {
       ++it;
       continue;
     }
     if (it->second.pending) --pendingCount_;
-    registry_.Forget(it->first);
+    if (std::string holder = registry_.Forget(it->first); !holder.empty()) holders.insert(holder);
     it = tasks_.erase(it);
   }
   bool sceneStillUsed = std::any_of(jobs_.begin(), jobs_.end(),
                                     [&](const auto& j) { return j.second.sceneHash == hash; });
-  if (!sceneStillUsed) scenes_.erase(hash);
+  if (sceneStillUsed) return;
+  scenes_.erase(hash);
+  for (const std::string& holder : holders) Send(holder, wire::Error{0, hash, "no job uses this scene any more", ""});
 }
 
 void Dispatcher::Enqueue(DispatchTask task) {

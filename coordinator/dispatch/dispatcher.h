@@ -140,6 +140,8 @@ class Dispatcher {
   // The workers lost since the last call, with the tasks of each job they held.
   std::vector<WorkerLoss> TakeWorkerLosses();
   // Drops the job's pending tasks and forgets its in-flight ones; late results are ignored.
+  // When no job uses its scene any more, the workers that held its tasks are told so
+  // (ERROR naming the scene): they drop the scene's tasks and give up building it.
   void RemoveJob(uint64_t jobId);
   void Enqueue(DispatchTask task);
 

@@ -544,6 +544,42 @@ TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {
   EXPECT_EQ(dispatcher_.registry().workers().begin()->second.FreeCredit(), 1u);
 }
 
+// The ERRORs naming a scene among a worker's messages.
+std::vector<wire::Error> SceneErrors(FakeWorker& worker) {
+  std::vector<wire::Error> errors;
+  for (auto& message : worker.Drain()) {
+    if (auto* error = std::get_if<wire::Error>(&message); error && !error->sceneHash.empty()) errors.push_back(*error);
+  }
+  return errors;
+}
+
+TEST_F(DispatcherTest, WorkersHoldingARemovedJobsTasksAreToldItsSceneIsNoLongerUsed) {
+  FakeWorker holder(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 1);
+  Pump();
+  ASSERT_EQ(holder.Tasks().size(), 1u);
+  FakeWorker idle(context_, dispatcher_.BoundEndpoint(), 1);
+  Pump();
+  dispatcher_.RemoveJob(1);
+  Pump();
+  const std::vector<wire::Error> errors = SceneErrors(holder);
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_EQ(errors[0].sceneHash, kHash);
+  EXPECT_EQ(errors[0].taskId, 0u);
+  EXPECT_TRUE(SceneErrors(idle).empty());  // it held none of the job's tasks
+}
+
+TEST_F(DispatcherTest, ASceneAnotherJobStillUsesIsNotReportedGone) {
+  dispatcher_.AddJob(2, 0, 4, 4, kHash, "{\"scene\": 1}");
+  FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
+  EnqueueTasks(1, 1);
+  Pump();
+  ASSERT_EQ(worker.Tasks().size(), 1u);
+  dispatcher_.RemoveJob(1);
+  Pump();
+  EXPECT_TRUE(SceneErrors(worker).empty());
+}
+
 // Assets held in memory, as the farm's store holds them on disk.
 class MemoryAssets : public AssetSource {
  public:

@@ -78,8 +78,11 @@ bool WorkerRegistry::Release(const std::string& identity, uint64_t taskId) {
   return worker && worker->inFlight.erase(taskId) > 0;
 }
 
-void WorkerRegistry::Forget(uint64_t taskId) {
-  for (auto& [identity, worker] : workers_) worker.inFlight.erase(taskId);
+std::string WorkerRegistry::Forget(uint64_t taskId) {
+  for (auto& [identity, worker] : workers_) {
+    if (worker.inFlight.erase(taskId)) return identity;
+  }
+  return "";
 }
 
 std::vector<std::string> WorkerRegistry::IdentitiesOf(const std::string& principal) const {

@@ -63,7 +63,8 @@ class WorkerRegistry {
   // Returns the credit of a finished (or failed) task; false if that worker did not hold it.
   bool Release(const std::string& identity, uint64_t taskId);
   // Forgets a task wherever it is held (its job went away); the credit returns at once.
-  void Forget(uint64_t taskId);
+  // Returns the identity of the worker that held it, "" when none did.
+  std::string Forget(uint64_t taskId);
 
   // Connections of the principal (a worker may hold several at once).
   std::vector<std::string> IdentitiesOf(const std::string& principal) const;

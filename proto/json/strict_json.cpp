@@ -81,6 +81,45 @@ class DocumentPosition {
   std::vector<Level> levels_;
 };
 
+// Builds the document as nlohmann's plain DOM parser does, telling `position` of each event
+// first. Not nlohmann's callback parser: at the end of every object that one looks through
+// all of the enclosing container for values to discard, which makes an array of n objects
+// (a scene's shapes) cost O(n^2) to parse.
+class PositionedDomBuilder {
+ public:
+  PositionedDomBuilder(json& result, DocumentPosition& position) : dom_(result), position_(position) {}
+
+  bool null() { return Value() && dom_.null(); }
+  bool boolean(bool value) { return Value() && dom_.boolean(value); }
+  bool number_integer(json::number_integer_t value) { return Value() && dom_.number_integer(value); }
+  bool number_unsigned(json::number_unsigned_t value) { return Value() && dom_.number_unsigned(value); }
+  bool number_float(json::number_float_t value, const json::string_t& text) {
+    return Value() && dom_.number_float(value, text);
+  }
+  bool string(json::string_t& value) { return Value() && dom_.string(value); }
+  bool binary(json::binary_t& value) { return Value() && dom_.binary(value); }
+  bool start_object(std::size_t size) {
+    return position_.OnEvent(json::parse_event_t::object_start, nullptr) && dom_.start_object(size);
+  }
+  bool key(json::string_t& key) { return position_.OnEvent(json::parse_event_t::key, key) && dom_.key(key); }
+  bool end_object() { return position_.OnEvent(json::parse_event_t::object_end, nullptr) && dom_.end_object(); }
+  bool start_array(std::size_t size) {
+    return position_.OnEvent(json::parse_event_t::array_start, nullptr) && dom_.start_array(size);
+  }
+  bool end_array() { return position_.OnEvent(json::parse_event_t::array_end, nullptr) && dom_.end_array(); }
+  // Templated as nlohmann's own: the DOM parser throws `error` as its own type (parse_error,
+  // out_of_range), which the caller tells apart.
+  template <typename Exception>
+  bool parse_error(std::size_t at, const std::string& token, const Exception& error) {
+    return dom_.parse_error(at, token, error);
+  }
+
+ private:
+  bool Value() { return position_.OnEvent(json::parse_event_t::value, nullptr); }
+  nlohmann::detail::json_sax_dom_parser<json> dom_;
+  DocumentPosition& position_;
+};
+
 }  // namespace
 
 std::string EscapePointerToken(const std::string& token) {
@@ -104,12 +143,12 @@ std::string StripJsonExceptionPrefix(const std::string& what) {
 }
 
 json ParseStrictJson(const std::string& text) {
+  json parsed;
   DocumentPosition position;
-  json::parser_callback_t callback = [&position](int, json::parse_event_t event, json& parsed) {
-    return position.OnEvent(event, parsed);
-  };
+  PositionedDomBuilder builder(parsed, position);
   try {
-    return json::parse(text, callback);
+    json::sax_parse(text, &builder);
+    return parsed;
   } catch (const json::parse_error& error) {
     // nlohmann's message already ends in "; expected ...": keep its expectation as ours.
     std::string detail = StripJsonExceptionPrefix(error.what());

@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -234,11 +235,16 @@ class SceneError : public std::runtime_error {
   std::string pointer_;
 };
 
+// Called now and then during long work on a scene (generating terrain): it may throw to
+// give the work up (a worker told to stop). Empty: never called.
+using Checkpoint = std::function<void()>;
+
 // Parses scene JSON text. baseDirectory resolves mesh "file" references (OBJ); a
 // reference that escapes it is rejected. With no base directory, file references are
 // rejected (scenes that arrive over the network must be self-contained).
 Scene ParseScene(const std::string& jsonText,
-                 const std::optional<std::filesystem::path>& baseDirectory = std::nullopt);
+                 const std::optional<std::filesystem::path>& baseDirectory = std::nullopt,
+                 const Checkpoint& checkpoint = {});
 // Reads and parses a scene JSON file; mesh files resolve relative to its folder.
 // ImportScene (scene/import/scene_import.h) reads a scene file of any supported format.
 Scene LoadSceneFile(const std::filesystem::path& path);
@@ -250,6 +256,7 @@ Scene LoadSceneFile(const std::filesystem::path& path);
 std::string SerializeScene(const Scene& scene);
 
 // The deterministic heightfield mesh of a terrain shape (Shape::terrain parameters).
-TriangleMesh GenerateTerrain(const Shape::Terrain& terrain);
+// `checkpoint` is called once a row of cells.
+TriangleMesh GenerateTerrain(const Shape::Terrain& terrain, const Checkpoint& checkpoint = {});
 
 }  // namespace tcfarm

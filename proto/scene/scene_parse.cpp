@@ -595,8 +595,8 @@ const char* const kDefaultMaterial = "default";
 
 class SceneReader {
  public:
-  explicit SceneReader(std::optional<std::filesystem::path> baseDirectory)
-      : baseDirectory_(std::move(baseDirectory)) {}
+  SceneReader(std::optional<std::filesystem::path> baseDirectory, Checkpoint checkpoint = {})
+      : baseDirectory_(std::move(baseDirectory)), checkpoint_(std::move(checkpoint)) {}
 
   Scene Read(const json& document) {
     Node root{document, ""};
@@ -624,7 +624,7 @@ class SceneReader {
     // Terrain meshes are generated only once the whole scene is known to be valid: a
     // rejected scene should cost no geometry.
     for (Shape& shape : scene.shapes) {
-      if (shape.type == Shape::Type::kTerrain) shape.mesh = GenerateTerrain(shape.terrain);
+      if (shape.type == Shape::Type::kTerrain) shape.mesh = GenerateTerrain(shape.terrain, checkpoint_);
     }
     return scene;
   }
@@ -1382,6 +1382,7 @@ class SceneReader {
   }
 
   std::optional<std::filesystem::path> baseDirectory_;
+  Checkpoint checkpoint_;
   FrameRange range_{0, 0};
   NamedTransforms named_;
   std::map<std::string, int> materialIndex_;
@@ -1680,9 +1681,10 @@ json RenderJson(const RenderSettings& render) {
 
 }  // namespace
 
-Scene ParseScene(const std::string& jsonText, const std::optional<std::filesystem::path>& baseDirectory) {
+Scene ParseScene(const std::string& jsonText, const std::optional<std::filesystem::path>& baseDirectory,
+                 const Checkpoint& checkpoint) {
   json document = ParseJson(jsonText);
-  return SceneReader(baseDirectory).Read(document);
+  return SceneReader(baseDirectory, checkpoint).Read(document);
 }
 
 Scene LoadSceneFile(const std::filesystem::path& path) {

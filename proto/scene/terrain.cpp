@@ -84,11 +84,12 @@ uint32_t VertexIndex(const Shape::Terrain& terrain, int i, int k) {
   return static_cast<uint32_t>(k) * static_cast<uint32_t>(terrain.cellsX + 1) + static_cast<uint32_t>(i);
 }
 
-void AddVertices(const Shape::Terrain& terrain, TriangleMesh& mesh) {
+void AddVertices(const Shape::Terrain& terrain, TriangleMesh& mesh, const Checkpoint& checkpoint) {
   double longerSide = std::max(terrain.sizeX, terrain.sizeZ);
   double shareX = terrain.sizeX / longerSide;
   double shareZ = terrain.sizeZ / longerSide;
   for (int k = 0; k <= terrain.cellsZ; ++k) {
+    if (checkpoint) checkpoint();
     double fractionZ = static_cast<double>(k) / static_cast<double>(terrain.cellsZ);
     for (int i = 0; i <= terrain.cellsX; ++i) {
       double fractionX = static_cast<double>(i) / static_cast<double>(terrain.cellsX);
@@ -116,12 +117,12 @@ void AddTriangles(const Shape::Terrain& terrain, TriangleMesh& mesh) {
 
 }  // namespace
 
-TriangleMesh GenerateTerrain(const Shape::Terrain& terrain) {
+TriangleMesh GenerateTerrain(const Shape::Terrain& terrain, const Checkpoint& checkpoint) {
   TriangleMesh mesh;
   if (terrain.cellsX < 1 || terrain.cellsZ < 1) return mesh;
   mesh.vertices.reserve(static_cast<size_t>(terrain.cellsX + 1) * static_cast<size_t>(terrain.cellsZ + 1));
   mesh.triangles.reserve(2 * static_cast<size_t>(terrain.cellsX) * static_cast<size_t>(terrain.cellsZ));
-  AddVertices(terrain, mesh);
+  AddVertices(terrain, mesh, checkpoint);  // the noise: most of the time
   AddTriangles(terrain, mesh);
   return mesh;
 }

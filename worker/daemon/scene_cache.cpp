@@ -14,11 +14,12 @@ Tracer* SceneCache::Find(const std::string& hash) {
   return nullptr;
 }
 
-SceneCache::Built SceneCache::Build(const std::string& sceneJson, const AssetCache& assets) const {
-  return Finish(std::make_unique<Scene>(ParseScene(sceneJson)), assets);
+SceneCache::Built SceneCache::Build(const std::string& sceneJson, const AssetCache& assets, BuildStop stop) const {
+  auto scene = std::make_unique<Scene>(ParseScene(sceneJson, std::nullopt, [stop] { ThrowIfStopRequested(stop); }));
+  return Finish(std::move(scene), assets, stop);
 }
 
-SceneCache::Built SceneCache::Finish(std::unique_ptr<Scene> scene, const AssetCache& assets) const {
+SceneCache::Built SceneCache::Finish(std::unique_ptr<Scene> scene, const AssetCache& assets, BuildStop stop) const {
   Built built;
   for (Material& material : scene->materials) {
     if (!material.diffuseTexture || material.diffuseTexture->asset.empty()) continue;
@@ -32,7 +33,8 @@ SceneCache::Built SceneCache::Finish(std::unique_ptr<Scene> scene, const AssetCa
   built.scene = std::move(scene);
   if (!built.missingAssets.empty()) return built;
   PrepareForTracing(*built.scene);  // as the reference renderer does: the same bits
-  built.tracer = std::make_unique<Tracer>(device_, *built.scene, pool_);
+  ThrowIfStopRequested(stop);
+  built.tracer = std::make_unique<Tracer>(device_, *built.scene, pool_, stop);
   return built;
 }
 

@@ -35,11 +35,12 @@ class SceneCache {
   // The tracer of a cached scene, or nullptr; a hit makes it most recently used.
   Tracer* Find(const std::string& hash);
   // Parses a scene received from the coordinator and, when `assets` holds every texture
-  // it names, builds it. Throws SceneError (bad scene), TextureError or EmbreeError. Safe
-  // beside tracing and the cache's other calls: the worker builds scenes off its loop.
-  Built Build(const std::string& sceneJson, const AssetCache& assets) const;
+  // it names, builds it. Throws SceneError (bad scene), TextureError, EmbreeError, or
+  // BuildStopped once `stop` is set (util/build_stop.h). Safe beside tracing and the
+  // cache's other calls: the worker builds scenes off its loop.
+  Built Build(const std::string& sceneJson, const AssetCache& assets, BuildStop stop = nullptr) const;
   // Builds a parsed scene whose assets have arrived since (or reports the ones still missing).
-  Built Finish(std::unique_ptr<Scene> scene, const AssetCache& assets) const;
+  Built Finish(std::unique_ptr<Scene> scene, const AssetCache& assets, BuildStop stop = nullptr) const;
   // Caches a built scene, evicting the least recently used beyond capacity.
   Tracer* Insert(const std::string& hash, Built built);
 

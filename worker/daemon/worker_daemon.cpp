@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <iterator>
 #include <thread>
 
 #include "curve/socket_events.h"
@@ -70,7 +71,8 @@ WorkerHealth WorkerDaemon::Health() const {
   return WorkerHealth{clock_.Now() - lastTurn < kStallAfter, coordinatorAnswers_.load()};
 }
 
-WorkerDaemon::~WorkerDaemon() = default;
+// Also when Run ended by an exception: the builds under way must not hold the exit.
+WorkerDaemon::~WorkerDaemon() { StopBuilds(); }
 
 void WorkerDaemon::Connect() {
   socket_ = std::make_unique<zmq::socket_t>(context_, zmq::socket_type::dealer);
@@ -139,6 +141,19 @@ void WorkerDaemon::Run(const std::atomic<bool>& stop) {
     if (coordinator_.ShouldSendHeartbeat(now)) Send(wire::Heartbeat{});
   }
   Send(wire::Disconnect{});
+  StopBuilds();
+}
+
+void WorkerDaemon::StopBuilds() {
+  for (auto& [hash, build] : building_) *build.stop = true;
+  building_.clear();  // waits for each build, which now throws BuildStopped at its next look
+}
+
+void WorkerDaemon::StopBuild(const std::string& sceneHash) {
+  auto build = building_.find(sceneHash);
+  if (build == building_.end()) return;
+  *build->second.stop = true;
+  build->second.tasks.clear();  // CollectBuiltScenes forgets the build once it has given up
 }
 
 void WorkerDaemon::CheckHandshake() {
@@ -216,12 +231,17 @@ void WorkerDaemon::OnScene(const wire::SceneData& scene) {
     FailTasks(tasks, scene.sceneHash, "scene bytes do not match hash " + scene.sceneHash);
     return;
   }
-  StartBuild(scene.sceneHash, [this, json = scene.sceneJson] { return scenes_.Build(json, assets_); }, std::move(tasks));
+  StartBuild(scene.sceneHash,
+             [this, json = scene.sceneJson](BuildStop stop) { return scenes_.Build(json, assets_, stop); },
+             std::move(tasks));
 }
 
-void WorkerDaemon::StartBuild(const std::string& sceneHash, std::function<SceneCache::Built()> build,
+void WorkerDaemon::StartBuild(const std::string& sceneHash, std::function<SceneCache::Built(BuildStop)> build,
                               std::vector<wire::Task> tasks) {
-  building_[sceneHash] = SceneBuild{std::async(std::launch::async, std::move(build)), std::move(tasks)};
+  auto stop = std::make_unique<std::atomic<bool>>(false);
+  auto built = std::async(std::launch::async, std::move(build), stop.get());
+  building_[sceneHash] = SceneBuild{std::move(built), std::move(tasks), std::move(stop)};
+  metrics_.sceneBuilds.Set(static_cast<double>(building_.size()));
 }
 
 void WorkerDaemon::FailTasks(const std::vector<wire::Task>& tasks, const std::string& sceneHash, const std::string& why) {
@@ -230,6 +250,7 @@ void WorkerDaemon::FailTasks(const std::vector<wire::Task>& tasks, const std::st
 }
 
 void WorkerDaemon::CollectBuiltScenes() {
+  std::vector<wire::Task> askAgain;  // came for a scene whose build had been stopped
   for (auto build = building_.begin(); build != building_.end();) {
     if (build->second.built.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
       ++build;
@@ -237,12 +258,17 @@ void WorkerDaemon::CollectBuiltScenes() {
     }
     std::string problem;
     SceneCache::Built built;
+    bool stopped = false;
     try {
       built = build->second.built.get();
+    } catch (const BuildStopped&) {
+      stopped = true;
     } catch (const std::exception& e) {
       problem = e.what();
     }
-    if (!problem.empty()) {
+    if (stopped) {
+      std::move(build->second.tasks.begin(), build->second.tasks.end(), std::back_inserter(askAgain));
+    } else if (!problem.empty()) {
       FailTasks(build->second.tasks, build->first, problem);
     } else if (!built.missingAssets.empty()) {
       AwaitAssets(build->first, std::move(built), std::move(build->second.tasks));
@@ -252,6 +278,8 @@ void WorkerDaemon::CollectBuiltScenes() {
     }
     build = building_.erase(build);
   }
+  metrics_.sceneBuilds.Set(static_cast<double>(building_.size()));
+  for (auto& task : askAgain) OnTask(std::move(task));
 }
 
 void WorkerDaemon::AwaitAssets(const std::string& sceneHash, SceneCache::Built built, std::vector<wire::Task> tasks) {
@@ -286,7 +314,8 @@ void WorkerDaemon::OnAssetPiece(const wire::AssetPiece& piece) {
     wait->second.missing.erase(piece.assetHash);
     if (wait->second.missing.empty()) {
       auto scene = std::make_shared<std::unique_ptr<Scene>>(std::move(wait->second.scene));
-      StartBuild(wait->first, [this, scene] { return scenes_.Finish(std::move(*scene), assets_); },
+      StartBuild(wait->first,
+                 [this, scene](BuildStop stop) { return scenes_.Finish(std::move(*scene), assets_, stop); },
                  std::move(wait->second.tasks));
       wait = waitingForAssets_.erase(wait);
     } else {
@@ -298,11 +327,12 @@ void WorkerDaemon::OnAssetPiece(const wire::AssetPiece& piece) {
   }
 }
 
-// The coordinator cannot serve a scene or an asset we asked for (its job is gone): the
-// tasks that wait on it are dropped, or failed with its reason. The reason names the asset
+// The coordinator cannot serve a scene or an asset we asked for, or says unasked that no
+// job uses a scene any more (its job is gone): the tasks that wait on it are dropped (the
+// scene's build stopped), or failed with its reason. The reason names the asset
 // as a download's own failures do: the coordinator's message need not.
 void WorkerDaemon::OnCoordinatorError(const wire::Error& error) {
-  if (!error.sceneHash.empty()) waitingForScene_.erase(error.sceneHash);
+  if (!error.sceneHash.empty()) ForgetScene(error.sceneHash);
   if (error.assetHash.empty()) return;
   if (!assets_.IsExpected(error.assetHash)) return;
   assets_.AbandonDownload(error.assetHash);
@@ -315,6 +345,17 @@ void WorkerDaemon::OnCoordinatorError(const wire::Error& error) {
       ++wait;
     }
   }
+}
+
+// No job uses the scene any more (the last was canceled or deleted): its tasks are gone
+// from the coordinator, so whatever waits here for the scene is dropped, and its build,
+// however long it would take, stopped.
+void WorkerDaemon::ForgetScene(const std::string& sceneHash) {
+  waitingForScene_.erase(sceneHash);
+  waitingForAssets_.erase(sceneHash);
+  StopBuild(sceneHash);
+  ready_.erase(std::remove_if(ready_.begin(), ready_.end(), [&](const wire::Task& task) { return task.sceneHash == sceneHash; }),
+               ready_.end());
 }
 
 void WorkerDaemon::TraceNext() {

@@ -62,7 +62,8 @@ class WorkerDaemon {
   WorkerDaemon(WorkerOptions options, const Clock& clock);
   ~WorkerDaemon();
 
-  // Runs until *stop becomes true; then says DISCONNECT and returns.
+  // Runs until *stop becomes true; then says DISCONNECT, stops the scene builds under way
+  // and returns (the loop notices `stop` within its 100 ms poll, a build at its next look).
   void Run(const std::atomic<bool>& stop);
   const WorkerMetrics& metrics() const { return metrics_; }
   // Safe from any thread (the metrics endpoint asks): the loop stalls when it has not
@@ -82,12 +83,17 @@ class WorkerDaemon {
   void OnScene(const wire::SceneData& scene);
   void OnAssetPiece(const wire::AssetPiece& piece);
   void OnCoordinatorError(const wire::Error& error);
+  void ForgetScene(const std::string& sceneHash);
   // A parsed scene that names assets this worker lacks: ask for each (once), build later.
   void AwaitAssets(const std::string& sceneHash, SceneCache::Built built, std::vector<wire::Task> tasks);
-  void StartBuild(const std::string& sceneHash, std::function<SceneCache::Built()> build, std::vector<wire::Task> tasks);
+  void StartBuild(const std::string& sceneHash, std::function<SceneCache::Built(BuildStop)> build,
+                  std::vector<wire::Task> tasks);
+  // The build gives up at its next look (util/build_stop.h); its tasks are dropped.
+  void StopBuild(const std::string& sceneHash);
   void FailTasks(const std::vector<wire::Task>& tasks, const std::string& sceneHash, const std::string& why);
   // Scenes whose build has finished: cached, and their tasks made ready (or failed).
   void CollectBuiltScenes();
+  void StopBuilds();
   void TraceNext();
   void Send(const wire::Message& message);
 
@@ -107,10 +113,13 @@ class WorkerDaemon {
   std::map<std::string, std::vector<wire::Task>> waitingForScene_;
   // Scenes being built off the loop, with the tasks that wait for them: the loop keeps
   // answering heartbeats meanwhile. A scene of millions of triangles takes longer to build
-  // than the coordinator waits for a silent worker.
+  // than the coordinator waits for a silent worker. A build is stopped when its scene's
+  // jobs are gone or the worker stops, rather than hold the worker for as long as a huge
+  // scene takes to build.
   struct SceneBuild {
     std::future<SceneCache::Built> built;
     std::vector<wire::Task> tasks;
+    std::unique_ptr<std::atomic<bool>> stop;  // at a fixed address: the build thread reads it
   };
   std::map<std::string, SceneBuild> building_;
   AssetCache assets_;

@@ -49,7 +49,9 @@ WorkerMetrics::WorkerMetrics()
                              "Rays per second of tracing time, last task")),
       coordinatorUp(NewGauge(*registry, "tcfarm_worker_coordinator_up",
                              "1 while the coordinator answers, 0 while it is silent")),
-      threads(NewGauge(*registry, "tcfarm_worker_threads", "Tracing threads")) {}
+      threads(NewGauge(*registry, "tcfarm_worker_threads", "Tracing threads")),
+      sceneBuilds(NewGauge(*registry, "tcfarm_worker_scene_builds",
+                           "Scene builds under way (a stopped one until it has given up)")) {}
 
 void WorkerMetrics::RecordDeformation(const SceneGeometry::DeformationWork& work) {
   posesComputed.Increment(static_cast<double>(work.posesComputed));

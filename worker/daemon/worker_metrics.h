@@ -45,6 +45,7 @@ struct WorkerMetrics {
   prometheus::Gauge& raysPerSecond;  // rays / tracing second of the last task
   prometheus::Gauge& coordinatorUp;  // 1 while the coordinator answers
   prometheus::Gauge& threads;
+  prometheus::Gauge& sceneBuilds;  // scene builds under way, stopped ones until they give up
 };
 
 }  // namespace tcfarm

@@ -44,6 +44,9 @@ unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape, bool 
   return id;
 }
 
+// Embree asks while it builds a tree: returning false cancels the build.
+bool KeepBuilding(void* stop, double /*progress*/) { return !StopRequested(static_cast<BuildStop>(stop)); }
+
 RTCScene NewStaticScene(RTCDevice device, bool robust) {
   RTCScene scene = rtcNewScene(device);
   if (robust) rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
@@ -92,15 +95,17 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
   return ApplyMatrix(normalFromObject_[shape].matrix, objectNormal);
 }
 
-SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
+SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene, BuildStop stop)
     : device_(device), scene_(scene), robust_(NeedsRobustTraversal(scene)),
       staticScene_(NewStaticScene(device.get(), robust_)),
       settlesTies_(SceneMayTie(scene)),
-      normals_(PerShapeOncePerMesh<SurfaceNormals>(scene.shapes, [](const Shape& shape) {
+      normals_(PerShapeOncePerMesh<SurfaceNormals>(scene.shapes, [stop](const Shape& shape) {
+        ThrowIfStopRequested(stop);
         return SurfaceNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)};
       })),
       cachedFrames_(FramesToCache(scene)) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    ThrowIfStopRequested(stop);
     const Shape& shape = scene.shapes[i];
     // A shape whose motion is not the identity is placed by an instance: at each frame
     // when it moves, or held at one place when it never does (PrepareForTracing builds
@@ -118,7 +123,13 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene)
       hasStaticShapes_ = true;
     }
   }
+  if (stop) rtcSetSceneProgressMonitorFunction(staticScene_.get(), KeepBuilding, const_cast<std::atomic<bool>*>(stop));
   rtcCommitScene(staticScene_.get());
+  rtcSetSceneProgressMonitorFunction(staticScene_.get(), nullptr, nullptr);
+  if (StopRequested(stop)) {
+    rtcGetDeviceError(device.get());  // the cancelled build's error, which is this stop
+    throw BuildStopped();
+  }
   device.ThrowIfError("building the scene's geometry");
   if (movers_.empty()) {
     staticFrame_ = std::make_shared<FrameGeometry>();

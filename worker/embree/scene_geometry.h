@@ -21,6 +21,7 @@
 #include "embree/deforming_mesh.h"
 #include "embree/device.h"
 #include "scene/scene.h"
+#include "util/build_stop.h"
 
 namespace tcfarm {
 
@@ -74,7 +75,8 @@ class FrameGeometry {
 
 class SceneGeometry {
  public:
-  SceneGeometry(const EmbreeDevice& device, const Scene& scene);
+  // Throws BuildStopped once `stop` is set (util/build_stop.h).
+  SceneGeometry(const EmbreeDevice& device, const Scene& scene, BuildStop stop = nullptr);
 
   // Thread-safe. The last few frames are cached: tasks of one frame arrive together.
   std::shared_ptr<const FrameGeometry> ForFrame(int frame);

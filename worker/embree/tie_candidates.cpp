@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
 #include <unordered_set>
 #include <vector>
 
@@ -92,35 +93,95 @@ bool StillPlanesCoincide(const Scene& scene) {
   return false;
 }
 
-// Whether two spheres may coincide: equal radii where one moves or both share a centre,
-// or any at all once a sphere scales.
-bool SpheresMayMeet(const Scene& scene) {
-  std::vector<const Shape*> spheres;
-  bool anyScales = false;
-  for (const Shape& shape : scene.shapes) {
-    if (shape.type != Shape::Type::kSphere) continue;
-    spheres.push_back(&shape);
-    anyScales = anyScales || !shape.motion.IsTranslationOnly();
+// Two values equal within the comparison grid, relative to their size.
+bool Near(double a, double b) {
+  return std::fabs(a - b) <= kRelativeGrid * std::max({1.0, std::fabs(a), std::fabs(b)});
+}
+
+// Wider than Near by a margin: where a <= c <= d <= b and Near(a, b), every c, d between
+// are LooselyNear (each is at least half the size of the larger of a, b). So a sweep over
+// sorted values that stops where LooselyNear fails never stops between two Near values.
+bool LooselyNear(double a, double b) {
+  return std::fabs(a - b) <= 4 * kRelativeGrid * std::max({1.0, std::fabs(a), std::fabs(b)});
+}
+
+// A sphere as the meeting test sees it: radius and centre at the first frame.
+struct SphereKey {
+  std::array<double, 4> value;  // radius, x, y, z
+  bool moves;
+};
+
+bool SameRadius(const SphereKey& a, const SphereKey& b) { return Near(a.value[0], b.value[0]); }
+bool SameSphere(const SphereKey& a, const SphereKey& b) {
+  for (size_t i = 0; i < a.value.size(); ++i) {
+    if (!Near(a.value[i], b.value[i])) return false;
   }
-  if (spheres.size() < 2) return false;
-  if (anyScales) return true;
-  auto near = [](double a, double b) {
-    return std::fabs(a - b) <= kRelativeGrid * std::max({1.0, std::fabs(a), std::fabs(b)});
-  };
-  for (size_t a = 0; a < spheres.size(); ++a) {
-    for (size_t b = a + 1; b < spheres.size(); ++b) {
-      const Shape& s = *spheres[a];
-      const Shape& t = *spheres[b];
-      const Vec3 sc = s.motion.WorldFromObject(scene.render.firstFrame).Apply(s.center);
-      const Vec3 tc = t.motion.WorldFromObject(scene.render.firstFrame).Apply(t.center);
-      const bool sameCentre = near(sc.x, tc.x) && near(sc.y, tc.y) && near(sc.z, tc.z);
-      if (near(s.radius, t.radius) && (s.Moves() || t.Moves() || sameCentre)) return true;
+  return true;
+}
+
+// Whether any sphere that moves has another of its radius. Sorted by radius, the spheres
+// of a moving one's radius lie beside it; the sweep goes only as far as radii stay
+// loosely near, so it looks at a handful of neighbours, not at every sphere.
+bool MoverHasTwin(std::vector<SphereKey> spheres) {
+  std::sort(spheres.begin(), spheres.end(), [](const SphereKey& a, const SphereKey& b) { return a.value[0] < b.value[0]; });
+  for (size_t i = 0; i < spheres.size(); ++i) {
+    if (!spheres[i].moves) continue;
+    for (size_t j = i + 1; j < spheres.size() && LooselyNear(spheres[i].value[0], spheres[j].value[0]); ++j) {
+      if (SameRadius(spheres[i], spheres[j])) return true;
+    }
+    for (size_t j = i; j-- > 0 && LooselyNear(spheres[i].value[0], spheres[j].value[0]);) {
+      if (SameRadius(spheres[i], spheres[j])) return true;
     }
   }
   return false;
 }
 
+// Whether two of spheres[begin, end) coincide (radius and centre Near). Sort and sweep,
+// one coordinate after another: sorted on `axis`, the spheres split into runs of loosely
+// near values, and two coinciding spheres always share a run; each run is split again on
+// the next coordinate. What is left after the last coordinate are spheres in (nearly) one
+// place, compared pairwise: in any real scene those runs hold one or two spheres.
+bool AnyCoincide(std::vector<SphereKey>& spheres, size_t begin, size_t end, size_t axis) {
+  if (end - begin < 2) return false;
+  if (axis == 4) {
+    for (size_t a = begin; a < end; ++a) {
+      for (size_t b = a + 1; b < end; ++b) {
+        if (SameSphere(spheres[a], spheres[b])) return true;
+      }
+    }
+    return false;
+  }
+  std::sort(spheres.begin() + static_cast<std::ptrdiff_t>(begin), spheres.begin() + static_cast<std::ptrdiff_t>(end),
+            [axis](const SphereKey& a, const SphereKey& b) { return a.value[axis] < b.value[axis]; });
+  size_t run = begin;
+  for (size_t i = begin + 1; i <= end; ++i) {
+    if (i < end && LooselyNear(spheres[i - 1].value[axis], spheres[i].value[axis])) continue;
+    if (AnyCoincide(spheres, run, i, axis + 1)) return true;
+    run = i;
+  }
+  return false;
+}
+
 }  // namespace
+
+// Whether two spheres may coincide: equal radii where one moves or both share a centre,
+// or any at all once a sphere scales.
+bool SpheresMayMeet(const Scene& scene) {
+  std::vector<SphereKey> spheres;
+  bool anyScales = false;
+  for (const Shape& shape : scene.shapes) {
+    if (shape.type != Shape::Type::kSphere) continue;
+    const Vec3 c = shape.motion.WorldFromObject(scene.render.firstFrame).Apply(shape.center);
+    spheres.push_back({{shape.radius, c.x, c.y, c.z}, shape.Moves()});
+    anyScales = anyScales || !shape.motion.IsTranslationOnly();
+  }
+  if (spheres.size() < 2) return false;
+  if (anyScales) return true;
+  if (MoverHasTwin(spheres)) return true;
+  std::vector<SphereKey> still;
+  std::copy_if(spheres.begin(), spheres.end(), std::back_inserter(still), [](const SphereKey& s) { return !s.moves; });
+  return AnyCoincide(still, 0, still.size(), 0);
+}
 
 bool SceneMayTie(const Scene& scene) {
   // A moving plane may come to lie in any other at some frame.

@@ -26,4 +26,9 @@ namespace tcfarm {
 // Whether any two surfaces of the scene may tie over an area.
 bool SceneMayTie(const Scene& scene);
 
+// Its sphere part: whether two spheres may coincide (equal radii where one moves or both
+// share a centre; any two once a sphere scales). Radii and centres are compared through a
+// sort and sweep, never pair by pair, so it costs O(n log n) in the spheres.
+bool SpheresMayMeet(const Scene& scene);
+
 }  // namespace tcfarm

@@ -560,10 +560,10 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
   horizons_->Surface(lane, hit.shape, hit.primitive);
 }
 
-Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads)
+Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads, BuildStop stop)
     : device_(device),
       scene_(scene),
-      geometry_(device, scene),
+      geometry_(device, scene, stop),
       threads_(threads),
       packetWidth_(NativePacketWidth(device.get())) {
   uvs_ = PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [](const Shape& shape) {

@@ -43,7 +43,8 @@ struct RayCounts {
 class Tracer {
  public:
   // The scene must outlive the tracer.
-  Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads);
+  // Throws BuildStopped once `stop` is set while it builds (util/build_stop.h).
+  Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads, BuildStop stop = nullptr);
 
   // Traces pixels (linear indices y * width + x, each < width * height) of `frame` and
   // writes 3 floats of linear RGB per pixel to `rgb`, in the order given. With window > 0

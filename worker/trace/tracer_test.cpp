@@ -428,5 +428,24 @@ TEST(TracerTest, MovingShapeIsPlacedAtItsFramePosition) {
   EXPECT_GT(centroidX(10), 35);
 }
 
+// A build asked to stop gives up with BuildStopped, whichever step it is at: generating
+// terrain (the parse's checkpoint) or building the tracer; left alone, the same scene builds.
+TEST(TracerTest, ABuildAskedToStopGivesUp) {
+  const std::string json = R"({"camera": {"position": [0, 5, 10], "look_at": [0, 0, 0]},
+    "shapes": [{"type": "terrain", "origin": [-5, 0, -5], "size": [10, 10], "cells": [64, 64]},
+               {"type": "sphere", "center": [0, 1, 0], "radius": 1}],
+    "render": {"width": 8, "height": 8}})";
+  std::atomic<bool> stop{true};
+  EXPECT_THROW(ParseScene(json, std::nullopt, [&stop] { ThrowIfStopRequested(&stop); }), BuildStopped);
+  Scene scene = ParseScene(json);
+  PrepareForTracing(scene);
+  EmbreeDevice device;
+  TracingThreads pool(1);
+  EXPECT_THROW(Tracer(device, scene, pool, &stop), BuildStopped);
+  stop = false;
+  Tracer tracer(device, scene, pool, &stop);
+  EXPECT_EQ(&tracer.scene(), &scene);
+}
+
 }  // namespace
 }  // namespace tcfarm
