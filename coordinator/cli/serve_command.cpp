@@ -367,29 +367,39 @@ ServeOptions Resolve(const ServeFlags& flags) {
 }
 
 // Keys for the coordinator's own local workers when workers must authenticate: a fresh
-// pair at each start, allowed in memory, its files in a private temp folder (mode 0700)
-// that goes away with the coordinator.
+// pair for each worker at each start (so that a ban of one is not a ban of all), allowed
+// in memory, their files in a private temp folder (mode 0700) that goes away with the
+// coordinator.
 class LocalWorkerKeys {
  public:
-  explicit LocalWorkerKeys(const std::string& coordinatorPublicKey) : keys_(curve::GenerateKeyPair()) {
+  LocalWorkerKeys(const std::string& coordinatorPublicKey, unsigned workers) {
     std::string folder = (std::filesystem::temp_directory_path() / "tcfarm-local-worker-keys-XXXXXX").string();
     if (!::mkdtemp(folder.data())) throw std::runtime_error("cannot make a folder for the local workers' keys in " + folder);
     folder_ = folder;
-    curve::WriteKeyPair(folder_, "local-worker", keys_);
+    for (unsigned i = 0; i < workers; ++i) {
+      keys_.push_back(curve::GenerateKeyPair());
+      curve::WriteKeyPair(folder_, KeyName(i), keys_.back());
+    }
     std::ofstream(folder_ / "coordinator.pub") << "# this coordinator's CURVE public key\n" << coordinatorPublicKey << "\n";
   }
   ~LocalWorkerKeys() {
     std::error_code ignored;
     std::filesystem::remove_all(folder_, ignored);
   }
-  const std::string& PublicKey() const { return keys_.publicKey; }
-  std::vector<std::string> WorkerArguments() const {
-    return {"--curve-secret", (folder_ / "local-worker.key").string(), "--coordinator-key",
+  std::vector<std::string> PublicKeys() const {
+    std::vector<std::string> keys;
+    for (const curve::KeyPair& pair : keys_) keys.push_back(pair.publicKey);
+    return keys;
+  }
+  std::vector<std::string> WorkerArguments(unsigned index) const {
+    return {"--curve-secret", (folder_ / (KeyName(index) + ".key")).string(), "--coordinator-key",
             (folder_ / "coordinator.pub").string()};
   }
 
  private:
-  curve::KeyPair keys_;
+  static std::string KeyName(unsigned index) { return "local-worker-" + std::to_string(index); }
+
+  std::vector<curve::KeyPair> keys_;
   std::filesystem::path folder_;
 };
 
@@ -465,8 +475,9 @@ int RunServe(const ServeOptions& options) {
   FarmOptions farmOptions = options.farm;
   std::unique_ptr<LocalWorkerKeys> localWorkerKeys;
   if (farmOptions.curve && options.localWorkers > 0) {
-    localWorkerKeys = std::make_unique<LocalWorkerKeys>(curve::PublicKeyOf(farmOptions.curve->secretKey));
-    farmOptions.curve->alsoAllowed.insert(localWorkerKeys->PublicKey());
+    localWorkerKeys =
+        std::make_unique<LocalWorkerKeys>(curve::PublicKeyOf(farmOptions.curve->secretKey), options.localWorkers);
+    for (const std::string& key : localWorkerKeys->PublicKeys()) farmOptions.curve->alsoAllowed.insert(key);
   }
   Farm farm(store, farmOptions, clock);
 
@@ -495,7 +506,10 @@ int RunServe(const ServeOptions& options) {
   std::string workerEndpoint = LoopbackEndpoint(farm.BoundEndpoint());
   LocalWorkers localWorkers(options.workerBinary.empty() ? FindWorkerBinary() : options.workerBinary,
                             workerEndpoint, options.workerThreads,
-                            localWorkerKeys ? localWorkerKeys->WorkerArguments() : std::vector<std::string>{});
+                            [&localWorkerKeys](unsigned index) {
+                              return localWorkerKeys ? localWorkerKeys->WorkerArguments(index)
+                                                     : std::vector<std::string>{};
+                            });
   localWorkers.Start(options.localWorkers);
 
   // Before the line that says it listens: whoever waits for that line finds this one too.

@@ -30,6 +30,19 @@ std::string Figure(double value, const char* format) {
   return text;
 }
 
+// "the coordinator's referee (N pixels) and other workers (M pixels)", as far as each checked.
+std::string CheckersInWords(const nlohmann::json& checkedBy) {
+  const uint64_t referee = checkedBy.value("referee_pixels", uint64_t{0});
+  const uint64_t workers = checkedBy.value("worker_pixels", uint64_t{0});
+  std::string words;
+  if (referee > 0) words = "the coordinator's referee (" + std::to_string(referee) + " pixels)";
+  if (workers > 0) {
+    words += std::string(words.empty() ? "" : " and ") + "workers other than those checked (" +
+             std::to_string(workers) + " pixels)";
+  }
+  return words.empty() ? "nobody yet" : words;
+}
+
 // The verification event of a finished job: its reference comparison when frames were
 // verified, its spot checks when any copied pixel was checked; nullopt when neither.
 std::optional<EventDraft> VerificationEvent(const nlohmann::json& error) {
@@ -56,6 +69,10 @@ std::optional<EventDraft> VerificationEvent(const nlohmann::json& error) {
                std::to_string(spot.value("mismatches", 0)) + " of " + std::to_string(spot.value("pixels_checked", 0)) +
                " copied pixels traced again differ";
   }
+  // Every verified figure names who checked: never a worker whose values it checks.
+  const nlohmann::json checkedBy = error.value("checked_by", nlohmann::json::object());
+  event.fields["checked_by"] = checkedBy;
+  message += "; checked by " + CheckersInWords(checkedBy);
   event.message = message;
   return event;
 }

@@ -103,7 +103,7 @@ std::string FindWorkerBinary() {
 }
 
 LocalWorkers::LocalWorkers(std::string binary, std::string coordinatorEndpoint,
-                           unsigned threadsEach, std::vector<std::string> extraArguments)
+                           unsigned threadsEach, ArgumentsFor extraArguments)
     : binary_(std::move(binary)), endpoint_(std::move(coordinatorEndpoint)),
       threadsEach_(threadsEach), extraArguments_(std::move(extraArguments)) {}
 
@@ -113,7 +113,10 @@ pid_t LocalWorkers::Spawn(unsigned index) const {
   std::vector<std::string> args = {binary_,    "serve",  "--coordinator", endpoint_,
                                    "--threads", std::to_string(threadsEach_),
                                    "--name",   "local-" + std::to_string(index)};
-  args.insert(args.end(), extraArguments_.begin(), extraArguments_.end());
+  if (extraArguments_) {
+    const std::vector<std::string> extra = extraArguments_(index);
+    args.insert(args.end(), extra.begin(), extra.end());
+  }
   std::vector<char*> argv;
   for (auto& arg : args) argv.push_back(arg.data());
   argv.push_back(nullptr);

@@ -8,6 +8,7 @@
 
 #include <sys/types.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -15,9 +16,10 @@ namespace tcfarm {
 
 class LocalWorkers {
  public:
-  // extraArguments: added to each worker's command line (its CURVE keys).
+  // Arguments added to worker `index`'s command line (its own CURVE keys).
+  using ArgumentsFor = std::function<std::vector<std::string>(unsigned index)>;
   LocalWorkers(std::string binary, std::string coordinatorEndpoint, unsigned threadsEach,
-               std::vector<std::string> extraArguments = {});
+               ArgumentsFor extraArguments = {});
   ~LocalWorkers();  // stops them
 
   void Start(unsigned count);
@@ -33,7 +35,7 @@ class LocalWorkers {
   std::string binary_;
   std::string endpoint_;
   unsigned threadsEach_;
-  std::vector<std::string> extraArguments_;
+  ArgumentsFor extraArguments_;
   std::vector<pid_t> pids_;
 };
 

@@ -207,3 +207,9 @@ def test_workers_authenticate_with_keys_made_at_first_start(cluster):
     coordinator = cluster.containers("coordinator")[0]
     secret = docker("exec", coordinator, "stat", "-c", "%a %u", "/etc/tcfarm/keys/coordinator.key")
     assert secret.stdout.split() == ["600", "10001"], secret.stderr
+    # Each worker enrolled a key of its own: a ban of one is not a ban of the pool.
+    live = len(cluster.running_containers("worker"))
+    wait_for(lambda: len(client.workers()["workers"]) >= live, "every live worker connected")
+    principals = [w["principal"] for w in client.workers()["workers"]]
+    assert len(set(principals)) == len(principals) >= live, principals
+    assert all(p.startswith("key:") for p in principals), principals

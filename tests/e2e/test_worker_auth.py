@@ -261,8 +261,11 @@ def test_a_refused_worker_backs_off_and_joins_once_its_key_is_listed(keys, scene
 
 
 def test_local_workers_get_keys_of_their_own(keys, scene, reference, tmp_path):
-    with LocalFarm(tmp_path, workers=0, local_workers=1, coordinator_args=coordinator_keys(keys)) as farm:
-        farm.wait_for_workers(1, timeout=WAIT_S)
+    with LocalFarm(tmp_path, workers=0, local_workers=2, coordinator_args=coordinator_keys(keys)) as farm:
+        farm.wait_for_workers(2, timeout=WAIT_S)
+        # A key each: a ban of one local worker is not a ban of the other.
+        principals = [w["principal"] for w in farm.client.workers()["workers"]]
+        assert len(set(principals)) == 2 and all(p.startswith("key:") for p in principals), principals
         assert run_and_compare(farm, scene, reference)["differing_pixels"] == 0
 
 
