@@ -1,0 +1,152 @@
+// KHR_lights_punctual lights and the camera (or one framing the scene).
+#include "scene/import/gltf/gltf_reader.h"
+
+namespace tcfarm::gltf {
+
+void GltfReader::AddLights(Scene& scene) const {
+  bool any = false;
+  for (int node : order_) {
+    const auto& source = model_.nodes[static_cast<size_t>(node)];
+    auto extension = source.extensions.find("KHR_lights_punctual");
+    if (extension == source.extensions.end() || !extension->second.Has("light")) continue;
+    const std::string pointer = Pointer("nodes", static_cast<size_t>(node)) + "/extensions/KHR_lights_punctual/light";
+    const tinygltf::Value& index = extension->second.Get("light");
+    if (!index.IsInt() || index.GetNumberAsInt() < 0 ||
+        static_cast<size_t>(index.GetNumberAsInt()) >= model_.lights.size()) {
+      Fail(pointer, "no such light", "the index of a KHR_lights_punctual light");
+    }
+    const size_t lightIndex = static_cast<size_t>(index.GetNumberAsInt());
+    const tinygltf::Light& light = model_.lights[lightIndex];
+    const std::string lightPointer = "/extensions/KHR_lights_punctual/lights/" + std::to_string(lightIndex);
+    std::vector<double> color = light.color.size() == 3 ? light.color : std::vector<double>{1, 1, 1};
+    for (double v : {color[0], color[1], color[2], light.intensity}) {
+      if (!(v >= 0 && v <= kMaxMagnitude))
+        Fail(lightPointer, "a colour or intensity of " + std::to_string(v), "finite non-negative values");
+    }
+    Light out;
+    if (light.type == "directional") {
+      out.type = Light::Type::kDirectional;
+      out.direction = AnimatedVec3::Constant({0, 0, -1});
+    } else if (light.type == "point") {
+      out.type = Light::Type::kPoint;
+      out.position = AnimatedVec3::Constant({0, 0, 0});
+    } else if (light.type == "spot") {
+      // A spot shines down its node's -z; glTF's cone angles are radians from the axis.
+      out.type = Light::Type::kSpot;
+      out.position = AnimatedVec3::Constant({0, 0, 0});
+      out.direction = AnimatedVec3::Constant({0, 0, -1});
+      const double outer = light.spot.outerConeAngle * 180 / kPi, inner = light.spot.innerConeAngle * 180 / kPi;
+      if (!(outer > 0 && outer <= 90)) {
+        Fail(lightPointer + "/spot/outerConeAngle", std::to_string(light.spot.outerConeAngle), "an angle in (0, pi/2]");
+      }
+      if (!(inner >= 0 && inner < outer)) {
+        Fail(lightPointer + "/spot/innerConeAngle", std::to_string(light.spot.innerConeAngle),
+             "an angle in [0, outerConeAngle)");
+      }
+      out.outerConeDegrees = outer;
+      out.innerConeDegrees = inner;
+    } else {
+      Fail(lightPointer + "/type", "type " + QuoteInput(light.type), "point, spot or directional");
+    }
+    // Photometric units taken one for one as the scene's radiometric ones (scene.md).
+    out.intensity =
+        AnimatedVec3::Constant({color[0] * light.intensity, color[1] * light.intensity, color[2] * light.intensity});
+    out.motion = *motions_[static_cast<size_t>(node)];
+    scene.lights.push_back(out);
+    any = true;
+  }
+  if (!any) {
+    Light light;
+    light.type = Light::Type::kDirectional;
+    light.direction = AnimatedVec3::Constant(kDefaultLightDirection);
+    light.intensity = AnimatedVec3::Constant(Vec3{1, 1, 1});
+    scene.lights.push_back(light);
+  }
+}
+
+void GltfReader::AddCamera(Scene& scene) const {
+  int chosenNode = -1;
+  const std::string& wanted = options_.camera;
+  for (int node : order_) {
+    int camera = model_.nodes[static_cast<size_t>(node)].camera;
+    if (camera < 0) continue;
+    if (static_cast<size_t>(camera) >= model_.cameras.size()) {
+      Fail(Pointer("nodes", static_cast<size_t>(node)) + "/camera",
+           "camera " + std::to_string(camera) + " does not exist", "the index of a camera");
+    }
+    bool match = wanted.empty() || model_.nodes[static_cast<size_t>(node)].name == wanted ||
+                 model_.cameras[static_cast<size_t>(camera)].name == wanted || std::to_string(camera) == wanted;
+    // The first in node order, whatever order the depth-first walk met them.
+    if (match && (chosenNode < 0 || node < chosenNode)) chosenNode = node;
+  }
+  if (chosenNode < 0 && !wanted.empty()) {
+    Fail("/cameras", "no camera node named or numbered " + QuoteInput(wanted),
+         "a camera's (or its node's) name, or its index");
+  }
+  if (chosenNode < 0) {
+    FrameBounds(scene);
+    return;
+  }
+  const size_t cameraIndex = static_cast<size_t>(model_.nodes[static_cast<size_t>(chosenNode)].camera);
+  const tinygltf::Camera& camera = model_.cameras[cameraIndex];
+  const std::string pointer = Pointer("cameras", cameraIndex);
+  double degrees = 45;
+  if (camera.type == "orthographic") {
+    // ymag is half the view's height; the render size sets the width, as for yfov.
+    const double ymag = camera.orthographic.ymag;
+    if (!(ymag > 0 && ymag <= 5e8)) {
+      Fail(pointer + "/orthographic/ymag", std::to_string(ymag), "a positive half height of the view");
+    }
+    scene.camera.orthographic = true;
+    scene.camera.orthographicHeight = 2 * ymag;
+  } else if (camera.type == "perspective") {
+    degrees = camera.perspective.yfov * 180 / kPi;
+    if (!(degrees > 0 && degrees < 180)) {
+      Fail(pointer + "/perspective/yfov", std::to_string(camera.perspective.yfov) + " radians",
+           "a field of view in (0, pi)");
+    }
+  } else {
+    Fail(pointer + "/type", "type " + QuoteInput(camera.type), "perspective or orthographic");
+  }
+  // glTF cameras look down their node's -z with +y up; the node's motion carries them.
+  scene.camera.position = AnimatedVec3::Constant({0, 0, 0});
+  scene.camera.lookAt = AnimatedVec3::Constant({0, 0, -1});
+  scene.camera.up = {0, 1, 0};
+  scene.camera.verticalFovDegrees = degrees;
+  scene.camera.rig = *motions_[static_cast<size_t>(chosenNode)];
+}
+
+void GltfReader::FrameBounds(Scene& scene) const {
+  Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
+  Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
+  for (const Shape& shape : scene.shapes) {
+    Affine worldFromObject = shape.motion.WorldFromObject(0);  // the identity for a skinned mesh
+    const std::vector<Vec3> vertices =
+        shape.deformation ? Deform(shape.Mesh(), *shape.deformation, 0).positions : shape.Mesh().vertices;
+    for (const Vec3& vertex : vertices) {
+      Vec3 v = worldFromObject.Apply(vertex);
+      for (int axis = 0; axis < 3; ++axis) {
+        low[axis] = std::min(low[axis], v[axis]);
+        high[axis] = std::max(high[axis], v[axis]);
+      }
+    }
+  }
+  if (scene.shapes.empty()) low = high = Vec3{};
+  Vec3 center{(low.x + high.x) / 2, (low.y + high.y) / 2, (low.z + high.z) / 2};
+  double radius = std::max(Norm(Sub(high, low)) / 2, 1e-3);
+  double distance = kFramingMargin * radius / std::sin(kDefaultFovDegrees / 2 * kPi / 180);
+  double length = Norm(kViewFrom);
+  Vec3 position{center.x + kViewFrom.x / length * distance, center.y + kViewFrom.y / length * distance,
+                center.z + kViewFrom.z / length * distance};
+  for (int axis = 0; axis < 3; ++axis) {
+    if (!(std::fabs(position[axis]) <= kMaxMagnitude)) {
+      Fail("", "the model spans " + std::to_string(radius * 2) + " units, too far to frame",
+           "a model whose camera stays within 1e30 of the origin");
+    }
+  }
+  scene.camera.position = AnimatedVec3::Constant(position);
+  scene.camera.lookAt = AnimatedVec3::Constant(center);
+  scene.camera.verticalFovDegrees = kDefaultFovDegrees;
+}
+
+}  // namespace tcfarm::gltf

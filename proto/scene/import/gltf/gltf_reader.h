@@ -1,0 +1,352 @@
+// The glTF reader: a loaded tinygltf model -> Scene, with everything the scene model relies
+// on checked and refused with the glTF pointer of the bad value. Its members are defined by
+// role: loading.cpp (the container, pre-checks, tinygltf), accessors.cpp, materials.cpp,
+// animation.cpp (node graph, transforms, animation channels), meshes.cpp, skins_morphs.cpp,
+// cameras_lights.cpp.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <string_view>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+#include <tiny_gltf.h>
+
+#include "scene/import/gltf_data_uris.h"
+#include "scene/import/gltf/json_types.h"
+#include "scene/import/mesh_geometry.h"
+#include "scene/import/importers.h"
+#include "scene/import/messages.h"
+#include "scene/import/scene_files.h"
+
+namespace tcfarm::gltf {
+
+using import::CrossProduct;
+using import::HasArea;
+using import::Norm;
+using import::Sub;
+
+constexpr double kMaxMagnitude = 1e30;  // as for scene JSON numbers
+constexpr double kPi = 3.14159265358979323846;
+// The scene format's limits (proto/scene.md), checked here so that a glTF file is refused
+// with its own pointer rather than the pointer of the JSON it would become.
+constexpr int kMaxFrameCount = 100000;
+constexpr int kMaxMotionDepth = 32;
+constexpr size_t kMaxJoints = 4096;
+// The most elements one accessor may hold: the indices of the most triangles a scene may
+// hold. Far below 2^31, so that no count can ask for more than a few GiB of values.
+constexpr size_t kMaxAccessorCount = 3 * kMaxSceneTriangles;
+// The values all accessor reads together may produce (8 bytes each), per byte of the
+// file's buffers, plus a fixed allowance: an accessor of bytes read once gives 8 per byte,
+// and a short JSON naming one large accessor over and over must not multiply it.
+constexpr uint64_t kValueBytesPerBufferByte = 16;
+constexpr uint64_t kValueBytesAllowance = uint64_t{16} << 20;
+constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
+// glTF's defaults for what a file leaves out.
+constexpr int kDefaultWidth = 640, kDefaultHeight = 480;
+// A matrix whose columns, once divided by their lengths, are further than this from
+// orthonormal has shear (or a projective row) that translation, rotation and scale cannot
+// express. Exporters write rotations to float precision, hence not tighter.
+constexpr double kOrthonormalTolerance = 1e-5;
+// A column shorter than this (relative to the longest) makes the matrix singular.
+constexpr double kSingularRatio = 1e-12;
+// Phong exponents the roughness mapping may give: 1 (broad) to 10000 (a mirror-like glint).
+constexpr double kMinShininess = 1, kMaxShininess = 10000;
+constexpr double kMinIor = 1, kMaxIor = 10;  // the scene format's range
+// The camera a file without one gets: as the OBJ importer's, from the front and above.
+const Vec3 kViewFrom{0, 0.35, 1};
+constexpr double kDefaultFovDegrees = 45;
+constexpr double kFramingMargin = 1.1;
+// With no light in the file, one white directional light over the camera's shoulder, as OBJ.
+const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
+
+// What this importer implements, for extensionsRequired; optional others are ignored.
+inline const std::set<std::string> kSupportedExtensions = {
+    "KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior", "KHR_mesh_quantization"};
+
+class GltfReader {
+ public:
+  GltfReader(const ImportInput& input);
+
+  Scene Read();
+
+ private:
+  [[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) const;
+  void Warn(const std::string& pointer, const std::string& text) const;
+
+  bool IsBinary() const;
+
+  // The GLB container (header, JSON chunk, optional BIN chunk), checked before tinygltf
+  // reads it so that a truncated file is refused with the byte offset where it falls short.
+  // Returns the JSON text.
+  std::string_view CheckContainer() const;
+
+  // What tinygltf reports without saying where: extensions this importer lacks, and
+  // files that are missing. Syntax and type errors are left to tinygltf.
+  void PreCheck(const std::string& jsonText) const;
+
+  // tinygltf would report a buffer whose data URI decodes to another length than its
+  // byteLength under the name that replaced the URI.
+  void CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const;
+
+  // What tinygltf reads: the file with its data URIs replaced by their names. A GLB's
+  // JSON chunk is rebuilt only when it held data URIs.
+  std::string GlbWithJson(const std::string& json) const;
+
+  void Load();
+
+  void CheckExtensions() const;
+
+  // ---- accessors ------------------------------------------------------------------------
+
+  struct AccessorData {
+    size_t count = 0;
+    int components = 0;
+    std::vector<double> values;  // count * components
+    double At(size_t element, int component) const { return values[element * components + component]; }
+  };
+
+  // Where `count` elements of `elementSize` bytes start in a buffer, and how far apart.
+  struct ViewElements {
+    const unsigned char* base;
+    size_t stride;
+  };
+  // A sparse accessor's substitutions: `count` indices of `indexType`, and as many values.
+  struct SparseLayout {
+    size_t count;
+    int indexType;
+    size_t indexSize;
+    ViewElements indices, values;
+  };
+  // Where an accessor's elements lie: `elements` none when it has no buffer view (all zeros).
+  struct AccessorLayout {
+    std::optional<ViewElements> elements;
+    std::optional<SparseLayout> sparse;
+  };
+
+  // An accessor's elements as doubles. `types` are the allowed TINYGLTF_TYPE_*; integer
+  // components of a normalized accessor become [0, 1] (or [-1, 1]) as the spec says. A
+  // sparse accessor's substitutions are applied over its buffer view's elements (or zeros).
+  AccessorData ReadAccessor(int index, const std::string& referencedAt, const std::vector<int>& types,
+                            const std::vector<int>& componentTypes, const std::string& expected) const;
+
+  void ChargeValues(uint64_t values, const std::string& pointer) const;
+
+  size_t BufferBytes() const;
+
+  // The one gate every read of an accessor passes before anything is allocated per
+  // element: its count below the limit, its elements inside its buffer view and the view
+  // inside its buffer (or, without a view, no more zeros than the file has buffer bytes),
+  // and its sparse substitutions' views likewise. 64-bit arithmetic that cannot overflow.
+  AccessorLayout CheckedLayout(const tinygltf::Accessor& accessor, const std::string& pointer,
+                               size_t elementSize) const;
+
+  // Where `count` elements of `elementSize` bytes start in buffer view `viewIndex`, from
+  // byteOffset, and how far apart they lie (the view's byteStride, when `strided`, else
+  // packed): checked to lie inside the view and the view inside its buffer. `pointer` is
+  // the object referring to the view (an accessor, or a sparse accessor's indices or values).
+  ViewElements InView(int viewIndex, size_t byteOffset, size_t count, size_t elementSize, bool strided,
+                      const std::string& pointer) const;
+
+  static void ReadElement(const unsigned char* at, const tinygltf::Accessor& accessor, int componentSize,
+                          double* out);
+
+  // A sparse accessor's substitutions: `count` strictly increasing element indices, and as
+  // many packed elements of the accessor's own type that replace those elements.
+  SparseLayout CheckedSparseLayout(const tinygltf::Accessor& accessor, const std::string& pointer,
+                                   size_t elementSize) const;
+
+  void ApplySparse(const tinygltf::Accessor& accessor, const std::string& pointer, int componentSize,
+                   const SparseLayout& sparse, AccessorData& data) const;
+
+  static std::string TypeName(int type);
+
+  static std::string ComponentTypeName(int componentType);
+
+  // One component of type T at `at` (glTF is little-endian, as every host this builds on),
+  // as its value or, normalized, as glTF maps integers into [-1, 1] or [0, 1].
+  template <typename T>
+  static double Load(const unsigned char* at, bool normalized) {
+    T v;
+    std::memcpy(&v, at, sizeof v);
+    if (!normalized || !std::is_integral_v<T>) return v;
+    const double scaled = v / static_cast<double>(std::numeric_limits<T>::max());
+    return std::is_signed_v<T> ? std::max(scaled, -1.0) : scaled;
+  }
+
+  static double Component(const unsigned char* at, int componentType, bool normalized);
+
+  void CheckFinite(const AccessorData& data, int index, const std::string& what) const;
+
+  // ---- materials ------------------------------------------------------------------------
+
+  static double NumberIn(const tinygltf::ExtensionMap& extensions, const std::string& extension, const std::string& key,
+                         double fallback);
+
+  // proto/scene.md, "glTF materials", gives the rule and its reasons.
+  Material MapMaterial(const tinygltf::Material& source, size_t index) const;
+
+  // glTF's sampler codes (WebGL's enums); a sampler that leaves one out means repeat and
+  // the renderer's choice of filter, here bilinear.
+  static Texture::Wrap WrapOf(int code);
+
+  Texture MapTexture(const tinygltf::TextureInfo& info, const std::string& pointer) const;
+
+  // Materials as the scene parser orders them ("default" first, then by name), so the
+  // scene reads back with the same indices. Primitives without a material get the
+  // built-in default, not glTF's (a black metal).
+  void AddMaterials(Scene& scene);
+
+  // ---- node graph -----------------------------------------------------------------------
+
+  // Parents of every node, and the roots of the scene to render; a node with two parents
+  // or on a cycle is refused.
+  void BuildGraph();
+
+  // ---- transforms and animation ---------------------------------------------------------
+
+  // A column-major matrix as translation, rotation and scale, or refused.
+  void Decompose(const std::vector<double>& m, const std::string& pointer, Vec3* translation, Quaternion* rotation,
+                 Vec3* scale) const;
+
+  // The animation to play: by name or index, the first by default; none when the file
+  // has none.
+  void ChooseAnimation();
+
+  struct Channel {
+    bool present = false;
+    std::vector<double> times;
+    AccessorData values;
+    Interpolation interpolation = Interpolation::kLinear;
+  };
+
+  // Keyframe frames from a sampler's input: finite, non-negative, strictly increasing.
+  std::vector<double> ReadTimes(int accessor, const std::string& referencedAt) const;
+
+  // A sampler's keys: their frames, interpolation and values, `perKey` elements per key
+  // (per in-tangent, value and out-tangent for CUBICSPLINE), checked to be as many as that.
+  Channel ReadChannel(const tinygltf::AnimationSampler& sampler, const std::string& samplerPointer, int type,
+                      const std::vector<int>& componentTypes, const std::string& expected, size_t perKey) const;
+
+  // Node i's local translation, rotation and scale over frames, from the node and the
+  // chosen animation's channels; the channels of morph target weights are kept for the
+  // shapes.
+  void BuildMotions();
+
+  Motion LocalMotion(size_t index, const std::map<std::string, Channel>& channels) const;
+
+  // ---- meshes ---------------------------------------------------------------------------
+
+  TriangleMesh PrimitiveMesh(const tinygltf::Primitive& primitive, const std::string& pointer) const;
+
+ public:
+  // The triangles of a TRIANGLES, TRIANGLE_STRIP or TRIANGLE_FAN list, as the glTF spec
+  // numbers them (a strip alternates its winding so every triangle faces the same way).
+  static std::vector<std::array<uint32_t, 3>> Triangles(const std::vector<uint32_t>& indices, int mode);
+
+ private:
+  // How many of the scene's nodes place each mesh.
+  std::vector<int> NodesPerMesh() const;
+
+  // The name a shared primitive takes in Scene::meshes: its glTF mesh's name (else
+  // `mesh<i>`), `/p` after it when the mesh has several primitives, `#<i>` after a name
+  // another mesh has taken already.
+  static std::string SharedMeshName(const tinygltf::Mesh& mesh, size_t meshIndex, size_t primitive,
+                                    const Scene& scene);
+
+  // Gives the shape the primitive's triangles: its own when one node places the mesh,
+  // else the scene's shared copy (read once, in the mesh's space; each node's Motion
+  // places it).
+  void SetPrimitiveMesh(Shape& shape, size_t meshIndex, size_t p, bool shared, const std::string& pointer,
+                        Scene& scene);
+
+  void AddShapes(Scene& scene);
+
+  // ---- skins and morph targets ----------------------------------------------------------
+
+  // How many morph targets node i's mesh has (0 without a mesh): the same in every
+  // primitive and as many as the mesh's default weights, or refused.
+  size_t MorphTargetCount(size_t node) const;
+
+  // Default weights (a mesh's or a node's): none, or one finite weight per morph target.
+  void CheckWeights(const std::vector<double>& weights, size_t targets, const std::string& pointer) const;
+
+  // Node i's morph target weights over frame time: its animation's weights channel, else
+  // the node's `weights`, else its mesh's, else zeros.
+  AnimatedWeights MorphWeights(size_t node, size_t targets) const;
+
+  // A primitive's morph targets: POSITION and NORMAL deltas, one per vertex (a target
+  // without POSITION moves nothing; NORMAL deltas are kept only for a mesh with normals).
+  MorphTargets ReadMorphTargets(const tinygltf::Primitive& primitive, const std::string& pointer,
+                                const TriangleMesh& mesh) const;
+
+  // What a skin gives every primitive it binds: its joints' world motions and inverse
+  // bind matrices, read and checked once.
+  struct SkinJoints {
+    std::vector<Motion> joints;
+    std::vector<Affine> inverseBind;
+  };
+
+  const SkinJoints& ReadSkin(size_t node);
+
+  static std::string Row(double a, double b, double c, double d);
+
+  // COLOR_0: linear RGB (an alpha is not used), FLOAT or normalized UNSIGNED_BYTE or
+  // UNSIGNED_SHORT, one per position.
+  std::vector<Vec3> ReadVertexColors(int index, const std::string& referencedAt, size_t positions) const;
+
+  // A primitive's skin: JOINTS_0/WEIGHTS_0 (and _1 for 8 influences), each vertex's weights
+  // divided by their sum (refused when it is further than kWeightSumTolerance from 1), and
+  // only the joints that move some vertex of the primitive, renumbered in the skin's order.
+  Skin BindPrimitive(const SkinJoints& joints, size_t node, const tinygltf::Primitive& primitive,
+                     const std::string& pointer, size_t vertices) const;
+
+  // The morph targets and skin of node i's primitive p, or none when it has neither.
+  std::shared_ptr<const Deformation> PrimitiveDeformation(size_t node, const SkinJoints* skin,
+                                                          const tinygltf::Primitive& primitive,
+                                                          const std::string& pointer, const TriangleMesh& mesh) const;
+
+  // ---- lights and camera ----------------------------------------------------------------
+
+  void AddLights(Scene& scene) const;
+
+  void AddCamera(Scene& scene) const;
+
+  // No camera in the file: one framing the shapes' bounds at frame 0, as for OBJ.
+  void FrameBounds(Scene& scene) const;
+
+  const ImportInput& input_;
+  const ImportOptions& options_;
+  tinygltf::Model model_;
+  gltf::EmbeddedData embedded_;  // while loading: the data URIs, decoded
+  mutable uint64_t valueBytesRead_ = 0;  // by ReadAccessor, against kValueBytesPerBufferByte
+  // Per glTF image that a material uses: its bytes and their hash (Texture::asset).
+  mutable std::map<int, std::pair<std::shared_ptr<const std::string>, std::string>> imageBytes_;
+  std::vector<int> materialIndex_;  // per glTF material, its index in the scene
+  struct SharedPrimitive {
+    std::string name;  // in Scene::meshes; empty for a primitive without area
+    std::shared_ptr<const TriangleMesh> mesh;
+  };
+  std::map<std::pair<size_t, size_t>, SharedPrimitive> sharedPrimitives_;  // by (mesh, primitive)
+  std::vector<int> parent_;         // per node, its parent or -1
+  std::vector<bool> inScene_;
+  std::vector<int> order_;  // the chosen scene's nodes, parents before children
+  int animation_ = -1;
+  int frameCount_ = 1;
+  std::vector<std::shared_ptr<const Motion>> motions_;  // per node, its world motion
+  std::vector<std::map<std::string, Channel>> channels_;  // per node, its channels by path
+  std::map<size_t, SkinJoints> skins_;                    // by skin, once a node binds it
+};
+
+}  // namespace tcfarm::gltf
