@@ -264,7 +264,7 @@ void ResolveSecurity(const ServeFlags& flags, ServeOptions* options) {
   if (!options->tokens && !flags.insecureNoAuth && !IsLoopbackHost(options->httpHost)) {
     throw std::invalid_argument(
         "--http " + flags.http + " is reachable beyond loopback, and without --api-tokens anyone who reaches "
-        "it could submit, cancel and download jobs; expected --api-tokens FILE (README, 'API tokens'), an "
+        "it could submit, cancel and download jobs; expected --api-tokens FILE (docs/operations.md, 'API tokens and TLS'), an "
         "address on loopback (127.0.0.1:PORT), or --insecure-no-auth to serve without tokens on purpose");
   }
   if (flags.tlsCert.empty() != flags.tlsKey.empty()) {

@@ -1,5 +1,6 @@
-// A job's coherence (DESIGN.md 1): its frames taken in order into the sequence analysis,
-// and each one's change mask against the frame before (the paper's Figure 5).
+// A job's coherence (docs/architecture.md, section 3.1): its frames taken in order into
+// the sequence analysis, and each one's change mask against the frame before (the
+// paper's Figure 5).
 //
 // Planners release frames out of order (the paper's search finishes bins side by side);
 // those that come ahead of their turn wait in PendingFrames, in memory up to a budget and

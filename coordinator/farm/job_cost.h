@@ -1,6 +1,6 @@
 // What a job's tracing cost the farm, and what it would have cost brute force: the
-// figures behind `stats.cost` (measured beside predicted relative cost, DESIGN.md 1.4),
-// the trace seconds, task and ray counts.
+// figures behind `stats.cost` (measured beside predicted relative cost;
+// docs/architecture.md, section 3.6), the trace seconds, task and ray counts.
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,5 @@
-// The `exact` planner: validity horizons (DESIGN.md 1.3), beyond the paper.
+// The `exact` planner: validity horizons, beyond the paper (docs/architecture.md,
+// section 3.4).
 //
 // The sequence is cut into segments of L = binWidth frames: segment k covers frames
 // [kL, min((k+1)L, frameCount) - 1]. A segment's first frame is traced in full. Every

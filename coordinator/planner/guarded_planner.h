@@ -1,5 +1,5 @@
 // The `guarded` planner: the paper's own remedy for the flaw of `search` (section 4,
-// DESIGN.md 1.2).
+// docs/architecture.md, section 3.3).
 //
 // Before a bin is searched, every frame of it is traced on a coarse raster: one sample
 // per coarseTile x coarseTile tile, at the existing pixel nearest the tile's centre (tiles

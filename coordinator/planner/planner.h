@@ -1,5 +1,5 @@
 // The planner interface: what the farm drives for every job, whatever the strategy
-// (DESIGN.md 1.1 to 1.3).
+// (docs/architecture.md, section 3).
 //
 // A planner is a pure state machine. It emits trace tasks (a frame and a pixel set) and
 // consumes their results; it does no I/O, owns no threads and reads no clock, so the

@@ -1,5 +1,5 @@
 // The `search` planner: Chapman, Calvert & Dill's RenderSequence / Search (section 3 of
-// the paper, DESIGN.md 1.1) as a pure state machine.
+// the paper; docs/architecture.md, section 3.2) as a pure state machine.
 //
 // The planner emits trace tasks (a frame and a pixel set) and consumes their results;
 // it does no I/O, owns no threads and reads no clock, so the dispatcher can drive it

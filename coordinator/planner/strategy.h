@@ -1,6 +1,6 @@
-// The strategies a job may ask for (DESIGN.md 1.1 to 1.3), their names, and the one rule
-// that turns `auto` into one of the others. Parsed once, at submit; from then on the
-// coordinator passes the type, never the name.
+// The strategies a job may ask for (docs/architecture.md, section 3), their names, and
+// the one rule that turns `auto` into one of the others. Parsed once, at submit; from
+// then on the coordinator passes the type, never the name.
 #pragma once
 
 #include <cstdint>

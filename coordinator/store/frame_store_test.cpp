@@ -5,8 +5,9 @@
 namespace tcfarm {
 namespace {
 
-// The layout README.md and the API promise: STORE/<job>/frame_NNNN.{exr,png}, mask_NNNN.png
-// and change_NNNN.png by the scene's frame number.
+// The layout docs/operations.md ("Storage") and the API promise:
+// STORE/<job>/frame_NNNN.{exr,png}, mask_NNNN.png and change_NNNN.png by the scene's
+// frame number.
 TEST(FrameStore, NamesEveryFileOfAJob) {
   const FrameStore store("/srv/store");
   EXPECT_EQ(store.JobFolder(7), "/srv/store/7");
