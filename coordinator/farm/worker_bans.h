@@ -1,7 +1,7 @@
 // Workers banned for returning wrong values, kept in the store (worker_bans.json) so that
 // a ban outlives the coordinator. A ban names a principal (dispatch/dispatcher.h
 // PrincipalOf): a CURVE key, or without CURVE a name and an address. It holds until an
-// operator lifts it (DELETE /api/v1/workers/distrusted/{principal}, or
+// operator lifts it (DELETE /api/v1/workers/distrusted?principal=P, or
 // `tcfarm distrusted --lift`).
 //
 // Thread-safe: the farm loop adds bans, the HTTP API lists and lifts them.

@@ -565,7 +565,7 @@ def _parser():
     submit.add_argument("--frames", type=_frames, help="A:B, the frames to render, inclusive "
                                                         "(default: the scene's)")
     submit.add_argument("--strategy", choices=STRATEGIES, help="how to save tracing "
-                                                                "(default: the farm's, auto)")
+                                                                "(default: the farm's, search)")
     submit.add_argument("--bin-width", type=int, help="bin width n (search, guarded) or segment "
                                                       "length (exact)")
     submit.add_argument("--tolerance", type=float, help="largest difference two pixel values may "
