@@ -25,17 +25,15 @@
 #include "scene/import/obj_reader.h"
 #include "scene/import/scene_files.h"
 #include "scene/import/scene_import.h"
+#include "scene/scene_limits.h"
 #include "wire/content_hash.h"
 
 namespace tcfarm {
 namespace {
 
 using nlohmann::json;
+using namespace scene_limits;
 
-// Beyond this, squared distances in the tracer approach overflow and ray offsets lose
-// all meaning; no sensible scene needs coordinates anywhere near it.
-constexpr double kMaxMagnitude = 1e30;
-constexpr size_t kMaxTriangles = kMaxSceneTriangles;
 constexpr size_t kMaxPolynomialTerms = 8;
 constexpr int kMaxTerrainCells = 2000;
 // sin of the smallest angle between view direction and up that still gives a usable
@@ -407,9 +405,6 @@ const char* const kRotationExpected =
 const char* const kMotionExpected =
     "a motion: an animated translation ([x, y, z], {\"polynomial\": ...} or {\"keyframes\": ...}) or "
     "{\"translation\", \"rotation\", \"scale\", \"pivot\"}";
-// A scale component this close to 0 collapses the shape onto a plane, whose normals are
-// undefined; this far from 1 the object leaves float's useful range.
-constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
 
 Quaternion ReadQuaternion(const Node& node) {
   ExpectArray(node, 4, kQuaternionExpected);
@@ -475,14 +470,6 @@ bool IsTransformObject(const Node& node) {
   }
   return false;
 }
-
-// Joints of one skin: far more than any character rig has (glTF's own limits are those of
-// its index types), few enough that a scene's skin matrices stay small.
-constexpr size_t kMaxJoints = 4096;
-
-// Parents nest one object deep per level; a hierarchy deeper than this is refused (the
-// JSON parser's own nesting limit is 128 levels).
-constexpr int kMaxMotionDepth = 32;
 
 // The document's named transforms ("transforms"), which a transform's "parent" may name
 // instead of holding its parent inline: a skeleton's joints then share their ancestors
@@ -667,7 +654,7 @@ class SceneReader {
 
   ImportOptions ReadImportOptions(const Node& root, const Node& node) const {
     ImportOptions options;
-    if (node.Has("fps")) options.framesPerSecond = ReadInRange(node.Member("fps"), 0.001, 100000, "frames per second");
+    if (node.Has("fps")) options.framesPerSecond = ReadInRange(node.Member("fps"), kMinFramesPerSecond, kMaxFramesPerSecond, "frames per second");
     for (const char* key : {"animation", "camera"}) {
       if (!node.Has(key)) continue;
       const Node choice = node.Member(key);
@@ -677,9 +664,9 @@ class SceneReader {
     }
     if (root.Has("render") && root.value["render"].is_object()) {
       const Node render = root.Member("render");
-      if (render.Has("width")) options.width = ReadInt(render.Member("width"), 1, 16384);
-      if (render.Has("height")) options.height = ReadInt(render.Member("height"), 1, 16384);
-      if (render.Has("samples_per_pixel")) options.samplesPerPixel = ReadInt(render.Member("samples_per_pixel"), 1, 1024);
+      if (render.Has("width")) options.width = ReadInt(render.Member("width"), 1, kMaxImageSide);
+      if (render.Has("height")) options.height = ReadInt(render.Member("height"), 1, kMaxImageSide);
+      if (render.Has("samples_per_pixel")) options.samplesPerPixel = ReadInt(render.Member("samples_per_pixel"), 1, kMaxSamplesPerPixel);
     }
     return options;
   }
@@ -691,16 +678,17 @@ class SceneReader {
   RenderSettings ReadRender(const Node& node, const std::optional<RenderSettings>& base = std::nullopt) {
     ExpectObject(node, {"width", "height", "frames", "samples_per_pixel", "max_depth"}, "render settings");
     RenderSettings render = base.value_or(RenderSettings{});
-    if (!base || node.Has("width")) render.width = ReadInt(Required(node, "width", "an integer in [1, 16384]"), 1, 16384);
-    if (!base || node.Has("height")) render.height = ReadInt(Required(node, "height", "an integer in [1, 16384]"), 1, 16384);
+    const std::string sideExpected = "an integer in [1, " + std::to_string(kMaxImageSide) + "]";
+    if (!base || node.Has("width")) render.width = ReadInt(Required(node, "width", sideExpected), 1, kMaxImageSide);
+    if (!base || node.Has("height")) render.height = ReadInt(Required(node, "height", sideExpected), 1, kMaxImageSide);
     if (node.Has("frames")) {
       Node frames = node.Member("frames");
       ExpectObject(frames, {"start", "count"}, "{\"start\": first frame, \"count\": number of frames}");
-      if (frames.Has("start")) render.firstFrame = ReadInt(frames.Member("start"), 0, 10'000'000);
-      if (frames.Has("count")) render.frameCount = ReadInt(frames.Member("count"), 1, 100'000);
+      if (frames.Has("start")) render.firstFrame = ReadInt(frames.Member("start"), 0, kMaxFirstFrame);
+      if (frames.Has("count")) render.frameCount = ReadInt(frames.Member("count"), 1, kMaxFrameCount);
     }
-    if (node.Has("samples_per_pixel")) render.samplesPerPixel = ReadInt(node.Member("samples_per_pixel"), 1, 1024);
-    if (node.Has("max_depth")) render.maxDepth = ReadInt(node.Member("max_depth"), 0, 64);
+    if (node.Has("samples_per_pixel")) render.samplesPerPixel = ReadInt(node.Member("samples_per_pixel"), 1, kMaxSamplesPerPixel);
+    if (node.Has("max_depth")) render.maxDepth = ReadInt(node.Member("max_depth"), 0, kMaxBounceDepth);
     return render;
   }
 
@@ -752,7 +740,7 @@ class SceneReader {
       material.transparency = ReadInRange(node.Member("transparency"), 0, 1, "a number in [0, 1]");
     }
     if (node.Has("ior")) {
-      material.indexOfRefraction = ReadInRange(node.Member("ior"), 1, 10, "an index of refraction in [1, 10]");
+      material.indexOfRefraction = ReadInRange(node.Member("ior"), kMinIndexOfRefraction, kMaxIndexOfRefraction, "an index of refraction in [1, 10]");
     }
     if (material.reflectivity + material.transparency > 1) {
       Fail(node.MemberPointer(node.Has("transparency") ? "transparency" : "reflectivity"),
