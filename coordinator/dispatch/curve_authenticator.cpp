@@ -32,7 +32,6 @@ CurveAuthenticator::CurveAuthenticator(zmq::context_t& context, const CurveServe
   // Throws for a folder that cannot be read: better no coordinator than one nobody reaches.
   listing_ = Listing();
   allowed_ = curve::ReadPublicKeys(directory_);
-  allowedCount_ = allowed_.size() + alsoAllowed_.size();
   zmq::socket_t zap(context, zmq::socket_type::rep);
   zap.set(zmq::sockopt::linger, 0);
   zap.bind(kZapEndpoint);
@@ -139,7 +138,6 @@ void CurveAuthenticator::ReloadIfChanged() {
   std::map<std::string, std::string> skipped;
   allowed_ = curve::ReadPublicKeys(directory_, &skipped);
   listing_ = std::move(listing);
-  allowedCount_ = allowed_.size() + alsoAllowed_.size();
   std::fprintf(stderr, "coordinator: %zu worker keys allowed from %s\n", allowed_.size(), directory_.c_str());
   for (const auto& [file, why] : skipped) std::fprintf(stderr, "coordinator: skipped %s\n", why.c_str());
 }

@@ -46,7 +46,6 @@ class CurveAuthenticator {
   uint64_t RefusedKeys() const { return refusedKeys_.load(); }
   // Connections whose handshake failed before ZAP: no CURVE, wrong server key, garbage.
   uint64_t FailedHandshakes() const { return failedHandshakes_.load(); }
-  size_t AllowedKeyCount() const { return allowedCount_.load(); }
 
  private:
   struct ListingEntry {
@@ -80,7 +79,6 @@ class CurveAuthenticator {
   LogLimit logLimits_[static_cast<size_t>(LogKind::kCount)];
   std::atomic<uint64_t> refusedKeys_{0};
   std::atomic<uint64_t> failedHandshakes_{0};
-  std::atomic<size_t> allowedCount_{0};
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

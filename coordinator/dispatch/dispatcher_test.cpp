@@ -1,4 +1,4 @@
-// The dispatcher against fake workers (dispatch/fake_worker.h) and a fake clock for
+// The dispatcher against fake workers (tests/support/cpp/fake_worker.h) and a fake clock for
 // liveness.
 #include "dispatch/dispatcher.h"
 
@@ -13,7 +13,7 @@
 #include <thread>
 #include <vector>
 
-#include "dispatch/fake_worker.h"
+#include "fake_worker.h"
 #include "wire/content_hash.h"
 #include "wire/zmq_io.h"
 

@@ -1,5 +1,5 @@
 // The farm loop driven step by step: a real job store and dispatcher socket, fake workers
-// in this process (dispatch/fake_worker.h) and a fake clock, so that a worker's silence
+// in this process (tests/support/cpp/fake_worker.h) and a fake clock, so that a worker's silence
 // lasts as long as the test says without the test sleeping through it.
 #include "farm/farm.h"
 #include "store/frame_finisher.h"
@@ -14,7 +14,7 @@
 #include <thread>
 #include <random>
 
-#include "dispatch/fake_worker.h"
+#include "fake_worker.h"
 #include "planner/job_memory.h"
 #include "frame/frame_io.h"
 #include "store/frame_store.h"

@@ -11,7 +11,7 @@
 
 #include "embree/device.h"
 #include "scene/scene.h"
-#include "trace/checker_png_for_tests.h"
+#include "checker_png_for_tests.h"
 #include "trace/tracer.h"
 #include "util/tracing_threads.h"
 

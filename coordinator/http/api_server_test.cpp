@@ -27,6 +27,7 @@
 #include "frame/frame_io.h"
 #include "scene/scene.h"
 #include "wire/content_hash.h"
+#include "required_tool.h"
 
 namespace tcfarm {
 namespace {
@@ -1460,7 +1461,7 @@ TEST_F(ApiServerTest, MetricsPassPromtool) {
       << result->body;
 
   const char* promtool = "/usr/bin/promtool";
-  if (!fs::exists(promtool)) GTEST_SKIP() << "no " << promtool;
+  TCFARM_REQUIRE_TOOL(fs::exists(promtool), "no " << promtool);
   const fs::path text = folder_ / "metrics.txt";
   std::ofstream(text, std::ios::binary) << result->body;
   int status = 0;
@@ -1549,7 +1550,7 @@ TEST(ApiServerStartTest, DashboardFilesAreServedAtTheRootBesideTheApi) {
 TEST(OpenApiSpecTest, IsValidOpenApi) {
   ASSERT_TRUE(fs::exists(kOpenApiSpec)) << kOpenApiSpec;
   const std::string python = PythonWith("openapi_spec_validator");
-  if (python.empty()) GTEST_SKIP() << "no python with openapi_spec_validator";
+  TCFARM_REQUIRE_TOOL(!python.empty(), "no python with openapi_spec_validator");
   int status = 0;
   const std::string output =
       RunCommand("'" + python + "' -m openapi_spec_validator '" + kOpenApiSpec.string() + "' 2>&1",
@@ -1585,9 +1586,7 @@ sys.exit(1 if failures else 0)
 // cannot drift from the code unnoticed (the schemas forbid unlisted properties).
 TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
   const std::string python = PythonWith("yaml, openapi_schema_validator");
-  if (python.empty()) {
-    GTEST_SKIP() << "no python with yaml and openapi_schema_validator";
-  }
+  TCFARM_REQUIRE_TOOL(!python.empty(), "no python with yaml and openapi_schema_validator");
   const uint64_t running = SubmitOk();  // the oldest: ClaimNext takes it
   const uint64_t queued = SubmitOk();
   const uint64_t failed = SubmitOk();
@@ -1781,7 +1780,7 @@ TEST_F(ApiServerWithTokensTest, RetryChangeAndDeleteNeedWhatCancelNeeds) {
 
 TEST_F(ApiServerWithTokensTest, RefusalsMatchTheOpenApiSchemas) {
   const std::string python = PythonWith("yaml, openapi_schema_validator");
-  if (python.empty()) GTEST_SKIP() << "no python with yaml and openapi_schema_validator";
+  TCFARM_REQUIRE_TOOL(!python.empty(), "no python with yaml and openapi_schema_validator");
   json checks = json::array();
   auto add = [&checks](const std::string& schema, const httplib::Result& result) {
     ASSERT_TRUE(result);

@@ -19,6 +19,7 @@
 #include "json/strict_json.h"
 #include "scene/import/scene_import.h"
 #include "scene/scene.h"
+#include "scene/scene_limits.h"
 #include "wire/content_hash.h"
 
 namespace tcfarm::http {
@@ -237,15 +238,17 @@ ImportOptions ReadImportOptions(const json& request) {
     const json& value = item.value();
     const std::string pointer = "/import/" + EscapePointerToken(key);
     if (key == "fps") {
-      if (!value.is_number() || !(value.get<double>() >= 0.001 && value.get<double>() <= 100000)) {
+      if (!value.is_number() || !(value.get<double>() >= scene_limits::kMinFramesPerSecond &&
+                                  value.get<double>() <= scene_limits::kMaxFramesPerSecond)) {
         Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is out of range", "frames per second in [0.001, 100000]");
       }
       options.framesPerSecond = value.get<double>();
     } else if (key == "size") {
-      const std::string sizeExpected = "[width, height], each an integer in [1, 16384]";
+      const int maxSide = scene_limits::kMaxImageSide;
+      const std::string sizeExpected = "[width, height], each an integer in [1, " + std::to_string(maxSide) + "]";
       if (!value.is_array() || value.size() != 2) Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not a size", sizeExpected);
-      options.width = ReadInteger(value[0], pointer + "/0", 1, 16384, sizeExpected);
-      options.height = ReadInteger(value[1], pointer + "/1", 1, 16384, sizeExpected);
+      options.width = ReadInteger(value[0], pointer + "/0", 1, maxSide, sizeExpected);
+      options.height = ReadInteger(value[1], pointer + "/1", 1, maxSide, sizeExpected);
     } else if (key == "animation" || key == "camera") {
       if (!value.is_string() && !IsIntegral(value)) {
         Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not a name or an index", "a name or an index");
@@ -253,7 +256,9 @@ ImportOptions ReadImportOptions(const json& request) {
       (key == "animation" ? options.animation : options.camera) =
           value.is_string() ? value.get<std::string>() : std::to_string(value.get<long long>());
     } else if (key == "spp") {
-      options.samplesPerPixel = ReadInteger(value, pointer, 1, 1024, "samples per pixel in [1, 1024]");
+      const int maxSamples = scene_limits::kMaxSamplesPerPixel;
+      options.samplesPerPixel =
+          ReadInteger(value, pointer, 1, maxSamples, "samples per pixel in [1, " + std::to_string(maxSamples) + "]");
     } else {
       Fail(error_code::kUnknownField, pointer, "unknown field", "only the fields fps, size, animation, camera, spp");
     }

@@ -24,10 +24,12 @@ namespace tcfarm {
 namespace {
 
 using planner_test::Animation;
+using planner_test::CountWrongPixels;
 using planner_test::Options;
 using planner_test::PixelsPerFrame;
 using planner_test::Rgb;
 using planner_test::Trace;
+using planner_test::ValueAt;
 
 struct RenderRun {
   std::map<int, FinishedFrame> frames;
@@ -108,21 +110,6 @@ uint64_t CheckFramesAndCountTraced(const RenderRun& run, const PlannerOptions& o
   }
   EXPECT_EQ(traced, run.traced);
   return traced;
-}
-
-Rgb ValueAt(const FinishedFrame& frame, int width, int x, int y) {
-  const size_t offset = (static_cast<size_t>(y) * width + x) * 3;
-  return {frame.rgb[offset], frame.rgb[offset + 1], frame.rgb[offset + 2]};
-}
-
-uint64_t CountWrongPixels(const RenderRun& run, const PlannerOptions& options, const Animation& animation) {
-  uint64_t wrong = 0;
-  for (const auto& [f, frame] : run.frames) {
-    for (int y = 0; y < options.height; ++y) {
-      for (int x = 0; x < options.width; ++x) wrong += ValueAt(frame, options.width, x, y) != animation(f, x, y);
-    }
-  }
-  return wrong;
 }
 
 // The coarse raster written independently of CoarseGuard: the sample of tile (tx, ty).
@@ -322,7 +309,7 @@ TEST(GuardedPlanner, MovingOnePixelObjectThroughTileCentresIsExact) {
   // search: (12,4), (20,4), (28,4) hold background at both ends and are copied wrongly
   // at frames 1, 2, 3. (4,4) is traced at 2 and 1, (36,4) at 2 and 3.
   const RenderRun search = RenderSearch(options, DotThroughTileCentres);
-  EXPECT_EQ(CountWrongPixels(search, options, DotThroughTileCentres), 3u);
+  EXPECT_EQ(CountWrongPixels(search.frames, options, DotThroughTileCentres), 3u);
   EXPECT_EQ(CheckFramesAndCountTraced(search, options), 2u * 640u + 4u);
 
   // guarded: ends 2 x 640; samples at frames 1, 2, 3: 3 x 10. Every tile of the top row
@@ -330,7 +317,7 @@ TEST(GuardedPlanner, MovingOnePixelObjectThroughTileCentresIsExact) {
   // 0, 1, 2 change (traced at 1), on [2, 4] tiles 2, 3, 4 (traced at 3). The bottom row
   // never changes and is copied.
   const RenderRun guarded = RenderGuarded(options, DotThroughTileCentres);
-  EXPECT_EQ(CountWrongPixels(guarded, options, DotThroughTileCentres), 0u);
+  EXPECT_EQ(CountWrongPixels(guarded.frames, options, DotThroughTileCentres), 0u);
   const uint64_t traced = CheckFramesAndCountTraced(guarded, options);
   EXPECT_EQ(traced, 2u * 640u + 3u * 10u + 315u + 189u + 189u);
   EXPECT_EQ(traced - (2u * 640u + 4u), 719u);  // what exactness costs over search here
@@ -351,9 +338,9 @@ Rgb SlidingBar(int frame, int x, int y) {
 TEST(GuardedPlanner, ObjectCoveringATileCentreEveryFrameIsExact) {
   const PlannerOptions options = Options(48, 8, 17, 17);
   const RenderRun search = RenderSearch(options, SlidingBar);
-  EXPECT_GT(CountWrongPixels(search, options, SlidingBar), 0u);
+  EXPECT_GT(CountWrongPixels(search.frames, options, SlidingBar), 0u);
   const RenderRun guarded = RenderGuarded(options, SlidingBar, 5);
-  EXPECT_EQ(CountWrongPixels(guarded, options, SlidingBar), 0u);
+  EXPECT_EQ(CountWrongPixels(guarded.frames, options, SlidingBar), 0u);
   CheckFramesAndCountTraced(guarded, options);
   ExpectMatchesReference(guarded, options, RenderGuardedReference(options, SlidingBar));
   EXPECT_LT(guarded.traced, 17u * 48u * 8u);  // still cheaper than brute force
@@ -371,7 +358,7 @@ TEST(GuardedPlanner, StaticSceneTracesBinEndsAndCoarseSamplesOnly) {
     EXPECT_EQ(frame.tracedCount, 6u) << f;
     samples.ForEach([&](uint32_t p) { EXPECT_EQ(frame.traced[p], 1) << "frame " << f << " pixel " << p; });
   }
-  EXPECT_EQ(CountWrongPixels(run, options, StaticAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, StaticAnimation), 0u);
   ExpectMatchesReference(run, options, RenderGuardedReference(options, StaticAnimation));
 }
 
@@ -379,7 +366,7 @@ TEST(GuardedPlanner, BinWidthTwoIsBruteForce) {
   const PlannerOptions options = Options(19, 10, 7, 2);
   const RenderRun run = RenderGuarded(options, NoisyAnimation, 3);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 7u * 190u);
-  EXPECT_EQ(CountWrongPixels(run, options, NoisyAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, NoisyAnimation), 0u);
   const RenderRun brute = RenderSearch(options, NoisyAnimation, 4);
   for (int f = 0; f < 7; ++f) EXPECT_EQ(run.frames.at(f).rgb, brute.frames.at(f).rgb) << f;
 }
@@ -388,7 +375,7 @@ TEST(GuardedPlanner, CoarseTileOneIsBruteForce) {
   const PlannerOptions options = Options(7, 5, 9, 5, 1);
   const RenderRun run = RenderGuarded(options, NoisyAnimation);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 9u * 35u);
-  EXPECT_EQ(CountWrongPixels(run, options, NoisyAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, NoisyAnimation), 0u);
 }
 
 TEST(GuardedPlanner, SingleFrameAndTwoFrames) {
@@ -396,7 +383,7 @@ TEST(GuardedPlanner, SingleFrameAndTwoFrames) {
     const PlannerOptions options = Options(9, 9, frames, 8);
     const RenderRun run = RenderGuarded(options, NoisyAnimation);
     EXPECT_EQ(CheckFramesAndCountTraced(run, options), static_cast<uint64_t>(frames) * 81u);
-    EXPECT_EQ(CountWrongPixels(run, options, NoisyAnimation), 0u);
+    EXPECT_EQ(CountWrongPixels(run.frames, options, NoisyAnimation), 0u);
   }
 }
 
@@ -562,9 +549,9 @@ TEST(GuardedPlanner, RandomizedTileAlignedChangesNeverWorseThanSearch) {
     const Animation animation =
         TileAlignedFlickers(rng(), options.frameCount, options.width, options.height, options.coarseTile);
     const uint32_t seed = rng();
-    const uint64_t searchWrong = CountWrongPixels(RenderSearch(options, animation, seed), options, animation);
+    const uint64_t searchWrong = CountWrongPixels(RenderSearch(options, animation, seed).frames, options, animation);
     const RenderRun guarded = RenderGuarded(options, animation, seed);
-    const uint64_t guardedWrong = CountWrongPixels(guarded, options, animation);
+    const uint64_t guardedWrong = CountWrongPixels(guarded.frames, options, animation);
     EXPECT_LE(guardedWrong, searchWrong) << "round " << round;
     EXPECT_EQ(guardedWrong, 0u) << "round " << round;  // the guard sees every change
     ExpectMatchesReference(guarded, options, RenderGuardedReference(options, animation));
@@ -673,7 +660,7 @@ TEST(AutoGuardedPlanner, SurveysThenRendersExactlyAsGuardedWithTheChosenWidth) {
     EXPECT_EQ(run.frames.at(f).rgb, guarded.frames.at(f).rgb) << "frame " << f;
     EXPECT_EQ(run.frames.at(f).traced, guarded.frames.at(f).traced) << "frame " << f;
   }
-  EXPECT_EQ(CountWrongPixels(run, options, rare), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, rare), 0u);
 }
 
 TEST(AutoGuardedPlanner, RejectsUnknownIdsAndIgnoresRedeliveredSurveys) {
@@ -763,7 +750,7 @@ TEST(Planner, MakePlannerBuildsEachStrategy) {
     const uint64_t traced = CheckFramesAndCountTraced(run, options);
     if (strategy == Strategy::kBrute) {
       EXPECT_EQ(traced, 9u * 108u);
-      EXPECT_EQ(CountWrongPixels(run, options, animation), 0u);
+      EXPECT_EQ(CountWrongPixels(run.frames, options, animation), 0u);
     }
     if (strategy == Strategy::kGuarded) {
       ExpectMatchesReference(run, options, RenderGuardedReference(options, animation));

@@ -1,10 +1,11 @@
-// What the planners' tests share: options for small frames, and the fake tracer that
-// answers a task from a synthetic animation.
+// What the planners' tests share: options for small frames, the fake tracer that answers
+// a task from a synthetic animation, and the check of finished frames against it.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <vector>
 
 #include "planner/planner.h"
@@ -40,6 +41,23 @@ inline std::vector<float> Trace(const TraceTask& task, const Animation& animatio
     rgb.insert(rgb.end(), value.begin(), value.end());
   });
   return rgb;
+}
+
+inline Rgb ValueAt(const FinishedFrame& frame, int width, int x, int y) {
+  const size_t offset = (static_cast<size_t>(y) * width + x) * 3;
+  return {frame.rgb[offset], frame.rgb[offset + 1], frame.rgb[offset + 2]};
+}
+
+// Pixels (over all frames, keyed by frame number) whose value differs from the animation's.
+inline uint64_t CountWrongPixels(const std::map<int, FinishedFrame>& frames, const PlannerOptions& options,
+                                 const Animation& animation) {
+  uint64_t wrong = 0;
+  for (const auto& [f, frame] : frames) {
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) wrong += ValueAt(frame, options.width, x, y) != animation(f, x, y);
+    }
+  }
+  return wrong;
 }
 
 }  // namespace tcfarm::planner_test

@@ -19,10 +19,12 @@ namespace tcfarm {
 namespace {
 
 using planner_test::Animation;
+using planner_test::CountWrongPixels;
 using planner_test::Options;
 using planner_test::PixelsPerFrame;
 using planner_test::Rgb;
 using planner_test::Trace;
+using planner_test::ValueAt;
 
 struct RenderRun {
   std::map<int, FinishedFrame> frames;
@@ -89,22 +91,6 @@ uint64_t CheckFramesAndCountTraced(const RenderRun& run, const PlannerOptions& o
     traced += frame.tracedCount;
   }
   return traced;
-}
-
-Rgb ValueAt(const FinishedFrame& frame, int width, int x, int y) {
-  const size_t offset = (static_cast<size_t>(y) * width + x) * 3;
-  return {frame.rgb[offset], frame.rgb[offset + 1], frame.rgb[offset + 2]};
-}
-
-// Pixels (over all frames) whose value differs from the animation's.
-uint64_t CountWrongPixels(const RenderRun& run, const PlannerOptions& options, const Animation& animation) {
-  uint64_t wrong = 0;
-  for (const auto& [f, frame] : run.frames) {
-    for (int y = 0; y < options.height; ++y) {
-      for (int x = 0; x < options.width; ++x) wrong += ValueAt(frame, options.width, x, y) != animation(f, x, y);
-    }
-  }
-  return wrong;
 }
 
 // The paper's algorithm written the obvious way: sequential, one pixel at a time
@@ -220,7 +206,7 @@ TEST(SearchPlanner, BinWidthTwoIsBruteForce) {
   for (const auto& [f, frame] : run.frames) {
     EXPECT_TRUE(std::all_of(frame.traced.begin(), frame.traced.end(), [](uint8_t t) { return t == 1; }));
   }
-  EXPECT_EQ(CountWrongPixels(run, options, NoisyAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, NoisyAnimation), 0u);
 }
 
 TEST(SearchPlanner, BinWidthTwoIsBruteForceEvenForAStaticScene) {
@@ -235,7 +221,7 @@ TEST(SearchPlanner, StaticSceneTracesOnlyBinEnds) {
   RenderRun run = Render(options, StaticAnimation);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 4u * 24u);
   for (int f : {0, 3, 6, 9}) EXPECT_EQ(run.frames.at(f).tracedCount, 24u) << f;
-  EXPECT_EQ(CountWrongPixels(run, options, StaticAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, StaticAnimation), 0u);
 
   // N = 11: a remainder bin [9, 10] adds frame 10 (equation 3 with d = 0: a + b = 4 + 1).
   options.frameCount = 11;
@@ -261,7 +247,7 @@ TEST(SearchPlanner, OnePixelChangingOnceIsFoundByBinarySearch) {
   const RenderRun run = Render(options, animation);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 2u * 15u + 3u);
   for (int f : {2, 3, 4}) EXPECT_EQ(run.frames.at(f).tracedCount, 1u) << f;
-  EXPECT_EQ(CountWrongPixels(run, options, animation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, animation), 0u);
 }
 
 TEST(SearchPlanner, OnePixelChangingInTheSecondBin) {
@@ -271,21 +257,21 @@ TEST(SearchPlanner, OnePixelChangingInTheSecondBin) {
   const Animation animation = OnePixelChangingAt(6);
   const RenderRun run = Render(options, animation);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 3u * 15u + 2u);
-  EXPECT_EQ(CountWrongPixels(run, options, animation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, animation), 0u);
 }
 
 TEST(SearchPlanner, SingleFrameIsTracedFully) {
   const PlannerOptions options = Options(5, 4, 1, 8);
   const RenderRun run = Render(options, NoisyAnimation);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 20u);
-  EXPECT_EQ(CountWrongPixels(run, options, NoisyAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, NoisyAnimation), 0u);
 }
 
 TEST(SearchPlanner, TwoFramesAreBothTraced) {
   const PlannerOptions options = Options(5, 4, 2, 8);
   const RenderRun run = Render(options, StaticAnimation);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 40u);
-  EXPECT_EQ(CountWrongPixels(run, options, StaticAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, StaticAnimation), 0u);
 }
 
 TEST(SearchPlanner, BinWidthAtLeastFrameCountMakesOneBin) {
@@ -297,7 +283,7 @@ TEST(SearchPlanner, BinWidthAtLeastFrameCountMakesOneBin) {
     EXPECT_EQ(run.frames.at(5).tracedCount, 24u);
     run = Render(options, MonotoneAnimation);
     CheckFramesAndCountTraced(run, options);
-    EXPECT_EQ(CountWrongPixels(run, options, MonotoneAnimation), 0u) << binWidth;
+    EXPECT_EQ(CountWrongPixels(run.frames, options, MonotoneAnimation), 0u) << binWidth;
   }
 }
 
@@ -311,7 +297,7 @@ TEST(SearchPlanner, RemainderBinEndsAtTheLastFrame) {
 
   run = Render(options, MonotoneAnimation, 3);
   CheckFramesAndCountTraced(run, options);
-  EXPECT_EQ(CountWrongPixels(run, options, MonotoneAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, MonotoneAnimation), 0u);
   ExpectMatchesReference(run, options, RenderReference(options, MonotoneAnimation));
 }
 
@@ -319,7 +305,7 @@ TEST(SearchPlanner, MonotoneAnimationIsExactAndCheaperThanBruteForce) {
   const PlannerOptions options = Options(16, 9, 31, 6);
   const RenderRun run = Render(options, MonotoneAnimation, 11);
   const uint64_t traced = CheckFramesAndCountTraced(run, options);
-  EXPECT_EQ(CountWrongPixels(run, options, MonotoneAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, MonotoneAnimation), 0u);
   EXPECT_LT(traced, 31u * 16u * 9u / 2);
   ExpectMatchesReference(run, options, RenderReference(options, MonotoneAnimation));
 }
@@ -336,7 +322,7 @@ TEST(SearchPlanner, MovingOnePixelObjectIsLostBetweenBinEnds) {
   const RenderRun run = Render(options, MovingDot);
   // The path pixels (2,2) .. (8,8) hold background at both ends, so they are copied
   // and the dot vanishes from frames 1 .. 7: exactly one wrong pixel per inner frame.
-  EXPECT_EQ(CountWrongPixels(run, options, MovingDot), 7u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, MovingDot), 7u);
   for (int f = 1; f <= 7; ++f) {
     EXPECT_NE(ValueAt(run.frames.at(f), 12, 1 + f, 1 + f), MovingDot(f, 1 + f, 1 + f)) << f;
     EXPECT_EQ(ValueAt(run.frames.at(f), 12, 1 + f, 1 + f), StaticAnimation(f, 1 + f, 1 + f)) << f;
@@ -348,7 +334,7 @@ TEST(SearchPlanner, MovingOnePixelObjectIsLostBetweenBinEnds) {
 
   // Brute force sees the dot everywhere.
   const PlannerOptions bruteForce = Options(12, 12, 9, 2);
-  EXPECT_EQ(CountWrongPixels(Render(bruteForce, MovingDot), bruteForce, MovingDot), 0u);
+  EXPECT_EQ(CountWrongPixels(Render(bruteForce, MovingDot).frames, bruteForce, MovingDot), 0u);
 }
 
 // Pixel 0 drifts by 0.004 per frame; pixel 1 jumps by 0.5 at frame 3; the rest is still.
@@ -365,7 +351,7 @@ TEST(SearchPlanner, ToleranceTreatsSmallDifferencesAsEqual) {
   RenderRun run = Render(options, DriftAndJump);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 8u + 2u);
   for (int f = 1; f <= 3; ++f) EXPECT_EQ(ValueAt(run.frames.at(f), 4, 0, 0), DriftAndJump(0, 0, 0)) << f;
-  EXPECT_EQ(CountWrongPixels(run, options, DriftAndJump), 3u);  // the drift, copied from frame 0
+  EXPECT_EQ(CountWrongPixels(run.frames, options, DriftAndJump), 3u);  // the drift, copied from frame 0
   ExpectMatchesReference(run, options, RenderReference(options, DriftAndJump));
 
   options.tolerance = 0.01f;  // 0.016 over [0,4] differs: trace at 2; 0.008 halves are equal
@@ -375,7 +361,7 @@ TEST(SearchPlanner, ToleranceTreatsSmallDifferencesAsEqual) {
   options.tolerance = 0;  // bitwise: the drift is traced at 2, 1 and 3
   run = Render(options, DriftAndJump);
   EXPECT_EQ(CheckFramesAndCountTraced(run, options), 8u + 2u + 3u);
-  EXPECT_EQ(CountWrongPixels(run, options, DriftAndJump), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, DriftAndJump), 0u);
 }
 
 TEST(SearchPlanner, LiveFramesBoundedByLiveBins) {
@@ -383,7 +369,7 @@ TEST(SearchPlanner, LiveFramesBoundedByLiveBins) {
   options.maxLiveBins = 2;
   RenderRun run = Render(options, MonotoneAnimation, 5);
   CheckFramesAndCountTraced(run, options);
-  EXPECT_EQ(CountWrongPixels(run, options, MonotoneAnimation), 0u);
+  EXPECT_EQ(CountWrongPixels(run.frames, options, MonotoneAnimation), 0u);
   // Two bins of n frames each. (They share an end frame only when adjacent; once a
   // later bin finishes first, the two live bins are disjoint and hold 2n frames.)
   EXPECT_LE(run.maxLiveFrames, 20u);

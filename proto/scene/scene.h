@@ -220,10 +220,6 @@ void PlaceStillShapes(Scene& scene);
 // RebaseOnCamera, then PlaceStillShapes.
 void PrepareForTracing(Scene& scene);
 
-// Keeps a single job within a worker's memory (Embree BVH plus mesh: ~100 bytes/triangle);
-// every importer charges its triangles against it.
-constexpr size_t kMaxSceneTriangles = 20'000'000;
-
 // Bad scene input. pointer() is the RFC 6901 JSON pointer of the offending value
 // ("" for the whole document), what() reads "scene<pointer>: <problem>; expected <...>".
 class SceneError : public std::runtime_error {

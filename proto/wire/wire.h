@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "pixel_set/pixel_set.h"
+#include "scene/scene_limits.h"
 
 namespace tcfarm::wire {
 
@@ -40,7 +41,7 @@ enum class Command : uint8_t {
 
 // Limits on what a receiver accepts. Each is far above any honest message and low
 // enough that a hostile one cannot make a daemon allocate or log without bound.
-inline constexpr uint32_t kMaxImageSide = 16384;                // pixels, width and height alike
+inline constexpr uint32_t kMaxImageSide = scene_limits::kMaxImageSide;  // a TASK renders a scene's frame
 inline constexpr size_t kMaxNameBytes = 256;                    // READY name, shows up in logs
 inline constexpr size_t kMaxErrorMessageBytes = 4096;           // ERROR message, shows up in logs
 inline constexpr size_t kMaxSceneJsonBytes = size_t{256} << 20; // 256 MiB; the largest terrains are tens of MiB

@@ -11,6 +11,7 @@
 #include "frame/frame_writer.h"
 #include "scene/import/scene_import.h"
 #include "scene/scene.h"
+#include "scene/scene_limits.h"
 #include "trace/tracer.h"
 #include "util/tracing_threads.h"
 
@@ -47,7 +48,8 @@ void ParseFrameRange(const std::string& text, RenderOptions* options) {
 
 void ParseSize(const std::string& text, RenderOptions* options) {
   size_t x = text.find('x');
-  const std::string expected = "--size " + text + ": expected WxH, both from 1 to 16384";
+  using scene_limits::kMaxImageSide;
+  const std::string expected = "--size " + text + ": expected WxH, both from 1 to " + std::to_string(kMaxImageSide);
   if (x == std::string::npos) throw std::invalid_argument(expected);
   try {
     options->import.width = ParseInt(text.substr(0, x), "--size width");
@@ -55,8 +57,8 @@ void ParseSize(const std::string& text, RenderOptions* options) {
   } catch (const std::invalid_argument&) {
     throw std::invalid_argument(expected);
   }
-  if (options->import.width < 1 || options->import.width > 16384 || options->import.height < 1 ||
-      options->import.height > 16384) {
+  if (options->import.width < 1 || options->import.width > kMaxImageSide || options->import.height < 1 ||
+      options->import.height > kMaxImageSide) {
     throw std::invalid_argument(expected);
   }
 }
@@ -106,7 +108,7 @@ RenderCommandLine::RenderCommandLine(CLI::App& app) {
   app.add_option("--size", size_, "Image size (default: the scene's; 640x480 for glTF and OBJ)")->type_name("WxH");
   app.add_option("--spp", options_.import.samplesPerPixel, "Samples per pixel (default: the scene's)")
       ->type_name("N")
-      ->check(cli::IntegerFrom(1, 1024));
+      ->check(cli::IntegerFrom(1, scene_limits::kMaxSamplesPerPixel));
   app.add_flag("--print-scene", options_.printScene,
                "Print the scene as tcfarm JSON, as the farm is given it, and render nothing");
   app.add_flag("--no-exr", noExr_, "Write no EXR frames");

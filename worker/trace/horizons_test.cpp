@@ -11,7 +11,7 @@
 
 #include "embree/scene_geometry.h"
 #include "trace/horizons.h"
-#include "trace/scaled_scene.h"
+#include "scaled_scene.h"
 #include "trace/tracer.h"
 
 namespace tcfarm {

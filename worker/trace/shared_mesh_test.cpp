@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "trace/checker_png_for_tests.h"
+#include "checker_png_for_tests.h"
 #include "trace/tracer.h"
 
 namespace tcfarm {

@@ -13,7 +13,7 @@
 #include "embree/scene_geometry.h"
 #include "shapes/shape_kind.h"
 #include "frame/frame_io.h"
-#include "trace/scaled_scene.h"
+#include "scaled_scene.h"
 
 namespace tcfarm {
 namespace {

@@ -15,6 +15,7 @@
 
 #include "scene/import/importers.h"
 #include "scene/import/scene_import.h"
+#include "required_tool.h"
 
 namespace tcfarm {
 namespace {
@@ -599,7 +600,7 @@ std::string ModelError(const std::string& relative) {
 }
 
 TEST(GltfImporterTest, BrokenTestModelsAreRefusedWithTheirPointers) {
-  if (!fs::exists(kTestModels)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  TCFARM_REQUIRE_TOOL(fs::exists(kTestModels), "assimp-testmodels is not installed (scripts/bootstrap)");
   struct Case {
     const char* file;
     const char* message;
@@ -637,7 +638,7 @@ TEST(GltfImporterTest, BrokenTestModelsAreRefusedWithTheirPointers) {
 
 TEST(GltfImporterTest, TruncatedGlbNamesTheByteOffset) {
   const fs::path path = kTestModels / "BoxTextured-glTF-Binary/BoxTextured.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  TCFARM_REQUIRE_TOOL(fs::exists(path), "assimp-testmodels is not installed (scripts/bootstrap)");
   std::ifstream in(path, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(ImportSceneBytes(bytes, "").shapes.size(), 1u);
@@ -687,7 +688,7 @@ TEST(GltfImporterTest, ImageViewPastItsBufferIsRefused) {
 }
 
 TEST(GltfImporterTest, GoodTestModelsImportAndReadBack) {
-  if (!fs::exists(kTestModels)) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  TCFARM_REQUIRE_TOOL(fs::exists(kTestModels), "assimp-testmodels is not installed (scripts/bootstrap)");
   for (const char* file :
        {"BoxTextured-glTF/BoxTextured.gltf", "BoxTextured-glTF-Binary/BoxTextured.glb",
         "BoxTextured-glTF-Embedded/BoxTextured.gltf", "2CylinderEngine-glTF-Binary/2CylinderEngine.glb",
@@ -1125,7 +1126,7 @@ std::optional<Scene> ImportOneShapeTestModel(const std::string& relative) {
 
 TEST(GltfImporterTest, SimpleSkinBendsAsItsFileSays) {
   const std::optional<Scene> model = ImportOneShapeTestModel("simple_skin/simple_skin.gltf");
-  if (!model) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  TCFARM_REQUIRE_TOOL(model, "assimp-testmodels is not installed (scripts/bootstrap)");
   const Scene& scene = *model;
   ASSERT_EQ(scene.shapes.size(), 1u);
   const Shape& shape = scene.shapes[0];
@@ -1148,7 +1149,7 @@ TEST(GltfImporterTest, SimpleSkinBendsAsItsFileSays) {
 TEST(GltfImporterTest, AnimatedMorphCubeMorphsAsItsFileSays) {
   const std::optional<Scene> model =
       ImportOneShapeTestModel("glTF-Sample-Models/AnimatedMorphCube-glTF/AnimatedMorphCube.gltf");
-  if (!model) GTEST_SKIP() << "assimp-testmodels is not installed (scripts/bootstrap)";
+  TCFARM_REQUIRE_TOOL(model, "assimp-testmodels is not installed (scripts/bootstrap)");
   const Scene& scene = *model;
   ASSERT_EQ(scene.shapes.size(), 1u);
   const Shape& shape = scene.shapes[0];

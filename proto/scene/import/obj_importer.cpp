@@ -13,6 +13,7 @@
 #include "scene/import/messages.h"
 #include "scene/import/obj_reader.h"
 #include "scene/import/scene_files.h"
+#include "scene/scene_limits.h"
 
 namespace tcfarm {
 namespace {
@@ -22,7 +23,7 @@ using import::HasArea;
 using import::Norm;
 using import::Sub;
 
-constexpr double kMaxMagnitude = 1e30;  // as for scene JSON numbers
+using scene_limits::kMaxMagnitude;
 // The default camera: a view from the front (+z, OBJ's usual facing) and a little above,
 // and the vertical field of view the JSON format defaults to.
 const Vec3 kViewFrom{0, 0.35, 1};
@@ -136,8 +137,8 @@ class ObjImporter : public SceneImporter {
     ObjReadOptions options;
     options.pointer = "";
     options.displayName = input.displayName;
-    options.triangleBudget = kMaxSceneTriangles;
-    options.triangleLimit = kMaxSceneTriangles;
+    options.triangleBudget = scene_limits::kMaxTriangles;
+    options.triangleLimit = scene_limits::kMaxTriangles;
     options.readMaterialLibrary = [&input](const std::string& name, size_t line) {
       std::string where = input.displayName + " line " + std::to_string(line) + ": ";
       if (!input.baseDirectory) {

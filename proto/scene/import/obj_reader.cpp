@@ -15,12 +15,12 @@
 #include <tiny_obj_loader.h>
 
 #include "scene/import/messages.h"
+#include "scene/scene_limits.h"
 
 namespace tcfarm {
 namespace {
 
-// The same bound as for scene JSON numbers: beyond it the tracer's arithmetic is noise.
-constexpr double kMaxMagnitude = 1e30;
+using scene_limits::kMaxMagnitude;
 // Ear clipping costs O(n^3) in the corners of a concave polygon; beyond this a concave
 // face is fanned instead (it may then cover area outside its outline). Real models'
 // concave faces have a handful of corners.
@@ -304,7 +304,7 @@ Material ConvertMaterial(const tinyobj::material_t& source, const std::string& l
   // Exporters write d slightly outside [0, 1] and Ni 0 for "unset"; clamping keeps their
   // files usable, and the mapping is documented in proto/scene.md.
   material.transparency = std::clamp(1.0 - source.dissolve, 0.0, 1.0);
-  material.indexOfRefraction = std::clamp(source.ior, 1.0, 10.0);
+  material.indexOfRefraction = std::clamp(source.ior, scene_limits::kMinIndexOfRefraction, scene_limits::kMaxIndexOfRefraction);
   // illum 3 is "reflection on, ray traced": the mirror weight is the specular colour.
   if (source.illum == 3) {
     double strongest = std::max({material.specular.x, material.specular.y, material.specular.z});

@@ -9,6 +9,7 @@
 
 #include "scene/import/importers.h"
 #include "scene/import/messages.h"
+#include "scene/scene_limits.h"
 
 namespace tcfarm {
 namespace {
@@ -40,19 +41,20 @@ std::string KnownExtensions() {
 // The caller's render size and samples win over the file's, within the scene format's
 // limits (proto/scene.md, "Render").
 Scene ApplyOptions(Scene scene, const ImportOptions& options) {
-  constexpr int kMaxSize = 16384, kMaxSamples = 1024;
+  using scene_limits::kMaxImageSide;
+  using scene_limits::kMaxSamplesPerPixel;
   if (options.width != 0 || options.height != 0) {
-    if (options.width < 1 || options.width > kMaxSize || options.height < 1 || options.height > kMaxSize) {
+    if (options.width < 1 || options.width > kMaxImageSide || options.height < 1 || options.height > kMaxImageSide) {
       FailInput("/render", "a render size of " + std::to_string(options.width) + " x " + std::to_string(options.height),
-                "a width and a height from 1 to 16384");
+                "a width and a height from 1 to " + std::to_string(kMaxImageSide));
     }
     scene.render.width = options.width;
     scene.render.height = options.height;
   }
   if (options.samplesPerPixel != 0) {
-    if (options.samplesPerPixel < 1 || options.samplesPerPixel > kMaxSamples) {
+    if (options.samplesPerPixel < 1 || options.samplesPerPixel > kMaxSamplesPerPixel) {
       FailInput("/render/samples_per_pixel", std::to_string(options.samplesPerPixel) + " samples per pixel",
-                "1 to 1024");
+                "1 to " + std::to_string(kMaxSamplesPerPixel));
     }
     scene.render.samplesPerPixel = options.samplesPerPixel;
   }

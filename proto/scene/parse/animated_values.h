@@ -105,9 +105,6 @@ const char* const kRotationExpected =
 const char* const kMotionExpected =
     "a motion: an animated translation ([x, y, z], {\"polynomial\": ...} or {\"keyframes\": ...}) or "
     "{\"translation\", \"rotation\", \"scale\", \"pivot\"}";
-// A scale component this close to 0 collapses the shape onto a plane, whose normals are
-// undefined; this far from 1 the object leaves float's useful range.
-constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
 
 Quaternion ReadQuaternion(const Node& node);
 
@@ -123,14 +120,6 @@ AnimatedRotation ReadRotation(const Node& node);
 void CheckScale(const AnimatedVec3& scale, const Node& node, const FrameRange& range);
 
 bool IsTransformObject(const Node& node);
-
-// Joints of one skin: far more than any character rig has (glTF's own limits are those of
-// its index types), few enough that a scene's skin matrices stay small.
-constexpr size_t kMaxJoints = 4096;
-
-// Parents nest one object deep per level; a hierarchy deeper than this is refused (the
-// JSON parser's own nesting limit is 128 levels).
-constexpr int kMaxMotionDepth = 32;
 
 // The document's named transforms ("transforms"), which a transform's "parent" may name
 // instead of holding its parent inline: a skeleton's joints then share their ancestors

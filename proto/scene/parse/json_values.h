@@ -19,15 +19,14 @@
 
 #include "json/strict_json.h"
 #include "scene/scene.h"
+#include "scene/scene_limits.h"
 
 namespace tcfarm::scene_parse {
 
 using nlohmann::json;
 
-// Beyond this, squared distances in the tracer approach overflow and ray offsets lose
-// all meaning; no sensible scene needs coordinates anywhere near it.
-constexpr double kMaxMagnitude = 1e30;
-constexpr size_t kMaxTriangles = kMaxSceneTriangles;
+// The scene format's bounds (scene_limits.h) are the parser's.
+using namespace scene_limits;
 constexpr size_t kMaxPolynomialTerms = 8;
 constexpr int kMaxTerrainCells = 2000;
 // sin of the smallest angle between view direction and up that still gives a usable

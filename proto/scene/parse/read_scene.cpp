@@ -64,7 +64,7 @@ Scene SceneReader::ReadImport(const Node& root) {
 
 ImportOptions SceneReader::ReadImportOptions(const Node& root, const Node& node) const {
   ImportOptions options;
-  if (node.Has("fps")) options.framesPerSecond = ReadInRange(node.Member("fps"), 0.001, 100000, "frames per second");
+  if (node.Has("fps")) options.framesPerSecond = ReadInRange(node.Member("fps"), kMinFramesPerSecond, kMaxFramesPerSecond, "frames per second");
   for (const char* key : {"animation", "camera"}) {
     if (!node.Has(key)) continue;
     const Node choice = node.Member(key);
@@ -74,9 +74,11 @@ ImportOptions SceneReader::ReadImportOptions(const Node& root, const Node& node)
   }
   if (root.Has("render") && root.value["render"].is_object()) {
     const Node render = root.Member("render");
-    if (render.Has("width")) options.width = ReadInt(render.Member("width"), 1, 16384);
-    if (render.Has("height")) options.height = ReadInt(render.Member("height"), 1, 16384);
-    if (render.Has("samples_per_pixel")) options.samplesPerPixel = ReadInt(render.Member("samples_per_pixel"), 1, 1024);
+    if (render.Has("width")) options.width = ReadInt(render.Member("width"), 1, kMaxImageSide);
+    if (render.Has("height")) options.height = ReadInt(render.Member("height"), 1, kMaxImageSide);
+    if (render.Has("samples_per_pixel")) {
+      options.samplesPerPixel = ReadInt(render.Member("samples_per_pixel"), 1, kMaxSamplesPerPixel);
+    }
   }
   return options;
 }
@@ -84,16 +86,19 @@ ImportOptions SceneReader::ReadImportOptions(const Node& root, const Node& node)
 RenderSettings SceneReader::ReadRender(const Node& node, const std::optional<RenderSettings>& base) {
   ExpectObject(node, {"width", "height", "frames", "samples_per_pixel", "max_depth"}, "render settings");
   RenderSettings render = base.value_or(RenderSettings{});
-  if (!base || node.Has("width")) render.width = ReadInt(Required(node, "width", "an integer in [1, 16384]"), 1, 16384);
-  if (!base || node.Has("height")) render.height = ReadInt(Required(node, "height", "an integer in [1, 16384]"), 1, 16384);
+  const std::string sideExpected = "an integer in [1, " + std::to_string(kMaxImageSide) + "]";
+  if (!base || node.Has("width")) render.width = ReadInt(Required(node, "width", sideExpected), 1, kMaxImageSide);
+  if (!base || node.Has("height")) render.height = ReadInt(Required(node, "height", sideExpected), 1, kMaxImageSide);
   if (node.Has("frames")) {
     Node frames = node.Member("frames");
     ExpectObject(frames, {"start", "count"}, "{\"start\": first frame, \"count\": number of frames}");
-    if (frames.Has("start")) render.firstFrame = ReadInt(frames.Member("start"), 0, 10'000'000);
-    if (frames.Has("count")) render.frameCount = ReadInt(frames.Member("count"), 1, 100'000);
+    if (frames.Has("start")) render.firstFrame = ReadInt(frames.Member("start"), 0, kMaxFirstFrame);
+    if (frames.Has("count")) render.frameCount = ReadInt(frames.Member("count"), 1, kMaxFrameCount);
   }
-  if (node.Has("samples_per_pixel")) render.samplesPerPixel = ReadInt(node.Member("samples_per_pixel"), 1, 1024);
-  if (node.Has("max_depth")) render.maxDepth = ReadInt(node.Member("max_depth"), 0, 64);
+  if (node.Has("samples_per_pixel")) {
+    render.samplesPerPixel = ReadInt(node.Member("samples_per_pixel"), 1, kMaxSamplesPerPixel);
+  }
+  if (node.Has("max_depth")) render.maxDepth = ReadInt(node.Member("max_depth"), 0, kMaxBounceDepth);
   return render;
 }
 

@@ -27,6 +27,7 @@
 #include "scene/import/gltf/json_types.h"
 #include "scene/import/mesh_geometry.h"
 #include "scene/import/importers.h"
+#include "scene/scene_limits.h"
 #include "scene/import/messages.h"
 #include "scene/import/scene_files.h"
 
@@ -37,22 +38,24 @@ using import::HasArea;
 using import::Norm;
 using import::Sub;
 
-constexpr double kMaxMagnitude = 1e30;  // as for scene JSON numbers
-constexpr double kPi = 3.14159265358979323846;
-// The scene format's limits (proto/scene.md), checked here so that a glTF file is refused
+// The scene format's limits (scene_limits.h), checked here so that a glTF file is refused
 // with its own pointer rather than the pointer of the JSON it would become.
-constexpr int kMaxFrameCount = 100000;
-constexpr int kMaxMotionDepth = 32;
-constexpr size_t kMaxJoints = 4096;
+using scene_limits::kMaxFrameCount;
+using scene_limits::kMaxJoints;
+using scene_limits::kMaxMagnitude;
+using scene_limits::kMaxMotionDepth;
+using scene_limits::kMaxScale;
+using scene_limits::kMaxTriangles;
+using scene_limits::kMinScale;
+constexpr double kPi = 3.14159265358979323846;
 // The most elements one accessor may hold: the indices of the most triangles a scene may
 // hold. Far below 2^31, so that no count can ask for more than a few GiB of values.
-constexpr size_t kMaxAccessorCount = 3 * kMaxSceneTriangles;
+constexpr size_t kMaxAccessorCount = 3 * kMaxTriangles;
 // The values all accessor reads together may produce (8 bytes each), per byte of the
 // file's buffers, plus a fixed allowance: an accessor of bytes read once gives 8 per byte,
 // and a short JSON naming one large accessor over and over must not multiply it.
 constexpr uint64_t kValueBytesPerBufferByte = 16;
 constexpr uint64_t kValueBytesAllowance = uint64_t{16} << 20;
-constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
 // glTF's defaults for what a file leaves out.
 constexpr int kDefaultWidth = 640, kDefaultHeight = 480;
 // A matrix whose columns, once divided by their lengths, are further than this from
@@ -63,7 +66,6 @@ constexpr double kOrthonormalTolerance = 1e-5;
 constexpr double kSingularRatio = 1e-12;
 // Phong exponents the roughness mapping may give: 1 (broad) to 10000 (a mirror-like glint).
 constexpr double kMinShininess = 1, kMaxShininess = 10000;
-constexpr double kMinIor = 1, kMaxIor = 10;  // the scene format's range
 // The camera a file without one gets: as the OBJ importer's, from the front and above.
 const Vec3 kViewFrom{0, 0.35, 1};
 constexpr double kDefaultFovDegrees = 45;

@@ -45,7 +45,7 @@ Material GltfReader::MapMaterial(const tinygltf::Material& source, size_t index)
   }
   double r4 = roughness * roughness * roughness * roughness;
   material.shininess = r4 > 0 ? std::clamp(2 / r4 - 2, kMinShininess, kMaxShininess) : kMaxShininess;
-  material.indexOfRefraction = std::clamp(ior, kMinIor, kMaxIor);
+  material.indexOfRefraction = std::clamp(ior, scene_limits::kMinIndexOfRefraction, scene_limits::kMaxIndexOfRefraction);
   if (pbr.baseColorTexture.index >= 0) {
     material.diffuseTexture = MapTexture(pbr.baseColorTexture, pointer + "/pbrMetallicRoughness/baseColorTexture");
   }

@@ -164,8 +164,8 @@ void GltfReader::AddShapes(Scene& scene) {
         continue;
       }
       triangles += shape.Mesh().triangles.size();
-      if (triangles > kMaxSceneTriangles) {
-        Fail(pointer, "more than " + std::to_string(kMaxSceneTriangles) + " triangles in all", "a smaller scene");
+      if (triangles > kMaxTriangles) {
+        Fail(pointer, "more than " + std::to_string(kMaxTriangles) + " triangles in all", "a smaller scene");
       }
       shape.deformation =
           PrimitiveDeformation(static_cast<size_t>(node), skin, primitive, pointer, shape.Mesh());
