@@ -89,7 +89,7 @@ def test_no_method_reads_an_anonymous_large_body(farm):
         # With a Content-Length: refused on the head alone.
         head = f"{method} /api/v1/jobs HTTP/1.1\r\nHost: x\r\nContent-Length: {BODY_BYTES}\r\n\r\n".encode()
         results.append((method, "length", *offer_body(farm, head)))
-        # Without one, as the probe sent PRI: read until the client stops, once.
+        # Without one (a client that streams until it stops): refused on the head too.
         head = f"{method} /healthz HTTP/1.1\r\nHost: x\r\n\r\n".encode()
         results.append((method, "none", *offer_body(farm, head)))
     head = b"POST /api/v1/jobs HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n\r\n"
