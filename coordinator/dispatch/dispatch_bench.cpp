@@ -49,7 +49,7 @@ void SyntheticWorker(zmq::context_t& context, const std::string& endpoint,
 class PlannerSink : public DispatchSink {
  public:
   explicit PlannerSink(SearchPlanner& planner) : planner_(planner) {}
-  void OnResult(const DispatchTask& task, wire::Result&& result, double, const std::string&) override {
+  void OnResult(const DispatchTask& task, wire::Result&& result, double, const WorkerState&) override {
     planner_.OnResult(task.plannerTaskId, result.rgb.data(), result.rgb.size());
     pixels += result.PixelCount();
     ++tasks;

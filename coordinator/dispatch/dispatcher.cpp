@@ -357,6 +357,7 @@ const WorkerState* Dispatcher::FindPrincipal(const std::string& principal) const
 
 std::vector<DispatchTask> Dispatcher::TakeStranded() {
   std::vector<DispatchTask> stranded;
+  if (pendingCount_ == 0) return stranded;  // the common case on a busy farm's every turn
   for (auto& [jobId, job] : jobs_) {
     for (auto it = job.pending.begin(); it != job.pending.end();) {
       auto entry = tasks_.find(*it);
@@ -387,18 +388,16 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
     return;
   }
   registry_.Release(identity, result.taskId);
-  if (WorkerState* worker = registry_.Find(identity)) {
-    ++worker->tasksDone;
-    worker->pixelsDone += result.PixelCount();
-    worker->traceSeconds += result.traceSeconds;
-  }
+  WorkerState& worker = *registry_.Find(identity);  // a task's holder is always registered
+  ++worker.tasksDone;
+  worker.pixelsDone += result.PixelCount();
+  worker.traceSeconds += result.traceSeconds;
   ++counters_.resultsReceived;
   counters_.pixelsReceived += result.PixelCount();
   const double latency = std::chrono::duration<double>(clock_.Now() - entry->second.sentAt).count();
   const DispatchTask answered = std::move(entry->second.task);
   tasks_.erase(entry);
-  const WorkerState* worker = registry_.Find(identity);
-  sink.OnResult(answered, std::move(result), latency, worker ? worker->principal : identity);
+  sink.OnResult(answered, std::move(result), latency, worker);
 }
 
 void Dispatcher::OnError(const std::string& identity, const wire::Error& error,

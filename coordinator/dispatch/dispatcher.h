@@ -62,10 +62,11 @@ class DispatchSink {
  public:
   virtual ~DispatchSink() = default;
   // task: the one the result answers. latencySeconds: from sending the task to
-  // receiving its result. worker: the principal that traced it (PrincipalOf: for checks
-  // that must go to someone else, and for finding who returned wrong values).
+  // receiving its result. worker: who traced it, its tasksDone counting this one; its
+  // principal (PrincipalOf) is what checks that must go to someone else avoid, and what
+  // a worker found returning wrong values is banned as.
   virtual void OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
-                        const std::string& worker) = 0;
+                        const WorkerState& worker) = 0;
   virtual void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) = 0;
 };
 
@@ -168,7 +169,6 @@ class Dispatcher {
   void Ban(const std::string& principal) { banned_.insert(principal); }
   // Lifts a ban (an operator's decision); false when the principal was not banned.
   bool Unban(const std::string& principal) { return banned_.erase(principal) > 0; }
-  bool IsBanned(const std::string& principal) const { return banned_.count(principal) > 0; }
   // Pending tasks that may go to the referee (refereeMayTrace) and that no connected
   // worker may take, taken off the queue: the caller traces them elsewhere.
   std::vector<DispatchTask> TakeStranded();

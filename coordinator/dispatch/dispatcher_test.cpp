@@ -24,7 +24,7 @@ const std::string kHash(64, 'a');
 
 class RecordingSink : public DispatchSink {
  public:
-  void OnResult(const DispatchTask& task, wire::Result&& result, double, const std::string&) override {
+  void OnResult(const DispatchTask& task, wire::Result&& result, double, const WorkerState&) override {
     results.push_back({task.jobId, task.plannerTaskId, result.PixelCount()});
   }
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override {

@@ -344,15 +344,14 @@ void Farm::PumpTasks() {
 }
 
 void Farm::OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
-                    const std::string& worker) {
+                    const WorkerState& worker) {
   metrics_.taskLatency.Observe(latencySeconds);
   const uint64_t jobId = task.jobId;
   auto run = runs_.find(jobId);
   if (run == runs_.end()) return;
-  const WorkerState* tracer = dispatcher_.FindPrincipal(worker);
-  const bool onProbation = tracer && tracer->tasksDone <= kProbationTasks;
+  const bool onProbation = worker.tasksDone <= kProbationTasks;
   try {
-    if (!run->second->OnResult(task, result, worker, onProbation)) return;
+    if (!run->second->OnResult(task, result, worker.principal, onProbation)) return;
   } catch (const std::invalid_argument& e) {
     // The dispatcher checked sizes; a planner complaint here means values it refuses
     // (non-finite). The pixels are lost, so the job cannot finish correctly.
@@ -557,6 +556,7 @@ void Farm::UpdateMetrics() {
   metrics_.workersDropped.Increment(static_cast<double>(c.workersDropped - lastCounters_.workersDropped));
   metrics_.workersDistrusted.Increment(
       static_cast<double>(c.workersDistrusted - lastCounters_.workersDistrusted));
+  metrics_.tasksToReferee.Increment(static_cast<double>(c.tasksStranded - lastCounters_.tasksStranded));
   metrics_.taskErrorsRetried.Increment(static_cast<double>(c.taskErrorsRetried - lastCounters_.taskErrorsRetried));
   metrics_.workersRefusedKey.Increment(static_cast<double>(c.refusedKeys - lastCounters_.refusedKeys));
   metrics_.workersRefusedHandshake.Increment(

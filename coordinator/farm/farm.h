@@ -90,7 +90,7 @@ class Farm : public FarmControl, private DispatchSink {
 
  private:
   void OnResult(const DispatchTask& task, wire::Result&& result, double latencySeconds,
-                const std::string& worker) override;
+                const WorkerState& worker) override;
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override;
 
   void ClaimJobs();

@@ -75,7 +75,10 @@ FarmMetrics::FarmMetrics()
                                "Pixels of such jobs that checks found disagreeing")),
       workersDistrusted(NewCounter(*registry, "tcfarm_workers_distrusted_total",
                                    "Workers the coordinator's own trace of a disputed check showed returning "
-                                   "wrong values: dropped and never heard again")),
+                                   "wrong values: banned by principal until an admin lifts it")),
+      tasksToReferee(NewCounter(*registry, "tcfarm_tasks_traced_by_referee_total",
+                                "Checks and repairs no connected worker could take (every one of them was "
+                                "checked by it), traced by the coordinator's referee")),
       framesRewritten(NewCounter(*registry, "tcfarm_frames_rewritten_total",
                                  "Frames their values reached, traced again by another worker and rewritten "
                                  "because they differed (finished jobs)")),

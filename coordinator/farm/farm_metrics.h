@@ -42,6 +42,7 @@ struct FarmMetrics {
   prometheus::Counter& suspectJobs;  // jobs promising exactness whose checks disagreed
   prometheus::Counter& suspectPixels;
   prometheus::Counter& workersDistrusted;  // found returning wrong values by the referee
+  prometheus::Counter& tasksToReferee;     // checks no other worker could take (TakeStranded)
   prometheus::Counter& framesRewritten;    // traced again because of them, and different
   prometheus::Counter& pixelsRewritten;
   prometheus::Counter& jobStoreWritesRefused;  // the farm loop's, retried later

@@ -46,11 +46,6 @@ std::vector<WorkerBan> WorkerBans::List() const {
   return bans;
 }
 
-bool WorkerBans::Contains(const std::string& principal) const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  return bans_.count(principal) > 0;
-}
-
 // Temp file and rename: a crash leaves the old list or the new one, never half of one.
 void WorkerBans::Save() const {
   nlohmann::json bans = nlohmann::json::array();

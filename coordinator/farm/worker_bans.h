@@ -35,7 +35,6 @@ class WorkerBans {
   // False when the principal was not banned.
   bool Remove(const std::string& principal);
   std::vector<WorkerBan> List() const;
-  bool Contains(const std::string& principal) const;
 
  private:
   void Save() const;  // under mutex_

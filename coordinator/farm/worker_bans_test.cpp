@@ -9,6 +9,13 @@
 namespace tcfarm {
 namespace {
 
+bool Banned(const WorkerBans& bans, const std::string& principal) {
+  for (const WorkerBan& ban : bans.List()) {
+    if (ban.principal == principal) return true;
+  }
+  return false;
+}
+
 class WorkerBansTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -30,13 +37,13 @@ TEST_F(WorkerBansTest, ABanIsReadBackAndCanBeLifted) {
   }
   WorkerBans reread(File());
   ASSERT_EQ(reread.List().size(), 2u);
-  EXPECT_TRUE(reread.Contains("key:abc"));
+  EXPECT_TRUE(Banned(reread, "key:abc"));
   EXPECT_EQ(reread.List()[0].name, "liar");
   EXPECT_EQ(reread.List()[0].bannedMs, 1714566896789);
   EXPECT_TRUE(reread.Remove("key:abc"));
   EXPECT_FALSE(reread.Remove("key:abc"));
-  EXPECT_FALSE(WorkerBans(File()).Contains("key:abc"));
-  EXPECT_TRUE(WorkerBans(File()).Contains("name:other@127.0.0.1"));
+  EXPECT_FALSE(Banned(WorkerBans(File()), "key:abc"));
+  EXPECT_TRUE(Banned(WorkerBans(File()), "name:other@127.0.0.1"));
 }
 
 // A coordinator that cannot read its bans must not start trusting the banned.
