@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include "scene_test_support.h"
 #include "scene/import/importers.h"
 #include "scene/import/scene_import.h"
 #include "required_tool.h"
@@ -27,33 +28,7 @@ constexpr double kPi = 3.14159265358979323846;
 // Debian's assimp-testmodels (scripts/bootstrap installs it): read where it lies, never copied.
 const fs::path kTestModels = "/usr/share/assimp/models/glTF2";
 
-std::string ErrorOf(const std::function<void()>& action) {
-  try {
-    action();
-  } catch (const SceneError& error) {
-    return error.what();
-  }
-  return "no SceneError";
-}
 
-std::string Base64(const std::string& bytes) {
-  static const char* const kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  size_t i = 0;
-  for (; i + 2 < bytes.size(); i += 3) {
-    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16 | static_cast<uint8_t>(bytes[i + 1]) << 8 |
-                 static_cast<uint8_t>(bytes[i + 2]);
-    for (int k = 3; k >= 0; --k) out += kAlphabet[(v >> (6 * k)) & 63];
-  }
-  if (i + 1 == bytes.size()) {
-    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16;
-    out += std::string{kAlphabet[v >> 18], kAlphabet[(v >> 12) & 63]} + "==";
-  } else if (i + 2 == bytes.size()) {
-    uint32_t v = static_cast<uint8_t>(bytes[i]) << 16 | static_cast<uint8_t>(bytes[i + 1]) << 8;
-    out += std::string{kAlphabet[v >> 18], kAlphabet[(v >> 12) & 63], kAlphabet[(v >> 6) & 63]} + "=";
-  }
-  return out;
-}
 
 // A glTF document built in memory: one data-URI buffer that accessors are appended to.
 class GltfBuilder {

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "scene_test_support.h"
 #include "scene/import/scene_import.h"
 
 namespace tcfarm {
@@ -17,26 +18,7 @@ namespace {
 
 using nlohmann::json;
 
-std::string ErrorOf(const std::function<void()>& action) {
-  try {
-    action();
-  } catch (const SceneError& error) {
-    return error.what();
-  }
-  return "no SceneError";
-}
 
-std::string Base64(const std::string& bytes) {
-  static const char* const kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  for (size_t i = 0; i < bytes.size(); i += 3) {
-    uint32_t v = 0;
-    for (size_t k = 0; k < 3; ++k) v = v << 8 | (i + k < bytes.size() ? static_cast<uint8_t>(bytes[i + k]) : 0u);
-    const size_t chars = std::min<size_t>(4, (bytes.size() - i) * 4 / 3 + 1);
-    for (size_t k = 0; k < 4; ++k) out += k < chars ? kAlphabet[(v >> (18 - 6 * k)) & 63] : '=';
-  }
-  return out;
-}
 
 std::string Floats(const std::vector<float>& values) {
   return std::string(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(float));

@@ -1,3 +1,4 @@
+#include "scene_test_support.h"
 #include "scene/import/scene_import.h"
 
 #include <gtest/gtest.h>
@@ -55,14 +56,6 @@ const char* const kBoxObj =
     "o loose\nusemtl red\nf 4//1 3//1 5//1\n";
 const char* const kBoxMtl = "newmtl red\nKd 0.8 0.1 0.1\nnewmtl chrome\nKs 0.9 0.9 0.9\nillum 3\nnewmtl unused\n";
 
-std::string ErrorOf(const std::function<void()>& action) {
-  try {
-    action();
-  } catch (const SceneError& error) {
-    return error.what();
-  }
-  return "no SceneError";
-}
 
 // --- choosing the importer ----------------------------------------------------------------
 
