@@ -120,3 +120,18 @@ def test_one_accessor_named_by_many_meshes_is_refused(worker_binary, baseline, t
     assert status != 0
     assert "accessors/0: shared_accessor.gltf: reading it brings the values read" in stderr
     assert peak < baseline + 16 * len(positions) + 64 * MIB
+
+
+@pytest.mark.parametrize("count", [2 ** 28, 2 ** 31])
+def test_the_farm_answers_a_hostile_count_with_a_400_naming_the_accessor(count, tmp_path):
+    """Through the farm as a user submits it: a clear 400 at submit, not a 500 or a stall."""
+    from farm_harness import LocalFarm, tcfarm_cli
+    path = tmp_path / f"count_{count}.gltf"
+    path.write_text(json.dumps(animated_node(KEYS, times_count=count)))
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=0) as farm:
+        result = tcfarm_cli(farm, "submit", path)
+        print(result.stderr.strip())
+        assert result.returncode != 0
+        assert "(400)" in result.stderr and "accessors/0/count" in result.stderr, result.stderr
+        assert farm.client.jobs() == []  # nothing queued
