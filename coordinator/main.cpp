@@ -7,11 +7,11 @@
 #include <cstdio>
 #include <exception>
 
-#include "cli/analyze_command.h"
-#include "cli/compare_command.h"
-#include "cli/serve_command.h"
-#include "command_line/command_line.h"
-#include "curve/keygen_command.h"
+#include "coordinator/cli/analyze_command.h"
+#include "coordinator/cli/compare_command.h"
+#include "coordinator/cli/serve_command.h"
+#include "proto/command_line/command_line.h"
+#include "proto/curve/keygen_command.h"
 
 int main(int argc, char** argv) {
   CLI::App program("Owns the jobs, plans which pixels to trace, dispatches tasks to the "

@@ -16,10 +16,10 @@
 #include <stdexcept>
 #include <string>
 
-#include "command_line/command_line.h"
-#include "curve/curve_keys.h"
-#include "curve/keygen_command.h"
-#include "daemon/worker_daemon.h"
+#include "proto/command_line/command_line.h"
+#include "proto/curve/curve_keys.h"
+#include "proto/curve/keygen_command.h"
+#include "worker/daemon/worker_daemon.h"
 
 namespace {
 

@@ -1,4 +1,4 @@
-#include "cli/analyze_command.h"
+#include "coordinator/cli/analyze_command.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -8,8 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "frame/frame_io.h"
-#include "frame/sequence_analysis.h"
+#include "proto/frame/frame_io.h"
+#include "proto/frame/sequence_analysis.h"
 
 namespace tcfarm {
 namespace {

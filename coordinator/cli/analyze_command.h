@@ -3,7 +3,7 @@
 // submitting a job what exploiting temporal coherence can buy on footage like it.
 #pragma once
 
-#include "command_line/command_line.h"
+#include "proto/command_line/command_line.h"
 
 namespace tcfarm {
 

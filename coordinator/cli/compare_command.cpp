@@ -1,4 +1,4 @@
-#include "cli/compare_command.h"
+#include "coordinator/cli/compare_command.h"
 
 #include <cmath>
 #include <cstdio>
@@ -9,9 +9,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "frame/compare.h"
-#include "frame/frame_io.h"
-#include "frame/ssim.h"
+#include "proto/frame/compare.h"
+#include "proto/frame/frame_io.h"
+#include "proto/frame/ssim.h"
 
 namespace tcfarm {
 namespace {

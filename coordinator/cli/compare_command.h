@@ -2,7 +2,7 @@
 // against its brute-force reference, frame by frame (EXR, bitwise).
 #pragma once
 
-#include "command_line/command_line.h"
+#include "proto/command_line/command_line.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "cli/serve_command.h"
+#include "coordinator/cli/serve_command.h"
 
 #include <malloc.h>
 #include <stdlib.h>
@@ -15,16 +15,16 @@
 
 #include <arpa/inet.h>
 
-#include "curve/curve_keys.h"
-#include "farm/farm.h"
-#include "farm/job_run.h"
-#include "frame/frame_io.h"
-#include "farm/local_workers.h"
-#include "farm/machine_memory.h"
-#include "http/api_server.h"
-#include "jobs/job_store.h"
-#include "store/store_identity.h"
-#include "store/store_janitor.h"
+#include "proto/curve/curve_keys.h"
+#include "coordinator/farm/farm.h"
+#include "coordinator/farm/job_run.h"
+#include "proto/frame/frame_io.h"
+#include "coordinator/farm/local_workers.h"
+#include "coordinator/farm/machine_memory.h"
+#include "coordinator/http/api_server.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/store/store_identity.h"
+#include "coordinator/store/store_janitor.h"
 
 namespace tcfarm {
 namespace {

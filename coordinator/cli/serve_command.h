@@ -2,7 +2,7 @@
 // the embedded local farm: it starts N workers on loopback itself.
 #pragma once
 
-#include "command_line/command_line.h"
+#include "proto/command_line/command_line.h"
 
 namespace tcfarm {
 

@@ -1,11 +1,11 @@
-#include "dispatch/curve_authenticator.h"
+#include "coordinator/dispatch/curve_authenticator.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 
-#include "curve/curve_keys.h"
-#include "curve/socket_events.h"
+#include "proto/curve/curve_keys.h"
+#include "proto/curve/socket_events.h"
 
 namespace tcfarm {
 namespace {

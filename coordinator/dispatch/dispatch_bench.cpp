@@ -13,9 +13,9 @@
 #include <thread>
 #include <vector>
 
-#include "dispatch/dispatcher.h"
-#include "planner/search_planner.h"
-#include "wire/zmq_io.h"
+#include "coordinator/dispatch/dispatcher.h"
+#include "coordinator/planner/search_planner.h"
+#include "proto/wire/zmq_io.h"
 
 namespace tcfarm {
 namespace {

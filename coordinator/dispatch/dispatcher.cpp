@@ -1,12 +1,12 @@
-#include "dispatch/dispatcher.h"
+#include "coordinator/dispatch/dispatcher.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
-#include "curve/curve_keys.h"
-#include "curve/socket_events.h"
-#include "wire/zmq_io.h"
+#include "proto/curve/curve_keys.h"
+#include "proto/curve/socket_events.h"
+#include "proto/wire/zmq_io.h"
 
 namespace tcfarm {
 namespace {

@@ -27,12 +27,12 @@
 
 #include <zmq.hpp>
 
-#include "dispatch/curve_authenticator.h"
-#include "dispatch/worker_registry.h"
-#include "pixel_set/pixel_set.h"
-#include "wire/liveness.h"
-#include "wire/wire.h"
-#include "wire/zmq_io.h"
+#include "coordinator/dispatch/curve_authenticator.h"
+#include "coordinator/dispatch/worker_registry.h"
+#include "proto/pixel_set/pixel_set.h"
+#include "proto/wire/liveness.h"
+#include "proto/wire/wire.h"
+#include "proto/wire/zmq_io.h"
 
 namespace tcfarm {
 

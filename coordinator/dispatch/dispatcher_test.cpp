@@ -1,6 +1,6 @@
 // The dispatcher against fake workers (tests/support/cpp/fake_worker.h) and a fake clock for
 // liveness.
-#include "dispatch/dispatcher.h"
+#include "coordinator/dispatch/dispatcher.h"
 
 #include <gtest/gtest.h>
 
@@ -13,9 +13,9 @@
 #include <thread>
 #include <vector>
 
-#include "fake_worker.h"
-#include "wire/content_hash.h"
-#include "wire/zmq_io.h"
+#include "tests/support/cpp/fake_worker.h"
+#include "proto/wire/content_hash.h"
+#include "proto/wire/zmq_io.h"
 
 namespace tcfarm {
 namespace {

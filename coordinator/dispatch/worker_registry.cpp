@@ -1,4 +1,4 @@
-#include "dispatch/worker_registry.h"
+#include "coordinator/dispatch/worker_registry.h"
 
 namespace tcfarm {
 namespace {

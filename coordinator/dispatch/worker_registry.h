@@ -9,8 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "wire/liveness.h"
-#include "wire/wire.h"
+#include "proto/wire/liveness.h"
+#include "proto/wire/wire.h"
 
 namespace tcfarm {
 

@@ -1,8 +1,8 @@
-#include "farm/dispute.h"
+#include "coordinator/farm/dispute.h"
 
 #include <stdexcept>
 
-#include "frame/compare.h"
+#include "proto/frame/compare.h"
 
 namespace tcfarm {
 Ruling Settle(const Dispute& dispute, const std::vector<float>& truth) {

@@ -1,4 +1,4 @@
-#include "farm/exactness_audit.h"
+#include "coordinator/farm/exactness_audit.h"
 
 #include <algorithm>
 #include <cstdio>

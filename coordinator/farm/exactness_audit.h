@@ -24,9 +24,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "farm/dispute.h"
-#include "farm/referee.h"
-#include "farm/tracer_ledger.h"
+#include "coordinator/farm/dispute.h"
+#include "coordinator/farm/referee.h"
+#include "coordinator/farm/tracer_ledger.h"
 
 namespace tcfarm {
 

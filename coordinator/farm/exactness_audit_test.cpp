@@ -1,7 +1,7 @@
 // Disputes settled by a referee, workers traced back through the ledger, frames repaired.
 // The referee here is a stand-in that answers from a table of true values: the tracing
 // one is tested in referee_test.cpp.
-#include "farm/exactness_audit.h"
+#include "coordinator/farm/exactness_audit.h"
 
 #include <gtest/gtest.h>
 

@@ -1,11 +1,11 @@
-#include "farm/farm.h"
+#include "coordinator/farm/farm.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <iterator>
 #include <stdexcept>
 
-#include "planner/job_memory.h"
+#include "coordinator/planner/job_memory.h"
 
 namespace tcfarm {
 namespace {

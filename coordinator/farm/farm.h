@@ -22,14 +22,14 @@
 #include <string>
 #include <vector>
 
-#include "dispatch/dispatcher.h"
-#include "farm/farm_control.h"
-#include "farm/farm_metrics.h"
-#include "farm/job_run.h"
-#include "farm/referee.h"
-#include "store/frame_finisher.h"
-#include "jobs/job_store.h"
-#include "store/asset_store.h"
+#include "coordinator/dispatch/dispatcher.h"
+#include "coordinator/farm/farm_control.h"
+#include "coordinator/farm/farm_metrics.h"
+#include "coordinator/farm/job_run.h"
+#include "coordinator/farm/referee.h"
+#include "coordinator/store/frame_finisher.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/store/asset_store.h"
 
 namespace tcfarm {
 

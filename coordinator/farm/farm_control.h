@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "farm/worker_bans.h"
+#include "coordinator/farm/worker_bans.h"
 
 namespace tcfarm {
 

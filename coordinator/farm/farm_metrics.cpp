@@ -1,6 +1,6 @@
-#include "farm/farm_metrics.h"
+#include "coordinator/farm/farm_metrics.h"
 
-#include "metrics/metric_builders.h"
+#include "proto/metrics/metric_builders.h"
 
 namespace tcfarm {
 namespace {

@@ -1,8 +1,8 @@
 // The farm loop driven step by step: a real job store and dispatcher socket, fake workers
 // in this process (tests/support/cpp/fake_worker.h) and a fake clock, so that a worker's silence
 // lasts as long as the test says without the test sleeping through it.
-#include "farm/farm.h"
-#include "store/frame_finisher.h"
+#include "coordinator/farm/farm.h"
+#include "coordinator/store/frame_finisher.h"
 
 #include <gtest/gtest.h>
 
@@ -14,10 +14,10 @@
 #include <thread>
 #include <random>
 
-#include "fake_worker.h"
-#include "planner/job_memory.h"
-#include "frame/frame_io.h"
-#include "store/frame_store.h"
+#include "tests/support/cpp/fake_worker.h"
+#include "coordinator/planner/job_memory.h"
+#include "proto/frame/frame_io.h"
+#include "coordinator/store/frame_store.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "farm/job_coherence.h"
+#include "coordinator/farm/job_coherence.h"
 
 #include <utility>
 

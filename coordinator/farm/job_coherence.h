@@ -12,8 +12,8 @@
 #include <filesystem>
 #include <vector>
 
-#include "farm/pending_frames.h"
-#include "frame/sequence_analysis.h"
+#include "coordinator/farm/pending_frames.h"
+#include "proto/frame/sequence_analysis.h"
 
 namespace tcfarm {
 

@@ -1,10 +1,10 @@
-#include "farm/job_cost.h"
+#include "coordinator/farm/job_cost.h"
 
 #include <algorithm>
 #include <cmath>
 #include <string>
 
-#include "planner/planner.h"
+#include "coordinator/planner/planner.h"
 
 namespace tcfarm {
 namespace {

@@ -10,10 +10,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "frame/sequence_analysis.h"
-#include "planner/segment_plan.h"
-#include "planner/strategy.h"
-#include "wire/wire.h"
+#include "proto/frame/sequence_analysis.h"
+#include "coordinator/planner/segment_plan.h"
+#include "coordinator/planner/strategy.h"
+#include "proto/wire/wire.h"
 
 namespace tcfarm {
 

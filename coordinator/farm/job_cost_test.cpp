@@ -1,8 +1,8 @@
-#include "farm/job_cost.h"
+#include "coordinator/farm/job_cost.h"
 
 #include <gtest/gtest.h>
 
-#include "planner/planner.h"
+#include "coordinator/planner/planner.h"
 
 namespace tcfarm {
 namespace {

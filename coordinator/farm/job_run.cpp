@@ -1,4 +1,4 @@
-#include "farm/job_run.h"
+#include "coordinator/farm/job_run.h"
 
 #include <malloc.h>
 
@@ -8,8 +8,8 @@
 #include <stdexcept>
 #include <system_error>
 
-#include "frame/compare.h"
-#include "scene/scene.h"
+#include "proto/frame/compare.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 namespace {

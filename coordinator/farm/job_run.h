@@ -20,17 +20,17 @@
 
 #include <nlohmann/json.hpp>
 
-#include "dispatch/dispatcher.h"
-#include "farm/exactness_audit.h"
-#include "farm/job_coherence.h"
-#include "farm/job_cost.h"
-#include "farm/verification.h"
-#include "frame/frame_writer.h"
-#include "jobs/job_store.h"
-#include "planner/auto_guarded_planner.h"
-#include "planner/job_memory.h"
-#include "planner/planner.h"
-#include "store/frame_store.h"
+#include "coordinator/dispatch/dispatcher.h"
+#include "coordinator/farm/exactness_audit.h"
+#include "coordinator/farm/job_coherence.h"
+#include "coordinator/farm/job_cost.h"
+#include "coordinator/farm/verification.h"
+#include "proto/frame/frame_writer.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/planner/auto_guarded_planner.h"
+#include "coordinator/planner/job_memory.h"
+#include "coordinator/planner/planner.h"
+#include "coordinator/store/frame_store.h"
 
 namespace tcfarm {
 

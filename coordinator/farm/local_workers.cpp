@@ -1,4 +1,4 @@
-#include "farm/local_workers.h"
+#include "coordinator/farm/local_workers.h"
 
 #include <fcntl.h>
 #include <signal.h>

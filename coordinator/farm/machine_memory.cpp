@@ -1,4 +1,4 @@
-#include "farm/machine_memory.h"
+#include "coordinator/farm/machine_memory.h"
 
 #include <unistd.h>
 

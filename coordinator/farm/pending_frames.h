@@ -11,7 +11,7 @@
 #include <map>
 #include <optional>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 

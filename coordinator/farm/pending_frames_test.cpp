@@ -1,4 +1,4 @@
-#include "farm/pending_frames.h"
+#include "coordinator/farm/pending_frames.h"
 
 #include <gtest/gtest.h>
 

@@ -1,14 +1,12 @@
-#include "farm/referee.h"
+#include "coordinator/farm/referee.h"
 
 #include <algorithm>
 #include <chrono>
 #include <exception>
 #include <optional>
 
-#include "embree/device.h"
-#include "scene/scene.h"
-#include "trace/tracer.h"
-#include "util/tracing_threads.h"
+#include "worker/tracing.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 

@@ -1,6 +1,6 @@
 // The referee's values are the bits a worker returns: the same scene JSON, the texture
 // read from the store by its hash, traced with the workers' tracer.
-#include "farm/referee.h"
+#include "coordinator/farm/referee.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -9,11 +9,9 @@
 #include <filesystem>
 #include <thread>
 
-#include "embree/device.h"
-#include "scene/scene.h"
-#include "checker_png_for_tests.h"
-#include "trace/tracer.h"
-#include "util/tracing_threads.h"
+#include "worker/tracing.h"
+#include "proto/scene/scene.h"
+#include "tests/support/cpp/checker_png_for_tests.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "farm/tracer_ledger.h"
+#include "coordinator/farm/tracer_ledger.h"
 
 #include <algorithm>
 

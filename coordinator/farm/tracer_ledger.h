@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "pixel_set/pixel_set.h"
+#include "proto/pixel_set/pixel_set.h"
 
 namespace tcfarm {
 

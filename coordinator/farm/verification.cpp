@@ -1,12 +1,12 @@
-#include "farm/verification.h"
+#include "coordinator/farm/verification.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
 
-#include "farm/referee.h"
-#include "frame/ssim.h"
+#include "coordinator/farm/referee.h"
+#include "proto/frame/ssim.h"
 
 namespace tcfarm {
 namespace {

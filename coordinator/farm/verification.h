@@ -25,10 +25,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "farm/dispute.h"
-#include "frame/compare.h"
-#include "frame/frame_io.h"
-#include "pixel_set/pixel_set.h"
+#include "coordinator/farm/dispute.h"
+#include "proto/frame/compare.h"
+#include "proto/frame/frame_io.h"
+#include "proto/pixel_set/pixel_set.h"
 
 namespace tcfarm {
 

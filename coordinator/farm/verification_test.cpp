@@ -1,6 +1,6 @@
-#include "farm/verification.h"
+#include "coordinator/farm/verification.h"
 
-#include "farm/referee.h"
+#include "coordinator/farm/referee.h"
 
 #include <gtest/gtest.h>
 

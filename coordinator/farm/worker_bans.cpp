@@ -1,4 +1,4 @@
-#include "farm/worker_bans.h"
+#include "coordinator/farm/worker_bans.h"
 
 #include <fstream>
 #include <sstream>

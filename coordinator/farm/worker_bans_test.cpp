@@ -1,5 +1,5 @@
 // Bans outlive the coordinator: they are read back from the store's file.
-#include "farm/worker_bans.h"
+#include "coordinator/farm/worker_bans.h"
 
 #include <gtest/gtest.h>
 

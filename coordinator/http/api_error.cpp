@@ -1,4 +1,4 @@
-#include "http/api_error.h"
+#include "coordinator/http/api_error.h"
 
 namespace tcfarm::http {
 

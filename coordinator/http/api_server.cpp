@@ -1,4 +1,4 @@
-#include "http/api_server.h"
+#include "coordinator/http/api_server.h"
 
 #include <httplib.h>
 #include <prometheus/registry.h>
@@ -15,15 +15,15 @@
 
 #include <sys/socket.h>
 
-#include "frame/frame_io.h"
-#include "http/api_error.h"
-#include "http/query_params.h"
-#include "http/submit_request.h"
-#include "metrics/metric_builders.h"
-#include "net/guarded_server.h"
-#include "planner/job_memory.h"
-#include "planner/planner.h"
-#include "store/frame_finisher.h"
+#include "proto/frame/frame_io.h"
+#include "coordinator/http/api_error.h"
+#include "coordinator/http/query_params.h"
+#include "coordinator/http/submit_request.h"
+#include "proto/metrics/metric_builders.h"
+#include "proto/net/guarded_server.h"
+#include "coordinator/planner/job_memory.h"
+#include "coordinator/planner/planner.h"
+#include "coordinator/store/frame_finisher.h"
 
 namespace tcfarm {
 namespace {

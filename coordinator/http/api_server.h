@@ -36,16 +36,16 @@
 #include <unordered_map>
 #include <vector>
 
-#include "farm/farm_control.h"
-#include "http/api_error.h"
-#include "http/api_tokens.h"
-#include "http/job_json.h"
-#include "http/submit_request.h"
-#include "net/http_listener.h"
-#include "jobs/job_store.h"
-#include "store/asset_store.h"
-#include "store/frame_store.h"
-#include "store/store_janitor.h"
+#include "coordinator/farm/farm_control.h"
+#include "coordinator/http/api_error.h"
+#include "coordinator/http/api_tokens.h"
+#include "coordinator/http/job_json.h"
+#include "coordinator/http/submit_request.h"
+#include "proto/net/http_listener.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/store/asset_store.h"
+#include "coordinator/store/frame_store.h"
+#include "coordinator/store/store_janitor.h"
 
 namespace httplib {
 class Server;

@@ -1,6 +1,6 @@
 // The HTTP API through a real server on a free port, a real JobStore in a temporary SQLite
 // file and a fake farm; the client is httplib's, so requests cross a real socket.
-#include "http/api_server.h"
+#include "coordinator/http/api_server.h"
 
 #include <gtest/gtest.h>
 #include <httplib.h>
@@ -24,10 +24,10 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "frame/frame_io.h"
-#include "scene/scene.h"
-#include "wire/content_hash.h"
-#include "required_tool.h"
+#include "proto/frame/frame_io.h"
+#include "proto/scene/scene.h"
+#include "proto/wire/content_hash.h"
+#include "tests/support/cpp/required_tool.h"
 
 namespace tcfarm {
 namespace {

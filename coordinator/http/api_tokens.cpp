@@ -1,4 +1,4 @@
-#include "http/api_tokens.h"
+#include "coordinator/http/api_tokens.h"
 
 #include <algorithm>
 #include <cctype>
@@ -8,7 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "wire/content_hash.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm::http {
 namespace {

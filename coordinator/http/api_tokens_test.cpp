@@ -1,4 +1,4 @@
-#include "http/api_tokens.h"
+#include "coordinator/http/api_tokens.h"
 
 #include <gtest/gtest.h>
 

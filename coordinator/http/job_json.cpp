@@ -1,4 +1,4 @@
-#include "http/job_json.h"
+#include "coordinator/http/job_json.h"
 
 #include <ctime>
 #include <cstdio>

@@ -6,8 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "farm/farm_control.h"
-#include "jobs/job_store.h"
+#include "coordinator/farm/farm_control.h"
+#include "coordinator/jobs/job_store.h"
 
 namespace tcfarm::http {
 

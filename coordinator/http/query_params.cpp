@@ -1,11 +1,11 @@
-#include "http/query_params.h"
+#include "coordinator/http/query_params.h"
 
 #include <algorithm>
 #include <limits>
 #include <optional>
 
-#include "http/api_error.h"
-#include "http/submit_request.h"
+#include "coordinator/http/api_error.h"
+#include "coordinator/http/submit_request.h"
 
 namespace tcfarm::http {
 namespace {

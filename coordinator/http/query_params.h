@@ -9,8 +9,8 @@
 
 #include <httplib.h>
 
-#include "jobs/job_store.h"
-#include "planner/strategy.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/planner/strategy.h"
 
 namespace tcfarm::http {
 

@@ -1,4 +1,4 @@
-#include "http/submit_request.h"
+#include "coordinator/http/submit_request.h"
 
 #include <algorithm>
 #include <cmath>
@@ -14,13 +14,13 @@
 #include <utility>
 #include <vector>
 
-#include "frame/encoded_image.h"
-#include "http/api_error.h"
-#include "json/strict_json.h"
-#include "scene/import/scene_import.h"
-#include "scene/scene.h"
-#include "scene/scene_limits.h"
-#include "wire/content_hash.h"
+#include "proto/frame/encoded_image.h"
+#include "coordinator/http/api_error.h"
+#include "proto/json/strict_json.h"
+#include "proto/scene/import/scene_import.h"
+#include "proto/scene/scene.h"
+#include "proto/scene/scene_limits.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm::http {
 namespace {

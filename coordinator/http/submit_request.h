@@ -7,9 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "http/job_json.h"
-#include "jobs/job_store.h"
-#include "store/asset_store.h"
+#include "coordinator/http/job_json.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/store/asset_store.h"
 
 namespace tcfarm::http {
 

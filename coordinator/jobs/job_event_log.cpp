@@ -1,4 +1,4 @@
-#include "jobs/job_event_log.h"
+#include "coordinator/jobs/job_event_log.h"
 
 #include <algorithm>
 #include <cstddef>
@@ -8,7 +8,7 @@
 #include <string>
 #include <utility>
 
-#include "jobs/job_rows.h"
+#include "coordinator/jobs/job_rows.h"
 
 namespace tcfarm {
 namespace jobs {

@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "jobs/job_store.h"
-#include "jobs/sqlite_database.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/jobs/sqlite_database.h"
 
 namespace tcfarm::jobs {
 

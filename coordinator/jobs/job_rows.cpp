@@ -1,4 +1,4 @@
-#include "jobs/job_rows.h"
+#include "coordinator/jobs/job_rows.h"
 
 #include <cstddef>
 #include <stdexcept>

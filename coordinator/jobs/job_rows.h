@@ -10,8 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "jobs/job_store.h"
-#include "jobs/sqlite_database.h"
+#include "coordinator/jobs/job_store.h"
+#include "coordinator/jobs/sqlite_database.h"
 
 namespace tcfarm::jobs {
 

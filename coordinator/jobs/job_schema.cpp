@@ -1,11 +1,11 @@
-#include "jobs/job_schema.h"
+#include "coordinator/jobs/job_schema.h"
 
 #include <array>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "jobs/job_rows.h"
+#include "coordinator/jobs/job_rows.h"
 
 namespace tcfarm::jobs {
 namespace {

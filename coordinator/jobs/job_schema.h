@@ -2,7 +2,7 @@
 // any older schema version to JobStore::kSchemaVersion, and the backfills they need.
 #pragma once
 
-#include "jobs/sqlite_database.h"
+#include "coordinator/jobs/sqlite_database.h"
 
 namespace tcfarm::jobs {
 

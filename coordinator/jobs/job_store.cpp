@@ -1,4 +1,4 @@
-#include "jobs/job_store.h"
+#include "coordinator/jobs/job_store.h"
 
 #include <algorithm>
 #include <array>
@@ -11,10 +11,10 @@
 #include <utility>
 #include <vector>
 
-#include "jobs/job_event_log.h"
-#include "jobs/job_rows.h"
-#include "jobs/job_schema.h"
-#include "jobs/sqlite_database.h"
+#include "coordinator/jobs/job_event_log.h"
+#include "coordinator/jobs/job_rows.h"
+#include "coordinator/jobs/job_schema.h"
+#include "coordinator/jobs/sqlite_database.h"
 
 namespace tcfarm {
 

@@ -41,7 +41,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "planner/strategy.h"
+#include "coordinator/planner/strategy.h"
 
 namespace tcfarm {
 

@@ -1,7 +1,7 @@
 // A job the coordinator was running when it died (SIGKILL, power loss): what the next
 // coordinator's JobStore finds and resumes. Beside job_store_test.cpp, which covers the
 // store's other calls.
-#include "jobs/job_store.h"
+#include "coordinator/jobs/job_store.h"
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>

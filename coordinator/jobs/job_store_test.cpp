@@ -1,4 +1,4 @@
-#include "jobs/job_store.h"
+#include "coordinator/jobs/job_store.h"
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>

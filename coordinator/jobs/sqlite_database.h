@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "jobs/job_store.h"
+#include "coordinator/jobs/job_store.h"
 
 namespace tcfarm {
 namespace sqlite {

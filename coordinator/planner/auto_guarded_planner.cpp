@@ -1,4 +1,4 @@
-#include "planner/auto_guarded_planner.h"
+#include "coordinator/planner/auto_guarded_planner.h"
 
 #include <algorithm>
 #include <cstddef>

@@ -15,9 +15,9 @@
 #include <utility>
 #include <vector>
 
-#include "planner/bin_width_survey.h"
-#include "planner/guarded_planner.h"
-#include "planner/planner.h"
+#include "coordinator/planner/bin_width_survey.h"
+#include "coordinator/planner/guarded_planner.h"
+#include "coordinator/planner/planner.h"
 
 namespace tcfarm {
 

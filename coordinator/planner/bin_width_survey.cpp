@@ -1,4 +1,4 @@
-#include "planner/bin_width_survey.h"
+#include "coordinator/planner/bin_width_survey.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "planner/planner.h"
+#include "coordinator/planner/planner.h"
 
 namespace tcfarm {
 namespace {

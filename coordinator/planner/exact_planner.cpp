@@ -1,4 +1,4 @@
-#include "planner/exact_planner.h"
+#include "coordinator/planner/exact_planner.h"
 
 #include <algorithm>
 #include <cstring>

@@ -1,4 +1,4 @@
-#include "planner/exact_planner.h"
+#include "coordinator/planner/exact_planner.h"
 
 #include <gtest/gtest.h>
 
@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "planner/planner.h"
-#include "planner/planner_test_support.h"
+#include "coordinator/planner/planner.h"
+#include "coordinator/planner/planner_test_support.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "planner/guarded_planner.h"
+#include "coordinator/planner/guarded_planner.h"
 
 #include <algorithm>
 #include <cmath>

@@ -24,9 +24,9 @@
 #include <unordered_map>
 #include <vector>
 
-#include "pixel_set/pixel_set.h"
-#include "planner/planner.h"
-#include "planner/search_planner.h"
+#include "proto/pixel_set/pixel_set.h"
+#include "coordinator/planner/planner.h"
+#include "coordinator/planner/search_planner.h"
 
 namespace tcfarm {
 

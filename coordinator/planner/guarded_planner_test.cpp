@@ -1,6 +1,6 @@
-#include "planner/guarded_planner.h"
-#include "planner/auto_guarded_planner.h"
-#include "planner/bin_width_survey.h"
+#include "coordinator/planner/guarded_planner.h"
+#include "coordinator/planner/auto_guarded_planner.h"
+#include "coordinator/planner/bin_width_survey.h"
 
 #include <gtest/gtest.h>
 
@@ -16,9 +16,9 @@
 #include <string>
 #include <vector>
 
-#include "planner/planner.h"
-#include "planner/search_planner.h"
-#include "planner/planner_test_support.h"
+#include "coordinator/planner/planner.h"
+#include "coordinator/planner/search_planner.h"
+#include "coordinator/planner/planner_test_support.h"
 
 namespace tcfarm {
 namespace {

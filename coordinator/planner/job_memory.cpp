@@ -1,9 +1,9 @@
-#include "planner/job_memory.h"
+#include "coordinator/planner/job_memory.h"
 
 #include <algorithm>
 #include <cstdio>
 
-#include "planner/auto_guarded_planner.h"
+#include "coordinator/planner/auto_guarded_planner.h"
 
 namespace tcfarm {
 

@@ -8,7 +8,7 @@
 #include <optional>
 #include <string>
 
-#include "planner/strategy.h"
+#include "coordinator/planner/strategy.h"
 
 namespace tcfarm {
 

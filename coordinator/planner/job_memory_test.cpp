@@ -1,4 +1,4 @@
-#include "planner/job_memory.h"
+#include "coordinator/planner/job_memory.h"
 
 #include <gtest/gtest.h>
 

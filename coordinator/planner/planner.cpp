@@ -1,13 +1,13 @@
-#include "planner/planner.h"
+#include "coordinator/planner/planner.h"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
 
-#include "planner/exact_planner.h"
-#include "planner/guarded_planner.h"
-#include "planner/search_planner.h"
+#include "coordinator/planner/exact_planner.h"
+#include "coordinator/planner/guarded_planner.h"
+#include "coordinator/planner/search_planner.h"
 
 namespace tcfarm {
 

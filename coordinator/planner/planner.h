@@ -16,8 +16,8 @@
 #include <utility>
 #include <vector>
 
-#include "pixel_set/pixel_set.h"
-#include "planner/strategy.h"
+#include "proto/pixel_set/pixel_set.h"
+#include "coordinator/planner/strategy.h"
 
 namespace tcfarm {
 

@@ -8,7 +8,7 @@
 #include <map>
 #include <vector>
 
-#include "planner/planner.h"
+#include "coordinator/planner/planner.h"
 
 namespace tcfarm::planner_test {
 

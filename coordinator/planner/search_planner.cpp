@@ -1,4 +1,4 @@
-#include "planner/search_planner.h"
+#include "coordinator/planner/search_planner.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <string>
 #include <utility>
 
-#include "planner/guarded_planner.h"
+#include "coordinator/planner/guarded_planner.h"
 
 namespace tcfarm {
 namespace {

@@ -27,8 +27,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "pixel_set/pixel_set.h"
-#include "planner/planner.h"
+#include "proto/pixel_set/pixel_set.h"
+#include "coordinator/planner/planner.h"
 
 namespace tcfarm {
 

@@ -1,5 +1,5 @@
-#include "planner/search_planner.h"
-#include "planner/planner_test_support.h"
+#include "coordinator/planner/search_planner.h"
+#include "coordinator/planner/planner_test_support.h"
 
 #include <gtest/gtest.h>
 

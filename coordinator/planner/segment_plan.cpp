@@ -1,9 +1,9 @@
-#include "planner/segment_plan.h"
+#include "coordinator/planner/segment_plan.h"
 
 #include <algorithm>
 #include <cmath>
 
-#include "planner/planner.h"
+#include "coordinator/planner/planner.h"
 
 namespace tcfarm {
 namespace {

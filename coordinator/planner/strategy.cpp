@@ -1,4 +1,4 @@
-#include "planner/strategy.h"
+#include "coordinator/planner/strategy.h"
 
 #include <algorithm>
 #include <cstdio>

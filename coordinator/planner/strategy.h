@@ -8,7 +8,7 @@
 #include <string>
 #include <string_view>
 
-#include "planner/segment_plan.h"
+#include "coordinator/planner/segment_plan.h"
 
 namespace tcfarm {
 

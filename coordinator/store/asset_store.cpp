@@ -1,4 +1,4 @@
-#include "store/asset_store.h"
+#include "coordinator/store/asset_store.h"
 
 #include <cerrno>
 #include <cstdio>

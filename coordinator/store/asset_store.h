@@ -20,7 +20,7 @@
 #include <string_view>
 #include <vector>
 
-#include "wire/content_hash.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm {
 

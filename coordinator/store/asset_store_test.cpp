@@ -1,4 +1,4 @@
-#include "store/asset_store.h"
+#include "coordinator/store/asset_store.h"
 
 #include <gtest/gtest.h>
 
@@ -6,7 +6,7 @@
 #include <random>
 #include <sstream>
 
-#include "wire/content_hash.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "store/frame_finisher.h"
+#include "coordinator/store/frame_finisher.h"
 
 #include <malloc.h>
 
@@ -8,7 +8,7 @@
 #include <fstream>
 #include <system_error>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 namespace {

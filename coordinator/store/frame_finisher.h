@@ -22,8 +22,8 @@
 #include <string>
 #include <thread>
 
-#include "frame/frame_writer.h"
-#include "store/frame_store.h"
+#include "proto/frame/frame_writer.h"
+#include "coordinator/store/frame_store.h"
 
 namespace tcfarm {
 

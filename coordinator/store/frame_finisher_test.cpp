@@ -1,6 +1,6 @@
 // A job's frames, written fast while it rendered, are finished (compressed, previewed)
 // only while the farm is idle, bit for bit the same.
-#include "store/frame_finisher.h"
+#include "coordinator/store/frame_finisher.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -10,7 +10,7 @@
 #include <functional>
 #include <thread>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 namespace {

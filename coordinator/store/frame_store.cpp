@@ -1,6 +1,6 @@
-#include "store/frame_store.h"
+#include "coordinator/store/frame_store.h"
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "store/frame_store.h"
+#include "coordinator/store/frame_store.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "store/store_identity.h"
+#include "coordinator/store/store_identity.h"
 
 #include <algorithm>
 #include <cstdio>

@@ -17,7 +17,7 @@
 #include <string>
 #include <vector>
 
-#include "jobs/job_store.h"
+#include "coordinator/jobs/job_store.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "store/store_janitor.h"
+#include "coordinator/store/store_janitor.h"
 
 #include <prometheus/counter.h>
 #include <prometheus/gauge.h>
@@ -12,9 +12,9 @@
 #include <iterator>
 #include <system_error>
 
-#include "metrics/metric_builders.h"
-#include "store/asset_store.h"
-#include "store/frame_store.h"
+#include "proto/metrics/metric_builders.h"
+#include "coordinator/store/asset_store.h"
+#include "coordinator/store/frame_store.h"
 
 namespace tcfarm {
 namespace {

@@ -31,7 +31,7 @@
 #include <thread>
 #include <vector>
 
-#include "jobs/job_store.h"
+#include "coordinator/jobs/job_store.h"
 
 namespace prometheus {
 class Counter;

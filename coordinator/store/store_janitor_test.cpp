@@ -1,6 +1,6 @@
 // Deleting jobs with their files, the store's size, and the retention, against a real job
 // store and real folders; the farm's part is a recorded callback, the clock a counter.
-#include "store/store_janitor.h"
+#include "coordinator/store/store_janitor.h"
 
 #include <gtest/gtest.h>
 #include <prometheus/registry.h>
@@ -12,9 +12,9 @@
 #include <regex>
 #include <thread>
 
-#include "store/asset_store.h"
-#include "store/frame_store.h"
-#include "wire/content_hash.h"
+#include "coordinator/store/asset_store.h"
+#include "coordinator/store/frame_store.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm {
 namespace {

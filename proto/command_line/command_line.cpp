@@ -1,4 +1,4 @@
-#include "command_line/command_line.h"
+#include "proto/command_line/command_line.h"
 
 #include <cstdio>
 #include <stdexcept>

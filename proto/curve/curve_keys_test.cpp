@@ -1,4 +1,4 @@
-#include "curve/curve_keys.h"
+#include "proto/curve/curve_keys.h"
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>

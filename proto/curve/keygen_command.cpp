@@ -1,11 +1,11 @@
-#include "curve/keygen_command.h"
+#include "proto/curve/keygen_command.h"
 
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
 #include <string>
 
-#include "curve/curve_keys.h"
+#include "proto/curve/curve_keys.h"
 
 namespace tcfarm::curve {
 namespace {

@@ -3,7 +3,7 @@
 // `tcfarm-worker keygen`): it writes the same files for either side.
 #pragma once
 
-#include "command_line/command_line.h"
+#include "proto/command_line/command_line.h"
 
 namespace tcfarm::curve {
 

@@ -1,10 +1,10 @@
-#include "frame/coherence.h"
+#include "proto/frame/coherence.h"
 
 #include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 
-#include "frame/compare.h"
+#include "proto/frame/compare.h"
 
 namespace tcfarm {
 

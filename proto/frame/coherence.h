@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 

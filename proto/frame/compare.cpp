@@ -1,4 +1,4 @@
-#include "frame/compare.h"
+#include "proto/frame/compare.h"
 
 #include <algorithm>
 #include <cmath>

@@ -6,7 +6,7 @@
 #include <cstring>
 #include <string>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 

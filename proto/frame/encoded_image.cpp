@@ -1,4 +1,4 @@
-#include "frame/encoded_image.h"
+#include "proto/frame/encoded_image.h"
 
 #include <algorithm>
 #include <cstdint>

@@ -1,4 +1,4 @@
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -11,7 +11,7 @@
 #include <cstring>
 #include <memory>
 
-#include "frame/page_aligned_output.h"
+#include "proto/frame/page_aligned_output.h"
 
 namespace tcfarm {
 namespace {

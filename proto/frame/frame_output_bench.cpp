@@ -11,7 +11,7 @@
 #include <random>
 #include <string>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 namespace {

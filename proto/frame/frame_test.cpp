@@ -8,11 +8,11 @@
 #include <thread>
 #include <unistd.h>
 
-#include "frame/coherence.h"
-#include "frame/sequence_analysis.h"
-#include "frame/compare.h"
-#include "frame/frame_io.h"
-#include "frame/frame_writer.h"
+#include "proto/frame/coherence.h"
+#include "proto/frame/sequence_analysis.h"
+#include "proto/frame/compare.h"
+#include "proto/frame/frame_io.h"
+#include "proto/frame/frame_writer.h"
 
 namespace tcfarm {
 namespace {

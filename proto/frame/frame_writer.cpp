@@ -1,4 +1,4 @@
-#include "frame/frame_writer.h"
+#include "proto/frame/frame_writer.h"
 
 #include <OpenImageIO/imageio.h>
 

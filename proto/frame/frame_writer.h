@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "frame/page_aligned_output.h"
+#include "proto/frame/page_aligned_output.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -10,7 +10,7 @@
 #include <new>
 #include <string>
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 namespace {

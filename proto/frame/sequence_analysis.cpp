@@ -1,4 +1,4 @@
-#include "frame/sequence_analysis.h"
+#include "proto/frame/sequence_analysis.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "frame/compare.h"
+#include "proto/frame/compare.h"
 
 namespace tcfarm {
 namespace {

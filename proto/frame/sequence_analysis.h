@@ -9,8 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "frame/coherence.h"
-#include "frame/frame_io.h"
+#include "proto/frame/coherence.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "frame/sequence_analysis.h"
+#include "proto/frame/sequence_analysis.h"
 
 #include <gtest/gtest.h>
 

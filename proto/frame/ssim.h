@@ -4,7 +4,7 @@
 // costs little SSIM when it sits in a flat area and much when it breaks an edge.
 #pragma once
 
-#include "frame/frame_io.h"
+#include "proto/frame/frame_io.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "frame/ssim.h"
+#include "proto/frame/ssim.h"
 
 #include <gtest/gtest.h>
 

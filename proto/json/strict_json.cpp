@@ -1,4 +1,4 @@
-#include "json/strict_json.h"
+#include "proto/json/strict_json.h"
 
 #include <set>
 #include <vector>

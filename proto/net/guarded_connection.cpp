@@ -1,4 +1,4 @@
-#include "net/guarded_connection.h"
+#include "proto/net/guarded_connection.h"
 
 #include <algorithm>
 #include <cctype>

@@ -1,4 +1,4 @@
-#include "net/guarded_server.h"
+#include "proto/net/guarded_server.h"
 
 #include <algorithm>
 #include <cctype>

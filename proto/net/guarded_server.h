@@ -32,7 +32,7 @@
 
 #include <httplib.h>
 
-#include "net/guarded_connection.h"
+#include "proto/net/guarded_connection.h"
 
 namespace tcfarm {
 

@@ -1,6 +1,6 @@
 // GuardedServer through HttpListener on a free port, spoken to over real sockets: the
 // gate's answers, the connection's limits and options, and the raw header parsing.
-#include "net/guarded_server.h"
+#include "proto/net/guarded_server.h"
 
 #include <gtest/gtest.h>
 
@@ -16,7 +16,7 @@
 #include <sys/time.h>
 #include <unistd.h>
 
-#include "net/http_listener.h"
+#include "proto/net/http_listener.h"
 
 namespace tcfarm {
 namespace {

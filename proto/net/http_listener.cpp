@@ -1,4 +1,4 @@
-#include "net/http_listener.h"
+#include "proto/net/http_listener.h"
 
 #include <stdexcept>
 

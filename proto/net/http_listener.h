@@ -24,7 +24,7 @@
 
 #include <httplib.h>
 
-#include "net/guarded_server.h"
+#include "proto/net/guarded_server.h"
 
 namespace tcfarm {
 

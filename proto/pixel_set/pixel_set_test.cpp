@@ -1,4 +1,4 @@
-#include "pixel_set/pixel_set.h"
+#include "proto/pixel_set/pixel_set.h"
 
 #include <gtest/gtest.h>
 

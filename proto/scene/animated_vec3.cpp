@@ -1,4 +1,4 @@
-#include "scene/animated_vec3.h"
+#include "proto/scene/animated_vec3.h"
 
 #include <algorithm>
 #include <utility>

@@ -1,4 +1,4 @@
-#include "scene/deformation.h"
+#include "proto/scene/deformation.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <string>
 #include <utility>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 namespace {

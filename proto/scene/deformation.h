@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "scene/animated_vec3.h"
-#include "scene/transform.h"
+#include "proto/scene/animated_vec3.h"
+#include "proto/scene/transform.h"
 
 namespace tcfarm {
 

@@ -1,11 +1,11 @@
-#include "scene/deformation.h"
+#include "proto/scene/deformation.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <string>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 namespace {

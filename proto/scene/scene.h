@@ -18,9 +18,9 @@
 #include <string>
 #include <vector>
 
-#include "scene/animated_vec3.h"
-#include "scene/deformation.h"
-#include "scene/transform.h"
+#include "proto/scene/animated_vec3.h"
+#include "proto/scene/deformation.h"
+#include "proto/scene/transform.h"
 
 namespace tcfarm {
 

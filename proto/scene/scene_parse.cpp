@@ -14,9 +14,9 @@
 #include <string>
 #include <system_error>
 
-#include "scene/parse/json_values.h"
-#include "scene/parse/scene_reader.h"
-#include "scene/scene.h"
+#include "proto/scene/parse/json_values.h"
+#include "proto/scene/parse/scene_reader.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 

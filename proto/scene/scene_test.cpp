@@ -1,4 +1,4 @@
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 #include <gtest/gtest.h>
 

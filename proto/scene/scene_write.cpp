@@ -7,7 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 namespace {

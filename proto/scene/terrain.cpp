@@ -10,7 +10,7 @@
 #include <cmath>
 #include <cstdint>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "scene/transform.h"
+#include "proto/scene/transform.h"
 
 #include <algorithm>
 #include <cmath>

@@ -7,7 +7,7 @@
 #include <memory>
 #include <vector>
 
-#include "scene/animated_vec3.h"
+#include "proto/scene/animated_vec3.h"
 
 namespace tcfarm {
 

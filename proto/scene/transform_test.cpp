@@ -1,4 +1,4 @@
-#include "scene/transform.h"
+#include "proto/scene/transform.h"
 
 #include <gtest/gtest.h>
 
@@ -8,7 +8,7 @@
 #include <memory>
 #include <string>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "wire/content_hash.h"
+#include "proto/wire/content_hash.h"
 
 #include <sodium.h>
 

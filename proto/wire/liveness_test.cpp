@@ -1,4 +1,4 @@
-#include "wire/liveness.h"
+#include "proto/wire/liveness.h"
 
 #include <gtest/gtest.h>
 

@@ -1,8 +1,8 @@
-#include "wire/wire.h"
+#include "proto/wire/wire.h"
 
 #include <nlohmann/json.hpp>
 
-#include "wire/content_hash.h"
+#include "proto/wire/content_hash.h"
 
 #include <algorithm>
 #include <cmath>

@@ -17,8 +17,8 @@
 #include <variant>
 #include <vector>
 
-#include "pixel_set/pixel_set.h"
-#include "scene/scene_limits.h"
+#include "proto/pixel_set/pixel_set.h"
+#include "proto/scene/scene_limits.h"
 
 namespace tcfarm::wire {
 

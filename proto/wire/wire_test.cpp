@@ -1,4 +1,4 @@
-#include "wire/wire.h"
+#include "proto/wire/wire.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "wire/content_hash.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm::wire {
 

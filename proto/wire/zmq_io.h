@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "wire/wire.h"
+#include "proto/wire/wire.h"
 
 namespace tcfarm::wire {
 

@@ -6,8 +6,8 @@
 #include <cstdlib>
 #include <string>
 
-#include "http/api_error.h"
-#include "http/submit_request.h"
+#include "coordinator/http/api_error.h"
+#include "coordinator/http/submit_request.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string body(reinterpret_cast<const char*>(data), size);

@@ -6,7 +6,7 @@
 #include <variant>
 
 #include "fuzz_input.h"
-#include "wire/wire.h"
+#include "proto/wire/wire.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto parts = tcfarm::fuzz::SplitIntoParts(data, size, tcfarm::wire::kPartCount);

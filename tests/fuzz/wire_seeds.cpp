@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "fuzz_input.h"
-#include "wire/wire.h"
+#include "proto/wire/wire.h"
 
 namespace {
 

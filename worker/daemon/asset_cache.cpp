@@ -1,4 +1,4 @@
-#include "daemon/asset_cache.h"
+#include "worker/daemon/asset_cache.h"
 
 #include <unistd.h>
 

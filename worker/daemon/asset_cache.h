@@ -16,8 +16,8 @@
 #include <optional>
 #include <string>
 
-#include "wire/content_hash.h"
-#include "wire/wire.h"
+#include "proto/wire/content_hash.h"
+#include "proto/wire/wire.h"
 
 namespace tcfarm {
 

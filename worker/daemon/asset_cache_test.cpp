@@ -1,6 +1,6 @@
 // The worker's asset cache: an asset appears under its hash only whole, in order and
 // verified; anything else is dropped with the reason.
-#include "daemon/asset_cache.h"
+#include "worker/daemon/asset_cache.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,4 +1,4 @@
-#include "daemon/metrics_endpoint.h"
+#include "worker/daemon/metrics_endpoint.h"
 
 #include <stdexcept>
 

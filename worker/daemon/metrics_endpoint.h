@@ -10,7 +10,7 @@
 
 #include <prometheus/registry.h>
 
-#include "net/http_listener.h"
+#include "proto/net/http_listener.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "daemon/scene_cache.h"
+#include "worker/daemon/scene_cache.h"
 
 namespace tcfarm {
 

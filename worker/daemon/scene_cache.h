@@ -8,11 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "daemon/asset_cache.h"
-#include "embree/device.h"
-#include "scene/scene.h"
-#include "trace/tracer.h"
-#include "util/tracing_threads.h"
+#include "worker/daemon/asset_cache.h"
+#include "worker/tracing.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 

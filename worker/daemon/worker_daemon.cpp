@@ -1,4 +1,4 @@
-#include "daemon/worker_daemon.h"
+#include "worker/daemon/worker_daemon.h"
 
 #include <unistd.h>
 
@@ -8,9 +8,9 @@
 #include <iterator>
 #include <thread>
 
-#include "curve/socket_events.h"
-#include "wire/content_hash.h"
-#include "wire/zmq_io.h"
+#include "proto/curve/socket_events.h"
+#include "proto/wire/content_hash.h"
+#include "proto/wire/zmq_io.h"
 
 namespace tcfarm {
 namespace {

@@ -26,12 +26,12 @@
 
 #include <zmq.hpp>
 
-#include "daemon/asset_cache.h"
-#include "daemon/metrics_endpoint.h"
-#include "daemon/scene_cache.h"
-#include "daemon/worker_metrics.h"
-#include "wire/liveness.h"
-#include "wire/wire.h"
+#include "worker/daemon/asset_cache.h"
+#include "worker/daemon/metrics_endpoint.h"
+#include "worker/daemon/scene_cache.h"
+#include "worker/daemon/worker_metrics.h"
+#include "proto/wire/liveness.h"
+#include "proto/wire/wire.h"
 
 namespace tcfarm {
 

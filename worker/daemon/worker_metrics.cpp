@@ -1,6 +1,6 @@
-#include "daemon/worker_metrics.h"
+#include "worker/daemon/worker_metrics.h"
 
-#include "metrics/metric_builders.h"
+#include "proto/metrics/metric_builders.h"
 
 namespace tcfarm {
 namespace {

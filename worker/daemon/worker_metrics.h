@@ -9,7 +9,7 @@
 #include <prometheus/gauge.h>
 #include <prometheus/registry.h>
 
-#include "trace/tracer.h"
+#include "worker/tracing.h"
 
 namespace tcfarm {
 

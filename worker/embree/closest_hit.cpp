@@ -1,9 +1,9 @@
-#include "embree/closest_hit.h"
+#include "worker/embree/closest_hit.h"
 
 #include <cstring>
 #include <tuple>
 
-#include "embree/scene_geometry.h"
+#include "worker/embree/scene_geometry.h"
 
 namespace tcfarm {
 namespace {

@@ -1,6 +1,6 @@
-#include "embree/deforming_mesh.h"
+#include "worker/embree/deforming_mesh.h"
 
-#include "embree/closest_hit.h"
+#include "worker/embree/closest_hit.h"
 
 namespace tcfarm {
 

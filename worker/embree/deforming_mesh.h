@@ -17,9 +17,9 @@
 #include <mutex>
 #include <vector>
 
-#include "embree/device.h"
-#include "scene/scene.h"
-#include "shapes/shape_kind.h"
+#include "worker/embree/device.h"
+#include "proto/scene/scene.h"
+#include "worker/shapes/shape_kind.h"
 
 namespace tcfarm {
 

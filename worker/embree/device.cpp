@@ -1,4 +1,4 @@
-#include "embree/device.h"
+#include "worker/embree/device.h"
 
 #include <cstdio>
 

@@ -1,10 +1,10 @@
-#include "embree/scene_geometry.h"
+#include "worker/embree/scene_geometry.h"
 
 #include <algorithm>
 
-#include "embree/closest_hit.h"
-#include "embree/tie_candidates.h"
-#include "shapes/shape_kind.h"
+#include "worker/embree/closest_hit.h"
+#include "worker/embree/tie_candidates.h"
+#include "worker/shapes/shape_kind.h"
 
 namespace tcfarm {
 namespace {

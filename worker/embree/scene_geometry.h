@@ -18,10 +18,10 @@
 #include <mutex>
 #include <vector>
 
-#include "embree/deforming_mesh.h"
-#include "embree/device.h"
-#include "scene/scene.h"
-#include "util/build_stop.h"
+#include "worker/embree/deforming_mesh.h"
+#include "worker/embree/device.h"
+#include "proto/scene/scene.h"
+#include "worker/util/build_stop.h"
 
 namespace tcfarm {
 

@@ -19,7 +19,7 @@
 // the rule would take for a closer hit.
 #pragma once
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "embree/tie_candidates.h"
+#include "worker/embree/tie_candidates.h"
 
 #include <gtest/gtest.h>
 

@@ -1,19 +1,17 @@
-#include "render/render_command.h"
+#include "worker/render/render_command.h"
 
 #include <chrono>
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
 
-#include "embree/device.h"
-#include "frame/sequence_analysis.h"
-#include "frame/frame_io.h"
-#include "frame/frame_writer.h"
-#include "scene/import/scene_import.h"
-#include "scene/scene.h"
-#include "scene/scene_limits.h"
-#include "trace/tracer.h"
-#include "util/tracing_threads.h"
+#include "worker/tracing.h"
+#include "proto/frame/sequence_analysis.h"
+#include "proto/frame/frame_io.h"
+#include "proto/frame/frame_writer.h"
+#include "proto/scene/import/scene_import.h"
+#include "proto/scene/scene.h"
+#include "proto/scene/scene_limits.h"
 
 namespace tcfarm {
 namespace {

@@ -6,9 +6,9 @@
 #include <filesystem>
 #include <string>
 
-#include "command_line/command_line.h"
-#include "frame/frame_writer.h"
-#include "scene/import/scene_import.h"
+#include "proto/command_line/command_line.h"
+#include "proto/frame/frame_writer.h"
+#include "proto/scene/import/scene_import.h"
 
 namespace tcfarm {
 

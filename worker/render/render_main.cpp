@@ -5,8 +5,8 @@
 #include <exception>
 #include <stdexcept>
 
-#include "command_line/command_line.h"
-#include "render/render_command.h"
+#include "proto/command_line/command_line.h"
+#include "worker/render/render_command.h"
 
 int main(int argc, char** argv) {
   CLI::App app("Brute-force reference render: traces every pixel of every frame, writes the "

@@ -1,5 +1,5 @@
 // A parallelogram: corner, corner + u, corner + u + v, corner + v; one Embree quad.
-#include "shapes/shape_kind.h"
+#include "worker/shapes/shape_kind.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "shapes/shape_kind.h"
+#include "worker/shapes/shape_kind.h"
 
 #include <algorithm>
 #include <cmath>

@@ -11,8 +11,8 @@
 #include <memory>
 #include <vector>
 
-#include "scene/scene.h"
-#include "trace/float3.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/float3.h"
 
 namespace tcfarm {
 

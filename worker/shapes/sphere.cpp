@@ -1,5 +1,5 @@
 // A sphere: Embree's sphere point primitive, shaded by the normal at the hit.
-#include "shapes/shape_kind.h"
+#include "worker/shapes/shape_kind.h"
 
 namespace tcfarm {
 namespace {

@@ -1,5 +1,5 @@
 // A triangle mesh (inline, from OBJ, or a generated terrain): one Embree triangle geometry.
-#include "shapes/shape_kind.h"
+#include "worker/shapes/shape_kind.h"
 
 #include <cmath>
 #include <cstring>

@@ -1,17 +1,17 @@
-#include "trace/bare_embree_loop.h"
+#include "worker/trace/bare_embree_loop.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
-#include "embree/ray_packets.h"
-#include "embree/scene_geometry.h"
-#include "shapes/shape_kind.h"
-#include "trace/camera.h"
-#include "trace/float3.h"
-#include "trace/lights.h"
-#include "trace/materials.h"
-#include "trace/ray_offset.h"
+#include "worker/embree/ray_packets.h"
+#include "worker/embree/scene_geometry.h"
+#include "worker/shapes/shape_kind.h"
+#include "worker/trace/camera.h"
+#include "worker/trace/float3.h"
+#include "worker/trace/lights.h"
+#include "worker/trace/materials.h"
+#include "worker/trace/ray_offset.h"
 
 namespace tcfarm {
 namespace {

@@ -14,12 +14,12 @@
 #include <map>
 #include <vector>
 
-#include "scene/scene.h"
-#include "trace/camera.h"
-#include "trace/float3.h"
-#include "trace/lights.h"
-#include "trace/materials.h"
-#include "util/tracing_threads.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/camera.h"
+#include "worker/trace/float3.h"
+#include "worker/trace/lights.h"
+#include "worker/trace/materials.h"
+#include "worker/util/tracing_threads.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "trace/camera.h"
+#include "worker/trace/camera.h"
 
 #include <cmath>
 

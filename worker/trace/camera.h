@@ -4,8 +4,8 @@
 
 #include <cstdint>
 
-#include "scene/scene.h"
-#include "trace/float3.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/float3.h"
 
 namespace tcfarm {
 

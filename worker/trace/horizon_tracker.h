@@ -5,10 +5,10 @@
 
 #include <algorithm>
 
-#include "embree/ray_packets.h"
-#include "trace/float3.h"
-#include "trace/horizons.h"
-#include "trace/segment_fan.h"
+#include "worker/embree/ray_packets.h"
+#include "worker/trace/float3.h"
+#include "worker/trace/horizons.h"
+#include "worker/trace/segment_fan.h"
 
 namespace tcfarm {
 

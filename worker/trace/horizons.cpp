@@ -1,4 +1,4 @@
-#include "trace/horizons.h"
+#include "worker/trace/horizons.h"
 
 #include <algorithm>
 #include <array>
@@ -6,10 +6,10 @@
 #include <cstdint>
 #include <map>
 
-#include "shapes/shape_kind.h"
-#include "trace/lights.h"
-#include "trace/ray_offset.h"
-#include "trace/segment_fan.h"
+#include "worker/shapes/shape_kind.h"
+#include "worker/trace/lights.h"
+#include "worker/trace/ray_offset.h"
+#include "worker/trace/segment_fan.h"
 
 namespace tcfarm {
 namespace {

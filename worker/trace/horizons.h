@@ -37,10 +37,10 @@
 #include <functional>
 #include <vector>
 
-#include "scene/scene.h"
-#include "embree/deforming_mesh.h"
-#include "shapes/shape_kind.h"
-#include "trace/float3.h"
+#include "proto/scene/scene.h"
+#include "worker/embree/deforming_mesh.h"
+#include "worker/shapes/shape_kind.h"
+#include "worker/trace/float3.h"
 
 namespace tcfarm {
 

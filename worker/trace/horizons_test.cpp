@@ -9,10 +9,10 @@
 #include <random>
 #include <string>
 
-#include "embree/scene_geometry.h"
-#include "trace/horizons.h"
-#include "scaled_scene.h"
-#include "trace/tracer.h"
+#include "worker/embree/scene_geometry.h"
+#include "worker/trace/horizons.h"
+#include "tests/support/cpp/scaled_scene.h"
+#include "worker/trace/tracer.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "trace/lights.h"
+#include "worker/trace/lights.h"
 
 #include <algorithm>
 #include <cmath>

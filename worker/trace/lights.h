@@ -5,8 +5,8 @@
 #include <limits>
 #include <vector>
 
-#include "scene/scene.h"
-#include "trace/float3.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/float3.h"
 
 namespace tcfarm {
 

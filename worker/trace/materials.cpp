@@ -1,4 +1,4 @@
-#include "trace/materials.h"
+#include "worker/trace/materials.h"
 
 #include <cmath>
 

@@ -14,12 +14,12 @@
 #include <string>
 #include <vector>
 
-#include "embree/device.h"
-#include "embree/scene_geometry.h"
-#include "scene/scene.h"
-#include "trace/bare_embree_loop.h"
-#include "trace/tracer.h"
-#include "util/tracing_threads.h"
+#include "worker/embree/device.h"
+#include "worker/embree/scene_geometry.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/bare_embree_loop.h"
+#include "worker/trace/tracer.h"
+#include "worker/util/tracing_threads.h"
 
 namespace tcfarm {
 namespace {

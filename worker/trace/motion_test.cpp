@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "trace/tracer.h"
+#include "worker/trace/tracer.h"
 
 namespace tcfarm {
 namespace {

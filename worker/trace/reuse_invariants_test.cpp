@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "trace/tracer.h"
+#include "worker/trace/tracer.h"
 
 namespace tcfarm {
 namespace {

@@ -14,11 +14,11 @@
 #include <string>
 #include <vector>
 
-#include "embree/device.h"
-#include "embree/tie_candidates.h"
-#include "scene/scene.h"
-#include "trace/tracer.h"
-#include "util/tracing_threads.h"
+#include "worker/embree/device.h"
+#include "worker/embree/tie_candidates.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/tracer.h"
+#include "worker/util/tracing_threads.h"
 
 namespace tcfarm {
 namespace {

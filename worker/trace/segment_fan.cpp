@@ -1,4 +1,4 @@
-#include "trace/segment_fan.h"
+#include "worker/trace/segment_fan.h"
 
 #include <algorithm>
 #include <cmath>

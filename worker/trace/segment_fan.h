@@ -16,9 +16,9 @@
 #include <mutex>
 #include <vector>
 
-#include "scene/scene.h"
-#include "trace/float3.h"
-#include "trace/horizons.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/float3.h"
+#include "worker/trace/horizons.h"
 
 namespace tcfarm {
 

@@ -7,9 +7,9 @@
 #include <random>
 #include <vector>
 
-#include "scene/scene.h"
-#include "trace/horizons.h"
-#include "trace/segment_fan.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/horizons.h"
+#include "worker/trace/segment_fan.h"
 
 namespace tcfarm {
 namespace {

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "checker_png_for_tests.h"
-#include "trace/tracer.h"
+#include "tests/support/cpp/checker_png_for_tests.h"
+#include "worker/trace/tracer.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "trace/textures.h"
+#include "worker/trace/textures.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imagebuf.h>
@@ -8,7 +8,7 @@
 #include <memory>
 #include <string>
 
-#include "frame/encoded_image.h"
+#include "proto/frame/encoded_image.h"
 
 namespace tcfarm {
 namespace {

@@ -7,8 +7,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include "scene/scene.h"
-#include "trace/float3.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/float3.h"
 
 namespace tcfarm {
 

@@ -1,4 +1,4 @@
-#include "trace/tracer.h"
+#include "worker/trace/tracer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,17 +9,17 @@
 #include <string>
 #include <vector>
 
-#include "embree/closest_hit.h"
-#include "embree/ray_packets.h"
-#include "shapes/shape_kind.h"
-#include "trace/camera.h"
-#include "trace/float3.h"
-#include "trace/horizon_tracker.h"
-#include "trace/horizons.h"
-#include "trace/segment_fan.h"
-#include "trace/lights.h"
-#include "trace/materials.h"
-#include "trace/ray_offset.h"
+#include "worker/embree/closest_hit.h"
+#include "worker/embree/ray_packets.h"
+#include "worker/shapes/shape_kind.h"
+#include "worker/trace/camera.h"
+#include "worker/trace/float3.h"
+#include "worker/trace/horizon_tracker.h"
+#include "worker/trace/horizons.h"
+#include "worker/trace/segment_fan.h"
+#include "worker/trace/lights.h"
+#include "worker/trace/materials.h"
+#include "worker/trace/ray_offset.h"
 
 namespace tcfarm {
 namespace {

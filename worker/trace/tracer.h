@@ -14,12 +14,12 @@
 #include <cstdint>
 #include <vector>
 
-#include "embree/scene_geometry.h"
-#include "trace/float3.h"
-#include "trace/materials.h"
-#include "trace/textures.h"
-#include "scene/scene.h"
-#include "util/tracing_threads.h"
+#include "worker/embree/scene_geometry.h"
+#include "worker/trace/float3.h"
+#include "worker/trace/materials.h"
+#include "worker/trace/textures.h"
+#include "proto/scene/scene.h"
+#include "worker/util/tracing_threads.h"
 
 namespace tcfarm {
 

@@ -14,11 +14,11 @@
 #include <random>
 #include <vector>
 
-#include "embree/device.h"
-#include "scene/scene.h"
-#include "trace/bare_embree_loop.h"
-#include "trace/tracer.h"
-#include "util/tracing_threads.h"
+#include "worker/embree/device.h"
+#include "proto/scene/scene.h"
+#include "worker/trace/bare_embree_loop.h"
+#include "worker/trace/tracer.h"
+#include "worker/util/tracing_threads.h"
 
 #ifndef TCFARM_SCENES_DIR
 #error "TCFARM_SCENES_DIR must name tests/scenes"

@@ -1,4 +1,4 @@
-#include "trace/tracer.h"
+#include "worker/trace/tracer.h"
 
 #include <gtest/gtest.h>
 
@@ -9,11 +9,11 @@
 #include <numeric>
 #include <random>
 
-#include "embree/ray_packets.h"
-#include "embree/scene_geometry.h"
-#include "shapes/shape_kind.h"
-#include "frame/frame_io.h"
-#include "scaled_scene.h"
+#include "worker/embree/ray_packets.h"
+#include "worker/embree/scene_geometry.h"
+#include "worker/shapes/shape_kind.h"
+#include "proto/frame/frame_io.h"
+#include "tests/support/cpp/scaled_scene.h"
 
 namespace tcfarm {
 namespace {

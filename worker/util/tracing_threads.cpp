@@ -1,4 +1,4 @@
-#include "util/tracing_threads.h"
+#include "worker/util/tracing_threads.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/info.h>

@@ -1,4 +1,4 @@
-#include "util/tracing_threads.h"
+#include "worker/util/tracing_threads.h"
 
 #include <gtest/gtest.h>
 #include <tbb/parallel_for.h>

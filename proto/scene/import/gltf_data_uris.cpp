@@ -1,8 +1,8 @@
-#include "scene/import/gltf_data_uris.h"
+#include "proto/scene/import/gltf_data_uris.h"
 
 #include <cstring>
 
-#include "scene/import/messages.h"
+#include "proto/scene/import/messages.h"
 
 namespace tcfarm::gltf {
 namespace {

@@ -14,8 +14,8 @@
 #include <string_view>
 #include <vector>
 
-#include "scene/import/gltf/gltf_reader.h"
-#include "scene/import/importers.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/importers.h"
 
 namespace tcfarm {
 namespace {

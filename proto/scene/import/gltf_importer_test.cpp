@@ -13,10 +13,10 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
-#include "scene_test_support.h"
-#include "scene/import/importers.h"
-#include "scene/import/scene_import.h"
-#include "required_tool.h"
+#include "tests/support/cpp/scene_test_support.h"
+#include "proto/scene/import/importers.h"
+#include "proto/scene/import/scene_import.h"
+#include "tests/support/cpp/required_tool.h"
 
 namespace tcfarm {
 namespace {

@@ -10,8 +10,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "scene_test_support.h"
-#include "scene/import/scene_import.h"
+#include "tests/support/cpp/scene_test_support.h"
+#include "proto/scene/import/scene_import.h"
 
 namespace tcfarm {
 namespace {

@@ -6,7 +6,7 @@
 #include <memory>
 #include <vector>
 
-#include "scene/import/scene_import.h"
+#include "proto/scene/import/scene_import.h"
 
 namespace tcfarm {
 

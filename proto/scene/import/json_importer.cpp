@@ -2,7 +2,7 @@
 #include <string>
 #include <vector>
 
-#include "scene/import/importers.h"
+#include "proto/scene/import/importers.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "scene/import/mesh_geometry.h"
+#include "proto/scene/import/mesh_geometry.h"
 
 #include <limits>
 

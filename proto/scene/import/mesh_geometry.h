@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm::import {
 

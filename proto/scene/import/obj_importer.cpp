@@ -8,12 +8,12 @@
 #include <string>
 #include <vector>
 
-#include "scene/import/mesh_geometry.h"
-#include "scene/import/importers.h"
-#include "scene/import/messages.h"
-#include "scene/import/obj_reader.h"
-#include "scene/import/scene_files.h"
-#include "scene/scene_limits.h"
+#include "proto/scene/import/mesh_geometry.h"
+#include "proto/scene/import/importers.h"
+#include "proto/scene/import/messages.h"
+#include "proto/scene/import/obj_reader.h"
+#include "proto/scene/import/scene_files.h"
+#include "proto/scene/scene_limits.h"
 
 namespace tcfarm {
 namespace {

@@ -1,4 +1,4 @@
-#include "scene/import/obj_reader.h"
+#include "proto/scene/import/obj_reader.h"
 
 #include <algorithm>
 #include <charconv>
@@ -14,8 +14,8 @@
 
 #include <tiny_obj_loader.h>
 
-#include "scene/import/messages.h"
-#include "scene/scene_limits.h"
+#include "proto/scene/import/messages.h"
+#include "proto/scene/scene_limits.h"
 
 namespace tcfarm {
 namespace {

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 

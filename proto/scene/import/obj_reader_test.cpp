@@ -1,4 +1,4 @@
-#include "scene/import/obj_reader.h"
+#include "proto/scene/import/obj_reader.h"
 
 #include <gtest/gtest.h>
 

@@ -1,10 +1,10 @@
-#include "scene/import/scene_files.h"
+#include "proto/scene/import/scene_files.h"
 
 #include <fstream>
 #include <sstream>
 #include <system_error>
 
-#include "scene/import/messages.h"
+#include "proto/scene/import/messages.h"
 
 namespace tcfarm {
 

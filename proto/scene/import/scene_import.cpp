@@ -1,4 +1,4 @@
-#include "scene/import/scene_import.h"
+#include "proto/scene/import/scene_import.h"
 
 #include <algorithm>
 #include <cctype>
@@ -7,9 +7,9 @@
 #include <memory>
 #include <system_error>
 
-#include "scene/import/importers.h"
-#include "scene/import/messages.h"
-#include "scene/scene_limits.h"
+#include "proto/scene/import/importers.h"
+#include "proto/scene/import/messages.h"
+#include "proto/scene/scene_limits.h"
 
 namespace tcfarm {
 namespace {

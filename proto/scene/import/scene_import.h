@@ -17,7 +17,7 @@
 #include <string_view>
 #include <vector>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 

@@ -1,5 +1,5 @@
-#include "scene_test_support.h"
-#include "scene/import/scene_import.h"
+#include "tests/support/cpp/scene_test_support.h"
+#include "proto/scene/import/scene_import.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "scene/parse/animated_values.h"
+#include "proto/scene/parse/animated_values.h"
 
 namespace tcfarm::scene_parse {
 

@@ -17,9 +17,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
-#include "scene/parse/json_values.h"
+#include "proto/scene/parse/json_values.h"
 
 namespace tcfarm::scene_parse {
 

@@ -1,4 +1,4 @@
-#include "scene/parse/json_values.h"
+#include "proto/scene/parse/json_values.h"
 
 namespace tcfarm::scene_parse {
 

@@ -17,9 +17,9 @@
 
 #include <nlohmann/json.hpp>
 
-#include "json/strict_json.h"
-#include "scene/scene.h"
-#include "scene/scene_limits.h"
+#include "proto/json/strict_json.h"
+#include "proto/scene/scene.h"
+#include "proto/scene/scene_limits.h"
 
 namespace tcfarm::scene_parse {
 

@@ -1,5 +1,5 @@
 // Reading a scene's camera and lights.
-#include "scene/parse/scene_reader.h"
+#include "proto/scene/parse/scene_reader.h"
 
 namespace tcfarm::scene_parse {
 

@@ -1,7 +1,7 @@
 // Reading a scene's materials and their textures.
-#include "scene/parse/scene_reader.h"
+#include "proto/scene/parse/scene_reader.h"
 
-#include "wire/content_hash.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm::scene_parse {
 

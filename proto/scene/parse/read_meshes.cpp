@@ -1,6 +1,6 @@
 // Reading mesh geometry (inline, from an OBJ file, or shared) and its deformation
 // (morph targets and skins).
-#include "scene/parse/scene_reader.h"
+#include "proto/scene/parse/scene_reader.h"
 
 namespace tcfarm::scene_parse {
 

@@ -1,5 +1,5 @@
 // Reading a scene document: its parts in order, an imported base, the render settings.
-#include "scene/parse/scene_reader.h"
+#include "proto/scene/parse/scene_reader.h"
 
 namespace tcfarm::scene_parse {
 

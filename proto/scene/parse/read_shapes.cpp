@@ -1,5 +1,5 @@
 // Reading a scene's shapes: spheres, quads, meshes and terrain.
-#include "scene/parse/scene_reader.h"
+#include "proto/scene/parse/scene_reader.h"
 
 namespace tcfarm::scene_parse {
 

@@ -20,13 +20,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
-#include "scene/import/obj_reader.h"
-#include "scene/import/scene_files.h"
-#include "scene/import/scene_import.h"
-#include "scene/parse/animated_values.h"
-#include "scene/parse/json_values.h"
+#include "proto/scene/import/obj_reader.h"
+#include "proto/scene/import/scene_files.h"
+#include "proto/scene/import/scene_import.h"
+#include "proto/scene/parse/animated_values.h"
+#include "proto/scene/parse/json_values.h"
 
 namespace tcfarm::scene_parse {
 

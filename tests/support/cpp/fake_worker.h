@@ -9,8 +9,8 @@
 
 #include <zmq.hpp>
 
-#include "wire/wire.h"
-#include "wire/zmq_io.h"
+#include "proto/wire/wire.h"
+#include "proto/wire/zmq_io.h"
 
 namespace tcfarm {
 

@@ -2,7 +2,7 @@
 // horizons do not depend on the scale or the origin of the coordinates.
 #pragma once
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm::test {
 

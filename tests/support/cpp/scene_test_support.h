@@ -7,7 +7,7 @@
 #include <functional>
 #include <string>
 
-#include "scene/scene.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm {
 

@@ -1,5 +1,5 @@
 // Accessors: their elements as doubles, every read checked against its buffer view and buffer.
-#include "scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
 
 namespace tcfarm::gltf {
 

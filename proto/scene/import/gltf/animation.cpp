@@ -1,5 +1,5 @@
 // The node graph, node transforms, and the chosen animation's channels as motions.
-#include "scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
 
 namespace tcfarm::gltf {
 

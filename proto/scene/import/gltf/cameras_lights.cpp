@@ -1,5 +1,5 @@
 // KHR_lights_punctual lights and the camera (or one framing the scene).
-#include "scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
 
 namespace tcfarm::gltf {
 

@@ -1,4 +1,4 @@
-#include "scene/import/gltf/file_access.h"
+#include "proto/scene/import/gltf/file_access.h"
 
 #include <cctype>
 #include <fstream>
@@ -7,9 +7,9 @@
 #include <string_view>
 #include <system_error>
 
-#include "scene/import/gltf_data_uris.h"
-#include "scene/import/scene_files.h"
-#include "scene/scene.h"
+#include "proto/scene/import/gltf_data_uris.h"
+#include "proto/scene/import/scene_files.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm::gltf {
 

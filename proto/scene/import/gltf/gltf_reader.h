@@ -23,13 +23,13 @@
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
-#include "scene/import/gltf_data_uris.h"
-#include "scene/import/gltf/json_types.h"
-#include "scene/import/mesh_geometry.h"
-#include "scene/import/importers.h"
-#include "scene/scene_limits.h"
-#include "scene/import/messages.h"
-#include "scene/import/scene_files.h"
+#include "proto/scene/import/gltf_data_uris.h"
+#include "proto/scene/import/gltf/json_types.h"
+#include "proto/scene/import/mesh_geometry.h"
+#include "proto/scene/import/importers.h"
+#include "proto/scene/scene_limits.h"
+#include "proto/scene/import/messages.h"
+#include "proto/scene/import/scene_files.h"
 
 namespace tcfarm::gltf {
 

@@ -1,4 +1,4 @@
-#include "scene/import/gltf/json_types.h"
+#include "proto/scene/import/gltf/json_types.h"
 
 #include <cmath>
 #include <cstdint>

@@ -1,9 +1,9 @@
 // Reading the file: the GLB container, what tinygltf would report without a pointer, tinygltf itself.
-#include "scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
 
 #include <fstream>
 
-#include "scene/import/gltf/file_access.h"
+#include "proto/scene/import/gltf/file_access.h"
 
 namespace tcfarm::gltf {
 

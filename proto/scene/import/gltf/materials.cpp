@@ -1,8 +1,8 @@
 // Materials and textures: glTF's PBR mapped onto the Whitted model (proto/scene.md).
-#include "scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
 
-#include "scene/import/gltf/file_access.h"
-#include "wire/content_hash.h"
+#include "proto/scene/import/gltf/file_access.h"
+#include "proto/wire/content_hash.h"
 
 namespace tcfarm::gltf {
 

@@ -1,5 +1,5 @@
 // Mesh primitives as shapes: positions, normals, texture coordinates, colours, triangles.
-#include "scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
 
 namespace tcfarm::gltf {
 

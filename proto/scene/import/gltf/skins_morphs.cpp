@@ -1,5 +1,5 @@
 // Skins and morph targets: a primitive's deformation.
-#include "scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/gltf/gltf_reader.h"
 
 namespace tcfarm::gltf {
 
