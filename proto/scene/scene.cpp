@@ -184,6 +184,12 @@ bool PlaceStillShape(Shape& shape, const Affine& placement) {
       double normalMatrix[3][3];
       placement.NormalMatrix(normalMatrix);
       for (Vec3& n : shape.mesh.normals) n = ApplyMatrix(normalMatrix, n);
+      // Tangents are directions on the surface: they move as its edges do. A mirror turns
+      // the bitangent over.
+      for (auto& tangent : shape.mesh.tangents) {
+        const Vec3 moved = placement.ApplyLinear({tangent[0], tangent[1], tangent[2]});
+        tangent = {moved.x, moved.y, moved.z, placement.Determinant() < 0 ? -tangent[3] : tangent[3]};
+      }
       // A mirror turns the triangles' winding over, and with it the face normals the
       // tracer takes from it: turned back, the outside stays outside (as glTF has it).
       if (placement.Determinant() < 0) {

@@ -20,6 +20,7 @@
 
 #include "proto/scene/animated_vec3.h"
 #include "proto/scene/deformation.h"
+#include "proto/scene/material.h"
 #include "proto/scene/transform.h"
 
 namespace tcfarm {
@@ -59,6 +60,9 @@ struct Light {
   double innerConeDegrees = 0, outerConeDegrees = 45;
   AnimatedVec3 intensity;  // linear RGB radiant intensity (point) or irradiance (directional)
   Motion motion;           // carries position and direction (none by default)
+  // Point and spot lights: beyond this distance they light nothing, fading smoothly as
+  // glTF's KHR_lights_punctual recommends; 0 for no limit (pure inverse square).
+  double range = 0;
 
   bool HasPosition() const { return type != Type::kDirectional; }
   bool HasDirection() const { return type != Type::kPoint; }
@@ -72,50 +76,6 @@ struct Light {
   bool SameAt(double a, double b) const;
 };
 
-// An image that colours a surface through the mesh's texture coordinates (u to the right,
-// v down, as glTF has them), sampled without derivatives: a pixel's colour never depends
-// on its neighbours.
-//
-// The image comes from exactly one of two places: `image`, a file in the scene's folder
-// (a scene read from disk), or `asset`, the SHA-256 of the image file's bytes, which the
-// farm's workers fetch by hash (a scene submitted over the network names its images so,
-// and its own hash then covers them).
-struct Texture {
-  enum class Wrap { kRepeat, kClampToEdge, kMirroredRepeat };
-  enum class Filter { kLinear, kNearest };
-  std::string image;  // as the scene names it, relative to its folder
-  std::string asset;  // 64 lowercase hex
-  // Where the bytes are now (neither is written out): a file (inside the scene's folder, or
-  // in a worker's asset cache), or memory (an image embedded in a glTF file, whose hash
-  // `asset` then holds).
-  std::filesystem::path file;
-  std::shared_ptr<const std::string> bytes;
-  Wrap wrapS = Wrap::kRepeat, wrapT = Wrap::kRepeat;
-  Filter filter = Filter::kLinear;
-
-  // For messages: the file the scene names, or the asset's hash.
-  std::string Describe() const { return image.empty() ? "asset " + asset : image; }
-};
-
-struct Material {
-  std::string name;
-  Vec3 diffuse{0.8, 0.8, 0.8};
-  Vec3 specular{0, 0, 0};
-  double shininess = 32;      // Phong exponent
-  double reflectivity = 0;    // 0..1, mirror reflection weight
-  double transparency = 0;    // 0..1, refraction weight
-  double indexOfRefraction = 1.5;
-  // Linear RGB the surface shows of itself (glTF's emissiveFactor), whatever lights it: it
-  // lights nothing else.
-  Vec3 emission{0, 0, 0};
-  // Multiplies `diffuse` where the mesh has texture coordinates (glTF's baseColorTexture);
-  // its colours are sRGB-encoded, as glTF's are.
-  std::optional<Texture> diffuseTexture;
-
-  bool Reflects() const { return reflectivity > 0; }
-  bool Refracts() const { return transparency > 0; }
-};
-
 struct TriangleMesh {
   std::vector<Vec3> vertices;
   std::vector<std::array<uint32_t, 3>> triangles;
@@ -124,6 +84,11 @@ struct TriangleMesh {
   std::vector<Vec3> normals;
   // Texture coordinates (u, v), as OBJ's vt and glTF's TEXCOORD_0 give them.
   std::vector<std::array<double, 2>> uvs;
+  // A second set (glTF's TEXCOORD_1), which a material's texture may name.
+  std::vector<std::array<double, 2>> uvs1;
+  // Tangents (x, y, z, w): the direction of increasing u, w = +-1 the bitangent's sign
+  // (glTF's TANGENT), for normal maps. Empty: shading derives them from the triangles.
+  std::vector<std::array<double, 4>> tangents;
   // Linear RGB per vertex (glTF's COLOR_0), multiplying the material's diffuse colour
   // (and its texture) as glTF multiplies the base colour.
   std::vector<Vec3> colors;
@@ -177,6 +142,12 @@ struct RenderSettings {
   int frameCount = 1;
   int samplesPerPixel = 1;
   int maxDepth = 5;  // reflection/refraction bounces after the primary hit
+  // Lighting switches for comparisons with renderers that lack them (a rasterizer without
+  // shadow maps or image-based light): shadow rays off, every light reaching every surface
+  // that faces it; the ambient term's share of a surface's colour (0.05 by default).
+  bool shadows = true;
+  double ambient = kDefaultAmbient;
+  static constexpr double kDefaultAmbient = 0.05;
   int LastFrame() const { return firstFrame + frameCount - 1; }
 };
 

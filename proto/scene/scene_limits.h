@@ -24,6 +24,9 @@ inline constexpr double kMaxMagnitude = 1e30;
 // undefined; this far from 1 the object leaves float's useful range.
 inline constexpr double kMinScale = 1e-6, kMaxScale = 1e6;
 inline constexpr double kMinIndexOfRefraction = 1, kMaxIndexOfRefraction = 10;
+// A normal map's scale and KHR_materials_emissive_strength: generous, finite.
+inline constexpr double kMaxNormalScale = 1000;
+inline constexpr double kMaxEmissiveStrength = 1e6;
 // Joints of one skin: far more than any character rig has (glTF's own limits are those of
 // its index types), few enough that a scene's skin matrices stay small.
 inline constexpr size_t kMaxJoints = 4096;

@@ -158,6 +158,7 @@ json LightJson(const Light& light, const SharedParents& shared) {
     result["inner_cone_degrees"] = light.innerConeDegrees;
     result["outer_cone_degrees"] = light.outerConeDegrees;
   }
+  if (light.range > 0) result["range"] = light.range;
   if (!light.motion.IsNone()) result["motion"] = MotionJson(light.motion, shared);
   return result;
 }
@@ -170,7 +171,44 @@ json TextureJson(const Texture& texture) {
               {"filter", texture.filter == Texture::Filter::kNearest ? "nearest" : "linear"}};
 }
 
+json TextureSlotJson(const TextureSlot& slot, const char* amountKey = nullptr) {
+  json result = TextureJson(slot.texture);
+  result["tex_coord"] = slot.texCoord;
+  if (slot.Transformed()) {
+    result["uv_offset"] = json::array({slot.offset[0], slot.offset[1]});
+    result["uv_scale"] = json::array({slot.scale[0], slot.scale[1]});
+    result["uv_rotation"] = slot.rotation;
+  }
+  if (amountKey) result[amountKey] = slot.amount;
+  return result;
+}
+
+json PbrJson(const MetallicRoughness& m) {
+  static const char* const kAlphaModes[] = {"opaque", "mask", "blend"};
+  json result{{"base_color", Vec3Json(m.baseColor)},
+              {"alpha", m.alpha},
+              {"metallic", m.metallic},
+              {"roughness", m.roughness},
+              {"emissive", Vec3Json(m.emissive)},
+              {"emissive_strength", m.emissiveStrength},
+              {"alpha_mode", kAlphaModes[static_cast<int>(m.alphaMode)]},
+              {"alpha_cutoff", m.alphaCutoff},
+              {"double_sided", m.doubleSided},
+              {"unlit", m.unlit},
+              {"ior", m.ior},
+              {"transmission", m.transmission},
+              {"specular", m.specular},
+              {"specular_color", Vec3Json(m.specularColor)}};
+  if (m.baseColorTexture) result["base_color_texture"] = TextureSlotJson(*m.baseColorTexture);
+  if (m.metallicRoughnessTexture) result["metallic_roughness_texture"] = TextureSlotJson(*m.metallicRoughnessTexture);
+  if (m.normalTexture) result["normal_texture"] = TextureSlotJson(*m.normalTexture, "scale");
+  if (m.occlusionTexture) result["occlusion_texture"] = TextureSlotJson(*m.occlusionTexture, "strength");
+  if (m.emissiveTexture) result["emissive_texture"] = TextureSlotJson(*m.emissiveTexture);
+  return result;
+}
+
 json MaterialJson(const Material& material) {
+  if (material.pbr) return json{{"pbr", PbrJson(*material.pbr)}};
   json result{{"diffuse", Vec3Json(material.diffuse)},   {"specular", Vec3Json(material.specular)},
               {"shininess", material.shininess},         {"reflectivity", material.reflectivity},
               {"transparency", material.transparency}, {"ior", material.indexOfRefraction}};
@@ -195,6 +233,16 @@ json MeshJson(const TriangleMesh& mesh, json result) {
     json uvs = json::array();
     for (const auto& uv : mesh.uvs) uvs.push_back(json::array({uv[0], uv[1]}));
     result["uvs"] = std::move(uvs);
+  }
+  if (!mesh.uvs1.empty()) {
+    json uvs = json::array();
+    for (const auto& uv : mesh.uvs1) uvs.push_back(json::array({uv[0], uv[1]}));
+    result["uvs1"] = std::move(uvs);
+  }
+  if (!mesh.tangents.empty()) {
+    json tangents = json::array();
+    for (const auto& t : mesh.tangents) tangents.push_back(json::array({t[0], t[1], t[2], t[3]}));
+    result["tangents"] = std::move(tangents);
   }
   if (!mesh.colors.empty()) {
     json colors = json::array();
@@ -295,11 +343,15 @@ json SharedMeshesJson(const std::map<std::string, std::shared_ptr<const Triangle
 }
 
 json RenderJson(const RenderSettings& render) {
-  return json{{"width", render.width},
+  json result{{"width", render.width},
               {"height", render.height},
               {"frames", {{"start", render.firstFrame}, {"count", render.frameCount}}},
               {"samples_per_pixel", render.samplesPerPixel},
               {"max_depth", render.maxDepth}};
+  // Written only when switched: a scene that leaves them keeps the bytes (and hash) it had.
+  if (!render.shadows) result["shadows"] = false;
+  if (render.ambient != RenderSettings::kDefaultAmbient) result["ambient"] = render.ambient;
+  return result;
 }
 
 }  // namespace

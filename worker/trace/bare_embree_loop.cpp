@@ -137,7 +137,8 @@ void BareEmbreeLoop::TraceFrame(int frame, TracingThreads& threads, float* rgb) 
   const FrameParts parts{placed,
                          MakeCamera(scene_, frame),
                          MakeLights(scene_, frame),
-                         MakeMaterials(scene_),
+                         // The yardstick shades untextured: textures are the tracer's own work.
+                         MakeMaterials(scene_, [](const Texture&, TextureImage::Encoding) { return nullptr; }),
                          ToFloat3(scene_.background),
                          static_cast<uint32_t>(scene_.render.width),
                          scene_.render.samplesPerPixel};

@@ -4,12 +4,18 @@
 
 namespace tcfarm {
 
-std::vector<ShadingMaterial> MakeMaterials(const Scene& scene) {
+std::vector<ShadingMaterial> MakeMaterials(const Scene& scene, const TextureLoader& load) {
   std::vector<ShadingMaterial> materials;
   for (const Material& m : scene.materials) {
-    materials.push_back({ToFloat3(m.diffuse), ToFloat3(m.specular), static_cast<float>(m.shininess),
-                         static_cast<float>(m.reflectivity), static_cast<float>(m.transparency),
-                         static_cast<float>(m.indexOfRefraction), ToFloat3(m.emission), m.emission != Vec3{}});
+    ShadingMaterial s{ToFloat3(m.diffuse), ToFloat3(m.specular), static_cast<float>(m.shininess),
+                      static_cast<float>(m.reflectivity), static_cast<float>(m.transparency),
+                      static_cast<float>(m.indexOfRefraction), ToFloat3(m.emission), m.emission != Vec3{}, false, PbrMaterial{}};
+    if (m.pbr) {
+      s.pbr = true;
+      s.gltf = PbrMaterial(*m.pbr, load);
+      s.diffuse = s.gltf.baseColor;
+    }
+    materials.push_back(s);
   }
   return materials;
 }

@@ -1,5 +1,8 @@
-// The Whitted model's materials as shading sees them: Phong's diffuse and specular terms,
-// an ambient term, mirror reflection and refraction weights.
+// Materials as shading sees them, one struct per model: the Whitted model's Phong terms
+// (diffuse and specular, an ambient term, mirror reflection and refraction weights), here;
+// glTF's metallic-roughness model in materials/gltf_material.h, its BRDF in
+// materials/gltf_brdf.h. A new model adds its files there and a case where the tracer asks
+// `pbr` (worker/trace/tracer.cpp: MakeHit, Ambient, LightContribution, Combine).
 #pragma once
 
 #include <cmath>
@@ -7,6 +10,7 @@
 
 #include "proto/scene/scene.h"
 #include "worker/trace/float3.h"
+#include "worker/trace/materials/gltf_material.h"
 
 namespace tcfarm {
 
@@ -19,6 +23,9 @@ struct ShadingMaterial {
   float shininess, reflectivity, transparency, indexOfRefraction;
   Float3 emission;
   bool emits;
+  // glTF's model instead of the fields above
+  bool pbr = false;
+  PbrMaterial gltf;
 
   // With `surfaceDiffuse` the diffuse colour at the hit (the material's, or textured).
   static Float3 Ambient(Float3 surfaceDiffuse) { return surfaceDiffuse * kAmbient; }
@@ -34,10 +41,13 @@ struct ShadingMaterial {
     }
     return color;
   }
-  bool MirrorsOrRefracts() const { return reflectivity != 0 || transparency != 0; }
+  bool MirrorsOrRefracts() const {
+    return pbr ? gltf.MaySmooth() || gltf.Transmits() : reflectivity != 0 || transparency != 0;
+  }
 };
 
-std::vector<ShadingMaterial> MakeMaterials(const Scene& scene);
+// `load` decodes the textures glTF materials use (Phong's are the tracer's own table).
+std::vector<ShadingMaterial> MakeMaterials(const Scene& scene, const TextureLoader& load);
 
 // The refracted direction of unit `arriving` through a surface of unit `normal` (facing
 // the arriving ray) with relative index eta; false for total internal reflection.

@@ -37,7 +37,7 @@ int WrapIndex(int index, int size, Texture::Wrap wrap) {
 
 }  // namespace
 
-TextureImage::TextureImage(const Texture& texture)
+TextureImage::TextureImage(const Texture& texture, Encoding encoding)
     : wrapS_(texture.wrapS), wrapT_(texture.wrapT), filter_(texture.filter) {
   const std::string name = texture.Describe();
   if (!texture.bytes && texture.file.empty()) throw TextureError("texture " + name + " has not been fetched");
@@ -61,7 +61,8 @@ TextureImage::TextureImage(const Texture& texture)
     const float* p = &pixels[i * channels];
     // Grey images repeat their one channel; alpha is not used.
     const float r = p[0], g = channels >= 3 ? p[1] : p[0], b = channels >= 3 ? p[2] : p[0];
-    texels_.push_back({LinearFromSrgb(r), LinearFromSrgb(g), LinearFromSrgb(b)});
+    texels_.push_back(encoding == Encoding::kSrgb ? Float3{LinearFromSrgb(r), LinearFromSrgb(g), LinearFromSrgb(b)}
+                                                  : Float3{r, g, b});
   }
 }
 

@@ -19,8 +19,11 @@ class TextureError : public std::runtime_error {
 
 class TextureImage {
  public:
+  // How texel codes become values: sRGB-decoded (colours: base colour, emissive) or as
+  // they are, over 255 (data: metallic-roughness, normal and occlusion maps).
+  enum class Encoding { kSrgb, kLinear };
   // Throws TextureError naming the file when it cannot be read as an image.
-  explicit TextureImage(const Texture& texture);
+  explicit TextureImage(const Texture& texture, Encoding encoding = Encoding::kSrgb);
 
   // Linear RGB at (u, v): u to the right, v down, [0, 1] across the image.
   Float3 Sample(float u, float v) const;

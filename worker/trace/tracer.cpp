@@ -67,6 +67,11 @@ struct Tracer::ShapeShading {
   const std::array<float, 2>* uvs = nullptr;  // null unless the shape is textured and has them
   const TextureImage* texture = nullptr;
   const Float3* colors = nullptr;  // linear RGB by vertex, multiplying the diffuse; null: none
+  // glTF materials: the second texture coordinates and the tangents, where the material
+  // reads them and the mesh has them.
+  const std::array<float, 2>* uvs1 = nullptr;
+  const std::array<float, 4>* tangents = nullptr;
+  const PbrMaterial* pbr = nullptr;  // the shape's material, when it is glTF's
   bool VariesDiffuse() const { return uvs || colors; }
   bool turns = false;  // its normals need carrying to the world (FrameGeometry::NormalToWorld)
   int material = 0;
@@ -86,7 +91,17 @@ std::vector<Tracer::ShapeShading> Tracer::ShadingAt(const FrameGeometry& frame) 
     const ShapeUvs& uvs = *uvs_[i];
     if (entry.texture && !uvs.empty()) entry.uvs = uvs.data();
     if (!colors_[i]->empty()) entry.colors = colors_[i]->data();
-    if (entry.vertexNormals || entry.VariesDiffuse()) entry.triangles = shape.Mesh().triangles.data();
+    const ShadingMaterial& material = materials_[static_cast<size_t>(shape.material)];
+    if (material.pbr) {
+      entry.pbr = &material.gltf;
+      if (material.gltf.ReadsTexCoord(0) && !uvs.empty()) entry.uvs = uvs.data();
+      if (material.gltf.ReadsTexCoord(1) && !uvs1_[i]->empty()) entry.uvs1 = uvs1_[i]->data();
+      if (material.gltf.normalTexture && !tangents_[i]->empty()) entry.tangents = tangents_[i]->data();
+    }
+    const bool meshed = !shape.Mesh().triangles.empty();
+    if (meshed && (entry.vertexNormals || entry.VariesDiffuse() || entry.pbr)) {
+      entry.triangles = shape.Mesh().triangles.data();
+    }
   }
   return table;
 }
@@ -103,6 +118,8 @@ struct Tracer::FrameContext {
   int maxDepth;
   int samplesPerPixel;
   bool anySecondary;  // some material reflects or refracts
+  bool shadows;       // shadow rays traced (RenderSettings::shadows)
+  float ambient;      // RenderSettings::ambient
 };
 
 // One thread's view of a frame: shades hits, casts secondary rays, counts rays.
@@ -141,6 +158,7 @@ class Tracer::PixelTracer {
     int shape;
     uint32_t primitive;  // of a mesh: the triangle hit
     int material;
+    PbrSurface pbr;  // glTF materials: the BRDF's inputs here (base colour, not `diffuse`)
   };
 
   // The Embree hit fields a surface hit is made from.
@@ -167,19 +185,27 @@ class Tracer::PixelTracer {
   // Vectors by reference: passed by value, their packed halves went through the stack
   // and stalled every hit on the store forwarding.
   SurfaceHit MakeHit(const Float3& origin, const Float3& direction, const RawHit& raw) const;
+  // A glTF material's inputs at the hit, and its normal map's normal.
+  void ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const;
+  Float3 MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, Float3 texel) const;
+  // The hit triangle's direction of increasing u over the normal map's texture coordinates,
+  // in object space, and the sign of its bitangent (v's direction against normal x tangent).
+  Float3 TriangleTangent(const ShapeShading& shape, const RawHit& raw, int shapeIndex, float* handedness) const;
   // Light arriving at the hit from light i if nothing blocks it; false when the light is
-  // behind the surface (then no shadow ray is needed at all).
+  // behind the surface, or the surface is unlit (then no shadow ray is needed at all).
   bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const;
   // Inline: asked for every lit hit and light.
   Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction, float distance) const {
     const ShadingLight& l = frame_.lights[light];
-    const Float3 color =
-        (*frame_.materials)[hit.material].Reflected(direction, hit.normal, hit.direction, hit.diffuse);
+    const ShadingMaterial& m = (*frame_.materials)[hit.material];
+    const Float3 color = m.pbr ? PbrReflected(hit.pbr, m.gltf.constants, direction, hit.normal, -hit.direction)
+                               : m.Reflected(direction, hit.normal, hit.direction, hit.diffuse);
     return color * l.intensity * (l.Falloff(distance) * l.Cone(direction));
   }
   // What the surface shows with no light: the ambient term, and its own emission.
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
+  Float3 CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth);
   void NoteSurface(int lane, const SurfaceHit& hit);
   // For a camera sample whose hit no light reaches, once its packet's lights are done:
   // when the hit is on a moving sphere (whose surface alone set the horizon to the next
@@ -240,17 +266,82 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
     if (!IsZero(smooth)) normal = Dot(smooth, face) < 0 ? -smooth : smooth;
   }
   // Every field written once: a default-constructed hit would be zeroed first.
-  return SurfaceHit{origin + direction * raw.t,
-                    normal,
-                    face,
-                    shading.VariesDiffuse() ? SurfaceDiffuse(shading, raw)
-                                            : (*frame_.materials)[shading.material].diffuse,
-                    direction,
-                    fromInside,
-                    kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t),
-                    shape,
-                    raw.primitiveId,
-                    shading.material};
+  SurfaceHit hit{origin + direction * raw.t,
+                 normal,
+                 face,
+                 !shading.pbr && shading.VariesDiffuse() ? SurfaceDiffuse(shading, raw)
+                                                         : (*frame_.materials)[shading.material].diffuse,
+                 direction,
+                 fromInside,
+                 kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t),
+                 shape,
+                 raw.primitiveId,
+                 shading.material,
+                 {}};
+  if (shading.pbr) ShadePbr(shading, raw, hit);
+  return hit;
+}
+
+void Tracer::PixelTracer::ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const {
+  std::array<float, 2> uv0{0, 0}, uv1{0, 0};
+  Float3 vertexColor{1, 1, 1};
+  if (shape.triangles) {
+    const auto& corner = shape.triangles[raw.primitiveId];
+    const float w = 1.0f - raw.u - raw.v;
+    auto interpolate = [&](const std::array<float, 2>* uvs) -> std::array<float, 2> {
+      const auto &a = uvs[corner[0]], &b = uvs[corner[1]], &c = uvs[corner[2]];
+      return {a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v};
+    };
+    if (shape.uvs) uv0 = interpolate(shape.uvs);
+    if (shape.uvs1) uv1 = interpolate(shape.uvs1);
+    if (shape.colors) {
+      const Float3 &a = shape.colors[corner[0]], &b = shape.colors[corner[1]], &c = shape.colors[corner[2]];
+      vertexColor = a * w + b * raw.u + c * raw.v;
+    }
+  }
+  const PbrMaterial& material = *shape.pbr;
+  hit.pbr = material.Surface(uv0, uv1, vertexColor);
+  // A normal map needs the texture coordinates it was painted over.
+  const bool mapped = material.normalTexture && shape.triangles && (material.normalTexture.texCoord == 0 ? shape.uvs : shape.uvs1);
+  if (mapped) {
+    const Float3 texel = material.normalTexture.Sample(material.normalTexture.texCoord == 0 ? uv0 : uv1);
+    const Float3 n = MappedNormal(shape, raw, hit, texel);
+    if (!IsZero(n)) hit.normal = n;
+  }
+}
+
+// The normal map's normal: the texel (tangent space, [0, 1] codes for [-1, 1], x and y
+// scaled) in the frame of the hit's tangent, bitangent and shading normal. The tangent is
+// the mesh's (TANGENT) where it has them, else the triangle's direction of increasing u;
+// either is made perpendicular to the shading normal. Zero when the frame is degenerate.
+Float3 Tracer::PixelTracer::MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit,
+                                         Float3 texel) const {
+  const PbrTexture& map = shape.pbr->normalTexture;
+  const auto& corner = shape.triangles[raw.primitiveId];
+  Float3 tangent;
+  float handedness = 1;
+  if (shape.tangents) {
+    const float w = 1.0f - raw.u - raw.v;
+    const auto &a = shape.tangents[corner[0]], &b = shape.tangents[corner[1]], &c = shape.tangents[corner[2]];
+    tangent = Float3{a[0], a[1], a[2]} * w + Float3{b[0], b[1], b[2]} * raw.u + Float3{c[0], c[1], c[2]} * raw.v;
+    handedness = a[3] < 0 ? -1.0f : 1.0f;
+  } else {
+    tangent = TriangleTangent(shape, raw, hit.shape, &handedness);
+  }
+  tangent = ToWorld(hit.shape, frame_.geometry->HasNormalTransform(hit.shape), tangent);
+  const Float3 n = hit.normal;
+  tangent = tangent - n * Dot(n, tangent);
+  const float length = Length(tangent);
+  if (!(length > 1e-12f)) return {};
+  tangent = tangent * (1.0f / length);
+  // The bitangent follows the shading normal's side, so a surface seen from behind keeps
+  // its bumps.
+  const Float3 bitangent = Cross(n, tangent) * handedness;
+  const float x = (texel.x * 2.0f - 1.0f) * map.amount, y = (texel.y * 2.0f - 1.0f) * map.amount;
+  const float z = texel.z * 2.0f - 1.0f;
+  const Float3 mapped = tangent * x + bitangent * y + n * z;
+  const float mappedLength = Length(mapped);
+  return mappedLength > 0 && std::isfinite(mappedLength) ? mapped * (1.0f / mappedLength) : Float3{};
 }
 
 Float3 Tracer::PixelTracer::SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const {
@@ -288,19 +379,58 @@ Float3 Tracer::PixelTracer::TurnedToWorld(int shape, const Float3& normal) const
 
 bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,
                                     float* distance) const {
+  const ShadingMaterial& m = (*frame_.materials)[hit.material];
+  if (m.pbr && m.gltf.unlit) return false;
   return frame_.lights[light].Toward(hit.position, hit.normal, direction, distance);
 }
 
 Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
   const ShadingMaterial& m = (*frame_.materials)[hit.material];
-  const Float3 ambient = ShadingMaterial::Ambient(hit.diffuse);
+  if (m.pbr) {
+    const PbrSurface& s = hit.pbr;
+    if (m.gltf.unlit) return s.baseColor;
+    // A uniform sky of radiance `ambient` reflects about the diffuse colour and f0 of it.
+    const Float3 reflected = s.baseColor * (1.0f - s.metallic) + SurfaceF0(s, m.gltf.constants);
+    return reflected * (frame_.ambient * s.occlusion) + s.emission;
+  }
+  const Float3 ambient = hit.diffuse * frame_.ambient;
   return m.emits ? ambient + m.emission : ambient;
+}
+
+// glTF materials: a smooth surface mirrors what it faces, weighted by Fresnel at the
+// viewing angle; a transmitting one refracts its share (KHR_materials_transmission), the
+// rest of its light as it was.
+Float3 Tracer::PixelTracer::CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth) {
+  Float3 color = local;
+  const Float3 mirror = Reflect(hit.direction, hit.normal);
+  if (hit.pbr.roughness < PbrMaterial::kMirrorRoughness) {
+    const float nDotV = std::max(-Dot(hit.direction, hit.normal), 0.0f);
+    const Float3 fresnel = Schlick(SurfaceF0(hit.pbr, material.constants), SurfaceF90(hit.pbr, material.constants), nDotV);
+    ++counts_.reflection;
+    color += TraceRay(Spawn(hit, false), mirror, depth + 1) * fresnel;
+  }
+  const float transmitted = material.transmission * (1.0f - hit.pbr.metallic);
+  if (transmitted > 0) {
+    const float eta = hit.fromInside ? material.indexOfRefraction : 1.0f / material.indexOfRefraction;
+    Float3 refracted;
+    Float3 through;
+    if (!Refract(hit.direction, hit.normal, eta, &refracted)) {  // total internal reflection
+      ++counts_.reflection;
+      through = TraceRay(Spawn(hit, false), mirror, depth + 1);
+    } else {
+      ++counts_.refraction;
+      through = TraceRay(Spawn(hit, true), refracted, depth + 1);
+    }
+    color = color * (1.0f - transmitted) + through * transmitted;
+  }
+  return color;
 }
 
 // Local shading weighted against mirror reflection and refraction, Whitted style.
 Float3 Tracer::PixelTracer::Combine(const SurfaceHit& hit, Float3 local, int depth) {
   const ShadingMaterial& m = (*frame_.materials)[hit.material];
   if (depth >= frame_.maxDepth || !m.MirrorsOrRefracts()) return local;
+  if (m.pbr) return CombinePbr(hit, m.gltf, local, depth);
   Float3 color = local * (1.0f - m.reflectivity - m.transparency);
   Float3 mirror = Reflect(hit.direction, hit.normal);
   if (m.reflectivity > 0) {
@@ -362,6 +492,10 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     shadow.tnear = 0;
     shadow.tfar = distance;
     shadow.mask = ~0u;
+    if (!frame_.shadows) {  // the light reaches whatever faces it: no ray, no horizon
+      local += LightContribution(hit, light, toLight, distance);
+      continue;
+    }
     ++counts_.shadow;
     const RTCRay query = shadow;
     rtcOccluded1(frame_.geometry->scene(), &context_.embree, &shadow);
@@ -456,6 +590,14 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       ++shadowCount;
     }
     if (shadowCount == 0) continue;
+    if (!frame_.shadows) {  // the light reaches whatever faces it: no ray, no horizon
+      for (int lane = 0; lane < count; ++lane) {
+        if (!shadowValid[lane]) continue;
+        color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
+        lit[lane] = true;
+      }
+      continue;
+    }
     counts_.shadow += shadowCount;
     alignas(64) typename RayPacket<Width>::Ray query;
     if (horizons_) query = shadow;  // as asked: Embree overwrites tfar with the answer
@@ -533,7 +675,8 @@ void Tracer::PixelTracer::SettleUnlitMovingSphere(int lane, const SurfaceHit& hi
   // Ties need no care: where the rule holds, nothing else is on the ray as near as the
   // sphere (see UnlitSphereHolds).
   if (sphere < 0 || hit.fromInside) return;
-  if (frame_.shapes[static_cast<size_t>(hit.shape)].VariesDiffuse()) return;
+  const ShapeShading& shading = frame_.shapes[static_cast<size_t>(hit.shape)];
+  if (shading.VariesDiffuse() || shading.pbr) return;
   if ((*frame_.materials)[hit.material].MirrorsOrRefracts()) return;
   // Each light the hit faces was blocked: by which moving sphere, to follow it.
   const int mover = oracle.MoverOfSphere(sphere);
@@ -576,12 +719,45 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
     for (const Vec3& color : shape.Mesh().colors) colors.push_back(ToFloat3(color));
     return colors;
   });
+  // Only what some glTF material reads: most meshes have neither.
+  auto readBy = [&scene](const Shape& shape, auto reads) {
+    const Material& material = scene.materials[static_cast<size_t>(shape.material)];
+    return material.pbr && reads(*material.pbr);
+  };
+  uvs1_ = PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [&](const Shape& shape) {
+    ShapeUvs uvs;
+    if (!readBy(shape, [](const MetallicRoughness& m) { return m.ReadsTexCoord(1); })) return uvs;
+    for (const auto& uv : shape.Mesh().uvs1) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+    return uvs;
+  });
+  tangents_ = PerShapeOncePerMesh<ShapeTangents>(scene.shapes, [&](const Shape& shape) {
+    ShapeTangents tangents;
+    if (!readBy(shape, [](const MetallicRoughness& m) { return m.normalTexture.has_value(); })) return tangents;
+    for (const auto& t : shape.Mesh().tangents) {
+      tangents.push_back({static_cast<float>(t[0]), static_cast<float>(t[1]), static_cast<float>(t[2]),
+                          static_cast<float>(t[3])});
+    }
+    return tangents;
+  });
   // Materials never change over frames: converted for shading once, not per task.
-  materials_ = MakeMaterials(scene);
+  materials_ = MakeMaterials(scene, [this](const Texture& texture, TextureImage::Encoding encoding) {
+    return LoadPbrTexture(texture, encoding);
+  });
   // Only the images a material uses are loaded, once.
   for (const Material& material : scene.materials) {
     textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
   }
+}
+
+const TextureImage* Tracer::LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding) {
+  // Materials that share an image (an occlusion map packed with metal and roughness) share
+  // its decoding; wrap and filter are part of what is decoded.
+  const std::string key = texture.asset + "|" + texture.file.string() + "|" + texture.image + "|" +
+                          std::to_string(static_cast<int>(texture.wrapS)) + std::to_string(static_cast<int>(texture.wrapT)) +
+                          std::to_string(static_cast<int>(texture.filter));
+  auto& image = pbrTextures_[{key, encoding}];
+  if (!image) image = std::make_unique<TextureImage>(texture, encoding);
+  return image.get();
 }
 
 namespace {
@@ -618,7 +794,9 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        ToFloat3(scene_.background),
                        scene_.render.maxDepth,
                        scene_.render.samplesPerPixel,
-                       scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts()};
+                       scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts(),
+                       scene_.render.shadows,
+                       static_cast<float>(scene_.render.ambient)};
   context.shapes = ShadingAt(*context.geometry);
   const int spp = context.samplesPerPixel;
   // Camera rays, and shadow rays toward lights that have a position, are searched for
@@ -744,6 +922,28 @@ RayCounts Tracer::Counts() const {
   c.reflection = reflection_;
   c.refraction = refraction_;
   return c;
+}
+
+Float3 Tracer::PixelTracer::TriangleTangent(const ShapeShading& shape, const RawHit& raw, int shapeIndex,
+                                            float* handedness) const {
+  const auto& corner = shape.triangles[raw.primitiveId];
+  const std::array<float, 2>* uvs = shape.pbr->normalTexture.texCoord == 0 ? shape.uvs : shape.uvs1;
+  const std::vector<Vec3>& vertices = scene_.shapes[static_cast<size_t>(shapeIndex)].Mesh().vertices;
+  const Vec3 &p0 = vertices[corner[0]], &p1 = vertices[corner[1]], &p2 = vertices[corner[2]];
+  const Vec3 e1 = SubtractD(p1, p0), e2 = SubtractD(p2, p0);
+  const double du1 = uvs[corner[1]][0] - uvs[corner[0]][0], dv1 = uvs[corner[1]][1] - uvs[corner[0]][1];
+  const double du2 = uvs[corner[2]][0] - uvs[corner[0]][0], dv2 = uvs[corner[2]][1] - uvs[corner[0]][1];
+  const double det = du1 * dv2 - du2 * dv1;
+  if (det == 0) return {};
+  // dp/du and dp/dv, solved from the two edges.
+  const Vec3 dpdu{(dv2 * e1.x - dv1 * e2.x) / det, (dv2 * e1.y - dv1 * e2.y) / det, (dv2 * e1.z - dv1 * e2.z) / det};
+  const Vec3 dpdv{(du1 * e2.x - du2 * e1.x) / det, (du1 * e2.y - du2 * e1.y) / det, (du1 * e2.z - du2 * e1.z) / det};
+  // glTF's v runs down the image while a normal map's green points up it: unmirrored
+  // texture coordinates have n x t along -dp/dv (w = +1, as TANGENT has it); mirrored
+  // ones flip the bitangent (w = -1), as MikkTSpace's sign says.
+  const Vec3 normal = CrossD(e1, e2);
+  *handedness = DotD(CrossD(normal, dpdu), dpdv) < 0 ? 1.0f : -1.0f;
+  return ToFloat3(dpdu);
 }
 
 }  // namespace tcfarm

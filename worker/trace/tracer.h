@@ -90,6 +90,13 @@ class Tracer {
   // Per shape, its vertices' colours (none for most shapes), shared like the uvs.
   using ShapeColors = std::vector<Float3>;
   std::vector<std::shared_ptr<const ShapeColors>> colors_;
+  // Per shape, glTF's second texture coordinates and tangents, where a material reads them.
+  std::vector<std::shared_ptr<const ShapeUvs>> uvs1_;
+  using ShapeTangents = std::vector<std::array<float, 4>>;
+  std::vector<std::shared_ptr<const ShapeTangents>> tangents_;
+  // The images glTF materials read, decoded once each (by image and encoding).
+  std::map<std::pair<std::string, TextureImage::Encoding>, std::unique_ptr<TextureImage>> pbrTextures_;
+  const TextureImage* LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding);
   TracingThreads& threads_;
   int packetWidth_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};

@@ -305,27 +305,32 @@ TEST(GltfImporterTest, CameraLightsAndMaterials) {
   ASSERT_EQ(scene.lights.size(), 2u);
   EXPECT_EQ(scene.lights[0].type, Light::Type::kPoint);
   ExpectNear(scene.lights[0].PositionAt(0), {3, 4, 5});
-  ExpectNear(scene.lights[0].intensity.Evaluate(0), {8, 4, 2});
+  // Candela and lux become W/sr and W/m2 at 683 lm/W, as the tools that write glTF convert.
+  ExpectNear(scene.lights[0].intensity.Evaluate(0), {8.0 / 683, 4.0 / 683, 2.0 / 683});
   EXPECT_EQ(scene.lights[1].type, Light::Type::kDirectional);
   ExpectNear(scene.lights[1].DirectionAt(0), {0, -1, 0});
-  ExpectNear(scene.lights[1].intensity.Evaluate(0), {2, 2, 2});
+  ExpectNear(scene.lights[1].intensity.Evaluate(0), {2.0 / 683, 2.0 / 683, 2.0 / 683});
+  ImportOptions asTheyAre;
+  asTheyAre.lightUnits = LightUnits::kRadiometric;
+  ExpectNear(gltf.Import(asTheyAre).lights[0].intensity.Evaluate(0), {8, 4, 2});
 
   ASSERT_EQ(scene.materials.size(), 3u);  // default, glass, gold: the parser's order
   EXPECT_EQ(scene.materials[0].name, "default");
+  ASSERT_TRUE(scene.materials[0].IsPbr());  // glTF's default: white, metallic, rough
+  EXPECT_DOUBLE_EQ(scene.materials[0].pbr->metallic, 1);
   const Material& glass = scene.materials[1];
   const Material& gold = scene.materials[2];
   EXPECT_EQ(gold.name, "gold");
   EXPECT_EQ(scene.shapes[0].material, 2);
-  ExpectNear(gold.diffuse, {0, 0, 0});
-  ExpectNear(gold.specular, {1, 0.5, 0});
-  EXPECT_DOUBLE_EQ(gold.reflectivity, 0.25);
-  EXPECT_DOUBLE_EQ(gold.shininess, 30);  // 2 / 0.5^4 - 2
-  EXPECT_DOUBLE_EQ(glass.transparency, 0.9);
-  EXPECT_DOUBLE_EQ(glass.indexOfRefraction, 1.33);
-  EXPECT_DOUBLE_EQ(glass.reflectivity, 0);
-  EXPECT_DOUBLE_EQ(glass.shininess, 10000);
-  ExpectNear(glass.diffuse, {0.1, 0.1, 0.1});
-  ExpectNear(glass.specular, {0.04, 0.04, 0.04});
+  ASSERT_TRUE(gold.IsPbr() && glass.IsPbr());
+  ExpectNear(gold.pbr->baseColor, {1, 0.5, 0});
+  EXPECT_DOUBLE_EQ(gold.pbr->metallic, 1);
+  EXPECT_DOUBLE_EQ(gold.pbr->roughness, 0.5);
+  EXPECT_FALSE(gold.Reflects());  // rougher than a mirror: lights only
+  EXPECT_DOUBLE_EQ(glass.pbr->transmission, 0.9);
+  EXPECT_DOUBLE_EQ(glass.pbr->ior, 1.33);
+  EXPECT_TRUE(glass.Reflects());
+  EXPECT_TRUE(glass.Refracts());
   ExpectRoundTrip(scene);
 
   ImportOptions options;
@@ -496,7 +501,7 @@ TEST(GltfImporterTest, SpotLightsKeepTheirConeAndShineDownTheirNode) {
   ExpectNear(scene.lights[0].DirectionAt(0), {0, -1, 0});
   EXPECT_NEAR(scene.lights[0].outerConeDegrees, 0.5 * 180 / M_PI, 1e-9);
   EXPECT_NEAR(scene.lights[0].innerConeDegrees, 0.25 * 180 / M_PI, 1e-9);
-  ExpectNear(scene.lights[0].intensity.Evaluate(0), {5, 5, 5});
+  ExpectNear(scene.lights[0].intensity.Evaluate(0), {5.0 / 683, 5.0 / 683, 5.0 / 683});  // candela to W/sr
   ExpectRoundTrip(scene);
 }
 

@@ -63,6 +63,14 @@ Scene ApplyOptions(Scene scene, const ImportOptions& options) {
 
 }  // namespace
 
+std::optional<LightUnits> LightUnitsNamed(const std::string& name) {
+  if (name == "photometric") return LightUnits::kPhotometric;
+  if (name == "radiometric") return LightUnits::kRadiometric;
+  return std::nullopt;
+}
+
+const char* NameOf(LightUnits units) { return units == LightUnits::kPhotometric ? "photometric" : "radiometric"; }
+
 // The registry is this one list, not self-registration: static initialisers in a static
 // library are dropped by the linker unless something references their object file.
 const std::vector<const SceneImporter*>& SceneImporters() {

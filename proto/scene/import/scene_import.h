@@ -24,12 +24,22 @@ namespace tcfarm {
 // What a file may leave to the caller. The render size and samples apply to every format
 // (ImportScene sets them on the scene an importer gives); the rest only to formats that
 // carry animations and cameras of their own (glTF).
+enum class LightUnits { kPhotometric, kRadiometric };
+// Watts (per steradian or square metre) per unit of a glTF light's intensity.
+inline double WattsPerLightUnit(LightUnits units) { return units == LightUnits::kPhotometric ? 1.0 / 683 : 1.0; }
+// "photometric" and "radiometric", as options and scenes name them; nullopt for another.
+std::optional<LightUnits> LightUnitsNamed(const std::string& name);
+const char* NameOf(LightUnits units);
+
 struct ImportOptions {
   double framesPerSecond = 24;  // frame f samples time f / framesPerSecond
   std::string animation;        // its name or index; empty: the first
   std::string camera;           // a camera's (or its node's) name, or the camera's index; empty: the first camera node
   int width = 0, height = 0;    // 0: the file's own, else 640 x 480
   int samplesPerPixel = 0;      // 0: the file's own, else 1
+  // How glTF light intensities (candela, lux) become radiometric ones (proto/scene.md,
+  // "glTF lights"): as the tools that write glTF convert them (683 lm/W), or as they are.
+  LightUnits lightUnits = LightUnits::kPhotometric;
 };
 
 struct ImportInput {

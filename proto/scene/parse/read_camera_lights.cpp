@@ -75,7 +75,7 @@ Light SceneReader::ReadLight(const Node& node) {
   std::string type = ReadString(Required(node, "type", typeExpected), typeExpected);
   Light light;
   if (type == "point") {
-    ExpectObject(node, {"type", "position", "intensity", "motion"}, "a point light");
+    ExpectObject(node, {"type", "position", "intensity", "range", "motion"}, "a point light");
     light.type = Light::Type::kPoint;
     light.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
   } else if (type == "directional") {
@@ -85,7 +85,8 @@ Light SceneReader::ReadLight(const Node& node) {
     light.direction = ReadAnimated(direction, range_);
     CheckDirection(light.direction, direction);
   } else if (type == "spot") {
-    ExpectObject(node, {"type", "position", "direction", "intensity", "inner_cone_degrees", "outer_cone_degrees", "motion"},
+    ExpectObject(node,
+                 {"type", "position", "direction", "intensity", "range", "inner_cone_degrees", "outer_cone_degrees", "motion"},
                  "a spot light");
     light.type = Light::Type::kSpot;
     light.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
@@ -97,6 +98,9 @@ Light SceneReader::ReadLight(const Node& node) {
     Fail(node.MemberPointer("type"), "unknown light type " + Quote(type), typeExpected);
   }
   if (node.Has("motion")) light.motion = ReadMotion(node.Member("motion"), range_, 0, &named_);
+  if (node.Has("range")) {
+    light.range = ReadInRange(node.Member("range"), 0, kMaxMagnitude, "a range >= 0 in scene units (0: no limit)");
+  }
   Node intensity = Required(node, "intensity", kAnimatedExpected);
   light.intensity = ReadAnimated(intensity, range_);
   CheckNonNegative(light.intensity, intensity, range_);

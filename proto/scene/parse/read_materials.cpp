@@ -32,9 +32,20 @@ std::vector<Material> SceneReader::ReadMaterials(const Node& root, std::vector<M
 
 Material SceneReader::ReadMaterial(const Node& node) {
   ExpectObject(node, {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior", "diffuse_texture",
-                      "emission"},
+                      "emission", "pbr"},
                "a material");
   Material material;
+  if (node.Has("pbr")) {
+    for (const char* phong : {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior",
+                              "diffuse_texture", "emission"}) {
+      if (node.Has(phong)) {
+        Fail(node.MemberPointer(phong), "a Phong parameter beside a \"pbr\" block",
+             "either Phong's parameters or one \"pbr\" block (glTF's metallic-roughness model), not both");
+      }
+    }
+    material.pbr = ReadPbr(node.Member("pbr"));
+    return material;
+  }
   if (node.Has("diffuse_texture")) material.diffuseTexture = ReadTexture(node.Member("diffuse_texture"));
   if (node.Has("diffuse")) material.diffuse = ReadColour(node.Member("diffuse"));
   if (node.Has("emission")) material.emission = ReadColour(node.Member("emission"));
@@ -60,10 +71,12 @@ Material SceneReader::ReadMaterial(const Node& node) {
   return material;
 }
 
-Texture SceneReader::ReadTexture(const Node& node) {
+Texture SceneReader::ReadTexture(const Node& node, const std::vector<std::string>& moreKeys) {
   const std::string expected =
       "a texture {\"image\": file or \"asset\": SHA-256, \"wrap_s\", \"wrap_t\", \"filter\"}";
-  ExpectObject(node, {"image", "asset", "wrap_s", "wrap_t", "filter"}, expected);
+  std::vector<std::string> keys{"image", "asset", "wrap_s", "wrap_t", "filter"};
+  keys.insert(keys.end(), moreKeys.begin(), moreKeys.end());
+  ExpectObject(node, keys, expected);
   if (node.Has("image") == node.Has("asset")) {
     Fail(node.pointer, node.Has("image") ? "both an image and an asset" : "neither an image nor an asset",
          "exactly one of \"image\" (a file inside the scene folder) and \"asset\" (the SHA-256 of an image the farm holds)");

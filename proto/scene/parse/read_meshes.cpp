@@ -138,6 +138,8 @@ TriangleMesh SceneReader::ReadMeshGeometry(const Node& node) {
   mesh.triangles = ReadTriangles(triangles, mesh.vertices.size());
   if (node.Has("normals")) mesh.normals = ReadNormals(node.Member("normals"), mesh.vertices.size());
   if (node.Has("uvs")) mesh.uvs = ReadUvs(node.Member("uvs"), mesh.vertices.size());
+  if (node.Has("uvs1")) mesh.uvs1 = ReadUvs(node.Member("uvs1"), mesh.vertices.size());
+  if (node.Has("tangents")) mesh.tangents = ReadTangents(node.Member("tangents"), mesh.vertices.size());
   if (node.Has("colors")) mesh.colors = ReadVertexColors(node.Member("colors"), mesh.vertices.size());
   CheckMesh(mesh, vertices, triangles);
   return mesh;
@@ -145,7 +147,7 @@ TriangleMesh SceneReader::ReadMeshGeometry(const Node& node) {
 
 bool SceneReader::HasInlineGeometry(const Node& node) {
   return node.Has("vertices") || node.Has("triangles") || node.Has("normals") || node.Has("uvs") ||
-         node.Has("colors");
+         node.Has("uvs1") || node.Has("tangents") || node.Has("colors");
 }
 
 void SceneReader::AddSharedMeshes(Scene& scene, const Node& node) {
@@ -165,7 +167,7 @@ std::map<std::string, std::shared_ptr<const TriangleMesh>> SceneReader::ReadShar
   if (!node.value.is_object()) FailType(node, "an object mapping mesh names to meshes");
   for (const auto& entry : node.value.items()) {
     Node mesh = node.Member(entry.key());
-    ExpectObject(mesh, {"vertices", "triangles", "normals", "uvs", "colors", "file"}, "a shared mesh");
+    ExpectObject(mesh, {"vertices", "triangles", "normals", "uvs", "uvs1", "tangents", "colors", "file"}, "a shared mesh");
     sharedMeshes_[entry.key()] = std::make_shared<const TriangleMesh>(ReadMeshGeometry(mesh));
     unplacedMeshes_.insert(entry.key());
   }
@@ -221,6 +223,23 @@ std::vector<std::array<double, 2>> SceneReader::ReadUvs(const Node& node, size_t
     uvs.push_back({ReadNumber(uv.Element(0), expected), ReadNumber(uv.Element(1), expected)});
   }
   return uvs;
+}
+
+std::vector<std::array<double, 4>> SceneReader::ReadTangents(const Node& node, size_t vertexCount) {
+  if (!node.value.is_array()) FailType(node, "an array of tangents [x, y, z, w], one per vertex");
+  ExpectOnePerVertex(node, vertexCount, "tangent");
+  const std::string expected = "a tangent [x, y, z, w] of finite numbers, w = 1 or -1";
+  std::vector<std::array<double, 4>> tangents;
+  tangents.reserve(node.value.size());
+  for (size_t i = 0; i < node.value.size(); ++i) {
+    Node tangent = node.Element(i);
+    ExpectArray(tangent, 4, expected);
+    std::array<double, 4> t{};
+    for (size_t c = 0; c < 4; ++c) t[c] = ReadNumber(tangent.Element(c), expected);
+    if (t[3] != 1 && t[3] != -1) Fail(tangent.pointer + "/3", "a handedness of " + FormatNumber(t[3]), expected);
+    tangents.push_back(t);
+  }
+  return tangents;
 }
 
 std::vector<Vec3> SceneReader::ReadVertexColors(const Node& node, size_t vertexCount) {

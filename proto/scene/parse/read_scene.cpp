@@ -84,7 +84,8 @@ ImportOptions SceneReader::ReadImportOptions(const Node& root, const Node& node)
 }
 
 RenderSettings SceneReader::ReadRender(const Node& node, const std::optional<RenderSettings>& base) {
-  ExpectObject(node, {"width", "height", "frames", "samples_per_pixel", "max_depth"}, "render settings");
+  ExpectObject(node, {"width", "height", "frames", "samples_per_pixel", "max_depth", "shadows", "ambient"},
+               "render settings");
   RenderSettings render = base.value_or(RenderSettings{});
   const std::string sideExpected = "an integer in [1, " + std::to_string(kMaxImageSide) + "]";
   if (!base || node.Has("width")) render.width = ReadInt(Required(node, "width", sideExpected), 1, kMaxImageSide);
@@ -99,6 +100,12 @@ RenderSettings SceneReader::ReadRender(const Node& node, const std::optional<Ren
     render.samplesPerPixel = ReadInt(node.Member("samples_per_pixel"), 1, kMaxSamplesPerPixel);
   }
   if (node.Has("max_depth")) render.maxDepth = ReadInt(node.Member("max_depth"), 0, kMaxBounceDepth);
+  if (node.Has("shadows")) {
+    const Node shadows = node.Member("shadows");
+    if (!shadows.value.is_boolean()) FailType(shadows, "true (shadow rays traced) or false (none)");
+    render.shadows = shadows.value.get<bool>();
+  }
+  if (node.Has("ambient")) render.ambient = ReadInRange(node.Member("ambient"), 0, 1, "an ambient share in [0, 1]");
   return render;
 }
 

@@ -73,7 +73,7 @@ void SceneReader::ReadQuad(const Node& node, Shape& shape) {
 }
 
 void SceneReader::ReadMesh(const Node& node, Shape& shape) {
-  ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "colors", "file", "mesh_ref", "skin", "morph"}),
+  ExpectObject(node, ShapeFields({"vertices", "triangles", "normals", "uvs", "uvs1", "tangents", "colors", "file", "mesh_ref", "skin", "morph"}),
                "a mesh");
   shape.type = Shape::Type::kMesh;
   if (node.Has("mesh_ref")) {

@@ -67,7 +67,14 @@ class SceneReader {
 
   Material ReadMaterial(const Node& node);
 
-  Texture ReadTexture(const Node& node);
+  // A texture object; `moreKeys` are those its holder adds (a slot's texture coordinates).
+  Texture ReadTexture(const Node& node, const std::vector<std::string>& moreKeys = {});
+
+  // glTF's metallic-roughness model: a material's "pbr" block (read_pbr.cpp).
+  MetallicRoughness ReadPbr(const Node& node);
+  // A texture with its texture coordinates and their transform; `amountKey` names the
+  // slot's own number (a normal map's "scale", an occlusion map's "strength"), if any.
+  TextureSlot ReadTextureSlot(const Node& node, const std::string& amountKey = "");
 
   void ReadTextureFile(const Node& image, Texture& texture);
 
@@ -154,6 +161,7 @@ class SceneReader {
 
   static std::vector<Vec3> ReadNormals(const Node& node, size_t vertexCount);
 
+  static std::vector<std::array<double, 4>> ReadTangents(const Node& node, size_t vertexCount);
   static std::vector<std::array<double, 2>> ReadUvs(const Node& node, size_t vertexCount);
 
   static std::vector<Vec3> ReadVertexColors(const Node& node, size_t vertexCount);

@@ -48,9 +48,14 @@ void GltfReader::AddLights(Scene& scene) const {
     } else {
       Fail(lightPointer + "/type", "type " + QuoteInput(light.type), "point, spot or directional");
     }
-    // Photometric units taken one for one as the scene's radiometric ones (scene.md).
-    out.intensity =
-        AnimatedVec3::Constant({color[0] * light.intensity, color[1] * light.intensity, color[2] * light.intensity});
+    // KHR_lights_punctual's candela and lux as watts per steradian and per square metre
+    // (proto/scene.md, "glTF lights").
+    const double watts = light.intensity * WattsPerLightUnit(options_.lightUnits);
+    out.intensity = AnimatedVec3::Constant({color[0] * watts, color[1] * watts, color[2] * watts});
+    if (light.type != "directional" && light.range > 0) {
+      if (!(light.range <= kMaxMagnitude)) Fail(lightPointer + "/range", std::to_string(light.range), "a finite range");
+      out.range = light.range;
+    }
     out.motion = *motions_[static_cast<size_t>(node)];
     scene.lights.push_back(out);
     any = true;
@@ -59,7 +64,8 @@ void GltfReader::AddLights(Scene& scene) const {
     Light light;
     light.type = Light::Type::kDirectional;
     light.direction = AnimatedVec3::Constant(kDefaultLightDirection);
-    light.intensity = AnimatedVec3::Constant(Vec3{1, 1, 1});
+    // Irradiance pi: a white diffuse surface facing it shows white.
+    light.intensity = AnimatedVec3::Constant(Vec3{kPi, kPi, kPi});
     scene.lights.push_back(light);
   }
 }

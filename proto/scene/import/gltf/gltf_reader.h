@@ -64,8 +64,6 @@ constexpr int kDefaultWidth = 640, kDefaultHeight = 480;
 constexpr double kOrthonormalTolerance = 1e-5;
 // A column shorter than this (relative to the longest) makes the matrix singular.
 constexpr double kSingularRatio = 1e-12;
-// Phong exponents the roughness mapping may give: 1 (broad) to 10000 (a mirror-like glint).
-constexpr double kMinShininess = 1, kMaxShininess = 10000;
 // The camera a file without one gets: as the OBJ importer's, from the front and above.
 const Vec3 kViewFrom{0, 0.35, 1};
 constexpr double kDefaultFovDegrees = 45;
@@ -75,7 +73,9 @@ const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
 
 // What this importer implements, for extensionsRequired; optional others are ignored.
 inline const std::set<std::string> kSupportedExtensions = {
-    "KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior", "KHR_mesh_quantization"};
+    "KHR_lights_punctual",          "KHR_materials_transmission", "KHR_materials_ior",
+    "KHR_mesh_quantization",        "KHR_materials_emissive_strength", "KHR_materials_unlit",
+    "KHR_materials_specular",       "KHR_texture_transform"};
 
 class GltfReader {
  public:
@@ -196,14 +196,21 @@ class GltfReader {
   static double NumberIn(const tinygltf::ExtensionMap& extensions, const std::string& extension, const std::string& key,
                          double fallback);
 
-  // proto/scene.md, "glTF materials", gives the rule and its reasons.
+  // glTF's metallic-roughness material as it is, with the extensions tcfarm implements
+  // (proto/scene.md, "glTF materials").
   Material MapMaterial(const tinygltf::Material& source, size_t index) const;
+  void MapExtensions(const tinygltf::Material& source, const std::string& pointer, MetallicRoughness& m) const;
 
   // glTF's sampler codes (WebGL's enums); a sampler that leaves one out means repeat and
   // the renderer's choice of filter, here bilinear.
   static Texture::Wrap WrapOf(int code);
 
-  Texture MapTexture(const tinygltf::TextureInfo& info, const std::string& pointer) const;
+  Texture MapTexture(int index, const std::string& pointer) const;
+  // A material's texture reference (TextureInfo and its normal and occlusion kinds): the
+  // texture, its texture coordinates and their KHR_texture_transform.
+  TextureSlot MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
+                      const std::string& pointer) const;
+  static double FactorIn(const tinygltf::Value& object, const std::string& key, double fallback);
 
   // Materials as the scene parser orders them ("default" first, then by name), so the
   // scene reads back with the same indices. Primitives without a material get the
@@ -307,6 +314,9 @@ class GltfReader {
   // COLOR_0: linear RGB (an alpha is not used), FLOAT or normalized UNSIGNED_BYTE or
   // UNSIGNED_SHORT, one per position.
   std::vector<Vec3> ReadVertexColors(int index, const std::string& referencedAt, size_t positions) const;
+  std::vector<std::array<double, 2>> ReadTexCoords(const tinygltf::Primitive& primitive, const std::string& attribute,
+                                                   const std::string& pointer, size_t positions) const;
+  std::vector<std::array<double, 4>> ReadTangents(int index, const std::string& pointer, size_t positions) const;
 
   // A primitive's skin: JOINTS_0/WEIGHTS_0 (and _1 for 8 influences), each vertex's weights
   // divided by their sum (refused when it is further than kWeightSumTolerance from 1), and

@@ -83,6 +83,16 @@ std::string_view GltfReader::CheckContainer() const {
   return std::string_view(bytes).substr(20, jsonLength);
 }
 
+namespace {
+
+std::string SupportedExtensionList() {
+  std::string list;
+  for (const std::string& name : kSupportedExtensions) list += (list.empty() ? "" : ", ") + name;
+  return list;
+}
+
+}  // namespace
+
 void GltfReader::PreCheck(const std::string& jsonText) const {
   nlohmann::json document = nlohmann::json::parse(jsonText, nullptr, false);
   if (!document.is_object()) return;  // tinygltf says what is wrong with the syntax
@@ -99,8 +109,7 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
         Fail("/extensionsRequired/" + std::to_string(i),
              "the file requires extension " + QuoteInput(required[i].get<std::string>()) +
                  ", which this importer does not implement",
-             "only required extensions among KHR_lights_punctual, KHR_materials_transmission, "
-             "KHR_materials_ior, KHR_mesh_quantization");
+             "only required extensions among " + SupportedExtensionList());
       }
     }
   }

@@ -1,16 +1,29 @@
-// Materials and textures: glTF's PBR mapped onto the Whitted model (proto/scene.md).
+// Materials and textures: glTF's metallic-roughness model kept as it is (MetallicRoughness,
+// proto/scene/material.h), with the KHR_materials extensions tcfarm implements.
 #include "proto/scene/import/gltf/gltf_reader.h"
 
 #include "proto/scene/import/gltf/file_access.h"
 #include "proto/wire/content_hash.h"
 
 namespace tcfarm::gltf {
+namespace {
+
+const tinygltf::Value* ExtensionOf(const tinygltf::ExtensionMap& extensions, const std::string& name) {
+  auto found = extensions.find(name);
+  return found != extensions.end() && found->second.IsObject() ? &found->second : nullptr;
+}
+
+}  // namespace
 
 double GltfReader::NumberIn(const tinygltf::ExtensionMap& extensions, const std::string& extension, const std::string& key,
                        double fallback) {
-  auto found = extensions.find(extension);
-  if (found == extensions.end() || !found->second.IsObject() || !found->second.Has(key)) return fallback;
-  const tinygltf::Value& value = found->second.Get(key);
+  const tinygltf::Value* object = ExtensionOf(extensions, extension);
+  return object ? FactorIn(*object, key, fallback) : fallback;
+}
+
+double GltfReader::FactorIn(const tinygltf::Value& object, const std::string& key, double fallback) {
+  if (!object.Has(key)) return fallback;
+  const tinygltf::Value& value = object.Get(key);
   return value.IsNumber() ? value.GetNumberAsDouble() : fallback;
 }
 
@@ -19,46 +32,101 @@ Material GltfReader::MapMaterial(const tinygltf::Material& source, size_t index)
   const auto& pbr = source.pbrMetallicRoughness;
   std::vector<double> base = pbr.baseColorFactor;
   if (base.size() != 4) base = {1, 1, 1, 1};
-  double metallic = pbr.metallicFactor, roughness = pbr.roughnessFactor;
-  for (double v : {base[0], base[1], base[2], base[3], metallic, roughness}) {
+  for (double v : {base[0], base[1], base[2], base[3], pbr.metallicFactor, pbr.roughnessFactor}) {
     if (!(v >= 0 && v <= 1)) {
       Fail(pointer + "/pbrMetallicRoughness", "a factor of " + std::to_string(v), "factors in [0, 1]");
     }
   }
-  double transmission = NumberIn(source.extensions, "KHR_materials_transmission", "transmissionFactor", 0);
-  double ior = NumberIn(source.extensions, "KHR_materials_ior", "ior", 1.5);
-  if (!(transmission >= 0 && transmission <= 1)) {
-    Fail(pointer + "/extensions/KHR_materials_transmission/transmissionFactor", std::to_string(transmission),
-         "a factor in [0, 1]");
-  }
-  if (!std::isfinite(ior) || ior < 0)
-    Fail(pointer + "/extensions/KHR_materials_ior/ior", std::to_string(ior), "an ior >= 1");
-  Material material;
-  material.reflectivity = metallic * (1 - roughness) * (1 - roughness);
-  // Metals transmit nothing; what reflects is not also transmitted.
-  material.transparency = std::min(transmission * (1 - metallic), 1 - material.reflectivity);
-  for (int c = 0; c < 3; ++c) {
-    double diffuse = base[static_cast<size_t>(c)] * (1 - metallic) * (1 - material.transparency);
-    double specular = 0.04 + (base[static_cast<size_t>(c)] - 0.04) * metallic;
-    (c == 0 ? material.diffuse.x : c == 1 ? material.diffuse.y : material.diffuse.z) = diffuse;
-    (c == 0 ? material.specular.x : c == 1 ? material.specular.y : material.specular.z) = specular;
-  }
-  double r4 = roughness * roughness * roughness * roughness;
-  material.shininess = r4 > 0 ? std::clamp(2 / r4 - 2, kMinShininess, kMaxShininess) : kMaxShininess;
-  material.indexOfRefraction = std::clamp(ior, scene_limits::kMinIndexOfRefraction, scene_limits::kMaxIndexOfRefraction);
+  MetallicRoughness m;
+  m.baseColor = {base[0], base[1], base[2]};
+  m.alpha = base[3];
+  m.metallic = pbr.metallicFactor;
+  m.roughness = pbr.roughnessFactor;
+  const std::string pbrPointer = pointer + "/pbrMetallicRoughness";
   if (pbr.baseColorTexture.index >= 0) {
-    material.diffuseTexture = MapTexture(pbr.baseColorTexture, pointer + "/pbrMetallicRoughness/baseColorTexture");
+    m.baseColorTexture = MapSlot(pbr.baseColorTexture.index, pbr.baseColorTexture.texCoord,
+                                 pbr.baseColorTexture.extensions, pbrPointer + "/baseColorTexture");
+  }
+  if (pbr.metallicRoughnessTexture.index >= 0) {
+    m.metallicRoughnessTexture =
+        MapSlot(pbr.metallicRoughnessTexture.index, pbr.metallicRoughnessTexture.texCoord,
+                pbr.metallicRoughnessTexture.extensions, pbrPointer + "/metallicRoughnessTexture");
+  }
+  if (source.normalTexture.index >= 0) {
+    m.normalTexture = MapSlot(source.normalTexture.index, source.normalTexture.texCoord,
+                              source.normalTexture.extensions, pointer + "/normalTexture");
+    m.normalTexture->amount = std::clamp(source.normalTexture.scale, -scene_limits::kMaxNormalScale,
+                                         scene_limits::kMaxNormalScale);
+  }
+  if (source.occlusionTexture.index >= 0) {
+    m.occlusionTexture = MapSlot(source.occlusionTexture.index, source.occlusionTexture.texCoord,
+                                 source.occlusionTexture.extensions, pointer + "/occlusionTexture");
+    m.occlusionTexture->amount = std::clamp(source.occlusionTexture.strength, 0.0, 1.0);
+  }
+  if (source.emissiveTexture.index >= 0) {
+    m.emissiveTexture = MapSlot(source.emissiveTexture.index, source.emissiveTexture.texCoord,
+                                source.emissiveTexture.extensions, pointer + "/emissiveTexture");
   }
   if (source.emissiveFactor.size() == 3) {
-    for (int c = 0; c < 3; ++c) {
-      const double emitted = source.emissiveFactor[static_cast<size_t>(c)];
-      if (!(emitted >= 0 && emitted <= kMaxMagnitude)) {
-        Fail(pointer + "/emissiveFactor/" + std::to_string(c), std::to_string(emitted), "a finite non-negative factor");
+    for (size_t c = 0; c < 3; ++c) {
+      const double emitted = source.emissiveFactor[c];
+      if (!(emitted >= 0 && emitted <= 1)) {
+        Fail(pointer + "/emissiveFactor/" + std::to_string(c), std::to_string(emitted), "a factor in [0, 1]");
       }
-      (c == 0 ? material.emission.x : c == 1 ? material.emission.y : material.emission.z) = emitted;
+    }
+    m.emissive = {source.emissiveFactor[0], source.emissiveFactor[1], source.emissiveFactor[2]};
+  }
+  if (source.alphaMode == "MASK") m.alphaMode = MetallicRoughness::Alpha::kMask;
+  if (source.alphaMode == "BLEND") m.alphaMode = MetallicRoughness::Alpha::kBlend;
+  if (!(source.alphaCutoff >= 0 && source.alphaCutoff <= 1)) {
+    Fail(pointer + "/alphaCutoff", std::to_string(source.alphaCutoff), "a cutoff in [0, 1]");
+  }
+  m.alphaCutoff = source.alphaCutoff;
+  m.doubleSided = source.doubleSided;
+  MapExtensions(source, pointer, m);
+  Material material;
+  material.pbr = m;
+  return material;
+}
+
+void GltfReader::MapExtensions(const tinygltf::Material& source, const std::string& pointer,
+                               MetallicRoughness& m) const {
+  const std::string extensions = pointer + "/extensions/";
+  auto checked = [&](const std::string& extension, const std::string& key, double value, double low, double high,
+                     const std::string& expected) {
+    if (!(value >= low && value <= high)) Fail(extensions + extension + "/" + key, std::to_string(value), expected);
+    return value;
+  };
+  m.transmission = checked("KHR_materials_transmission", "transmissionFactor",
+                           NumberIn(source.extensions, "KHR_materials_transmission", "transmissionFactor", 0), 0, 1,
+                           "a factor in [0, 1]");
+  // glTF allows ior 0 (a perfect mirror's f0 of 1); tcfarm's refraction needs [1, 10].
+  const double ior = NumberIn(source.extensions, "KHR_materials_ior", "ior", 1.5);
+  checked("KHR_materials_ior", "ior", ior, 0, 1e9, "an ior >= 1, or 0");
+  m.ior = std::clamp(ior, scene_limits::kMinIndexOfRefraction, scene_limits::kMaxIndexOfRefraction);
+  m.emissiveStrength = checked(
+      "KHR_materials_emissive_strength", "emissiveStrength",
+      NumberIn(source.extensions, "KHR_materials_emissive_strength", "emissiveStrength", 1), 0,
+      scene_limits::kMaxEmissiveStrength, "a finite non-negative strength");
+  m.unlit = ExtensionOf(source.extensions, "KHR_materials_unlit") != nullptr;
+  if (const tinygltf::Value* specular = ExtensionOf(source.extensions, "KHR_materials_specular")) {
+    m.specular = checked("KHR_materials_specular", "specularFactor", FactorIn(*specular, "specularFactor", 1), 0, 1,
+                         "a factor in [0, 1]");
+    if (specular->Has("specularColorFactor") && specular->Get("specularColorFactor").IsArray() &&
+        specular->Get("specularColorFactor").ArrayLen() == 3) {
+      double rgb[3];
+      for (int c = 0; c < 3; ++c) {
+        const tinygltf::Value& v = specular->Get("specularColorFactor").Get(c);
+        rgb[c] = checked("KHR_materials_specular", "specularColorFactor/" + std::to_string(c),
+                         v.IsNumber() ? v.GetNumberAsDouble() : -1, 0, scene_limits::kMaxMagnitude,
+                         "a finite non-negative factor");
+      }
+      m.specularColor = {rgb[0], rgb[1], rgb[2]};
+    }
+    for (const char* textureKey : {"specularTexture", "specularColorTexture"}) {
+      if (specular->Has(textureKey)) Warn(extensions + "KHR_materials_specular/" + textureKey, "the texture is left out; its factor is used");
     }
   }
-  return material;
 }
 
 Texture::Wrap GltfReader::WrapOf(int code) {
@@ -67,14 +135,43 @@ Texture::Wrap GltfReader::WrapOf(int code) {
   return Texture::Wrap::kRepeat;
 }
 
-Texture GltfReader::MapTexture(const tinygltf::TextureInfo& info, const std::string& pointer) const {
-  if (static_cast<size_t>(info.index) >= model_.textures.size()) {
-    Fail(pointer + "/index", "texture " + std::to_string(info.index) + " does not exist",
+TextureSlot GltfReader::MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
+                                const std::string& pointer) const {
+  TextureSlot slot;
+  slot.texture = MapTexture(index, pointer);
+  slot.texCoord = texCoord;
+  if (const tinygltf::Value* transform = ExtensionOf(extensions, "KHR_texture_transform")) {
+    const std::string at = pointer + "/extensions/KHR_texture_transform";
+    auto pair = [&](const char* key, std::array<double, 2> fallback) {
+      if (!transform->Has(key)) return fallback;
+      const tinygltf::Value& v = transform->Get(key);
+      if (!v.IsArray() || v.ArrayLen() != 2 || !v.Get(0).IsNumber() || !v.Get(1).IsNumber()) {
+        Fail(at + "/" + key, "not a pair of numbers", "an array of 2 finite numbers");
+      }
+      std::array<double, 2> result{v.Get(0).GetNumberAsDouble(), v.Get(1).GetNumberAsDouble()};
+      if (!std::isfinite(result[0]) || !std::isfinite(result[1])) Fail(at + "/" + key, "a number that is not finite", "finite numbers");
+      return result;
+    };
+    slot.offset = pair("offset", {0, 0});
+    slot.scale = pair("scale", {1, 1});
+    slot.rotation = FactorIn(*transform, "rotation", 0);
+    if (!std::isfinite(slot.rotation)) Fail(at + "/rotation", "a number that is not finite", "a rotation in radians");
+    if (transform->Has("texCoord") && transform->Get("texCoord").IsInt()) slot.texCoord = transform->Get("texCoord").GetNumberAsInt();
+  }
+  if (slot.texCoord != 0 && slot.texCoord != 1) {
+    Warn(pointer + "/texCoord", "TEXCOORD_" + std::to_string(slot.texCoord) + " is not kept; the texture is sampled with TEXCOORD_0");
+    slot.texCoord = 0;
+  }
+  return slot;
+}
+
+Texture GltfReader::MapTexture(int index, const std::string& pointer) const {
+  if (static_cast<size_t>(index) >= model_.textures.size()) {
+    Fail(pointer + "/index", "texture " + std::to_string(index) + " does not exist",
          "an index below the file's " + std::to_string(model_.textures.size()) + " textures");
   }
-  if (info.texCoord != 0) Warn(pointer + "/texCoord", "only TEXCOORD_0 is kept; the texture is sampled with it");
-  const tinygltf::Texture& source = model_.textures[static_cast<size_t>(info.index)];
-  const std::string texturePointer = Pointer("textures", static_cast<size_t>(info.index));
+  const tinygltf::Texture& source = model_.textures[static_cast<size_t>(index)];
+  const std::string texturePointer = Pointer("textures", static_cast<size_t>(index));
   if (source.source < 0 || static_cast<size_t>(source.source) >= model_.images.size()) {
     Fail(texturePointer + "/source", "image " + std::to_string(source.source) + " does not exist",
          "an index below the file's " + std::to_string(model_.images.size()) + " images");
@@ -121,8 +218,10 @@ void GltfReader::AddMaterials(Scene& scene) {
     byName.emplace(name, i);
     names[i] = name;
   }
+  // A primitive without a material gets glTF's default: white, metallic and rough.
   scene.materials.assign(1, Material{});
   scene.materials[0].name = "default";
+  scene.materials[0].pbr = MetallicRoughness{};
   materialIndex_.assign(model_.materials.size(), 0);
   for (const auto& [name, index] : byName) {
     Material material = MapMaterial(model_.materials[index], index);

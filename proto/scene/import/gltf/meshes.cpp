@@ -31,16 +31,10 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
     for (size_t v = 0; v < normals.count; ++v)
       mesh.normals.push_back({normals.At(v, 0), normals.At(v, 1), normals.At(v, 2)});
   }
-  if (auto uv = primitive.attributes.find("TEXCOORD_0"); uv != primitive.attributes.end()) {
-    AccessorData uvs = ReadAccessor(uv->second, pointer + "/attributes/TEXCOORD_0", {TINYGLTF_TYPE_VEC2},
-                                    anyComponent, "a VEC2 accessor of texture coordinates");
-    CheckFinite(uvs, uv->second, "texture coordinate");
-    if (uvs.count != positions.count) {
-      Fail(Pointer("accessors", static_cast<size_t>(uv->second)) + "/count",
-           std::to_string(uvs.count) + " texture coordinates for " + std::to_string(positions.count) + " positions",
-           "one per position");
-    }
-    for (size_t v = 0; v < uvs.count; ++v) mesh.uvs.push_back({uvs.At(v, 0), uvs.At(v, 1)});
+  mesh.uvs = ReadTexCoords(primitive, "TEXCOORD_0", pointer, positions.count);
+  mesh.uvs1 = ReadTexCoords(primitive, "TEXCOORD_1", pointer, positions.count);
+  if (auto tangent = primitive.attributes.find("TANGENT"); tangent != primitive.attributes.end()) {
+    mesh.tangents = ReadTangents(tangent->second, pointer + "/attributes/TANGENT", positions.count);
   }
   if (auto color = primitive.attributes.find("COLOR_0"); color != primitive.attributes.end()) {
     mesh.colors = ReadVertexColors(color->second, pointer + "/attributes/COLOR_0", positions.count);
@@ -201,6 +195,54 @@ std::vector<Vec3> GltfReader::ReadVertexColors(int index, const std::string& ref
       }
     }
     result.push_back(rgb);
+  }
+  return result;
+}
+
+}  // namespace tcfarm::gltf
+
+namespace tcfarm::gltf {
+
+std::vector<std::array<double, 2>> GltfReader::ReadTexCoords(const tinygltf::Primitive& primitive,
+                                                             const std::string& attribute, const std::string& pointer,
+                                                             size_t positions) const {
+  auto uv = primitive.attributes.find(attribute);
+  if (uv == primitive.attributes.end()) return {};
+  AccessorData uvs = ReadAccessor(uv->second, pointer + "/attributes/" + attribute, {TINYGLTF_TYPE_VEC2},
+                                  {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE,
+                                   TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT,
+                                   TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT},
+                                  "a VEC2 accessor of texture coordinates");
+  CheckFinite(uvs, uv->second, "texture coordinate");
+  if (uvs.count != positions) {
+    Fail(Pointer("accessors", static_cast<size_t>(uv->second)) + "/count",
+         std::to_string(uvs.count) + " texture coordinates for " + std::to_string(positions) + " positions",
+         "one per position");
+  }
+  std::vector<std::array<double, 2>> result;
+  result.reserve(uvs.count);
+  for (size_t v = 0; v < uvs.count; ++v) result.push_back({uvs.At(v, 0), uvs.At(v, 1)});
+  return result;
+}
+
+std::vector<std::array<double, 4>> GltfReader::ReadTangents(int index, const std::string& pointer,
+                                                            size_t positions) const {
+  AccessorData tangents =
+      ReadAccessor(index, pointer, {TINYGLTF_TYPE_VEC4},
+                   {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT},
+                   "a VEC4 accessor of tangents");
+  CheckFinite(tangents, index, "tangent");
+  if (tangents.count != positions) {
+    Fail(Pointer("accessors", static_cast<size_t>(index)) + "/count",
+         std::to_string(tangents.count) + " tangents for " + std::to_string(positions) + " positions",
+         "one tangent per position");
+  }
+  std::vector<std::array<double, 4>> result;
+  result.reserve(tangents.count);
+  for (size_t v = 0; v < tangents.count; ++v) {
+    // w is the bitangent's sign, +-1 by the specification; a quantized file may hold it
+    // rounded, so only its sign is kept.
+    result.push_back({tangents.At(v, 0), tangents.At(v, 1), tangents.At(v, 2), tangents.At(v, 3) < 0 ? -1.0 : 1.0});
   }
   return result;
 }

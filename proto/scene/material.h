@@ -1,0 +1,134 @@
+// Materials: how a surface answers light. Two models, each a struct of its own:
+//
+// - Phong (the Whitted model of the paper's scenes): diffuse and specular colours, a Phong
+//   exponent, mirror reflection and refraction weights. Every scene written in tcfarm's own
+//   format without a "pbr" block uses it.
+// - MetallicRoughness (glTF 2.0's material model, its Appendix B BRDF): base colour,
+//   metallic and roughness factors and textures, normal, occlusion and emissive maps, alpha,
+//   and the KHR_materials extensions tcfarm implements. glTF and a "pbr" block use it.
+//
+// A Material holds one of the two; shading asks it which (worker/trace/materials.h).
+// A new model adds a struct here, its reading and writing (proto/scene/parse/read_materials.cpp,
+// proto/scene/scene_write.cpp) and its shading (worker/trace/materials/).
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "proto/scene/transform.h"
+
+namespace tcfarm {
+
+// An image that colours a surface through the mesh's texture coordinates (u to the right,
+// v down, as glTF has them).
+//
+// The image comes from exactly one of two places: `image`, a file in the scene's folder
+// (a scene read from disk), or `asset`, the SHA-256 of the image file's bytes, which the
+// farm's workers fetch by hash (a scene submitted over the network names its images so,
+// and its own hash then covers them).
+struct Texture {
+  enum class Wrap { kRepeat, kClampToEdge, kMirroredRepeat };
+  enum class Filter { kLinear, kNearest };
+  std::string image;  // as the scene names it, relative to its folder
+  std::string asset;  // 64 lowercase hex
+  // Where the bytes are now (neither is written out): a file (inside the scene's folder, or
+  // in a worker's asset cache), or memory (an image embedded in a glTF file, whose hash
+  // `asset` then holds).
+  std::filesystem::path file;
+  std::shared_ptr<const std::string> bytes;
+  Wrap wrapS = Wrap::kRepeat, wrapT = Wrap::kRepeat;
+  Filter filter = Filter::kLinear;
+
+  // For messages: the file the scene names, or the asset's hash.
+  std::string Describe() const { return image.empty() ? "asset " + asset : image; }
+  // Whether two textures read the same image the same way (materials may share one).
+  bool SameImage(const Texture& o) const {
+    return image == o.image && asset == o.asset && wrapS == o.wrapS && wrapT == o.wrapT && filter == o.filter;
+  }
+};
+
+// Where a texture is read from a surface: which texture coordinates, moved how
+// (KHR_texture_transform: uv' = T(offset) R(rotation) S(scale) uv).
+struct TextureSlot {
+  Texture texture;
+  int texCoord = 0;  // TEXCOORD_0 or TEXCOORD_1
+  std::array<double, 2> offset{0, 0}, scale{1, 1};
+  double rotation = 0;  // radians, counter-clockwise in uv
+  // normal maps: the scale of the map's x and y; occlusion maps: its strength
+  double amount = 1;
+
+  bool Transformed() const { return offset != std::array<double, 2>{0, 0} || scale != std::array<double, 2>{1, 1} || rotation != 0; }
+};
+
+// glTF's metallic-roughness model. Colour factors are linear; colour textures (base colour,
+// emissive) are sRGB-encoded, the others linear, as glTF has them.
+struct MetallicRoughness {
+  enum class Alpha { kOpaque, kMask, kBlend };
+  Vec3 baseColor{1, 1, 1};
+  double alpha = 1;           // base colour's alpha factor
+  double metallic = 1, roughness = 1;
+  std::optional<TextureSlot> baseColorTexture;
+  std::optional<TextureSlot> metallicRoughnessTexture;  // B: metallic, G: roughness
+  std::optional<TextureSlot> normalTexture;             // tangent space; amount: its scale
+  std::optional<TextureSlot> occlusionTexture;          // R; amount: its strength
+  std::optional<TextureSlot> emissiveTexture;
+  Vec3 emissive{0, 0, 0};
+  double emissiveStrength = 1;  // KHR_materials_emissive_strength
+  Alpha alphaMode = Alpha::kOpaque;
+  double alphaCutoff = 0.5;
+  bool doubleSided = false;
+  bool unlit = false;           // KHR_materials_unlit: the base colour, whatever lights it
+  double ior = 1.5;             // KHR_materials_ior: f0 = ((ior - 1) / (ior + 1))^2
+  double transmission = 0;      // KHR_materials_transmission
+  double specular = 1;          // KHR_materials_specular: the dielectric f0's weight
+  Vec3 specularColor{1, 1, 1};  // and its colour
+
+  bool ReadsTexCoord(int set) const {
+    for (const auto* slot : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
+                             &emissiveTexture}) {
+      if (*slot && (*slot)->texCoord == set) return true;
+    }
+    return false;
+  }
+  // The textures it reads, for loading and listing.
+  template <typename Visit>
+  void ForEachTexture(Visit visit) const {
+    for (const auto* slot : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
+                             &emissiveTexture}) {
+      if (*slot) visit((*slot)->texture);
+    }
+  }
+};
+
+struct Material {
+  std::string name;
+  // Phong's parameters (ignored when `pbr` is set) --------------------------------------
+  Vec3 diffuse{0.8, 0.8, 0.8};
+  Vec3 specular{0, 0, 0};
+  double shininess = 32;      // Phong exponent
+  double reflectivity = 0;    // 0..1, mirror reflection weight
+  double transparency = 0;    // 0..1, refraction weight
+  double indexOfRefraction = 1.5;
+  // Linear RGB the surface shows of itself, whatever lights it: it lights nothing else.
+  Vec3 emission{0, 0, 0};
+  // Multiplies `diffuse` where the mesh has texture coordinates; its colours are sRGB-encoded.
+  std::optional<Texture> diffuseTexture;
+  // glTF's model instead of Phong's ---------------------------------------------------
+  std::optional<MetallicRoughness> pbr;
+
+  bool IsPbr() const { return pbr.has_value(); }
+  bool Reflects() const {
+    if (!pbr) return reflectivity > 0;
+    return !pbr->unlit && (pbr->roughness < kMirrorRoughness || pbr->metallicRoughnessTexture.has_value());
+  }
+  bool Refracts() const { return pbr ? !pbr->unlit && pbr->transmission > 0 && pbr->metallic < 1 : transparency > 0; }
+
+  // A glTF surface smoother than this traces its mirror ray (weighted by Fresnel), as
+  // Whitted's mirrors do; a rougher one reflects lights only, through its GGX lobe.
+  static constexpr double kMirrorRoughness = 0.25;
+};
+
+}  // namespace tcfarm

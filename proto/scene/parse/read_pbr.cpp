@@ -1,0 +1,86 @@
+// Reading glTF's metallic-roughness material model: a material's "pbr" block
+// (proto/scene.md, "Materials").
+#include "proto/scene/parse/scene_reader.h"
+
+namespace tcfarm::scene_parse {
+namespace {
+
+bool ReadBool(const Node& node, const std::string& expected) {
+  if (!node.value.is_boolean()) FailType(node, expected);
+  return node.value.get<bool>();
+}
+
+std::array<double, 2> ReadPair(const Node& node, const std::string& expected) {
+  ExpectArray(node, 2, expected);
+  return {ReadNumber(node.Element(0), expected), ReadNumber(node.Element(1), expected)};
+}
+
+MetallicRoughness::Alpha ReadAlphaMode(const Node& node) {
+  const std::string expected = "\"opaque\", \"mask\" or \"blend\"";
+  const std::string name = ReadString(node, expected);
+  if (name == "opaque") return MetallicRoughness::Alpha::kOpaque;
+  if (name == "mask") return MetallicRoughness::Alpha::kMask;
+  if (name == "blend") return MetallicRoughness::Alpha::kBlend;
+  Fail(node.pointer, "unknown alpha mode " + Quote(name), expected);
+}
+
+}  // namespace
+
+TextureSlot SceneReader::ReadTextureSlot(const Node& node, const std::string& amountKey) {
+  std::vector<std::string> keys{"tex_coord", "uv_offset", "uv_scale", "uv_rotation"};
+  if (!amountKey.empty()) keys.push_back(amountKey);
+  TextureSlot slot;
+  slot.texture = ReadTexture(node, keys);
+  if (node.Has("tex_coord")) slot.texCoord = ReadInt(node.Member("tex_coord"), 0, 1);
+  if (node.Has("uv_offset")) slot.offset = ReadPair(node.Member("uv_offset"), "an offset [u, v] of finite numbers");
+  if (node.Has("uv_scale")) slot.scale = ReadPair(node.Member("uv_scale"), "a scale [u, v] of finite numbers");
+  if (node.Has("uv_rotation")) slot.rotation = ReadNumber(node.Member("uv_rotation"), "a rotation in radians");
+  if (!amountKey.empty() && node.Has(amountKey)) {
+    slot.amount = amountKey == "strength"
+                      ? ReadInRange(node.Member(amountKey), 0, 1, "an occlusion strength in [0, 1]")
+                      : ReadInRange(node.Member(amountKey), -scene_limits::kMaxNormalScale,
+                                    scene_limits::kMaxNormalScale, "a normal scale, a finite number");
+  }
+  return slot;
+}
+
+MetallicRoughness SceneReader::ReadPbr(const Node& node) {
+  ExpectObject(node,
+               {"base_color", "alpha", "metallic", "roughness", "base_color_texture", "metallic_roughness_texture",
+                "normal_texture", "occlusion_texture", "emissive", "emissive_strength", "emissive_texture",
+                "alpha_mode", "alpha_cutoff", "double_sided", "unlit", "ior", "transmission", "specular",
+                "specular_color"},
+               "a metallic-roughness material");
+  const std::string unit = "a number in [0, 1]";
+  MetallicRoughness m;
+  if (node.Has("base_color")) m.baseColor = ReadColour(node.Member("base_color"));
+  if (node.Has("alpha")) m.alpha = ReadInRange(node.Member("alpha"), 0, 1, unit);
+  if (node.Has("metallic")) m.metallic = ReadInRange(node.Member("metallic"), 0, 1, unit);
+  if (node.Has("roughness")) m.roughness = ReadInRange(node.Member("roughness"), 0, 1, unit);
+  if (node.Has("base_color_texture")) m.baseColorTexture = ReadTextureSlot(node.Member("base_color_texture"));
+  if (node.Has("metallic_roughness_texture")) {
+    m.metallicRoughnessTexture = ReadTextureSlot(node.Member("metallic_roughness_texture"));
+  }
+  if (node.Has("normal_texture")) m.normalTexture = ReadTextureSlot(node.Member("normal_texture"), "scale");
+  if (node.Has("occlusion_texture")) m.occlusionTexture = ReadTextureSlot(node.Member("occlusion_texture"), "strength");
+  if (node.Has("emissive")) m.emissive = ReadColour(node.Member("emissive"));
+  if (node.Has("emissive_strength")) {
+    m.emissiveStrength = ReadInRange(node.Member("emissive_strength"), 0, scene_limits::kMaxEmissiveStrength,
+                                     "a non-negative emissive strength");
+  }
+  if (node.Has("emissive_texture")) m.emissiveTexture = ReadTextureSlot(node.Member("emissive_texture"));
+  if (node.Has("alpha_mode")) m.alphaMode = ReadAlphaMode(node.Member("alpha_mode"));
+  if (node.Has("alpha_cutoff")) m.alphaCutoff = ReadInRange(node.Member("alpha_cutoff"), 0, 1, unit);
+  if (node.Has("double_sided")) m.doubleSided = ReadBool(node.Member("double_sided"), "true or false");
+  if (node.Has("unlit")) m.unlit = ReadBool(node.Member("unlit"), "true or false");
+  if (node.Has("ior")) {
+    m.ior = ReadInRange(node.Member("ior"), scene_limits::kMinIndexOfRefraction, scene_limits::kMaxIndexOfRefraction,
+                        "an index of refraction in [1, 10]");
+  }
+  if (node.Has("transmission")) m.transmission = ReadInRange(node.Member("transmission"), 0, 1, unit);
+  if (node.Has("specular")) m.specular = ReadInRange(node.Member("specular"), 0, 1, unit);
+  if (node.Has("specular_color")) m.specularColor = ReadColour(node.Member("specular_color"));
+  return m;
+}
+
+}  // namespace tcfarm::scene_parse

@@ -1,0 +1,84 @@
+// glTF 2.0's BRDF (the specification's Appendix B), as shading evaluates it for one light:
+// a Lambertian diffuse lobe and a GGX specular lobe (alpha = roughness^2, the
+// height-correlated Smith visibility), mixed by Schlick's Fresnel between a dielectric
+// (f0 from the index of refraction, weighted by KHR_materials_specular) and a metal (f0 =
+// the base colour). Inline and in float: it is asked for every lit hit.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+
+#include "worker/trace/float3.h"
+
+namespace tcfarm {
+
+constexpr float kInversePi = 0.318309886183790671538f;
+
+// What the BRDF needs of a surface point, once its textures are read.
+struct PbrSurface {
+  Float3 baseColor;  // linear
+  float metallic = 1, roughness = 1;
+  float occlusion = 1;  // 1: none (weighs the ambient term only)
+  Float3 emission;      // linear radiance the surface shows of itself
+};
+
+// What a material fixes for every point of it.
+struct PbrConstants {
+  Float3 dielectricF0{0.04f, 0.04f, 0.04f};  // ((ior - 1) / (ior + 1))^2 * specular colour * specular
+  float dielectricF90 = 1;                   // KHR_materials_specular's factor (1 without it)
+};
+
+inline Float3 Mix(Float3 a, Float3 b, float t) { return a * (1.0f - t) + b * t; }
+
+// Schlick's Fresnel at cosine `cosine` between f0 and f90.
+inline Float3 Schlick(Float3 f0, Float3 f90, float cosine) {
+  const float m = std::clamp(1.0f - cosine, 0.0f, 1.0f);
+  const float m2 = m * m;
+  return f0 + (f90 - f0) * (m2 * m2 * m);
+}
+
+inline Float3 SurfaceF0(const PbrSurface& s, const PbrConstants& c) { return Mix(c.dielectricF0, s.baseColor, s.metallic); }
+inline Float3 SurfaceF90(const PbrSurface& s, const PbrConstants& c) {
+  const float f90 = c.dielectricF90 + (1.0f - c.dielectricF90) * s.metallic;
+  return {f90, f90, f90};
+}
+
+// GGX's normal distribution, alpha = roughness^2.
+inline float GgxDistribution(float nDotH, float alpha) {
+  const float a2 = alpha * alpha;
+  const float f = nDotH * nDotH * (a2 - 1.0f) + 1.0f;
+  return a2 * kInversePi / (f * f);
+}
+
+// Smith-GGX visibility, height-correlated (V = G / (4 NdotL NdotV)).
+inline float SmithVisibility(float nDotL, float nDotV, float alpha) {
+  const float a2 = alpha * alpha;
+  const float ggxV = nDotL * std::sqrt(nDotV * nDotV * (1.0f - a2) + a2);
+  const float ggxL = nDotV * std::sqrt(nDotL * nDotL * (1.0f - a2) + a2);
+  const float sum = ggxV + ggxL;
+  return sum > 0 ? 0.5f / sum : 0.0f;
+}
+
+// Radiance reflected toward unit `towardViewer` from light of unit irradiance (at normal
+// incidence) arriving from unit `towardLight`, at a point of unit shading `normal`: the BRDF
+// times the cosine.
+inline Float3 PbrReflected(const PbrSurface& s, const PbrConstants& c, Float3 towardLight, Float3 normal,
+                           Float3 towardViewer) {
+  const float nDotL = Dot(normal, towardLight);
+  if (!(nDotL > 0)) return {};
+  // A normal map can tilt the normal away from a viewer who sees the face: seen edge-on.
+  const float nDotV = std::max(Dot(normal, towardViewer), 1e-4f);
+  Float3 half = towardLight + towardViewer;
+  const float halfLength = Length(half);
+  half = halfLength > 0 ? half * (1.0f / halfLength) : normal;
+  const float nDotH = std::max(Dot(normal, half), 0.0f);
+  const float vDotH = std::max(Dot(towardViewer, half), 0.0f);
+  const Float3 fresnel = Schlick(SurfaceF0(s, c), SurfaceF90(s, c), vDotH);
+  const float alpha = s.roughness * s.roughness;
+  const Float3 diffuseColor = s.baseColor * (1.0f - s.metallic);
+  const Float3 diffuse = (Float3{1, 1, 1} - fresnel) * diffuseColor * kInversePi;
+  const Float3 specular = fresnel * (GgxDistribution(nDotH, alpha) * SmithVisibility(nDotL, nDotV, alpha));
+  return (diffuse + specular) * nDotL;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,80 @@
+#include "worker/trace/materials/gltf_material.h"
+
+#include <cmath>
+
+namespace tcfarm {
+namespace {
+
+PbrTexture MakeTexture(const std::optional<TextureSlot>& slot, TextureImage::Encoding encoding,
+                       const TextureLoader& load) {
+  PbrTexture texture;
+  if (!slot) return texture;
+  texture.image = load(slot->texture, encoding);
+  texture.texCoord = slot->texCoord;
+  texture.amount = static_cast<float>(slot->amount);
+  texture.transformed = slot->Transformed();
+  // KHR_texture_transform: uv' = T(offset) R(rotation) S(scale) uv, R = [cos sin; -sin cos].
+  const double c = std::cos(slot->rotation), s = std::sin(slot->rotation);
+  texture.m00 = static_cast<float>(c * slot->scale[0]);
+  texture.m01 = static_cast<float>(s * slot->scale[1]);
+  texture.m10 = static_cast<float>(-s * slot->scale[0]);
+  texture.m11 = static_cast<float>(c * slot->scale[1]);
+  texture.du = static_cast<float>(slot->offset[0]);
+  texture.dv = static_cast<float>(slot->offset[1]);
+  return texture;
+}
+
+}  // namespace
+
+PbrMaterial::PbrMaterial(const MetallicRoughness& m, const TextureLoader& load)
+    : baseColor(ToFloat3(m.baseColor)),
+      metallic(static_cast<float>(m.metallic)),
+      roughness(static_cast<float>(m.roughness)),
+      emissive(ToFloat3(m.emissive) * static_cast<float>(m.emissiveStrength)),
+      transmission(static_cast<float>(m.transmission)),
+      indexOfRefraction(static_cast<float>(m.ior)),
+      unlit(m.unlit) {
+  const double r = (m.ior - 1) / (m.ior + 1);
+  const Vec3 f0{std::min(r * r * m.specularColor.x, 1.0), std::min(r * r * m.specularColor.y, 1.0),
+                std::min(r * r * m.specularColor.z, 1.0)};
+  constants.dielectricF0 = ToFloat3(f0) * static_cast<float>(m.specular);
+  constants.dielectricF90 = static_cast<float>(m.specular);
+  using Encoding = TextureImage::Encoding;
+  baseColorTexture = MakeTexture(m.baseColorTexture, Encoding::kSrgb, load);
+  emissiveTexture = MakeTexture(m.emissiveTexture, Encoding::kSrgb, load);
+  if (unlit) return;  // an unlit surface reads its base colour only
+  metallicRoughnessTexture = MakeTexture(m.metallicRoughnessTexture, Encoding::kLinear, load);
+  normalTexture = MakeTexture(m.normalTexture, Encoding::kLinear, load);
+  occlusionTexture = MakeTexture(m.occlusionTexture, Encoding::kLinear, load);
+}
+
+bool PbrMaterial::ReadsTexCoord(int set) const {
+  for (const PbrTexture* t : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
+                              &emissiveTexture}) {
+    if (*t && t->texCoord == set) return true;
+  }
+  return false;
+}
+
+PbrSurface PbrMaterial::Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor) const {
+  auto uvOf = [&](const PbrTexture& t) { return t.texCoord == 1 ? uv1 : uv0; };
+  PbrSurface s;
+  s.baseColor = baseColor * vertexColor;
+  if (baseColorTexture) s.baseColor = s.baseColor * baseColorTexture.Sample(uvOf(baseColorTexture));
+  s.metallic = metallic;
+  s.roughness = roughness;
+  if (metallicRoughnessTexture) {
+    const Float3 texel = metallicRoughnessTexture.Sample(uvOf(metallicRoughnessTexture));
+    s.metallic = std::clamp(metallic * texel.z, 0.0f, 1.0f);
+    s.roughness = std::clamp(roughness * texel.y, 0.0f, 1.0f);
+  }
+  if (occlusionTexture) {
+    const float occluded = occlusionTexture.Sample(uvOf(occlusionTexture)).x;
+    s.occlusion = 1.0f + occlusionTexture.amount * (occluded - 1.0f);
+  }
+  s.emission = emissive;
+  if (emissiveTexture) s.emission = s.emission * emissiveTexture.Sample(uvOf(emissiveTexture));
+  return s;
+}
+
+}  // namespace tcfarm

@@ -1,0 +1,63 @@
+// A glTF metallic-roughness material (proto/scene/material.h) as shading reads it: its
+// factors in float, and for each texture the decoded image, the texture coordinates it
+// reads and their KHR_texture_transform. Surface() turns them into the BRDF's inputs at
+// one hit.
+#pragma once
+
+#include <array>
+#include <functional>
+
+#include "proto/scene/material.h"
+#include "worker/trace/float3.h"
+#include "worker/trace/materials/gltf_brdf.h"
+#include "worker/trace/textures.h"
+
+namespace tcfarm {
+
+// One texture of a material, ready to sample.
+struct PbrTexture {
+  const TextureImage* image = nullptr;  // null: the material has none
+  int texCoord = 0;
+  bool transformed = false;
+  float m00 = 1, m01 = 0, m10 = 0, m11 = 1, du = 0, dv = 0;  // uv' = [m00 m01; m10 m11] uv + [du dv]
+  float amount = 1;                                     // normal scale, occlusion strength
+
+  explicit operator bool() const { return image != nullptr; }
+  // The texture's value at texture coordinates `uv` (after its transform).
+  Float3 Sample(std::array<float, 2> uv) const {
+    if (transformed) uv = {m00 * uv[0] + m01 * uv[1] + du, m10 * uv[0] + m11 * uv[1] + dv};
+    return image->Sample(uv[0], uv[1]);
+  }
+};
+
+// Decodes a texture image once: the tracer keeps each image, by its colour encoding.
+using TextureLoader = std::function<const TextureImage*(const Texture&, TextureImage::Encoding)>;
+
+struct PbrMaterial {
+  Float3 baseColor;
+  float metallic = 1, roughness = 1;
+  Float3 emissive;  // factor times KHR_materials_emissive_strength
+  PbrConstants constants;
+  float transmission = 0, indexOfRefraction = 1.5f;
+  bool unlit = false;
+  PbrTexture baseColorTexture, metallicRoughnessTexture, normalTexture, occlusionTexture, emissiveTexture;
+
+  PbrMaterial() = default;
+  PbrMaterial(const MetallicRoughness& source, const TextureLoader& load);
+
+  bool Textured() const {
+    return baseColorTexture || metallicRoughnessTexture || normalTexture || occlusionTexture || emissiveTexture;
+  }
+  bool ReadsTexCoord(int set) const;
+  // Whether its smooth surfaces trace a mirror ray: possibly smooth somewhere.
+  bool MaySmooth() const { return !unlit && (roughness < kMirrorRoughness || metallicRoughnessTexture); }
+  bool Transmits() const { return !unlit && transmission > 0 && metallic < 1; }
+
+  // The BRDF's inputs at a point with texture coordinates uv0, uv1 and vertex colour
+  // `vertexColor` (white where the mesh has none).
+  PbrSurface Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor) const;
+
+  static constexpr float kMirrorRoughness = static_cast<float>(Material::kMirrorRoughness);
+};
+
+}  // namespace tcfarm
