@@ -484,6 +484,25 @@ TEST_F(ApiServerTest, FramesMustLieInsideTheScenesRange) {
   ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/frames");
 }
 
+// The import options are read by the scene's own reader (import_options.h): its bounds and
+// words, at the submission's pointers.
+TEST_F(ApiServerTest, ImportOptionsAreCheckedAsAScenesAre) {
+  const json file{{"scene_file", "shot.glb"}};
+  auto refused = [&](const json& import) {
+    json body = file;
+    body["import"] = import;
+    return Post("/api/v1/jobs", body);
+  };
+  ExpectBadField(refused({{"spp", 0}}), "invalid_field", "/import/spp",
+                 "import/spp: 0 is out of range; expected samples per pixel, an integer in [1, 1024]");
+  ExpectBadField(refused({{"size", {64, 16385}}}), "invalid_field", "/import/size/1",
+                 "import/size/1: 16385 is out of range; expected a width or height in pixels");
+  ExpectBadField(refused({{"size", 64}}), "invalid_field", "/import/size", "expected [width, height]");
+  ExpectBadField(refused({{"fps", -1}}), "invalid_field", "/import/fps", "frames per second in [0.001, 100000]");
+  ExpectBadField(refused({{"camera", 1.5}}), "invalid_field", "/import/camera", "a name or an index");
+  ExpectBadField(refused({{"speed", 2}}), "unknown_field", "/import/speed", "only the fields");
+}
+
 TEST_F(ApiServerTest, StrategyMustBeOneThatRunsToday) {
   json body = Submission();
   for (const StrategyNameEntry& entry : kStrategyNames) {
