@@ -275,6 +275,7 @@ const std::vector<ApiServer::Route>& ApiServer::Routes() {
       {"POST", "/api/v1/assets/missing", Access::kSubmit, &ApiServer::FindMissingAssets},
       {"GET", "/api/v1/workers", Access::kRead, &ApiServer::ListWorkers},
       {"DELETE", "/api/v1/workers/distrusted", Access::kAdmin, &ApiServer::LiftWorkerBan},
+      {"GET", "/api/v1/strategies", Access::kRead, &ApiServer::ListStrategies},
       // Liveness probes (Kubernetes, compose) carry no token; the answer holds no data.
       {"GET", "/healthz", Access::kOpen, &ApiServer::Health},
       {"GET", "/metrics", Access::kRead, &ApiServer::Metrics},
@@ -932,6 +933,10 @@ void ApiServer::LiftWorkerBan(const httplib::Request& request, const std::string
     throw ApiError(404, error_code::kBanNotFound, "no worker is banned as " + principal);
   }
   WriteJson(response, json{{"lifted", principal}});
+}
+
+void ApiServer::ListStrategies(const httplib::Request&, const std::string&, httplib::Response& response) {
+  WriteJson(response, http::StrategiesJson());
 }
 
 void ApiServer::Health(const httplib::Request&, const std::string&, httplib::Response& response) {

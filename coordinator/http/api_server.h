@@ -177,6 +177,7 @@ class ApiServer {
   void FindMissingAssets(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void ListWorkers(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void LiftWorkerBan(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  void ListStrategies(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Health(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
 

@@ -484,6 +484,25 @@ TEST_F(ApiServerTest, FramesMustLieInsideTheScenesRange) {
   ExpectBadField(Post("/api/v1/jobs", body), "invalid_field", "/frames");
 }
 
+// The import options are read by the scene's own reader (import_options.h): its bounds and
+// words, at the submission's pointers.
+TEST_F(ApiServerTest, ImportOptionsAreCheckedAsAScenesAre) {
+  const json file{{"scene_file", "shot.glb"}};
+  auto refused = [&](const json& import) {
+    json body = file;
+    body["import"] = import;
+    return Post("/api/v1/jobs", body);
+  };
+  ExpectBadField(refused({{"spp", 0}}), "invalid_field", "/import/spp",
+                 "import/spp: 0 is out of range; expected samples per pixel, an integer in [1, 1024]");
+  ExpectBadField(refused({{"size", {64, 16385}}}), "invalid_field", "/import/size/1",
+                 "import/size/1: 16385 is out of range; expected a width or height in pixels");
+  ExpectBadField(refused({{"size", 64}}), "invalid_field", "/import/size", "expected [width, height]");
+  ExpectBadField(refused({{"fps", -1}}), "invalid_field", "/import/fps", "frames per second in [0.001, 100000]");
+  ExpectBadField(refused({{"camera", 1.5}}), "invalid_field", "/import/camera", "a name or an index");
+  ExpectBadField(refused({{"speed", 2}}), "unknown_field", "/import/speed", "only the fields");
+}
+
 TEST_F(ApiServerTest, StrategyMustBeOneThatRunsToday) {
   json body = Submission();
   for (const StrategyNameEntry& entry : kStrategyNames) {
@@ -1423,6 +1442,16 @@ TEST_F(ApiServerTest, DistrustedWorkersAreListedAndTheirBansLifted) {
   EXPECT_EQ(json::parse(again->body)["error"]["code"], "ban_not_found");
 }
 
+// The strategies clients offer are the coordinator's own list, in its order.
+TEST_F(ApiServerTest, ListsTheStrategiesItAccepts) {
+  httplib::Result result = Get("/api/v1/strategies");
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->status, 200);
+  json names = json::array();
+  for (const StrategyNameEntry& entry : kStrategyNames) names.push_back(std::string(entry.name));
+  EXPECT_EQ(json::parse(result->body), (json{{"strategies", names}, {"default", "search"}}));
+}
+
 TEST_F(ApiServerTest, Healthz) {
   httplib::Result result = Get("/healthz");
   ASSERT_TRUE(result);
@@ -1612,6 +1641,7 @@ TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
   add("JobList", Get("/api/v1/jobs"));
   add("WorkerList", Get("/api/v1/workers"));
   add("Health", Get("/healthz"));
+  add("StrategyList", Get("/api/v1/strategies"));
   add("Error", Post("/api/v1/jobs", json{{"scene", 1}}));
   add("Error", Get("/api/v1/jobs/555"));
   add("Error", Get("/nowhere"));
@@ -1682,7 +1712,7 @@ class ApiServerWithTokensTest : public ApiServerTest {
 };
 
 TEST_F(ApiServerWithTokensTest, EveryRouteButHealthzNeedsAKnownToken) {
-  for (const char* path : {"/api/v1/jobs", "/api/v1/jobs/1", "/api/v1/workers", "/metrics",
+  for (const char* path : {"/api/v1/jobs", "/api/v1/jobs/1", "/api/v1/workers", "/api/v1/strategies", "/metrics",
                            "/api/v1/jobs/1/frames/0.png", "/api/v1/jobs/1/frames/0/mask.png"}) {
     httplib::Result result = As("").Get(path);
     ExpectError(result, 401, "unauthorized");
@@ -1805,7 +1835,8 @@ TEST(OpenApiSpecTest, DescribesEveryRoute) {
                            "/api/v1/jobs/{id}/frames/{frame}/change.png:",
                            "/api/v1/assets/{sha256}:", "/api/v1/assets/missing:",
                            "/api/v1/jobs/{id}/retry:", "/api/v1/jobs/{id}/frames:", "/api/v1/jobs/{id}/events:",
-                           "/api/v1/events:", "/api/v1/workers:", "/healthz:", "/metrics:"}) {
+                           "/api/v1/events:", "/api/v1/workers:", "/api/v1/strategies:", "/healthz:",
+                           "/metrics:"}) {
     EXPECT_NE(text.str().find(std::string("\n  ") + path), std::string::npos) << path;
   }
 }

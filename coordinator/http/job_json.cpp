@@ -3,6 +3,8 @@
 #include <ctime>
 #include <cstdio>
 
+#include "coordinator/planner/strategy.h"
+
 namespace tcfarm::http {
 
 using nlohmann::json;
@@ -17,6 +19,12 @@ json IsoUtcOrNull(int64_t unixMs) {
                 utc.tm_mon + 1, utc.tm_mday, utc.tm_hour, utc.tm_min, utc.tm_sec,
                 static_cast<int>(unixMs % 1000));
   return text;
+}
+
+json StrategiesJson() {
+  json names = json::array();
+  for (const StrategyNameEntry& entry : kStrategyNames) names.push_back(std::string(entry.name));
+  return json{{"strategies", names}, {"default", std::string(StrategyName(kDefaultStrategy))}};
 }
 
 std::string JobPath(uint64_t id) { return "/api/v1/jobs/" + std::to_string(id); }

@@ -31,6 +31,10 @@ nlohmann::json WorkersJson(const FarmSnapshot& snapshot);
 // GET /api/v1/workers?distrusted: {"distrusted": [{principal, name, why, banned_at}]}.
 nlohmann::json BansJson(const std::vector<WorkerBan>& bans);
 
+// GET /api/v1/strategies: {"strategies": [names, in kStrategyNames's order], "default"}, so
+// clients offer the coordinator's own list instead of a copy of it.
+nlohmann::json StrategiesJson();
+
 std::string JobPath(uint64_t id);  // "/api/v1/jobs/<id>"
 
 }  // namespace tcfarm::http

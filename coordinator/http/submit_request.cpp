@@ -17,6 +17,7 @@
 #include "proto/frame/encoded_image.h"
 #include "coordinator/http/api_error.h"
 #include "proto/json/strict_json.h"
+#include "proto/scene/import/import_options.h"
 #include "proto/scene/import/scene_import.h"
 #include "proto/scene/scene.h"
 #include "proto/scene/scene_limits.h"
@@ -222,6 +223,26 @@ Scene ReadInlineScene(const json& scene, const std::optional<std::filesystem::pa
   }
 }
 
+// One member of "import", read by the scene's own reader of these options (import_options.h).
+void ReadImportOption(const std::string& key, const json& value, ImportOptions& options) {
+  const std::string pointer = "/import/" + EscapePointerToken(key);
+  if (key == "fps") {
+    options.framesPerSecond = ReadFramesPerSecond(value, pointer);
+  } else if (key == "size") {
+    if (!value.is_array() || value.size() != 2) {
+      Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not a size", "[width, height]");
+    }
+    options.width = ReadImageSide(value[0], pointer + "/0");
+    options.height = ReadImageSide(value[1], pointer + "/1");
+  } else if (key == "animation" || key == "camera") {
+    (key == "animation" ? options.animation : options.camera) = ReadNameOrIndex(value, pointer);
+  } else if (key == "spp") {
+    options.samplesPerPixel = ReadSamplesPerPixel(value, pointer);
+  } else {
+    Fail(error_code::kUnknownField, pointer, "unknown field", "only the fields fps, size, animation, camera, spp");
+  }
+}
+
 // "import": how a scene_file becomes a scene, as tcfarm-worker render's flags say it:
 // {"fps": F, "size": [W, H], "animation": name or index, "camera": name or index, "spp": N}.
 ImportOptions ReadImportOptions(const json& request) {
@@ -233,35 +254,13 @@ ImportOptions ReadImportOptions(const json& request) {
   if (request.find("scene_file") == request.end()) {
     Fail(error_code::kInvalidField, "/import", "given without a scene_file", "import options only with \"scene_file\"");
   }
-  for (const auto& item : import->items()) {
-    const std::string& key = item.key();
-    const json& value = item.value();
-    const std::string pointer = "/import/" + EscapePointerToken(key);
-    if (key == "fps") {
-      if (!value.is_number() || !(value.get<double>() >= scene_limits::kMinFramesPerSecond &&
-                                  value.get<double>() <= scene_limits::kMaxFramesPerSecond)) {
-        Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is out of range", "frames per second in [0.001, 100000]");
-      }
-      options.framesPerSecond = value.get<double>();
-    } else if (key == "size") {
-      const int maxSide = scene_limits::kMaxImageSide;
-      const std::string sizeExpected = "[width, height], each an integer in [1, " + std::to_string(maxSide) + "]";
-      if (!value.is_array() || value.size() != 2) Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not a size", sizeExpected);
-      options.width = ReadInteger(value[0], pointer + "/0", 1, maxSide, sizeExpected);
-      options.height = ReadInteger(value[1], pointer + "/1", 1, maxSide, sizeExpected);
-    } else if (key == "animation" || key == "camera") {
-      if (!value.is_string() && !IsIntegral(value)) {
-        Fail(error_code::kInvalidField, pointer, ShowValue(value) + " is not a name or an index", "a name or an index");
-      }
-      (key == "animation" ? options.animation : options.camera) =
-          value.is_string() ? value.get<std::string>() : std::to_string(value.get<long long>());
-    } else if (key == "spp") {
-      const int maxSamples = scene_limits::kMaxSamplesPerPixel;
-      options.samplesPerPixel =
-          ReadInteger(value, pointer, 1, maxSamples, "samples per pixel in [1, " + std::to_string(maxSamples) + "]");
-    } else {
-      Fail(error_code::kUnknownField, pointer, "unknown field", "only the fields fps, size, animation, camera, spp");
-    }
+  try {
+    for (const auto& item : import->items()) ReadImportOption(item.key(), item.value(), options);
+  } catch (const SceneError& error) {
+    // The scene's reader words the problem; the API's style names the pointer without "scene".
+    const std::string prefix = "scene" + error.pointer() + ": ";
+    throw ApiError(400, error_code::kInvalidField,
+                   error.pointer().substr(1) + ": " + std::string(error.what()).substr(prefix.size()), error.pointer());
   }
   return options;
 }

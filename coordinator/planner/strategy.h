@@ -20,9 +20,10 @@ struct StrategyNameEntry {
   Strategy strategy;
   std::string_view name;
 };
-// The one list of names: the HTTP API validates against it, the job store writes it, and
-// api_server_test checks that proto/openapi.yaml lists the same (the CLI's test checks its
-// choices against openapi.yaml). In the API's order; the first is a submission's default.
+// The one list of names: the HTTP API validates against it and serves it (GET
+// /api/v1/strategies, which the dashboard's menus and `tcfarm strategies` show), the job
+// store writes it, and api_server_test checks that proto/openapi.yaml's enums list the same.
+// In the API's order; the first is a submission's default.
 inline constexpr StrategyNameEntry kStrategyNames[] = {{Strategy::kSearch, "search"},
                                                        {Strategy::kBrute, "brute"},
                                                        {Strategy::kGuarded, "guarded"},

@@ -72,8 +72,6 @@ function timeOf(iso) {
 }
 
 const FINAL_STATES = ["completed", "failed", "canceled"];
-// The coordinator's strategies (proto/openapi.yaml), offered by every <select data-strategies>.
-const STRATEGIES = ["auto", "exact", "guarded", "search", "brute"];
 
 // --- API token -------------------------------------------------------------------------
 
@@ -710,7 +708,22 @@ async function refreshJob() {
   if (state.stream !== "live") await loadEvents(id);
 }
 
+// Every <select data-strategies> offers the coordinator's own strategies (GET
+// /api/v1/strategies), once per page: a select marked data-default names the farm's default
+// in its empty option.
+let strategiesShown = false;
+async function showStrategies() {
+  const listed = await getJson(`${API}/strategies`);
+  for (const select of document.querySelectorAll("select[data-strategies]")) {
+    select.append(...listed.strategies.map((name) => el("option", { value: name, text: name })));
+    const fallback = select.querySelector("option[data-default]");
+    if (fallback) fallback.textContent = `the farm's default (${listed.default})`;
+  }
+  strategiesShown = true;
+}
+
 async function refresh() {
+  if (!strategiesShown) await showStrategies();
   const query = listQuery();
   const [page, farm] = await Promise.all([getJson(`${API}/jobs?${query}`), getJson(`${API}/workers`)]);
   // Filters or the page changed meanwhile: this answer is of a list no longer asked for,
@@ -843,9 +856,6 @@ function init() {
   });
   $("token-button").addEventListener("click", () => showSignIn(true, "A token of the farm's --api-tokens file."));
   $("sign-out").addEventListener("click", signOut);
-  for (const select of document.querySelectorAll("select[data-strategies]")) {
-    select.append(...STRATEGIES.map((name) => el("option", { value: name, text: name })));
-  }
   initCharts();
   initActions();
   initFilters();

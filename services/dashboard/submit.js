@@ -47,8 +47,9 @@ function canonical(name, scenePath, what) {
 
 function* jsonReferences(scene) {
   const shapes = scene && Array.isArray(scene.shapes) ? scene.shapes : [];
-  for (const shape of shapes) {
-    if (shape && typeof shape.file === "string") yield [shape.file, "mesh file"];
+  const meshes = scene && scene.meshes && typeof scene.meshes === "object" ? Object.values(scene.meshes) : [];
+  for (const mesh of [...shapes, ...meshes]) {
+    if (mesh && typeof mesh.file === "string") yield [mesh.file, "mesh file"];
   }
   const materials = scene && scene.materials && typeof scene.materials === "object" ? scene.materials : {};
   for (const material of Object.values(materials)) {
@@ -64,23 +65,50 @@ function* objLibraries(text) {
   }
 }
 
-// The files a glTF or OBJ file names, relative to its own folder.
-function referencesOfFile(text, suffix, path) {
+// A uri's path: %XX escapes decoded. A '%' that starts no escape, or escapes that are not
+// UTF-8, name no file the farm would read.
+function decodeUri(uri, path, what) {
+  try {
+    if (!/%(?![0-9A-Fa-f]{2})/.test(uri)) return decodeURIComponent(uri);
+  } catch (e) {
+    if (!(e instanceof URIError)) throw e;
+  }
+  throw new SceneFileError(`${path}: ${what} uri "${uri}" has a '%' that is not an escape (a file named with '%' is written %25)`);
+}
+
+// A GLB's JSON chunk (the first, right after the 12-byte header), as text.
+function glbJson(bytes, path) {
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const word = (at) => String.fromCharCode(...bytes.subarray(at, at + 4));
+  if (bytes.length < 20 || word(0) !== "glTF") throw new SceneFileError(`${path} is not a GLB file`);
+  const length = view.getUint32(12, true);
+  if (word(16) !== "JSON" || 20 + length > bytes.length) throw new SceneFileError(`${path}: its first chunk is not JSON`);
+  return new TextDecoder().decode(bytes.subarray(20, 20 + length));
+}
+
+function namedByGltf(text, path) {
+  let documentJson;
+  try { documentJson = JSON.parse(text); } catch (e) { throw new SceneFileError(`${path} is not glTF JSON: ${e.message}`); }
   const found = [];
-  if (suffix === ".gltf") {
-    let documentJson;
-    try { documentJson = JSON.parse(text); } catch (e) { throw new SceneFileError(`${path} is not glTF JSON: ${e.message}`); }
-    for (const [kind, what] of [["buffers", "buffer"], ["images", "image"]]) {
-      const entries = documentJson && Array.isArray(documentJson[kind]) ? documentJson[kind] : [];
-      for (const entry of entries) {
-        const uri = entry && entry.uri;
-        if (typeof uri === "string" && !uri.startsWith("data:")) found.push([decodeURIComponent(uri), what]);
-      }
+  for (const [kind, what] of [["buffers", "buffer"], ["images", "image"]]) {
+    const entries = documentJson && Array.isArray(documentJson[kind]) ? documentJson[kind] : [];
+    for (const entry of entries) {
+      const uri = entry && entry.uri;
+      if (typeof uri === "string" && !uri.startsWith("data:")) found.push([decodeUri(uri, path, what), what]);
     }
-  } else if (suffix === ".obj") {
-    for (const name of objLibraries(text)) found.push([name, "material library"]);
   }
   return found;
+}
+
+// The files a glTF, GLB or OBJ file names, relative to its own folder (canonical, and
+// refused when they leave it: the farm resolves them inside that folder).
+async function referencesOfFile(file) {
+  const suffix = suffixOf(file.name);
+  let named = [];
+  if (suffix === ".gltf") named = namedByGltf(await file.text(), file.name);
+  else if (suffix === ".glb") named = namedByGltf(glbJson(new Uint8Array(await file.arrayBuffer()), file.name), file.name);
+  else if (suffix === ".obj") named = Array.from(objLibraries(await file.text()), (name) => [name, "material library"]);
+  return named.map(([name, what]) => [canonical(name, file.name, what), what]);
 }
 
 // Finds a referenced file among the chosen ones: by its path under a chosen folder, else
@@ -119,16 +147,13 @@ async function sceneFiles(sceneFile, chosen) {
       const relative = add(imported, sceneFile.name, "imported file");
       const file = assets.get(relative);
       const base = dirname(relative);
-      for (const [name, what] of referencesOfFile(await file.text(), suffixOf(file.name), file.name)) {
-        add(base ? `${base}/${name}` : name, file.name, what);
-      }
+      for (const [name, what] of await referencesOfFile(file)) add(base ? `${base}/${name}` : name, file.name, what);
     }
     return { scene, sceneFile: null, assets };
   }
   // Any other file goes to the farm as it is, which imports it by its type.
   assets.set(sceneFile.name, sceneFile);
-  const text = suffix === ".glb" ? "" : await sceneFile.text();
-  for (const [name, what] of referencesOfFile(text, suffix, sceneFile.name)) add(name, sceneFile.name, what);
+  for (const [name, what] of await referencesOfFile(sceneFile)) add(name, sceneFile.name, what);
   return { scene: null, sceneFile: sceneFile.name, assets };
 }
 

@@ -191,12 +191,14 @@ def test_cancel_of_a_finished_job_is_refused(farm, finished_job, tcfarm):
     assert result.returncode == 1 and "job_finished (409)" in result.stderr
 
 
-def test_strategy_choices_are_the_apis():
-    # The coordinator's own list is checked against the same spec (api_server_test).
-    yaml = pytest.importorskip("yaml")
-    from tcfarm.cli import STRATEGIES  # farm_harness put the client on the path
-    spec = yaml.safe_load((ROOT / "proto" / "openapi.yaml").read_text())
-    schemas = spec["components"]["schemas"]
-    enums = [schema["properties"]["strategy"]["enum"] for schema in schemas.values()
-             if "strategy" in schema.get("properties", {})]
-    assert len(enums) == 2 and all(sorted(enum) == sorted(STRATEGIES) for enum in enums), enums
+def test_strategies_come_from_the_farm(farm, tcfarm):
+    listed = tcfarm(farm, "--json", "strategies")
+    assert listed.returncode == 0, listed.stderr
+    served = json.loads(listed.stdout)
+    assert "exact" in served["strategies"] and served["default"] in served["strategies"]
+    shown = tcfarm(farm, "strategies").stdout.splitlines()
+    assert shown == [f"{name} (default)" if name == served["default"] else name
+                     for name in served["strategies"]]
+    # The CLI passes any name on: the farm's 400 names the one it does not run.
+    unknown = tcfarm(farm, "list", "--strategy", "magic")
+    assert unknown.returncode == 1 and '"magic" is not a strategy' in unknown.stderr, unknown.stderr

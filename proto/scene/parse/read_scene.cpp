@@ -1,6 +1,8 @@
 // Reading a scene document: its parts in order, an imported base, the render settings.
 #include "proto/scene/parse/scene_reader.h"
 
+#include "proto/scene/import/import_options.h"
+
 namespace tcfarm::scene_parse {
 
 SceneReader::SceneReader(std::optional<std::filesystem::path> baseDirectory, Checkpoint checkpoint)
@@ -64,20 +66,16 @@ Scene SceneReader::ReadImport(const Node& root) {
 
 ImportOptions SceneReader::ReadImportOptions(const Node& root, const Node& node) const {
   ImportOptions options;
-  if (node.Has("fps")) options.framesPerSecond = ReadInRange(node.Member("fps"), kMinFramesPerSecond, kMaxFramesPerSecond, "frames per second");
-  for (const char* key : {"animation", "camera"}) {
-    if (!node.Has(key)) continue;
-    const Node choice = node.Member(key);
-    if (!choice.value.is_string() && !IsIntegral(choice.value)) FailType(choice, "a name or an index");
-    (std::string(key) == "animation" ? options.animation : options.camera) =
-        choice.value.is_string() ? choice.value.get<std::string>() : std::to_string(choice.value.get<int64_t>());
-  }
+  if (node.Has("fps")) options.framesPerSecond = ReadFramesPerSecond(node.value.at("fps"), node.MemberPointer("fps"));
+  if (node.Has("animation")) options.animation = ReadNameOrIndex(node.value.at("animation"), node.MemberPointer("animation"));
+  if (node.Has("camera")) options.camera = ReadNameOrIndex(node.value.at("camera"), node.MemberPointer("camera"));
   if (root.Has("render") && root.value["render"].is_object()) {
     const Node render = root.Member("render");
-    if (render.Has("width")) options.width = ReadInt(render.Member("width"), 1, kMaxImageSide);
-    if (render.Has("height")) options.height = ReadInt(render.Member("height"), 1, kMaxImageSide);
+    if (render.Has("width")) options.width = ReadImageSide(render.value.at("width"), render.MemberPointer("width"));
+    if (render.Has("height")) options.height = ReadImageSide(render.value.at("height"), render.MemberPointer("height"));
     if (render.Has("samples_per_pixel")) {
-      options.samplesPerPixel = ReadInt(render.Member("samples_per_pixel"), 1, kMaxSamplesPerPixel);
+      options.samplesPerPixel =
+          ReadSamplesPerPixel(render.value.at("samples_per_pixel"), render.MemberPointer("samples_per_pixel"));
     }
   }
   return options;
@@ -88,8 +86,11 @@ RenderSettings SceneReader::ReadRender(const Node& node, const std::optional<Ren
                "render settings");
   RenderSettings render = base.value_or(RenderSettings{});
   const std::string sideExpected = "an integer in [1, " + std::to_string(kMaxImageSide) + "]";
-  if (!base || node.Has("width")) render.width = ReadInt(Required(node, "width", sideExpected), 1, kMaxImageSide);
-  if (!base || node.Has("height")) render.height = ReadInt(Required(node, "height", sideExpected), 1, kMaxImageSide);
+  for (const char* side : {"width", "height"}) {
+    if (base && !node.Has(side)) continue;
+    const Node value = Required(node, side, sideExpected);
+    (std::string(side) == "width" ? render.width : render.height) = ReadImageSide(value.value, value.pointer);
+  }
   if (node.Has("frames")) {
     Node frames = node.Member("frames");
     ExpectObject(frames, {"start", "count"}, "{\"start\": first frame, \"count\": number of frames}");
@@ -97,7 +98,7 @@ RenderSettings SceneReader::ReadRender(const Node& node, const std::optional<Ren
     if (frames.Has("count")) render.frameCount = ReadInt(frames.Member("count"), 1, kMaxFrameCount);
   }
   if (node.Has("samples_per_pixel")) {
-    render.samplesPerPixel = ReadInt(node.Member("samples_per_pixel"), 1, kMaxSamplesPerPixel);
+    render.samplesPerPixel = ReadSamplesPerPixel(node.value.at("samples_per_pixel"), node.MemberPointer("samples_per_pixel"));
   }
   if (node.Has("max_depth")) render.maxDepth = ReadInt(node.Member("max_depth"), 0, kMaxBounceDepth);
   if (node.Has("shadows")) {

@@ -9,6 +9,7 @@
   tcfarm frames JOB --out DIR [--format png|exr]
   tcfarm cancel JOB | retry JOB | delete JOB [--yes] | priority JOB N | rename JOB NAME
   tcfarm workers
+  tcfarm strategies           the strategies the farm runs, and its default
   tcfarm distrusted [--lift PRINCIPAL]   workers banned for returning wrong values
   tcfarm analyze JOB|DIR      coherence of a job's frames (from the farm) or of a folder
 
@@ -29,8 +30,9 @@ from tcfarm import __version__
 from tcfarm.client import FINAL_STATES, ApiError, Client
 from tcfarm.scene_files import SceneFileError, scene_files
 
-# The coordinator's strategies (proto/openapi.yaml; tests/cli/test_client_cli.py keeps them equal).
-STRATEGIES = ("auto", "exact", "guarded", "search", "brute")
+# Strategy names are not checked here: the farm knows its own (GET /api/v1/strategies), and its
+# 400 names a strategy it does not run.
+STRATEGY_HELP = "one of the farm's strategies (tcfarm strategies lists them)"
 
 
 def _frames(text):
@@ -289,6 +291,16 @@ def cmd_workers(client, args):
         print("no workers connected")
     print(f"{len(workers)} workers, {farm.get('queued_tasks', 0)} tasks queued, "
           f"{farm.get('in_flight_tasks', 0)} in flight")
+    return 0
+
+
+def cmd_strategies(client, args):
+    listed = client.strategies()
+    if args.json:
+        print(json.dumps(listed, indent=1))
+        return 0
+    for name in listed["strategies"]:
+        print(f"{name} (default)" if name == listed["default"] else name)
     return 0
 
 
@@ -564,8 +576,8 @@ def _parser():
     submit.add_argument("--name", help="the job's name (default: the file's name)")
     submit.add_argument("--frames", type=_frames, help="A:B, the frames to render, inclusive "
                                                         "(default: the scene's)")
-    submit.add_argument("--strategy", choices=STRATEGIES, help="how to save tracing "
-                                                                "(default: the farm's, search)")
+    submit.add_argument("--strategy", help=f"how to save tracing: {STRATEGY_HELP} "
+                                           "(default: the farm's)")
     submit.add_argument("--bin-width", type=int, help="bin width n (search, guarded) or segment "
                                                       "length (exact)")
     submit.add_argument("--tolerance", type=float, help="largest difference two pixel values may "
@@ -583,7 +595,8 @@ def _parser():
     listing = command("list", "list jobs, newest first, with filters and pages")
     listing.add_argument("--state", type=_states, help="only jobs in these states, e.g. "
                                                        "running or failed,canceled")
-    listing.add_argument("--strategy", choices=STRATEGIES, help="only jobs of this strategy")
+    listing.add_argument("--strategy", help=f"only jobs of these strategies, e.g. exact or "
+                                            f"search,brute: {STRATEGY_HELP}")
     listing.add_argument("--name", help="only jobs whose name contains this (any case)")
     listing.add_argument("--limit", type=_positive, default=20, help="jobs a page (default 20)")
     where = listing.add_mutually_exclusive_group()
@@ -627,6 +640,7 @@ def _parser():
     frames.add_argument("--format", choices=["png", "exr"], default="png",
                         help="png (8-bit) or exr (the float frames) (default png)")
     command("workers", "the workers connected, what each has done, and the tasks queued")
+    command("strategies", "the strategies the farm runs, its default marked")
     distrusted = command("distrusted", "workers banned for returning wrong values",
                          "Workers the farm banned for returning wrong values (by CURVE key, or "
                          "by name and address without CURVE), or --lift one ban (an admin "
@@ -650,7 +664,7 @@ def main(argv=None):
         return 1
     commands = {
         "submit": cmd_submit, "frames": cmd_frames, "analyze": cmd_analyze, "workers": cmd_workers,
-        "distrusted": cmd_distrusted,
+        "strategies": cmd_strategies, "distrusted": cmd_distrusted,
         "status": cmd_status, "list": cmd_list, "delete": cmd_delete, "events": cmd_events,
         "watch": cmd_watch,
         "wait": lambda client, args: _print_job(client.wait(args.job), args),

@@ -195,6 +195,10 @@ class Client:
     def workers(self):
         return self._request("GET", "/api/v1/workers")
 
+    def strategies(self):
+        """{"strategies": [names, in the farm's order], "default": name}."""
+        return self._request("GET", "/api/v1/strategies")
+
     def distrusted_workers(self):
         """Workers banned for returning wrong values: [{principal, name, why, banned_at}]."""
         return self._request("GET", "/api/v1/workers?distrusted")["distrusted"]

@@ -1,14 +1,17 @@
 """The files a scene file references, found the way the coordinator will look for them.
 
-A tcfarm JSON scene names OBJ mesh files in its shapes' "file"; an OBJ scene names its
-material libraries with mtllib; a .gltf names its buffers and images by "uri" (data URIs
-travel inside it; a .glb carries its own). Each reference is a path relative to the scene's folder;
+A tcfarm JSON scene names OBJ mesh files in its shapes' and shared meshes' "file"; an OBJ
+scene names its material libraries with mtllib; a .gltf or .glb names its buffers and images
+by "uri" (data URIs travel inside it; a .glb's own buffer is its BIN chunk). Each reference is a path relative to the scene's folder;
 the farm lays the uploaded files out under exactly those paths, so they are written here
 in the canonical form the API accepts ("meshes/a.obj", never "./meshes//a.obj").
 """
 import json
 import pathlib
 import posixpath
+import re
+import struct
+from urllib.parse import unquote
 
 
 class SceneFileError(Exception):
@@ -44,9 +47,11 @@ def _add(assets, folder, name, scene_path, what):
 def _json_references(scene):
     """The mesh files and texture images a tcfarm JSON scene names."""
     shapes = scene.get("shapes") if isinstance(scene, dict) else None
-    for shape in shapes if isinstance(shapes, list) else []:
-        if isinstance(shape, dict) and isinstance(shape.get("file"), str):
-            yield shape["file"], "mesh file"
+    meshes = scene.get("meshes") if isinstance(scene, dict) else None
+    for mesh in (shapes if isinstance(shapes, list) else []) + list(
+            meshes.values() if isinstance(meshes, dict) else []):
+        if isinstance(mesh, dict) and isinstance(mesh.get("file"), str):
+            yield mesh["file"], "mesh file"
     materials = scene.get("materials") if isinstance(scene, dict) else None
     for material in materials.values() if isinstance(materials, dict) else []:
         texture = material.get("diffuse_texture") if isinstance(material, dict) else None
@@ -62,25 +67,47 @@ def _obj_libraries(text):
             yield from words[1:]
 
 
-def _gltf_uris(document):
+# A '%' that does not start an escape of two hex digits: the farm refuses such a uri.
+_MALFORMED_ESCAPE = re.compile(r"%(?![0-9A-Fa-f]{2})")
+
+
+def _gltf_uris(document, path):
     """The external buffers and images a glTF document names (URI-encoded paths)."""
-    from urllib.parse import unquote
     for kind, what in (("buffers", "buffer"), ("images", "image")):
         entries = document.get(kind) if isinstance(document, dict) else None
         for entry in entries if isinstance(entries, list) else []:
             uri = entry.get("uri") if isinstance(entry, dict) else None
             if isinstance(uri, str) and not uri.startswith("data:"):
+                if _MALFORMED_ESCAPE.search(uri):
+                    raise SceneFileError(f"{path}: {what} uri {uri!r} has a '%' that is not an escape "
+                                         "(a file named with '%' is written %25)")
                 yield unquote(uri), what
 
 
+def _glb_json(data, path):
+    """A GLB's JSON chunk (the first, right after the 12-byte header)."""
+    if len(data) < 20 or data[:4] != b"glTF":
+        raise SceneFileError(f"{path} is not a GLB file")
+    length, kind = struct.unpack_from("<I4s", data, 12)
+    if kind != b"JSON" or 20 + length > len(data):
+        raise SceneFileError(f"{path}: its first chunk is not JSON")
+    return data[20:20 + length]
+
+
 def _references_of_file(data, suffix, path):
-    """The files a glTF or OBJ file names, relative to its own folder."""
-    if suffix == ".gltf":
+    """The files a glTF or OBJ file names, relative to its own folder (canonical, and refused
+    when they leave it: the farm resolves them inside that folder)."""
+    for name, what in _named_by_file(data, suffix, path):
+        yield _canonical(name, path, what), what
+
+
+def _named_by_file(data, suffix, path):
+    if suffix in (".gltf", ".glb"):
         try:
-            document = json.loads(data)
+            document = json.loads(_glb_json(data, path) if suffix == ".glb" else data)
         except ValueError as e:
             raise SceneFileError(f"{path} is not glTF JSON: {e}") from None
-        yield from _gltf_uris(document)
+        yield from _gltf_uris(document, path)
     elif suffix == ".obj":
         for name in _obj_libraries(data.decode("utf-8", errors="replace")):
             yield name, "material library"
@@ -88,7 +115,7 @@ def _references_of_file(data, suffix, path):
 
 def _add_imported(assets, folder, scene, scene_path):
     """A JSON scene's imported file (its "import": {"file"}) and what that file names, each
-    relative to the scene's folder."""
+    listed relative to the scene's folder (what it names stays inside its own)."""
     imported = scene.get("import") if isinstance(scene, dict) else None
     name = imported.get("file") if isinstance(imported, dict) else None
     if not isinstance(name, str):

@@ -13,11 +13,26 @@
 
 namespace tcfarm::gltf {
 
+namespace {
+
+bool IsEscapeAt(const std::string& text, size_t i) {
+  return text[i] == '%' && i + 2 < text.size() && std::isxdigit(static_cast<unsigned char>(text[i + 1])) &&
+         std::isxdigit(static_cast<unsigned char>(text[i + 2]));
+}
+
+}  // namespace
+
+bool HasMalformedEscape(const std::string& text) {
+  for (size_t i = 0; i < text.size(); ++i) {
+    if (text[i] == '%' && !IsEscapeAt(text, i)) return true;
+  }
+  return false;
+}
+
 std::string UrlDecode(const std::string& text) {
   std::string decoded;
   for (size_t i = 0; i < text.size(); ++i) {
-    if (text[i] == '%' && i + 2 < text.size() && std::isxdigit(static_cast<unsigned char>(text[i + 1])) &&
-        std::isxdigit(static_cast<unsigned char>(text[i + 2]))) {
+    if (IsEscapeAt(text, i)) {
       decoded += static_cast<char>(std::stoi(text.substr(i + 1, 2), nullptr, 16));
       i += 2;
     } else {

@@ -32,5 +32,8 @@ bool KeepImageEncoded(tinygltf::Image* image, int imageIndex, std::string* error
 
 // A uri's %XX escapes decoded.
 std::string UrlDecode(const std::string& text);
+// True when a '%' in `text` is not followed by two hex digits: tinygltf's own decoding then
+// names another file than UrlDecode, so such a uri is refused rather than half-read.
+bool HasMalformedEscape(const std::string& text);
 
 }  // namespace tcfarm::gltf

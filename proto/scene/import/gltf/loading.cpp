@@ -130,6 +130,10 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
         Fail(pointer, what + " " + QuoteInput(uri) + " cannot be read: the file was submitted without a folder",
              "a self-contained glTF (data URIs or GLB), or one imported from a folder holding its files");
       }
+      if (HasMalformedEscape(uri)) {
+        Fail(pointer, what + " " + QuoteInput(uri) + " has a '%' that is not an escape",
+             "a URI whose '%' each start an escape of two hex digits (a file named with '%' writes it %25)");
+      }
       std::filesystem::path path;
       try {
         path = ResolveInsideFolder(*input_.baseDirectory, UrlDecode(uri), pointer, what);
