@@ -61,17 +61,7 @@ std::string Dispatcher::BoundEndpoint() const {
   return socket_.get(zmq::sockopt::last_endpoint);
 }
 
-// Symmetric around 0 on a log scale: 100 against 0 is what 0 is against -100. A weight
-// of 1 + max(0, p) once made every negative priority run like 0.
-double Dispatcher::WeightOf(int priority) {
-  return priority >= 0 ? 1.0 + priority : 1.0 / (1.0 - priority);
-}
-
-void Dispatcher::SetPriority(uint64_t jobId, int priority) {
-  auto job = jobs_.find(jobId);
-  if (job == jobs_.end()) return;
-  job->second.weight = WeightOf(priority);
-}
+void Dispatcher::SetPriority(uint64_t jobId, int priority) { queue_.SetPriority(jobId, priority); }
 
 std::vector<WorkerLoss> Dispatcher::TakeWorkerLosses() {
   std::vector<WorkerLoss> losses;
@@ -81,51 +71,23 @@ std::vector<WorkerLoss> Dispatcher::TakeWorkerLosses() {
 
 void Dispatcher::AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
                         const std::string& sceneHash, const std::string& sceneJson) {
-  JobQueue queue;
-  queue.weight = WeightOf(priority);
-  queue.width = width;
-  queue.height = height;
-  queue.sceneHash = sceneHash;
-  // A new job starts level with the others instead of owing them its whole history.
-  for (const auto& [id, other] : jobs_) queue.pass = std::max(queue.pass, other.pass);
-  jobs_[jobId] = std::move(queue);
+  queue_.AddJob(jobId, priority, width, height, sceneHash);
   scenes_[sceneHash] = sceneJson;
 }
 
 void Dispatcher::RemoveJob(uint64_t jobId) {
-  auto job = jobs_.find(jobId);
-  if (job == jobs_.end()) return;
-  std::string hash = job->second.sceneHash;
-  jobs_.erase(job);
+  if (!queue_.HasJob(jobId)) return;
+  const std::string hash = queue_.JobOf(jobId).sceneHash;
   std::set<std::string> holders;  // workers that held its tasks, and may be building its scene
-  for (auto it = tasks_.begin(); it != tasks_.end();) {
-    if (it->second.task.jobId != jobId) {
-      ++it;
-      continue;
-    }
-    if (it->second.pending) --pendingCount_;
-    if (std::string holder = registry_.Forget(it->first); !holder.empty()) holders.insert(holder);
-    it = tasks_.erase(it);
+  for (uint64_t taskId : queue_.RemoveJob(jobId)) {
+    if (std::string holder = registry_.Forget(taskId); !holder.empty()) holders.insert(holder);
   }
-  bool sceneStillUsed = std::any_of(jobs_.begin(), jobs_.end(),
-                                    [&](const auto& j) { return j.second.sceneHash == hash; });
-  if (sceneStillUsed) return;
+  if (queue_.SceneUsed(hash)) return;
   scenes_.erase(hash);
   for (const std::string& holder : holders) Send(holder, wire::Error{0, hash, "no job uses this scene any more", ""});
 }
 
-void Dispatcher::Enqueue(DispatchTask task) {
-  auto job = jobs_.find(task.jobId);
-  if (job == jobs_.end()) return;
-  uint64_t id = nextTaskId_++;
-  job->second.pending.push_back(id);
-  TaskEntry entry;
-  entry.task = std::move(task);
-  tasks_.emplace(id, std::move(entry));
-  ++pendingCount_;
-}
-
-size_t Dispatcher::PendingTasks() const { return pendingCount_; }
+void Dispatcher::Enqueue(DispatchTask task) { queue_.Enqueue(std::move(task)); }
 
 void Dispatcher::Receive(Milliseconds timeout, DispatchSink& sink) {
   wire::WaitForInput(socket_, timeout);
@@ -295,12 +257,12 @@ void Dispatcher::OnReady(const std::string& identity, const wire::Peer& peer, co
 }
 
 bool Dispatcher::IsHolder(const std::string& identity, uint64_t taskId) {
-  auto entry = tasks_.find(taskId);
-  if (entry == tasks_.end() || entry->second.pending) {
+  const TaskQueue::Entry* entry = queue_.Find(taskId);
+  if (!entry || entry->pending) {
     ++counters_.duplicateResults;  // settled, requeued, or its job is gone: harmless
     return false;
   }
-  if (entry->second.holder == identity) return true;
+  if (entry->holder == identity) return true;
   if (counters_.foreignReplies++ < kLoggedSamples) {
     const WorkerState* sender = registry_.Find(identity);
     std::fprintf(stderr, "coordinator: dropped a reply for task %llu from %s; it was given to another worker\n",
@@ -356,30 +318,17 @@ const WorkerState* Dispatcher::FindPrincipal(const std::string& principal) const
 }
 
 std::vector<DispatchTask> Dispatcher::TakeStranded() {
-  std::vector<DispatchTask> stranded;
-  if (pendingCount_ == 0) return stranded;  // the common case on a busy farm's every turn
-  for (auto& [jobId, job] : jobs_) {
-    for (auto it = job.pending.begin(); it != job.pending.end();) {
-      auto entry = tasks_.find(*it);
-      if (!entry->second.task.refereeMayTrace || AnyWorkerMayTake(entry->second)) {
-        ++it;
-        continue;
-      }
-      stranded.push_back(std::move(entry->second.task));
-      tasks_.erase(entry);
-      --pendingCount_;
-      ++counters_.tasksStranded;
-      it = job.pending.erase(it);
-    }
-  }
+  std::vector<DispatchTask> stranded =
+      queue_.TakeStranded([this](const TaskQueue::Entry& entry) { return AnyWorkerMayTake(entry); });
+  counters_.tasksStranded += stranded.size();
   return stranded;
 }
 
 void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
                           DispatchSink& sink) {
   if (!IsHolder(identity, result.taskId)) return;
-  auto entry = tasks_.find(result.taskId);
-  const std::string wrong = ResultMismatch(entry->second.task, result);
+  TaskQueue::Entry& entry = *queue_.Find(result.taskId);
+  const std::string wrong = ResultMismatch(entry.task, result);
   if (!wrong.empty()) {
     // A wrong answer to its own task: nothing it sends can be trusted. The pixels are
     // still owed, so its tasks go to the others.
@@ -394,9 +343,9 @@ void Dispatcher::OnResult(const std::string& identity, wire::Result&& result,
   worker.traceSeconds += result.traceSeconds;
   ++counters_.resultsReceived;
   counters_.pixelsReceived += result.PixelCount();
-  const double latency = std::chrono::duration<double>(clock_.Now() - entry->second.sentAt).count();
-  const DispatchTask answered = std::move(entry->second.task);
-  tasks_.erase(entry);
+  const double latency = std::chrono::duration<double>(clock_.Now() - entry.sentAt).count();
+  const DispatchTask answered = std::move(entry.task);
+  queue_.Erase(result.taskId);
   sink.OnResult(answered, std::move(result), latency, worker);
 }
 
@@ -404,7 +353,7 @@ void Dispatcher::OnError(const std::string& identity, const wire::Error& error,
                          DispatchSink& sink) {
   if (error.taskId == 0 || !IsHolder(identity, error.taskId)) return;
   registry_.Release(identity, error.taskId);
-  TaskEntry& entry = tasks_.at(error.taskId);
+  TaskQueue::Entry& entry = *queue_.Find(error.taskId);
   entry.failedBy.insert(identity);
   if (entry.failedBy.size() < kWorkersThatMustFailATask) {
     // It may be this worker's fault (a full disk, a broken cache): another worker tries.
@@ -422,24 +371,13 @@ void Dispatcher::OnError(const std::string& identity, const wire::Error& error,
   const std::string why = entry.firstError == error.message
                               ? error.message
                               : entry.firstError + "; on another worker: " + error.message;
-  tasks_.erase(error.taskId);
+  queue_.Erase(error.taskId);
   sink.OnTaskFailed(jobId, plannerTaskId, why);
 }
 
 std::map<uint64_t, size_t> Dispatcher::Requeue(const std::vector<uint64_t>& taskIds) {
-  std::map<uint64_t, size_t> requeued;
-  for (uint64_t id : taskIds) {
-    auto entry = tasks_.find(id);
-    if (entry == tasks_.end() || entry->second.pending) continue;
-    auto job = jobs_.find(entry->second.task.jobId);
-    if (job == jobs_.end()) continue;
-    entry->second.pending = true;
-    entry->second.holder.clear();
-    ++pendingCount_;
-    job->second.pending.push_front(id);  // it waited long enough already
-    ++counters_.requeued;
-    ++requeued[job->first];
-  }
+  std::map<uint64_t, size_t> requeued = queue_.Requeue(taskIds);
+  for (const auto& [jobId, tasks] : requeued) counters_.requeued += tasks;
   return requeued;
 }
 
@@ -460,53 +398,26 @@ void Dispatcher::SendHeartbeats(SteadyTime now) {
   for (const auto& [identity, worker] : registry_.workers()) Send(identity, wire::Heartbeat{});
 }
 
-bool Dispatcher::AnyWorkerMayTake(const TaskEntry& entry) const {
+bool Dispatcher::AnyWorkerMayTake(const TaskQueue::Entry& entry) const {
   for (const auto& [identity, worker] : registry_.workers()) {
-    if (MayTake(entry, worker)) return true;
+    if (TaskQueue::MayTake(entry, worker)) return true;
   }
   return false;
-}
-
-bool Dispatcher::MayTake(const TaskEntry& entry, const WorkerState& worker) {
-  return !entry.failedBy.count(worker.identity) && !entry.task.avoid.count(worker.principal);
-}
-
-uint64_t Dispatcher::TakeTaskFor(const WorkerState& worker) {
-  std::vector<JobQueue*> order;
-  for (auto& [id, job] : jobs_) {
-    if (!job.pending.empty()) order.push_back(&job);
-  }
-  // Stride scheduling: the job with the lowest pass goes first.
-  std::stable_sort(order.begin(), order.end(), [](const JobQueue* a, const JobQueue* b) { return a->pass < b->pass; });
-  for (JobQueue* job : order) {
-    for (auto it = job->pending.begin(); it != job->pending.end(); ++it) {
-      if (!MayTake(tasks_.at(*it), worker)) continue;
-      const uint64_t id = *it;
-      job->pending.erase(it);
-      job->pass += 1.0 / job->weight;
-      return id;
-    }
-  }
-  return 0;
 }
 
 void Dispatcher::DispatchPending() {
   // Workers for which no pending task is allowed (they failed every one) sit this turn out.
   std::set<std::string> nothingFor;
-  while (pendingCount_ > 0) {
+  while (queue_.Pending() > 0) {
     WorkerState* worker = registry_.MostAvailable(nothingFor);
     if (!worker) return;
-    const uint64_t id = TakeTaskFor(*worker);
+    const uint64_t id = queue_.TakeFor(*worker);
     if (id == 0) {
       nothingFor.insert(worker->identity);
       continue;
     }
-    TaskEntry& entry = tasks_.at(id);
-    const JobQueue& job = jobs_.at(entry.task.jobId);
-    entry.pending = false;
-    entry.holder = worker->identity;
-    entry.sentAt = clock_.Now();
-    --pendingCount_;
+    const TaskQueue::Entry& entry = queue_.Sent(id, worker->identity, clock_.Now());
+    const TaskQueue::Job& job = queue_.JobOf(entry.task.jobId);
     const DispatchTask& t = entry.task;
     wire::Task message{id, t.jobId, job.sceneHash, t.frame, job.width, job.height, t.pixels,
                        t.window};

@@ -23,11 +23,11 @@
 #include <optional>
 #include <set>
 #include <string>
-#include <unordered_map>
 
 #include <zmq.hpp>
 
 #include "coordinator/dispatch/curve_authenticator.h"
+#include "coordinator/dispatch/task_queue.h"
 #include "coordinator/dispatch/worker_registry.h"
 #include "proto/pixel_set/pixel_set.h"
 #include "proto/wire/liveness.h"
@@ -35,22 +35,6 @@
 #include "proto/wire/zmq_io.h"
 
 namespace tcfarm {
-
-struct DispatchTask {
-  uint64_t jobId = 0;
-  uint64_t plannerTaskId = 0;
-  int frame = 0;  // absolute frame number (the scene's)
-  PixelSet pixels;
-  int window = 0;
-  // Workers (principals, see PrincipalOf) it must not go to: a check is worth something
-  // only when someone other than the worker whose values it checks traces it. A rule:
-  // a check by the worker it checks proves nothing, so such a task waits for someone
-  // else, and where nobody else is connected it is handed back (TakeStranded).
-  std::set<std::string> avoid;
-  // A check or repair the coordinator's referee may trace when no connected worker may
-  // (TakeStranded); planner tasks never go to the referee.
-  bool refereeMayTrace = false;
-};
 
 // Who a worker is, beyond one connection: its CURVE public key where the coordinator
 // authenticates keys (ZAP accepted it, so it cannot be claimed by anyone else); otherwise
@@ -133,7 +117,7 @@ class Dispatcher {
   // Jobs share the workers by priority, over the whole range -100..100: a job of priority
   // p >= 0 gets 1 + p shares, one of p < 0 gets 1 / (1 - p) (a job of 0 gets 51 tasks to
   // every one of a job of -50 while both have tasks waiting).
-  static double WeightOf(int priority);
+  static double WeightOf(int priority) { return TaskQueue::WeightOf(priority); }
   void AddJob(uint64_t jobId, int priority, uint32_t width, uint32_t height,
               const std::string& sceneHash, const std::string& sceneJson);
   // A running job's new priority counts from its next task on.
@@ -175,28 +159,12 @@ class Dispatcher {
   // A connected worker of the principal, or nullptr.
   const WorkerState* FindPrincipal(const std::string& principal) const;
 
-  size_t PendingTasks() const;
-  size_t InFlightTasks() const { return tasks_.size() - PendingTasks(); }
+  size_t PendingTasks() const { return queue_.Pending(); }
+  size_t InFlightTasks() const { return queue_.InFlight(); }
   const WorkerRegistry& registry() const { return registry_; }
   const DispatcherCounters& counters() const { return counters_; }
 
  private:
-  struct TaskEntry {
-    DispatchTask task;
-    bool pending = true;
-    SteadyTime sentAt;
-    std::string holder;                 // the worker it is in flight with; "" while pending
-    std::set<std::string> failedBy;     // workers that answered ERROR for it: not sent there again
-    std::string firstError;
-  };
-  struct JobQueue {
-    double weight = 1;  // WeightOf(its priority)
-    double pass = 0;  // stride scheduling: the job with the lowest pass goes next
-    uint32_t width = 0, height = 0;
-    std::string sceneHash;
-    std::deque<uint64_t> pending;
-  };
-
   void ReceiveAll(DispatchSink& sink);
   void Handle(const std::string& identity, const wire::Peer& peer, wire::Message message, DispatchSink& sink);
   void OnReady(const std::string& identity, const wire::Peer& peer, const wire::Ready& ready);
@@ -218,13 +186,7 @@ class Dispatcher {
   void OnAssetGet(const std::string& identity, const wire::AssetGet& get);
   void SendAssetPieces();
   void DispatchPending();
-  // The next task `worker` may take (stride order over jobs, skipping tasks it failed),
-  // taken off its job's queue; 0 when there is none for it.
-  uint64_t TakeTaskFor(const WorkerState& worker);
-  // Whether `worker` may take the task: never one it answered ERROR for, nor one that
-  // avoids its principal.
-  static bool MayTake(const TaskEntry& entry, const WorkerState& worker);
-  bool AnyWorkerMayTake(const TaskEntry& entry) const;
+  bool AnyWorkerMayTake(const TaskQueue::Entry& entry) const;
   // False when the peer is gone or its queue is full.
   bool Send(const std::string& identity, const wire::Message& message);
 
@@ -239,11 +201,8 @@ class Dispatcher {
   std::set<std::string> banned_;      // principals never heard again (Distrust, Ban)
   std::set<std::string> distrusted_;  // connections of banned principals: never heard again
   WorkerRegistry registry_;
-  std::unordered_map<uint64_t, TaskEntry> tasks_;
-  std::map<uint64_t, JobQueue> jobs_;
+  TaskQueue queue_;
   std::map<std::string, std::string> scenes_;  // hash -> JSON, for the jobs present
-  uint64_t nextTaskId_ = 1;
-  size_t pendingCount_ = 0;
   SteadyTime lastHeartbeat_;
   // When the socket was last read to the end. Workers are judged silent against it, not
   // against now: while the coordinator is busy (finishing a large frame) their messages

@@ -5,8 +5,6 @@
 #include <iterator>
 #include <stdexcept>
 
-#include "coordinator/planner/job_memory.h"
-
 namespace tcfarm {
 namespace {
 
@@ -89,7 +87,9 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       ownReferee_(options_.referee ? nullptr : std::make_unique<TracingReferee>(options_.storeRoot / "assets")),
       referee_(options_.referee ? options_.referee : ownReferee_.get()),
       bans_(options_.storeRoot / "worker_bans.json"),
-      finisher_(frameStore_, options_.output) {
+      finisher_(frameStore_, options_.output),
+      admission_(MemoryBudget{options_.farmMemoryBytes, options_.pendingFrameBytes, options_.longestMemoryWait},
+                 clock) {
   for (const WorkerBan& ban : bans_.List()) dispatcher_.Ban(ban.principal);
 }
 
@@ -101,11 +101,7 @@ void Farm::Run(const std::atomic<bool>& stop, const std::function<void()>& after
     Step(kIdlePoll);
     if (afterStep) afterStep();
   }
-  {
-    std::lock_guard<std::mutex> lock(shared_);
-    stopped_ = true;
-  }
-  released_.notify_all();
+  requests_.Stop();
   dispatcher_.SayGoodbye();
 }
 
@@ -145,46 +141,20 @@ void Farm::ClaimJobs() {
       interruptedRequeued_ = true;
       RequeueUnfinishedFrames();
     }
-    std::map<uint64_t, SteadyTime> waiting;  // jobs still held back by memory after this look
+    admission_.BeginLook();
     while (static_cast<int>(runs_.size()) < options_.maxRunningJobs) {
       uint64_t granted = 0;
       bool passable = true;
       std::optional<JobRecord> record = store_.ClaimNext([&](const JobRecord& job) {
-        return passable && AdmitsJob(job, &granted, waiting, &passable);
+        return passable && admission_.Admits(job, MemoryGranted(), &granted, &passable);
       });
       if (!record) break;
       StartJob(*record, granted);
     }
-    waitingForMemory_.swap(waiting);
+    admission_.EndLook();
   } catch (const JobStoreFullError& e) {
     NoteRefusedWrite(e);  // claimed nothing; the next interval tries again
   }
-}
-
-bool Farm::AdmitsJob(const JobRecord& job, uint64_t* granted, std::map<uint64_t, SteadyTime>& waiting,
-                     bool* passable) const {
-  if (options_.farmMemoryBytes == 0) return true;
-  const uint64_t used = MemoryGranted();
-  const uint64_t left = options_.farmMemoryBytes - std::min(used, options_.farmMemoryBytes);
-  const JobMemoryShape shape =
-      RequestedJobShape(job.spec.strategy, job.spec.binWidth, job.FrameCount(), job.spec.cameraOrLightsChange,
-                        job.spec.frameSize.width, job.spec.frameSize.height, options_.pendingFrameBytes);
-  if (const int bins = LiveBinsWithin(left, shape, PlannerOptions{}.maxLiveBins); bins > 0) {
-    *granted = JobMemoryBytes(shape, bins);
-    return true;
-  }
-  // Never fits, even alone (queued before the farm's memory shrank): it starts and fails
-  // with the shortfall rather than waiting forever and, past longestMemoryWait, holding
-  // every job behind it.
-  if (LiveBinsWithin(options_.farmMemoryBytes, shape, 1) == 0) {
-    *granted = options_.farmMemoryBytes;
-    return true;
-  }
-  const auto known = waitingForMemory_.find(job.id);
-  const SteadyTime since = known != waitingForMemory_.end() ? known->second : clock_.Now();
-  waiting.emplace(job.id, since);
-  *passable = clock_.Now() - since < options_.longestMemoryWait;
-  return false;
 }
 
 uint64_t Farm::MemoryGranted() const {
@@ -230,50 +200,27 @@ void Farm::StartJob(const JobRecord& record, uint64_t granted) {
   }
 }
 
-void Farm::RequestCancel(uint64_t jobId) {
-  std::lock_guard<std::mutex> lock(shared_);
-  cancelRequests_.insert(jobId);
-}
+void Farm::RequestCancel(uint64_t jobId) { requests_.Cancel(jobId); }
 
-void Farm::RequestPriority(uint64_t jobId, int priority) {
-  std::lock_guard<std::mutex> lock(shared_);
-  priorityRequests_[jobId] = priority;
-}
+void Farm::RequestPriority(uint64_t jobId, int priority) { requests_.SetPriority(jobId, priority); }
 
 bool Farm::ReleaseJob(uint64_t jobId) {
-  {
-    std::unique_lock<std::mutex> lock(shared_);
-    if (stopped_) return false;
-    const uint64_t ticket = nextReleaseTicket_++;
-    releaseRequests_.emplace_back(jobId, ticket);
-    releasesOwed_.insert(ticket);
-    released_.wait(lock, [&] { return stopped_ || !releasesOwed_.count(ticket); });
-    if (releasesOwed_.erase(ticket)) return false;  // the loop stopped first
-  }
+  if (!requests_.Release(jobId)) return false;
   // Off the loop: the finisher may be a frame's encoding away from letting go.
   finisher_.Drop(jobId);
   return true;
 }
 
 void Farm::ApplyRequests() {
-  std::set<uint64_t> cancels;
-  std::map<uint64_t, int> priorities;
-  std::vector<std::pair<uint64_t, uint64_t>> releases;
-  std::vector<std::string> lifted;
-  {
-    std::lock_guard<std::mutex> lock(shared_);
-    lifted.swap(liftedBans_);
-    cancels.swap(cancelRequests_);
-    priorities.swap(priorityRequests_);
-    releases.swap(releaseRequests_);
-  }
-  for (const std::string& principal : lifted) {
+  FarmRequests::Batch asked = requests_.Take();
+  std::set<uint64_t>& cancels = asked.cancels;
+  for (const std::string& principal : asked.liftedBans) {
     if (dispatcher_.Unban(principal)) {
       std::fprintf(stderr, "coordinator: the ban of %s is lifted; it is heard again on its next connection\n",
                    principal.c_str());
     }
   }
-  for (const auto& [id, ticket] : releases) cancels.insert(id);
+  for (const auto& [id, ticket] : asked.releases) cancels.insert(id);
   std::set<uint64_t> unread;  // asked again by the next step
   for (uint64_t id : cancels) {
     if (!runs_.count(id)) continue;
@@ -289,21 +236,10 @@ void Farm::ApplyRequests() {
     StopRun(id);
     metrics_.jobsFinishedCanceled.Increment();
   }
-  for (const auto& [id, priority] : priorities) {
+  for (const auto& [id, priority] : asked.priorities) {
     if (runs_.count(id)) dispatcher_.SetPriority(id, priority);
   }
-  {
-    std::lock_guard<std::mutex> lock(shared_);
-    for (const auto& [id, ticket] : releases) {
-      if (unread.count(id)) {
-        releaseRequests_.emplace_back(id, ticket);
-      } else {
-        releasesOwed_.erase(ticket);
-      }
-    }
-    for (uint64_t id : unread) cancelRequests_.insert(id);
-  }
-  if (!releases.empty()) released_.notify_all();
+  requests_.Settle(asked.releases, unread);
 }
 
 void Farm::StopRun(uint64_t jobId) {
@@ -430,8 +366,7 @@ void Farm::RouteStrandedChecks() {
 
 bool Farm::LiftBan(const std::string& principal) {
   if (!bans_.Remove(principal)) return false;
-  std::lock_guard<std::mutex> lock(shared_);
-  liftedBans_.push_back(principal);
+  requests_.LiftBan(principal);
   return true;
 }
 
@@ -592,13 +527,9 @@ void Farm::PublishSnapshot() {
   } catch (const JobStoreError&) {
     // A read the disk refused: the gauge keeps its last value.
   }
-  std::lock_guard<std::mutex> lock(shared_);
-  snapshot_ = std::move(snapshot);
+  requests_.Publish(std::move(snapshot));
 }
 
-FarmSnapshot Farm::Snapshot() const {
-  std::lock_guard<std::mutex> lock(shared_);
-  return snapshot_;
-}
+FarmSnapshot Farm::Snapshot() const { return requests_.Snapshot(); }
 
 }  // namespace tcfarm

@@ -25,7 +25,9 @@
 #include "coordinator/dispatch/dispatcher.h"
 #include "coordinator/farm/farm_control.h"
 #include "coordinator/farm/farm_metrics.h"
+#include "coordinator/farm/farm_requests.h"
 #include "coordinator/farm/job_run.h"
+#include "coordinator/farm/memory_admission.h"
 #include "coordinator/farm/referee.h"
 #include "coordinator/store/frame_finisher.h"
 #include "coordinator/jobs/job_store.h"
@@ -94,11 +96,6 @@ class Farm : public FarmControl, private DispatchSink {
   void OnTaskFailed(uint64_t jobId, uint64_t plannerTaskId, const std::string& why) override;
 
   void ClaimJobs();
-  // Whether the job's memory fits in what the running jobs leave of the farm's; if so, as
-  // *granted, with as many bins at once as fit. Notes in waiting how long a job left
-  // queued has waited for memory, and in *passable whether later jobs may pass it.
-  bool AdmitsJob(const JobRecord& job, uint64_t* granted, std::map<uint64_t, SteadyTime>& waiting,
-                 bool* passable) const;
   // Memory the running jobs were given (JobRun::memoryGranted).
   uint64_t MemoryGranted() const;
   // granted: the job's share of the farm's memory (0: no limit).
@@ -167,22 +164,13 @@ class Farm : public FarmControl, private DispatchSink {
   std::map<uint64_t, std::unique_ptr<JobRun>> runs_;
   std::map<uint64_t, ClosingJob> closing_;
   bool interruptedRequeued_ = false;  // RequeueInterrupted went through (before any claim)
-  std::map<uint64_t, SteadyTime> waitingForMemory_;  // queued jobs the budget held back, since when
+  MemoryAdmission admission_;  // which queued jobs the farm's memory admits
   SteadyTime lastRefusalLogged_{};
   DispatcherCounters lastCounters_;
   uint64_t finishedTraced_ = 0, finishedPixels_ = 0;
   SteadyTime lastClaim_{}, lastSnapshot_{}, lastFrameEvents_{};
 
-  mutable std::mutex shared_;  // guards the requests, stopped_ and snapshot_
-  std::set<uint64_t> cancelRequests_;
-  std::vector<std::string> liftedBans_;  // lifted in the store, not yet in the dispatcher
-  std::map<uint64_t, int> priorityRequests_;
-  std::vector<std::pair<uint64_t, uint64_t>> releaseRequests_;  // (job, ticket), not yet taken
-  uint64_t nextReleaseTicket_ = 1;
-  std::set<uint64_t> releasesOwed_;  // tickets asked for and not done
-  bool stopped_ = false;          // Run returned: nobody answers requests any more
-  std::condition_variable released_;
-  FarmSnapshot snapshot_;
+  FarmRequests requests_;  // what other threads ask of the loop, and its snapshot for them
 };
 
 }  // namespace tcfarm

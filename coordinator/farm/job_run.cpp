@@ -187,11 +187,10 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       coherence_(store.SpillFolder(record.id), settings.pendingFrameBytes),
       cost_(PixelsPerFrame(), FrameCountOf(spec_)),
       started_(std::chrono::steady_clock::now()),
-      framesToForget_(kept_.missing),
-      framesRecorded_(kept_.count) {
+      records_(record.id, PixelsPerFrame(), kept_.missing, kept_.count) {
   spec_.sceneJson.clear();  // the dispatcher holds it for the workers
   RemoveLeftovers(store, id_);
-  if (!PlanFromJson(record.plan)) planToSave_ = PlanJson(resolved_);
+  if (!PlanFromJson(record.plan)) records_.SavePlan(PlanJson(resolved_));
   chosenWidthPlanned_ = !resolved_.surveyBinWidth;
 }
 
@@ -388,55 +387,20 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
 bool JobRun::RecordWrittenFrames(JobStore& store) {
   for (int frame : writer_.TakeWritten()) {
     written_[static_cast<size_t>(frame - spec_.firstFrame)] = true;
-    const auto traced = writing_.find(frame);
-    if (traced == writing_.end()) continue;  // never ours to record (none such today)
-    unrecorded_.push_back({frame, traced->second});
-    writing_.erase(traced);
+    records_.Written(frame);
   }
   // The written frames of a failed write are counted too: they are in the folder.
-  if (writer_.FirstFailure()) {
-    for (auto it = writing_.begin(); it != writing_.end();) {
-      if (writer_.Idle()) {
-        it = writing_.erase(it);  // the writer is done with it, and it is not in place
-      } else {
-        ++it;
-      }
-    }
-  }
-  try {
-    FlushRecords(store);
-  } catch (const JobStoreFullError& e) {
-    recordsBlocked_ = e.what();
-    return false;
-  }
-  recordsBlocked_.clear();
-  return true;
-}
-
-// The plan first: a frame recorded under no plan could be resumed under another one.
-void JobRun::FlushRecords(JobStore& store) {
+  if (writer_.FirstFailure() && writer_.Idle()) records_.DropWriting();
+  // Auto's survey chose the bin width: the plan says so before the next frame's record.
   if (autoPlanner_ && !chosenWidthPlanned_ && autoPlanner_->ChosenBinWidth() > 0) {
     ResolvedStrategy chosen = resolved_;
     chosen.binWidth = autoPlanner_->ChosenBinWidth();
     chosen.surveyBinWidth = false;
     chosen.reason += "; bin width " + std::to_string(chosen.binWidth) + " chosen by the survey";
-    planToSave_ = PlanJson(chosen);
+    records_.SavePlan(PlanJson(chosen));
     chosenWidthPlanned_ = true;
   }
-  if (planToSave_) {
-    store.SetPlan(id_, *planToSave_);
-    planToSave_.reset();
-  }
-  if (!framesToForget_.empty()) {
-    store.ForgetFrames(id_, framesToForget_);
-    framesToForget_.clear();
-  }
-  // A frame is counted only after it is in the folder and its record is committed.
-  while (!unrecorded_.empty()) {
-    const FrameRecord& record = unrecorded_.front();
-    if (store.RecordFrame(id_, record.frame, record.traced, PixelsPerFrame() - record.traced)) ++framesRecorded_;
-    unrecorded_.pop_front();
-  }
+  return records_.Flush(store);
 }
 
 std::optional<std::string> JobRun::WriteFailure() const {
@@ -444,7 +408,7 @@ std::optional<std::string> JobRun::WriteFailure() const {
   if (!failure) return std::nullopt;
   const std::string what = failure->frame ? "frame " + std::to_string(*failure->frame) + " (" + failure->file + ")"
                                           : "the mask " + failure->file;
-  return what + " could not be written: " + failure->why + "; " + std::to_string(framesRecorded_) + " of " +
+  return what + " could not be written: " + failure->why + "; " + std::to_string(records_.recorded()) + " of " +
          std::to_string(FrameCountOf(spec_)) +
          " frames are written and recorded (traced_per_frame names them; they stay downloadable)";
 }
@@ -472,7 +436,7 @@ void JobRun::FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds) {
 
 void JobRun::FinishFrame(FinishedFrame frame) {
   const int absolute = spec_.firstFrame + frame.frame;
-  writing_[absolute] = frame.tracedCount;
+  records_.Writing(absolute, frame.tracedCount);
   cost_.OnFrameFinished(frame.frame, frame.tracedCount);
   Image image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)};
   const bool probation = probationFrames_.erase(frame.frame) > 0;
@@ -500,7 +464,7 @@ std::vector<int> JobRun::TracingFrames() const {
   std::set<int> frames;
   for (const auto& [frame, count] : tasksOut_) frames.insert(frame);
   for (const FinishedFrame& frame : unwritten_) frames.insert(spec_.firstFrame + frame.frame);
-  for (const auto& [frame, traced] : writing_) frames.insert(frame);
+  for (int frame : records_.WritingFrames()) frames.insert(frame);
   return {frames.begin(), frames.end()};
 }
 

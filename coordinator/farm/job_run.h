@@ -22,6 +22,7 @@
 
 #include "coordinator/dispatch/dispatcher.h"
 #include "coordinator/farm/exactness_audit.h"
+#include "coordinator/farm/frame_records.h"
 #include "coordinator/farm/job_coherence.h"
 #include "coordinator/farm/job_cost.h"
 #include "coordinator/farm/verification.h"
@@ -118,15 +119,14 @@ class JobRun {
   int CollectFinishedFrames(JobStore& store);
   bool Done() const {
     return planner_->Done() && !verification_.Pending() && !audit_.Pending() && refereeChecks_.empty() &&
-           unwritten_.empty() &&
-           writer_.Idle() && writing_.empty() && !RecordsOwed();
+           unwritten_.empty() && writer_.Idle() && !records_.AnyWriting() && !RecordsOwed();
   }
   // Records what the writer has put in place since the last call, and what is owed from
   // before (the plan, frames to forget); false, keeping them owed, while the job store
   // refuses writes (RecordsBlocked says why). Other job store errors throw.
   bool RecordWrittenFrames(JobStore& store);
-  bool RecordsOwed() const { return planToSave_.has_value() || !framesToForget_.empty() || !unrecorded_.empty(); }
-  const std::string& RecordsBlocked() const { return recordsBlocked_; }
+  bool RecordsOwed() const { return records_.Owed(); }
+  const std::string& RecordsBlocked() const { return records_.blocked(); }
   // Which frame (or mask) could not be written first and why, with how many frames are
   // written and recorded; nullopt when every write succeeded.
   std::optional<std::string> WriteFailure() const;
@@ -182,7 +182,6 @@ class JobRun {
   // Kept frames whose turn in the coherence analysis has come, read back from the store,
   // as far as the turn allows.
   void FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds);
-  void FlushRecords(JobStore& store);
   // Queues the mask for the absolute frame on the frame writer.
   void WriteMask(MaskKind kind, int absoluteFrame, std::vector<uint8_t> mask);
   // The bin width (segment length) the job runs with; 0 while auto's survey runs.
@@ -228,19 +227,8 @@ class JobRun {
   std::chrono::steady_clock::time_point started_;
   int framesDone_ = 0;  // handed to the writer by this run
 
-  // The job store's view, kept in step with the files: frames handed to the writer (by
-  // absolute number, with their traced pixels), then written and owed a record.
-  struct FrameRecord {
-    int frame = 0;
-    uint64_t traced = 0;
-  };
-  std::map<int, uint64_t> writing_;
-  std::deque<FrameRecord> unrecorded_;
-  std::optional<nlohmann::json> planToSave_;  // saved before any frame is recorded
-  bool chosenWidthPlanned_ = false;           // auto's survey result is in the plan
-  std::vector<int> framesToForget_;
-  int framesRecorded_ = 0;  // kept ones included
-  std::string recordsBlocked_;
+  FrameRecords records_;               // the job store's view, kept in step with the files
+  bool chosenWidthPlanned_ = false;  // auto's survey result is in the plan
   // Kept frames the planner produced again (bins or segments that were in progress).
   uint64_t retracedPixels_ = 0;
   int retracedFrames_ = 0;

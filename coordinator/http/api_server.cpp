@@ -227,15 +227,8 @@ ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometh
                                 metrics_.get())),
       janitor_(janitor ? *janitor : *ownJanitor_),
       frameStore_(options_.storeRoot),
-      assetStore_(options_.storeRoot / "assets") {
-  lastEventSeq_ = store_.LastEventSeq();
-  eventListener_ = store_.AddEventListener([this](const JobEvent& event) {
-    {
-      std::lock_guard<std::mutex> lock(eventsMutex_);
-      lastEventSeq_ = std::max(lastEventSeq_, event.seq);
-    }
-    eventRecorded_.notify_all();
-  });
+      assetStore_(options_.storeRoot / "assets"),
+      events_(store, options_.maxEventStreams) {
   for (const Route& route : Routes()) routePatterns_.emplace_back(route.pattern);
   if (metrics_) {
     assetUploads_ = &NewCounter(*metrics_, "tcfarm_asset_uploads_total",
@@ -250,10 +243,7 @@ ApiServer::ApiServer(JobStore& store, FarmControl& farm, std::shared_ptr<prometh
   }
 }
 
-ApiServer::~ApiServer() {
-  Stop();
-  store_.RemoveEventListener(eventListener_);
-}
+ApiServer::~ApiServer() { Stop(); }
 
 const std::vector<ApiServer::Route>& ApiServer::Routes() {
   static const std::vector<Route> routes{
@@ -306,11 +296,7 @@ int ApiServer::Start() {
 }
 
 void ApiServer::Stop() {
-  {
-    std::lock_guard<std::mutex> lock(eventsMutex_);
-    streamsStopping_ = true;
-  }
-  eventRecorded_.notify_all();
+  events_.Stop();
   listener_.Stop();
 }
 
@@ -717,12 +703,6 @@ void ApiServer::GetJobEvents(const httplib::Request& request, const std::string&
   WriteJson(response, json{{"events", std::move(events)}});
 }
 
-bool ApiServer::AwaitEvent(uint64_t seq, std::chrono::steady_clock::time_point deadline) {
-  std::unique_lock<std::mutex> lock(eventsMutex_);
-  eventRecorded_.wait_until(lock, deadline, [&] { return streamsStopping_ || lastEventSeq_ > seq; });
-  return !streamsStopping_;
-}
-
 // Server-Sent Events: each event as "id: <seq>", "event: <type>", "data: <json>", from the
 // store's log (after `after` or Last-Event-ID; without either, from now on), then live.
 void ApiServer::StreamEvents(const httplib::Request& request, const std::string&, httplib::Response& response) {
@@ -731,8 +711,7 @@ void ApiServer::StreamEvents(const httplib::Request& request, const std::string&
   const std::optional<uint64_t> job =
       request.has_param("job") ? std::optional<uint64_t>(ParseJobId(request.get_param_value("job"))) : std::nullopt;
   if (job) RequireJob(*job);
-  if (++openStreams_ > options_.maxEventStreams) {
-    --openStreams_;
+  if (!events_.OpenStream()) {
     throw ApiError(503, error_code::kTooManyStreams,
                    std::to_string(options_.maxEventStreams) +
                        " event streams are open, as many as this coordinator serves at once; expected a retry later "
@@ -751,11 +730,7 @@ void ApiServer::StreamEvents(const httplib::Request& request, const std::string&
       "text/event-stream",
       [this, stream](size_t, httplib::DataSink& sink) {
         // Taken before the store is read, so an event recorded meanwhile wakes the wait below.
-        uint64_t heard = 0;
-        {
-          std::lock_guard<std::mutex> lock(eventsMutex_);
-          heard = lastEventSeq_;
-        }
+        const uint64_t heard = events_.Heard();
         std::string text;
         std::vector<JobEvent> events = store_.Events({stream->job, stream->after, kStreamBatch});
         if (events.empty()) {
@@ -763,7 +738,7 @@ void ApiServer::StreamEvents(const httplib::Request& request, const std::string&
           const auto keepAlive = stream->lastSent + options_.eventKeepAlive;
           if (now >= keepAlive) {
             text = ": keepalive\n\n";
-          } else if (!AwaitEvent(heard, std::min(keepAlive, now + kStreamPoll))) {
+          } else if (!events_.Await(heard, std::min(keepAlive, now + kStreamPoll))) {
             sink.done();  // the server stops: the stream ends cleanly
             return true;
           }
@@ -777,7 +752,7 @@ void ApiServer::StreamEvents(const httplib::Request& request, const std::string&
         stream->lastSent = std::chrono::steady_clock::now();
         return sink.write(text.data(), text.size());
       },
-      [this](bool) { --openStreams_; });
+      [this](bool) { events_.CloseStream(); });
 }
 
 void ApiServer::CheckFrameInJob(uint64_t id, int frame) {

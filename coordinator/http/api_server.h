@@ -22,9 +22,7 @@
 // beyond it), and each wakes at least once a second, so Stop never waits for a client.
 #pragma once
 
-#include <atomic>
 #include <chrono>
-#include <condition_variable>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -39,6 +37,7 @@
 #include "coordinator/farm/farm_control.h"
 #include "coordinator/http/api_error.h"
 #include "coordinator/http/api_tokens.h"
+#include "coordinator/http/event_bell.h"
 #include "coordinator/http/job_json.h"
 #include "coordinator/http/submit_request.h"
 #include "proto/net/http_listener.h"
@@ -194,10 +193,6 @@ class ApiServer {
   // counts each time.
   FrameRange FrameRangeOf(uint64_t id);
 
-  // Waits until an event after `seq` is recorded, the deadline passes or the server stops;
-  // false once it stops.
-  bool AwaitEvent(uint64_t seq, std::chrono::steady_clock::time_point deadline);
-
   JobStore& store_;
   FarmControl& farm_;
   std::shared_ptr<prometheus::Registry> metrics_;
@@ -215,13 +210,7 @@ class ApiServer {
   std::mutex frameRangesMutex_;
   std::unordered_map<uint64_t, FrameRange> frameRanges_;
 
-  // Event streams: woken by the job store's listener, ended by Stop.
-  uint64_t eventListener_ = 0;
-  std::mutex eventsMutex_;
-  std::condition_variable eventRecorded_;
-  uint64_t lastEventSeq_ = 0;  // the newest event this process recorded
-  bool streamsStopping_ = false;
-  std::atomic<size_t> openStreams_{0};
+  http::EventBell events_;  // what event streams wait on; stopped by Stop
 
   HttpListener listener_;
 };

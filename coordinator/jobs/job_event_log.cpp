@@ -109,10 +109,7 @@ uint64_t JobStore::AppendEvent(uint64_t id, const EventDraft& event) {
 void JobStore::FlushFrameEvents() {
   std::lock_guard<std::mutex> lock(mutex_);
   const int64_t now = nowMs_();
-  std::vector<uint64_t> due;
-  for (const auto& [id, untold] : untold_) {
-    if (now - untold.sinceMs >= kFrameEventIntervalMs) due.push_back(id);
-  }
+  const std::vector<uint64_t> due = untold_.DueAt(now, kFrameEventIntervalMs);
   if (due.empty()) return;
   Transaction transaction(*db_);
   std::vector<JobEvent> recorded;
@@ -170,9 +167,9 @@ void JobStore::Record(uint64_t id, const EventDraft& event, std::vector<JobEvent
 }
 
 void JobStore::RecordUntoldFrames(uint64_t id, std::vector<JobEvent>& recorded, std::vector<uint64_t>& told) {
-  const auto untold = untold_.find(id);
-  if (untold == untold_.end() || untold->second.frames.empty()) return;
-  Record(id, FramesWrittenEvent(untold->second.frames), recorded);
+  const std::vector<int>& untold = untold_.Of(id);
+  if (untold.empty()) return;
+  Record(id, FramesWrittenEvent(untold), recorded);
   told.push_back(id);
 }
 
@@ -189,7 +186,7 @@ void JobStore::RecordUntoldFramesOfCrash(uint64_t id, std::vector<JobEvent>& rec
 }
 
 void JobStore::Announce(const std::vector<JobEvent>& recorded, const std::vector<uint64_t>& told) {
-  for (uint64_t id : told) untold_.erase(id);
+  for (uint64_t id : told) untold_.Clear(id);
   for (const JobEvent& event : recorded) {
     for (const auto& [listenerId, listener] : listeners_) listener(event);
   }

@@ -360,7 +360,7 @@ DeletedJob JobStore::Delete(uint64_t id) {
   job.Bind(1, static_cast<int64_t>(id));
   job.Run();
   transaction.Commit();
-  untold_.erase(id);
+  untold_.Clear(id);
   deleted.outcome = DeletedJob::Outcome::kDeleted;
   return deleted;
 }
@@ -423,8 +423,7 @@ bool JobStore::RecordFrame(uint64_t id, int frame, uint64_t tracedPixels,
   // The frame joins the job's untold ones; enough of them are told at once, in this
   // transaction, the others by a later call (or FlushFrameEvents).
   const int64_t now = nowMs_();
-  const auto untold = untold_.find(id);
-  std::vector<int> frames = untold == untold_.end() ? std::vector<int>{} : untold->second.frames;
+  std::vector<int> frames = untold_.Of(id);
   frames.push_back(frame);
   std::vector<JobEvent> recorded;
   if (frames.size() >= kFramesPerEvent) Record(id, FramesWrittenEvent(frames), recorded);
@@ -432,9 +431,7 @@ bool JobStore::RecordFrame(uint64_t id, int frame, uint64_t tracedPixels,
   if (!recorded.empty()) {
     Announce(recorded, {id});
   } else {
-    UntoldFrames& owed = untold_[id];
-    if (owed.frames.empty()) owed.sinceMs = now;
-    owed.frames.push_back(frame);
+    untold_.Add(id, frame, now);
   }
   return true;
 }
@@ -548,11 +545,7 @@ void JobStore::ForgetFrames(uint64_t id, const std::vector<int>& frames) {
     update.Run();
   }
   transaction.Commit();
-  if (auto untold = untold_.find(id); untold != untold_.end()) {
-    std::vector<int>& owed = untold->second.frames;
-    for (int frame : frames) owed.erase(std::remove(owed.begin(), owed.end(), frame), owed.end());
-    if (owed.empty()) untold_.erase(untold);
-  }
+  untold_.Forget(id, frames);
 }
 
 std::optional<std::string> JobStore::StoreId() const {

@@ -41,6 +41,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "coordinator/jobs/untold_frames.h"
 #include "coordinator/planner/strategy.h"
 
 namespace tcfarm {
@@ -327,11 +328,6 @@ class JobStore {
   void CapFilePages(int64_t pages);
 
  private:
-  // Frames recorded and not yet told as a frames_written event, per job.
-  struct UntoldFrames {
-    std::vector<int> frames;
-    int64_t sinceMs = 0;  // when the first of them was recorded
-  };
   // Inside a write transaction: records the event, to be announced once committed.
   void Record(uint64_t id, const EventDraft& event, std::vector<JobEvent>& recorded);
   // Inside a write transaction: the frames_written event of the job's untold frames (and
@@ -346,7 +342,7 @@ class JobStore {
   mutable std::mutex mutex_;  // serializes all use of the single connection
   std::unique_ptr<sqlite::Database> db_;
   ClockMs nowMs_;
-  std::map<uint64_t, UntoldFrames> untold_;
+  jobs::UntoldFrames untold_;
   std::map<uint64_t, EventListener> listeners_;
   uint64_t nextListenerId_ = 1;
 };
