@@ -1,9 +1,10 @@
 #include "proto/scene/scene.h"
 
 #include <algorithm>
-#include <cmath>
 #include <memory>
 #include <utility>
+
+#include "proto/scene/shapes/shape_format.h"
 
 namespace tcfarm {
 
@@ -79,14 +80,6 @@ AnimatedVec3 Offset(const AnimatedVec3& value, const Vec3& offset) {
 
 namespace {
 
-// Gives a shape placing a shared mesh a copy of its own (to change its vertices alone).
-void OwnMesh(Shape& shape) {
-  if (!shape.SharesMesh()) return;
-  shape.mesh = *shape.sharedMesh;
-  shape.sharedMesh.reset();
-  shape.meshRef.clear();
-}
-
 // A motion moved with the world: what it turns and scales turns about the moved pivot.
 // A translation-only motion needs nothing, being relative to its object's place.
 // With parents, T(o) P L T(-o) = [T(o) P T(-o)] [T(o) L T(-o)]: every level moves.
@@ -129,78 +122,10 @@ void TranslateScene(Scene& scene, const Vec3& offset) {
   }
   for (Shape& shape : scene.shapes) {
     OffsetPivot(shape.motion, offset);
-    shape.center = Plus(shape.center, offset);
-    shape.corner = Plus(shape.corner, offset);
-    shape.terrain.origin = Plus(shape.terrain.origin, offset);
-    if (shape.deformation && shape.deformation->hasSkin) {
-      // Skinned vertices are in bind space, placed in the world by their joints: the
-      // offset is added after skinning (a shared mesh is then moved twice over, so a
-      // skinned shape keeps a copy of its own).
-      auto deformation = std::make_shared<Deformation>(*shape.deformation);
-      deformation->skin.worldOffset = Plus(deformation->skin.worldOffset, offset);
-      shape.deformation = std::move(deformation);
-      OwnMesh(shape);
-      continue;
-    }
-    for (Vec3& v : shape.mesh.vertices) v = Plus(v, offset);
+    FormatOf(shape.type).Translate(shape, offset);
   }
   OffsetSharedMeshes(scene, offset);
 }
-
-namespace {
-
-// Whether the linear part is a rotation times one scale factor (then a sphere stays a
-// sphere): its columns orthogonal and of equal length.
-bool IsUniform(const Affine& placement) {
-  const auto& m = placement.linear;
-  auto column = [&](int c) { return Vec3{m[0][c], m[1][c], m[2][c]}; };
-  auto dot = [](const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; };
-  const double lengthSquared = dot(column(0), column(0));
-  const double tolerance = 1e-12 * lengthSquared;
-  return std::fabs(dot(column(1), column(1)) - lengthSquared) <= tolerance &&
-         std::fabs(dot(column(2), column(2)) - lengthSquared) <= tolerance &&
-         std::fabs(dot(column(0), column(1))) <= tolerance && std::fabs(dot(column(0), column(2))) <= tolerance &&
-         std::fabs(dot(column(1), column(2))) <= tolerance;
-}
-
-bool PlaceStillShape(Shape& shape, const Affine& placement) {
-  switch (shape.type) {
-    case Shape::Type::kSphere:
-      if (!IsUniform(placement)) return false;
-      shape.center = placement.Apply(shape.center);
-      shape.radius *= placement.MaxStretch();
-      return true;
-    case Shape::Type::kQuad:
-      shape.corner = placement.Apply(shape.corner);
-      shape.edgeU = placement.ApplyLinear(shape.edgeU);
-      shape.edgeV = placement.ApplyLinear(shape.edgeV);
-      return true;
-    case Shape::Type::kMesh:
-    case Shape::Type::kTerrain:
-      // A still placement is built into world-space triangles of its own, as an inline
-      // copy would be (see PlaceStillShapes in scene.h): its normals go to the world too.
-      OwnMesh(shape);
-      for (Vec3& v : shape.mesh.vertices) v = placement.Apply(v);
-      double normalMatrix[3][3];
-      placement.NormalMatrix(normalMatrix);
-      for (Vec3& n : shape.mesh.normals) n = ApplyMatrix(normalMatrix, n);
-      // Tangents are directions on the surface: they move as its edges do. A mirror turns
-      // the bitangent over.
-      for (auto& tangent : shape.mesh.tangents) {
-        const Vec3 moved = placement.ApplyLinear({tangent[0], tangent[1], tangent[2]});
-        tangent = {moved.x, moved.y, moved.z, placement.Determinant() < 0 ? -tangent[3] : tangent[3]};
-      }
-      // A mirror turns the triangles' winding over, and with it the face normals the
-      // tracer takes from it: turned back, the outside stays outside (as glTF has it).
-      if (placement.Determinant() < 0) {
-        for (auto& triangle : shape.mesh.triangles) std::swap(triangle[1], triangle[2]);
-      }
-      return true;
-  }
-  return false;
-}
-
-}  // namespace
 
 namespace {
 
@@ -220,7 +145,9 @@ void PlaceStillShapes(Scene& scene) {
   for (Shape& shape : scene.shapes) {
     BakeStillDeformation(shape, scene.render.firstFrame);
     if (shape.Moves() || shape.motion.IsNone()) continue;
-    if (PlaceStillShape(shape, shape.motion.WorldFromObject(scene.render.firstFrame))) shape.motion = Motion{};
+    if (FormatOf(shape.type).PlaceStill(shape, shape.motion.WorldFromObject(scene.render.firstFrame))) {
+      shape.motion = Motion{};
+    }
   }
 }
 

@@ -94,8 +94,20 @@ struct TriangleMesh {
   std::vector<Vec3> colors;
 };
 
+// Every kind of shape, each named once, in Shape::Type's order: X(Stem) gives the type
+// Shape::Type::k<Stem>, the scene format's <Stem>Format() (proto/scene/shapes/<stem>.cpp:
+// reading, writing, moving it) and the worker's <Stem>Kind() (worker/shapes/: tracing it).
+// A kind missing either part fails to link.
+#define TCFARM_SHAPE_KINDS(X) X(Sphere) X(Quad) X(Mesh) X(Terrain)
+
 struct Shape {
-  enum class Type { kSphere, kQuad, kMesh, kTerrain };
+#define TCFARM_SHAPE_TYPE(Stem) k##Stem,
+  enum class Type { TCFARM_SHAPE_KINDS(TCFARM_SHAPE_TYPE) };
+#undef TCFARM_SHAPE_TYPE
+  // How many kinds there are: Shape::Type runs from 0 to kTypeCount - 1.
+#define TCFARM_COUNT_SHAPE_TYPE(Stem) +1
+  static constexpr size_t kTypeCount = 0 TCFARM_SHAPE_KINDS(TCFARM_COUNT_SHAPE_TYPE);
+#undef TCFARM_COUNT_SHAPE_TYPE
   Type type = Type::kSphere;
   std::string name;      // optional, for messages
   int material = 0;      // index into Scene::materials

@@ -1,4 +1,5 @@
 #include "proto/scene/scene.h"
+#include "proto/scene/shapes/shape_format.h"
 
 #include <gtest/gtest.h>
 
@@ -245,6 +246,17 @@ TEST(SceneShapeTest, MotionAppliesToEveryType) {
   Scene parsed = ParseScene(scene.dump());
   for (const Shape& shape : parsed.shapes) EXPECT_TRUE(shape.Moves());
   EXPECT_TRUE(parsed.AnyShapeMoves());
+}
+
+// The table of kinds: each found by its JSON name, all of them named where a type is wrong.
+TEST(SceneShapeTest, EveryKindIsFoundByItsNameAndNamedInMessages) {
+  for (size_t i = 0; i < Shape::kTypeCount; ++i) {
+    const auto type = static_cast<Shape::Type>(i);
+    EXPECT_EQ(FindShapeType(FormatOf(type).Name()), type) << FormatOf(type).Name();
+  }
+  EXPECT_EQ(FindShapeType("cone"), std::nullopt);
+  EXPECT_TRUE(FailsAt(WithShape({{"type", "cone"}}).dump(), "/shapes/0/type",
+                      "unknown shape type \"cone\"; expected \"sphere\", \"quad\", \"mesh\" or \"terrain\""));
 }
 
 // --- materials ---------------------------------------------------------------------------

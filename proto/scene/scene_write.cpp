@@ -8,15 +8,21 @@
 #include <nlohmann/json.hpp>
 
 #include "proto/scene/scene.h"
+#include "proto/scene/scene_write.h"
+#include "proto/scene/shapes/shape_format.h"
 
 namespace tcfarm {
-namespace {
 
 using nlohmann::json;
 
-// --- writing -------------------------------------------------------------------------
+json scene_write::Vec3Json(const Vec3& v) { return json::array({v.x, v.y, v.z}); }
 
-json Vec3Json(const Vec3& v) { return json::array({v.x, v.y, v.z}); }
+namespace {
+
+using scene_write::MeshJson;
+using scene_write::Vec3Json;
+
+// --- writing -------------------------------------------------------------------------
 
 // Linear, the default, is left out: scenes written before splines keep their bytes.
 json WithInterpolation(json keyed, Interpolation interpolation) {
@@ -217,7 +223,9 @@ json MaterialJson(const Material& material) {
   return result;
 }
 
-json MeshJson(const TriangleMesh& mesh, json result) {
+}  // namespace
+
+json scene_write::MeshJson(const TriangleMesh& mesh, json result) {
   json vertices = json::array();
   for (const auto& v : mesh.vertices) vertices.push_back(Vec3Json(v));
   json triangles = json::array();
@@ -252,26 +260,14 @@ json MeshJson(const TriangleMesh& mesh, json result) {
   return result;
 }
 
+namespace {
+
+// The kind's own fields (its format's), with its "type".
 json ShapeGeometryJson(const Shape& shape) {
-  switch (shape.type) {
-    case Shape::Type::kSphere:
-      return json{{"type", "sphere"}, {"center", Vec3Json(shape.center)}, {"radius", shape.radius}};
-    case Shape::Type::kQuad:
-      return json{{"type", "quad"},
-                  {"corner", Vec3Json(shape.corner)},
-                  {"edge_u", Vec3Json(shape.edgeU)},
-                  {"edge_v", Vec3Json(shape.edgeV)}};
-    case Shape::Type::kMesh:
-      if (shape.SharesMesh()) return json{{"type", "mesh"}, {"mesh_ref", shape.meshRef}};
-      return MeshJson(shape.mesh, json{{"type", "mesh"}});
-    case Shape::Type::kTerrain: {
-      const Shape::Terrain& t = shape.terrain;
-      return json{{"type", "terrain"},       {"origin", Vec3Json(t.origin)},
-                  {"size", {t.sizeX, t.sizeZ}}, {"height", t.height},
-                  {"cells", {t.cellsX, t.cellsZ}}, {"seed", t.seed}};
-    }
-  }
-  return json::object();
+  const ShapeFormat& format = FormatOf(shape.type);
+  json result = format.Write(shape);
+  result["type"] = format.Name();
+  return result;
 }
 
 json WeightsJson(const AnimatedWeights& weights) {

@@ -1,5 +1,7 @@
 #include "worker/embree/tie_candidates.h"
 
+#include "worker/shapes/shape_kind.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -19,7 +21,7 @@ constexpr double kRelativeGrid = 1e-5;
 // the hash would cost more memory than the rule costs time.
 constexpr size_t kMaxHashedTriangles = 2'000'000;
 
-bool IsPlanar(const Shape& shape) { return shape.type != Shape::Type::kSphere; }
+bool IsPlanar(const Shape& shape) { return KindOf(shape).Planar(); }
 
 struct Plane {
   Vec3 normal;  // unit
@@ -40,21 +42,10 @@ bool PlaneOf(const Vec3& a, const Vec3& b, const Vec3& c, Plane* plane) {
 template <typename Visit>
 void ForEachPlane(const Shape& shape, int firstFrame, Visit visit) {
   const Affine placement = shape.motion.WorldFromObject(firstFrame);
-  Plane plane;
-  if (shape.type == Shape::Type::kQuad) {
-    const Vec3& c = shape.corner;
-    const Vec3 u{c.x + shape.edgeU.x, c.y + shape.edgeU.y, c.z + shape.edgeU.z};
-    const Vec3 v{c.x + shape.edgeV.x, c.y + shape.edgeV.y, c.z + shape.edgeV.z};
-    if (PlaneOf(placement.Apply(c), placement.Apply(u), placement.Apply(v), &plane)) visit(plane);
-    return;
-  }
-  const auto& vertices = shape.Mesh().vertices;
-  for (const auto& t : shape.Mesh().triangles) {
-    if (PlaneOf(placement.Apply(vertices[t[0]]), placement.Apply(vertices[t[1]]),
-                placement.Apply(vertices[t[2]]), &plane)) {
-      visit(plane);
-    }
-  }
+  KindOf(shape).ForEachFace(shape, [&](const Vec3& a, const Vec3& b, const Vec3& c) {
+    Plane plane;
+    if (PlaneOf(placement.Apply(a), placement.Apply(b), placement.Apply(c), &plane)) visit(plane);
+  });
 }
 
 using PlaneKey = std::array<int64_t, 4>;

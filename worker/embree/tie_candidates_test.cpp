@@ -1,11 +1,14 @@
 #include "worker/embree/tie_candidates.h"
 
+#include "worker/shapes/shape_kind.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
+#include <vector>
 
 namespace tcfarm {
 namespace {
@@ -51,6 +54,28 @@ TEST(TieCandidatesTest, SurfacesApartNeedNone) {
       {"type": "sphere", "center": [3, 1, 0], "radius": 0.5, "motion": {"polynomial": [[0, -0.5], [0], [0]]}})")));
 }
 
+// What the plane test takes from each kind: a curved one gives no faces, a flat one a face
+// per primitive (a quad's one, a mesh's or terrain's triangles).
+TEST(TieCandidatesTest, EachKindSaysWhetherItIsFlatAndGivesItsFaces) {
+  const Scene scene = WithShapes(R"({"type": "sphere", "center": [0, 1, 0], "radius": 1},
+      {"type": "quad", "corner": [1, 0, 0], "edge_u": [2, 0, 0], "edge_v": [0, 0, 2]},
+      {"type": "mesh", "vertices": [[0, 0, 0], [1, 0, 0], [0, 1, 0]], "triangles": [[0, 1, 2], [2, 1, 0]]},
+      {"type": "terrain", "origin": [0, 0, 0], "size": [4, 4], "cells": [3, 2]})");
+  const bool planar[] = {false, true, true, true};
+  const size_t faces[] = {0, 1, 2, 12};
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    const Shape& shape = scene.shapes[i];
+    EXPECT_EQ(KindOf(shape).Planar(), planar[i]) << i;
+    size_t count = 0;
+    KindOf(shape).ForEachFace(shape, [&](const Vec3&, const Vec3&, const Vec3&) { ++count; });
+    EXPECT_EQ(count, faces[i]) << i;
+  }
+  std::vector<Vec3> quadFace;
+  KindOf(scene.shapes[1]).ForEachFace(scene.shapes[1], [&](const Vec3& a, const Vec3& b, const Vec3& c) {
+    quadFace = {a, b, c};
+  });
+  EXPECT_EQ(quadFace, (std::vector<Vec3>{{1, 0, 0}, {3, 0, 0}, {1, 0, 2}}));
+}
 
 // The definition SpheresMayMeet answers, pair by pair: the way it was computed before the
 // sweep, kept here as the reference.

@@ -30,6 +30,11 @@ class QuadShape final : public ShapeKind {
     return {UnitNormal(shape.edgeU, shape.edgeV)};
   }
   BoundingSphere Bounds(const Shape& shape) const override { return BoundsOf(Corners(shape)); }
+  bool Planar() const override { return true; }
+  // Its plane through the corner and the two edges' ends.
+  void ForEachFace(const Shape& shape, const FaceVisitor& visit) const override {
+    visit(shape.corner, Add(shape.corner, shape.edgeU), Add(shape.corner, shape.edgeV));
+  }
 };
 
 }  // namespace

@@ -1,22 +1,16 @@
 #include "worker/shapes/shape_kind.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace tcfarm {
 
-const ShapeKind& SphereKind();
-const ShapeKind& QuadKind();
-const ShapeKind& TriangleMeshKind();
-
 const ShapeKind& KindOf(const Shape& shape) {
-  switch (shape.type) {
-    case Shape::Type::kSphere: return SphereKind();
-    case Shape::Type::kQuad: return QuadKind();
-    case Shape::Type::kMesh:
-    case Shape::Type::kTerrain: return TriangleMeshKind();  // terrain is generated as a mesh
-  }
-  return TriangleMeshKind();
+#define TCFARM_SHAPE_KIND_ENTRY(Stem) &Stem##Kind(),
+  static const std::array<const ShapeKind*, Shape::kTypeCount> kinds{TCFARM_SHAPE_KINDS(TCFARM_SHAPE_KIND_ENTRY)};
+#undef TCFARM_SHAPE_KIND_ENTRY
+  return *kinds[static_cast<size_t>(shape.type)];
 }
 
 BoundingSphere BoundsOf(const std::vector<Vec3>& points) {

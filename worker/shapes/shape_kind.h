@@ -1,12 +1,13 @@
 // What a worker needs of one kind of shape, behind one interface: the Embree geometry that
 // traces it, its face normals for shading, and its bounds for the horizons of `exact`.
-// One file per kind (sphere.cpp, quad.cpp, triangle_mesh.cpp); a new kind of shape adds a
-// file here and one line to KindOf, and the tracer, the frame geometry and the horizon
-// oracle take it as it is.
+// One file per kind (sphere.cpp, quad.cpp, triangle_mesh.cpp), each defining the
+// <Stem>Kind() that TCFARM_SHAPE_KINDS (scene.h) names; the tracer, the frame geometry,
+// the horizon oracle and the tie test take a new kind as it is.
 #pragma once
 
 #include <embree3/rtcore.h>
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <vector>
@@ -82,7 +83,19 @@ class ShapeKind {
   // Whether its primitives share edges (a mesh's triangles, a quad's two halves), through
   // which a ray may slip unless Embree traverses robustly (scene_geometry.h).
   virtual bool SharesEdges() const { return true; }
+  // Whether every primitive is flat (a quad, a triangle): flat primitives of two shapes
+  // may lie in one plane, where which is hit is a tie (tie_candidates.h). Every kind says,
+  // so that no curved one is taken for flat, nor the other way round.
+  virtual bool Planar() const = 0;
+  // Three points spanning each flat primitive, not in a line, in its rest pose, in
+  // Embree's primitive order. Nothing for a kind that is not planar.
+  using FaceVisitor = std::function<void(const Vec3&, const Vec3&, const Vec3&)>;
+  virtual void ForEachFace(const Shape&, const FaceVisitor&) const {}
 };
+
+#define TCFARM_DECLARE_SHAPE_KIND(Stem) const ShapeKind& Stem##Kind();
+TCFARM_SHAPE_KINDS(TCFARM_DECLARE_SHAPE_KIND)
+#undef TCFARM_DECLARE_SHAPE_KIND
 
 const ShapeKind& KindOf(const Shape& shape);
 

@@ -19,6 +19,7 @@ class SphereShape final : public ShapeKind {
   std::vector<Float3> FaceNormals(const Shape&) const override { return {}; }
   BoundingSphere Bounds(const Shape& shape) const override { return {shape.center, shape.radius}; }
   bool SharesEdges() const override { return false; }
+  bool Planar() const override { return false; }
 };
 
 }  // namespace

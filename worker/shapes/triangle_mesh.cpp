@@ -31,6 +31,11 @@ class TriangleMeshShape final : public ShapeKind {
     return UnitVertexNormals(shape.Mesh().normals);
   }
   BoundingSphere Bounds(const Shape& shape) const override { return BoundsOf(shape.Mesh().vertices); }
+  bool Planar() const override { return true; }
+  void ForEachFace(const Shape& shape, const FaceVisitor& visit) const override {
+    const auto& vertices = shape.Mesh().vertices;
+    for (const auto& t : shape.Mesh().triangles) visit(vertices[t[0]], vertices[t[1]], vertices[t[2]]);
+  }
 };
 
 }  // namespace
@@ -55,9 +60,12 @@ std::vector<Float3> UnitVertexNormals(const std::vector<Vec3>& normals) {
   return unit;
 }
 
-const ShapeKind& TriangleMeshKind() {
+const ShapeKind& MeshKind() {
   static const TriangleMeshShape kind;
   return kind;
 }
+
+// Terrain is generated as a mesh (proto/scene/shapes/terrain.cpp), and traced as one.
+const ShapeKind& TerrainKind() { return MeshKind(); }
 
 }  // namespace tcfarm

@@ -1,5 +1,6 @@
 // Reading a scene document: its parts in order, an imported base, the render settings.
 #include "proto/scene/parse/scene_reader.h"
+#include "proto/scene/shapes/shape_format.h"
 
 #include "proto/scene/import/import_options.h"
 
@@ -31,11 +32,9 @@ Scene SceneReader::Read(const json& document) {
   if (root.Has("meshes")) AddSharedMeshes(scene, root.Member("meshes"));
   if (root.Has("shapes")) Append(scene.shapes, ReadShapes(root.Member("shapes")));
   if (root.Has("background")) scene.background = ReadColour(root.Member("background"));
-  // Terrain meshes are generated only once the whole scene is known to be valid: a
-  // rejected scene should cost no geometry.
-  for (Shape& shape : scene.shapes) {
-    if (shape.type == Shape::Type::kTerrain) shape.mesh = GenerateTerrain(shape.terrain, checkpoint_);
-  }
+  // What a kind leaves until the whole scene is known to be valid (terrain generating its
+  // mesh) is done now: a rejected scene should cost no geometry.
+  for (Shape& shape : scene.shapes) FormatOf(shape.type).Complete(shape, checkpoint_);
   return scene;
 }
 

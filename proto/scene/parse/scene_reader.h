@@ -1,6 +1,7 @@
 // The scene JSON reader: one document -> Scene, each part read and checked by its own file
 // (read_scene.cpp: the document, import and render settings; read_materials.cpp;
-// read_camera_lights.cpp; read_shapes.cpp; read_meshes.cpp: mesh geometry and deformation).
+// read_camera_lights.cpp; read_shapes.cpp: the fields every shape has, each kind's own read
+// by its format (proto/scene/shapes/); read_meshes.cpp: mesh geometry and deformation).
 #pragma once
 
 #include <algorithm>
@@ -37,6 +38,23 @@ class SceneReader {
   SceneReader(std::optional<std::filesystem::path> baseDirectory, Checkpoint checkpoint = {});
 
   Scene Read(const json& document);
+
+  // --- what the shape kinds read with (proto/scene/shapes/) ---
+
+  // A shape's allowed keys: the kind's own, and those every shape has.
+  static std::vector<std::string> ShapeFields(std::vector<std::string> specific);
+
+  // A mesh's own triangles, inline or from an OBJ file: a mesh shape's, or a shared one's.
+  TriangleMesh ReadMeshGeometry(const Node& node);
+
+  // A mesh shape placing a shared mesh ("mesh_ref").
+  void ReadMeshRef(const Node& node, Shape& shape);
+
+  // Morph targets and/or a skin of a mesh shape (deformation.h).
+  void ReadDeformation(const Node& node, Shape& shape) const;
+
+  // Counts triangles against the scene's limit, refusing the scene past it at `node`.
+  void ChargeTriangles(size_t count, const Node& node);
 
  private:
   template <typename T>
@@ -103,21 +121,11 @@ class SceneReader {
 
   Shape ReadShape(const Node& node);
 
-  static std::vector<std::string> ShapeFields(std::vector<std::string> specific);
-
   void ReadCommonShapeFields(const Node& node, Shape& shape);
 
   std::string MaterialChoices() const;
 
-  void ReadSphere(const Node& node, Shape& shape);
-
-  void ReadQuad(const Node& node, Shape& shape);
-
-  void ReadMesh(const Node& node, Shape& shape);
-
   // --- deforming meshes (deformation.h) ---
-
-  void ReadDeformation(const Node& node, Shape& shape) const;
 
   static std::vector<Vec3> ReadVec3List(const Node& node, const std::string& what);
 
@@ -130,9 +138,6 @@ class SceneReader {
   // Per vertex, 4 or 8 joint indices and as many weights.
   static void ReadInfluences(const Node& node, Skin& skin);
 
-  // A mesh's own triangles, inline or from an OBJ file: a mesh shape's, or a shared one's.
-  TriangleMesh ReadMeshGeometry(const Node& node);
-
   static bool HasInlineGeometry(const Node& node);
 
   // Every shared mesh is read and checked, used or not: a scene holds no invalid geometry.
@@ -140,8 +145,6 @@ class SceneReader {
   void AddSharedMeshes(Scene& scene, const Node& node);
 
   std::map<std::string, std::shared_ptr<const TriangleMesh>> ReadSharedMeshes(const Node& node);
-
-  void ReadMeshRef(const Node& node, Shape& shape);
 
   std::string SharedMeshChoices() const;
 
@@ -174,17 +177,9 @@ class SceneReader {
 
   static void CheckMesh(const TriangleMesh& mesh, const Node& verticesNode, const Node& trianglesNode);
 
-  void ChargeTriangles(size_t count, const Node& node);
-
   TriangleMesh LoadMeshFile(const Node& node);
 
   std::filesystem::path ResolveInsideBase(const Node& node, const std::string& name) const;
-
-  void ReadTerrain(const Node& node, Shape& shape);
-
-  static void ReadTerrainCells(const Node& node, Shape::Terrain& terrain);
-
-  static uint64_t ReadSeed(const Node& node);
 
   std::optional<std::filesystem::path> baseDirectory_;
   Checkpoint checkpoint_;

@@ -1,4 +1,7 @@
-// Procedural terrain: fractal value noise over a regular grid.
+// A terrain: {"type": "terrain", "origin", "size", "height", "cells", "seed"}, a
+// heightfield mesh generated from those parameters (and written back as them).
+//
+// The mesh is procedural: fractal value noise over a regular grid.
 //
 // Every worker regenerates the mesh from the parameters, and a pixel traced on one
 // machine is copied next to pixels traced on another, so the heights must be the same
@@ -10,7 +13,10 @@
 #include <cmath>
 #include <cstdint>
 
+#include "proto/scene/parse/scene_reader.h"
 #include "proto/scene/scene.h"
+#include "proto/scene/scene_write.h"
+#include "proto/scene/shapes/shape_format.h"
 
 namespace tcfarm {
 namespace {
@@ -125,6 +131,73 @@ TriangleMesh GenerateTerrain(const Shape::Terrain& terrain, const Checkpoint& ch
   AddVertices(terrain, mesh, checkpoint);  // the noise: most of the time
   AddTriangles(terrain, mesh);
   return mesh;
+}
+
+namespace {
+
+using namespace scene_parse;
+using scene_write::Vec3Json;
+
+void ReadTerrainCells(const Node& node, Shape::Terrain& terrain) {
+  ExpectArray(node, 2, "[cells_x, cells_z], two integers in [1, 2000]");
+  terrain.cellsX = ReadInt(node.Element(0), 1, kMaxTerrainCells);
+  terrain.cellsZ = ReadInt(node.Element(1), 1, kMaxTerrainCells);
+}
+
+uint64_t ReadSeed(const Node& node) {
+  const std::string expected = "an integer in [0, 18446744073709551615]";
+  if (node.value.is_number_unsigned()) return node.value.get<uint64_t>();
+  if (node.value.is_number_integer()) Fail(node.pointer, Show(node.value) + " is negative", expected);
+  FailType(node, expected);
+}
+
+class TerrainFormatImpl final : public ShapeFormat {
+ public:
+  const char* Name() const override { return "terrain"; }
+
+  void Read(SceneReader& reader, const Node& node, Shape& shape) const override {
+    ExpectObject(node, SceneReader::ShapeFields({"origin", "size", "height", "cells", "seed"}), "a terrain");
+    Shape::Terrain& terrain = shape.terrain;
+    terrain.origin = ReadVec3(Required(node, "origin", kVec3Expected));
+    const std::string sizeExpected = "[size_x, size_z], two positive finite numbers";
+    Node size = Required(node, "size", sizeExpected);
+    ExpectArray(size, 2, sizeExpected);
+    terrain.sizeX = ReadPositive(size.Element(0), sizeExpected);
+    terrain.sizeZ = ReadPositive(size.Element(1), sizeExpected);
+    if (node.Has("height")) terrain.height = ReadNonNegative(node.Member("height"), "a non-negative finite height");
+    if (node.Has("cells")) ReadTerrainCells(node.Member("cells"), terrain);
+    if (node.Has("seed")) terrain.seed = ReadSeed(node.Member("seed"));
+    reader.ChargeTriangles(2 * static_cast<size_t>(terrain.cellsX) * static_cast<size_t>(terrain.cellsZ),
+                           node.Has("cells") ? node.Member("cells") : node);
+  }
+
+  void Complete(Shape& shape, const Checkpoint& checkpoint) const override {
+    shape.mesh = GenerateTerrain(shape.terrain, checkpoint);
+  }
+
+  json Write(const Shape& shape) const override {
+    const Shape::Terrain& t = shape.terrain;
+    return json{{"origin", Vec3Json(t.origin)}, {"size", {t.sizeX, t.sizeZ}},      {"height", t.height},
+                {"cells", {t.cellsX, t.cellsZ}}, {"seed", t.seed}};
+  }
+
+  // The parameters move with the generated mesh, so the scene writes back where it is.
+  void Translate(Shape& shape, const Vec3& offset) const override {
+    shape.terrain.origin = Moved(shape.terrain.origin, offset);
+    for (Vec3& v : shape.mesh.vertices) v = Moved(v, offset);
+  }
+
+  bool PlaceStill(Shape& shape, const Affine& placement) const override {
+    PlaceTrianglesStill(shape, placement);
+    return true;
+  }
+};
+
+}  // namespace
+
+const ShapeFormat& TerrainFormat() {
+  static const TerrainFormatImpl format;
+  return format;
 }
 
 }  // namespace tcfarm
