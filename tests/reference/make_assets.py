@@ -396,7 +396,7 @@ ASSETS = [metal_rough_spheres, metal_rough_texture, base_color_texcoord1,
 DEBIAN_MODELS = [
     ("debian_box_textured", "BoxTextured-glTF/BoxTextured.gltf", ([1.6, 1.2, 2.2], [0, 0, 0]),
      [("directional", 2.5, {"toward": [-0.5, -0.8, -1.0]}), ("point", 10.0, {"at": [2, 0.5, 2.5]})]),
-    ("debian_box_texcoords", "BoxTexcoords-glTF/boxTexcoords.gltf", ([1.8, 1.4, 2.6], [0, 0, 0]),
+    ("debian_box_texcoords", "BoxTexcoords-glTF/boxTexcoords.gltf", ([2.6, 2.0, 3.8], [0, 0, 0]),
      [("directional", 2.5, {"toward": [-0.5, -0.8, -1.0]})]),
     ("debian_texture_transform", "textureTransform/TextureTransformTest.gltf", ([0, 0, 3.4], [0, 0, 0]),
      [("directional", 2.5, {"toward": [0.1, -0.2, -1.0]})]),
