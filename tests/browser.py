@@ -37,12 +37,16 @@ class PageError(AssertionError):
 
 
 class Browser:
-    def __init__(self, profile, width=1280, height=900):
+    def __init__(self, profile, width=1280, height=900, webgl=False):
+        """webgl: WebGL2 in software (SwiftShader through ANGLE), for pages that render
+        with it; otherwise the GPU is off."""
         self.width, self.height = width, height
         self.profile = pathlib.Path(profile)
         self.profile.mkdir(parents=True, exist_ok=True)
+        graphics = (["--use-angle=swiftshader", "--enable-unsafe-swiftshader"] if webgl
+                    else ["--disable-gpu"])
         self.process = subprocess.Popen(
-            [chromium_binary(), "--headless", "--no-sandbox", "--disable-gpu",
+            [chromium_binary(), "--headless", "--no-sandbox", *graphics,
              "--disable-background-networking", "--disable-component-update", "--disable-sync",
              "--no-first-run", "--no-default-browser-check", f"--user-data-dir={profile}",
              f"--window-size={width},{height}", "--remote-debugging-port=0",
