@@ -238,8 +238,11 @@ void ReadImportOption(const std::string& key, const json& value, ImportOptions& 
     (key == "animation" ? options.animation : options.camera) = ReadNameOrIndex(value, pointer);
   } else if (key == "spp") {
     options.samplesPerPixel = ReadSamplesPerPixel(value, pointer);
+  } else if (key == "light_units") {
+    options.lightUnits = ReadLightUnits(value, pointer);
   } else {
-    Fail(error_code::kUnknownField, pointer, "unknown field", "only the fields fps, size, animation, camera, spp");
+    Fail(error_code::kUnknownField, pointer, "unknown field",
+         "only the fields fps, size, animation, camera, spp, light_units");
   }
 }
 
@@ -249,7 +252,7 @@ ImportOptions ReadImportOptions(const json& request) {
   ImportOptions options;
   const auto import = request.find("import");
   if (import == request.end()) return options;
-  const std::string expected = R"({"fps", "size": [width, height], "animation", "camera", "spp"})";
+  const std::string expected = R"({"fps", "size": [width, height], "animation", "camera", "spp", "light_units"})";
   if (!import->is_object()) Fail(error_code::kInvalidField, "/import", ShowValue(*import) + " is not an object", expected);
   if (request.find("scene_file") == request.end()) {
     Fail(error_code::kInvalidField, "/import", "given without a scene_file", "import options only with \"scene_file\"");

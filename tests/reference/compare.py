@@ -32,8 +32,9 @@ from khronos_render import KhronosRenderer, parse_size, srgb_bytes  # noqa: E402
 LIT_THRESHOLD = 0.01  # linear; darker pixels say little about shading and much about noise
 DEFAULT_OUT = ROOT / "tests" / "artifacts" / "reference"
 # How the tracer is asked to shade as the Sample Renderer does: no shadows (it has none) and
-# glTF light intensities taken as they are (as it takes them), not as photometric units.
-WORKER_FLAGS = [["--no-shadows"], ["--light-units", "viewer"]]
+# glTF light intensities taken as they are (as it takes them), not as photometric units,
+# and no ambient term (it has no light but its punctual ones with image-based light off).
+WORKER_FLAGS = [["--no-shadows"], ["--light-units", "radiometric"], ["--ambient", "0"]]
 
 
 @dataclasses.dataclass

@@ -109,6 +109,14 @@ RenderCommandLine::RenderCommandLine(CLI::App& app) {
       ->check(cli::IntegerFrom(1, scene_limits::kMaxSamplesPerPixel));
   app.add_flag("--print-scene", options_.printScene,
                "Print the scene as tcfarm JSON, as the farm is given it, and render nothing");
+  app.add_option("--light-units", lightUnits_,
+                 "glTF lights: photometric (candela and lux at 683 lm/W, as Blender and other tools mean them; the "
+                 "default) or radiometric (the numbers as W/sr and W/m2, as the Khronos Sample Viewer takes them)")
+      ->check(CLI::IsMember({"photometric", "radiometric"}));
+  app.add_flag("--no-shadows", options_.noShadows,
+               "Trace no shadow rays: every light reaches what faces it (to compare with a rasterizer)");
+  app.add_option("--ambient", options_.ambient, "The ambient term's share of a surface's colour (default: the scene's, 0.05)")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_flag("--no-exr", noExr_, "Write no EXR frames");
   app.add_flag("--no-png", noPng_, "Write no PNG frames");
   app.add_option("--exr-compression", options_.output.exrCompression,
@@ -121,6 +129,7 @@ RenderOptions RenderCommandLine::Options() const {
   RenderOptions options = options_;
   if (!frames_.empty()) ParseFrameRange(frames_, &options);
   if (!size_.empty()) ParseSize(size_, &options);
+  if (!lightUnits_.empty()) options.import.lightUnits = *LightUnitsNamed(lightUnits_);
   options.output.writeExr = !noExr_;
   options.output.writePng = !noPng_;
   if (!IsLosslessExrCompression(options.output.exrCompression)) {
@@ -133,6 +142,8 @@ RenderOptions RenderCommandLine::Options() const {
 int RunRender(const RenderOptions& requested) {
   RenderOptions options = requested;
   Scene scene = ImportScene(options.scenePath, options.import);
+  if (options.noShadows) scene.render.shadows = false;
+  if (options.ambient) scene.render.ambient = *options.ambient;
   if (options.printScene) {
     std::printf("%s\n", SerializeScene(scene).c_str());
     return 0;

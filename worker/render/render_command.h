@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "proto/command_line/command_line.h"
@@ -24,6 +25,9 @@ struct RenderOptions {
   ImportOptions import;
   // Print the scene as tcfarm JSON (what the farm is given) instead of rendering it.
   bool printScene = false;
+  // Lighting switches for comparisons with other renderers (RenderSettings).
+  bool noShadows = false;
+  std::optional<double> ambient;
 };
 
 // The renderer's command line, SCENE and its flags, on app; Options() once app has parsed.
@@ -42,6 +46,7 @@ class RenderCommandLine {
   std::string size_;    // WxH; empty: the scene's own
   bool noExr_ = false;
   bool noPng_ = false;
+  std::string lightUnits_;
 };
 
 // Returns the process exit code.

@@ -62,4 +62,12 @@ std::string ReadNameOrIndex(const json& value, const std::string& pointer) {
   return std::to_string(value.get<long long>());
 }
 
+LightUnits ReadLightUnits(const json& value, const std::string& pointer) {
+  const std::string expected = "\"photometric\" (glTF's candela and lux at 683 lm/W) or \"radiometric\" (as they are)";
+  if (!value.is_string()) FailInput(pointer, Shown(value) + " is not a string", expected);
+  const std::optional<LightUnits> units = LightUnitsNamed(value.get<std::string>());
+  if (!units) FailInput(pointer, Shown(value) + " names no light units", expected);
+  return *units;
+}
+
 }  // namespace tcfarm

@@ -9,6 +9,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "proto/scene/import/scene_import.h"
+
 namespace tcfarm {
 
 // Each reads the value found at the JSON pointer `pointer`, or throws SceneError there
@@ -16,6 +18,9 @@ namespace tcfarm {
 double ReadFramesPerSecond(const nlohmann::json& value, const std::string& pointer);
 int ReadImageSide(const nlohmann::json& value, const std::string& pointer);  // a width or a height
 int ReadSamplesPerPixel(const nlohmann::json& value, const std::string& pointer);
+// "photometric" (candela and lux at 683 lm/W, as the tools that write glTF mean them) or
+// "radiometric" (the numbers as they are).
+LightUnits ReadLightUnits(const nlohmann::json& value, const std::string& pointer);
 // An animation or a camera: its name, or its index (written as its decimal digits).
 std::string ReadNameOrIndex(const nlohmann::json& value, const std::string& pointer);
 

@@ -40,8 +40,9 @@ Scene SceneReader::Read(const json& document) {
 
 Scene SceneReader::ReadImport(const Node& root) {
   const Node node = root.Member("import");
-  const std::string expected = "{\"file\": a glTF or OBJ file in the scene's folder, \"animation\", \"camera\", \"fps\"}";
-  ExpectObject(node, {"file", "animation", "camera", "fps"}, expected);
+  const std::string expected =
+      "{\"file\": a glTF or OBJ file in the scene's folder, \"animation\", \"camera\", \"fps\", \"light_units\"}";
+  ExpectObject(node, {"file", "animation", "camera", "fps", "light_units"}, expected);
   const Node file = Required(node, "file", expected);
   const std::string name = ReadString(file, "a glTF or OBJ file inside the scene folder");
   if (!baseDirectory_) {
@@ -68,6 +69,9 @@ ImportOptions SceneReader::ReadImportOptions(const Node& root, const Node& node)
   if (node.Has("fps")) options.framesPerSecond = ReadFramesPerSecond(node.value.at("fps"), node.MemberPointer("fps"));
   if (node.Has("animation")) options.animation = ReadNameOrIndex(node.value.at("animation"), node.MemberPointer("animation"));
   if (node.Has("camera")) options.camera = ReadNameOrIndex(node.value.at("camera"), node.MemberPointer("camera"));
+  if (node.Has("light_units")) {
+    options.lightUnits = ReadLightUnits(node.value.at("light_units"), node.MemberPointer("light_units"));
+  }
   if (root.Has("render") && root.value["render"].is_object()) {
     const Node render = root.Member("render");
     if (render.Has("width")) options.width = ReadImageSide(render.value.at("width"), render.MemberPointer("width"));

@@ -73,10 +73,15 @@ inline Float3 PbrReflected(const PbrSurface& s, const PbrConstants& c, Float3 to
   half = halfLength > 0 ? half * (1.0f / halfLength) : normal;
   const float nDotH = std::max(Dot(normal, half), 0.0f);
   const float vDotH = std::max(Dot(towardViewer, half), 0.0f);
+  // Appendix B: mix(dielectric, metal, metallic), where the dielectric splits its light by
+  // its own Fresnel term and the metal has no diffuse lobe. Schlick's term is linear in f0,
+  // so the two specular lobes fold into one with the mixed f0.
   const Float3 fresnel = Schlick(SurfaceF0(s, c), SurfaceF90(s, c), vDotH);
+  const Float3 dielectricFresnel =
+      Schlick(c.dielectricF0, {c.dielectricF90, c.dielectricF90, c.dielectricF90}, vDotH);
   const float alpha = s.roughness * s.roughness;
   const Float3 diffuseColor = s.baseColor * (1.0f - s.metallic);
-  const Float3 diffuse = (Float3{1, 1, 1} - fresnel) * diffuseColor * kInversePi;
+  const Float3 diffuse = (Float3{1, 1, 1} - dielectricFresnel) * diffuseColor * kInversePi;
   const Float3 specular = fresnel * (GgxDistribution(nDotH, alpha) * SmithVisibility(nDotL, nDotV, alpha));
   return (diffuse + specular) * nDotL;
 }
