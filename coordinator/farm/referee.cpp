@@ -19,9 +19,9 @@ class TracingReferee::Tracing {
     scene_ = std::make_unique<Scene>(ParseScene(sceneJson));
     // Textures are named by hash at submit; the store holds every one a job's scene names.
     for (Material& material : scene_->materials) {
-      if (material.diffuseTexture && !material.diffuseTexture->asset.empty()) {
-        material.diffuseTexture->file = assetRoot / material.diffuseTexture->asset;
-      }
+      material.ForEachTexture([&](Texture& texture, const std::string&) {
+        if (!texture.asset.empty()) texture.file = assetRoot / texture.asset;
+      });
     }
     PrepareForTracing(*scene_);  // as the workers do: the same bits
     tracer_ = std::make_unique<Tracer>(device_, *scene_, threads_);

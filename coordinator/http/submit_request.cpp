@@ -286,8 +286,8 @@ Scene ReadSceneFromFile(const json& sceneFile, const std::map<std::string, std::
   }
 }
 
-std::string TexturePointer(const Material& material, const std::string& scenePointer) {
-  return scenePointer == "/scene" ? "/scene/materials/" + EscapePointerToken(material.name) + "/diffuse_texture"
+std::string TexturePointer(const Material& material, const std::string& where, const std::string& scenePointer) {
+  return scenePointer == "/scene" ? "/scene/materials/" + EscapePointerToken(material.name) + "/" + where
                                   : scenePointer;
 }
 
@@ -311,46 +311,51 @@ std::string TextureBytes(const Texture& texture, const AssetStore& store) {
 // submission's folder is there already, one embedded in a glTF file is stored now. Each
 // image is decoded once here, so that one no worker could read fails the submission, not
 // every task of the job.
+void BindTextureToAsset(const Material& material, Texture& texture, const std::string& where, AssetStore* store,
+                        const std::string& scenePointer) {
+  const std::string pointer = TexturePointer(material, where, scenePointer);
+  if (!store) {
+    throw ApiError(400, error_code::kInvalidScene,
+                   pointer.substr(1) + ": texture " + ShowValue(texture.Describe()) +
+                       " cannot reach the workers of a farm without an asset store; expected a material without a texture",
+                   pointer);
+  }
+  const bool namedByHash = !texture.asset.empty() && !texture.bytes;
+  if (namedByHash && !store->Has(texture.asset)) {
+    throw ApiError(400, error_code::kMissingAsset,
+                   pointer.substr(1) + "/asset: the farm has no asset " + texture.asset +
+                       "; expected the hash of an image uploaded first (PUT /api/v1/assets/{sha256})",
+                   scenePointer == "/scene" ? pointer + "/asset" : pointer);
+  }
+  std::string bytes;
+  try {
+    bytes = TextureBytes(texture, *store);
+  } catch (const std::runtime_error& error) {
+    throw ApiError(507, error_code::kInsufficientStorage, std::string("the store could not read a texture: ") + error.what());
+  }
+  if (const auto problem = EncodedImageProblem(bytes)) {
+    throw ApiError(400, error_code::kInvalidScene,
+                   pointer.substr(1) + ": texture image " + ShowValue(texture.Describe()) + " cannot be used: " +
+                       *problem + "; expected a PNG or JPEG image",
+                   pointer);
+  }
+  if (namedByHash) return;
+  texture.asset = wire::Sha256Hex(bytes);
+  try {
+    if (!store->Has(texture.asset) && store->Put(texture.asset, bytes) == AssetStore::CommitResult::kHashMismatch) {
+      throw std::runtime_error("its bytes changed while they were stored");
+    }
+  } catch (const std::runtime_error& error) {
+    throw ApiError(507, error_code::kInsufficientStorage,
+                   "the store could not keep texture " + texture.Describe() + ": " + error.what());
+  }
+}
+
 void BindTexturesToAssets(Scene& scene, AssetStore* store, const std::string& scenePointer) {
   for (Material& material : scene.materials) {
-    if (!material.diffuseTexture) continue;
-    Texture& texture = *material.diffuseTexture;
-    const std::string pointer = TexturePointer(material, scenePointer);
-    if (!store) {
-      throw ApiError(400, error_code::kInvalidScene,
-                     pointer.substr(1) + ": texture " + ShowValue(texture.Describe()) +
-                         " cannot reach the workers of a farm without an asset store; expected a material without a texture",
-                     pointer);
-    }
-    const bool namedByHash = !texture.asset.empty() && !texture.bytes;
-    if (namedByHash && !store->Has(texture.asset)) {
-      throw ApiError(400, error_code::kMissingAsset,
-                     pointer.substr(1) + "/asset: the farm has no asset " + texture.asset +
-                         "; expected the hash of an image uploaded first (PUT /api/v1/assets/{sha256})",
-                     scenePointer == "/scene" ? pointer + "/asset" : pointer);
-    }
-    std::string bytes;
-    try {
-      bytes = TextureBytes(texture, *store);
-    } catch (const std::runtime_error& error) {
-      throw ApiError(507, error_code::kInsufficientStorage, std::string("the store could not read a texture: ") + error.what());
-    }
-    if (const auto problem = EncodedImageProblem(bytes)) {
-      throw ApiError(400, error_code::kInvalidScene,
-                     pointer.substr(1) + ": texture image " + ShowValue(texture.Describe()) + " cannot be used: " +
-                         *problem + "; expected a PNG or JPEG image",
-                     pointer);
-    }
-    if (namedByHash) continue;
-    texture.asset = wire::Sha256Hex(bytes);
-    try {
-      if (!store->Has(texture.asset) && store->Put(texture.asset, bytes) == AssetStore::CommitResult::kHashMismatch) {
-        throw std::runtime_error("its bytes changed while they were stored");
-      }
-    } catch (const std::runtime_error& error) {
-      throw ApiError(507, error_code::kInsufficientStorage,
-                     "the store could not keep texture " + texture.Describe() + ": " + error.what());
-    }
+    material.ForEachTexture([&](Texture& texture, const std::string& where) {
+      BindTextureToAsset(material, texture, where, store, scenePointer);
+    });
   }
 }
 
@@ -484,7 +489,9 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   std::set<std::string> named;
   for (const auto& [path, hash] : files) named.insert(hash);
   for (const Material& material : scene.materials) {
-    if (material.diffuseTexture && !material.diffuseTexture->asset.empty()) named.insert(material.diffuseTexture->asset);
+    material.ForEachTexture([&](const Texture& texture, const std::string&) {
+      if (!texture.asset.empty()) named.insert(texture.asset);
+    });
   }
   spec.assetHashes.assign(named.begin(), named.end());
   return spec;

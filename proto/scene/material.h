@@ -93,12 +93,15 @@ struct MetallicRoughness {
     }
     return false;
   }
-  // The textures it reads, for loading and listing.
+  // Each texture it reads, with its key in a material's "pbr" block.
   template <typename Visit>
-  void ForEachTexture(Visit visit) const {
-    for (const auto* slot : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
-                             &emissiveTexture}) {
-      if (*slot) visit((*slot)->texture);
+  void ForEachTexture(Visit visit) {
+    const std::pair<std::optional<TextureSlot>*, const char*> slots[] = {
+        {&baseColorTexture, "base_color_texture"}, {&metallicRoughnessTexture, "metallic_roughness_texture"},
+        {&normalTexture, "normal_texture"},       {&occlusionTexture, "occlusion_texture"},
+        {&emissiveTexture, "emissive_texture"}};
+    for (const auto& [slot, key] : slots) {
+      if (*slot) visit((*slot)->texture, std::string(key));
     }
   }
 };
@@ -120,6 +123,18 @@ struct Material {
   std::optional<MetallicRoughness> pbr;
 
   bool IsPbr() const { return pbr.has_value(); }
+  // Each texture the material reads, with its path in the material's JSON ("diffuse_texture",
+  // "pbr/normal_texture"): whoever fetches, binds or lists images asks here.
+  template <typename Visit>
+  void ForEachTexture(Visit visit) {
+    if (diffuseTexture) visit(*diffuseTexture, std::string("diffuse_texture"));
+    if (pbr) pbr->ForEachTexture([&](Texture& texture, const std::string& key) { visit(texture, "pbr/" + key); });
+  }
+  template <typename Visit>
+  void ForEachTexture(Visit visit) const {
+    const_cast<Material*>(this)->ForEachTexture(
+        [&](Texture& texture, const std::string& where) { visit(static_cast<const Texture&>(texture), where); });
+  }
   bool Reflects() const {
     if (!pbr) return reflectivity > 0;
     return !pbr->unlit && (pbr->roughness < kMirrorRoughness || pbr->metallicRoughnessTexture.has_value());

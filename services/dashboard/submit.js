@@ -10,6 +10,10 @@ class SceneFileError extends Error {}
 
 const SCENE_FILE_TYPES = [".json", ".gltf", ".glb", ".obj"];
 
+// The textures of a material's "pbr" block (glTF's model), as proto/scene.schema.json names them.
+const PBR_TEXTURES = ["base_color_texture", "metallic_roughness_texture", "normal_texture", "occlusion_texture",
+  "emissive_texture"];
+
 function suffixOf(name) {
   const dot = name.lastIndexOf(".");
   return dot < 0 ? "" : name.slice(dot).toLowerCase();
@@ -53,8 +57,11 @@ function* jsonReferences(scene) {
   }
   const materials = scene && scene.materials && typeof scene.materials === "object" ? scene.materials : {};
   for (const material of Object.values(materials)) {
-    const texture = material && material.diffuse_texture;
-    if (texture && typeof texture.image === "string") yield [texture.image, "texture image"];
+    if (!material || typeof material !== "object") continue;
+    const pbr = material.pbr && typeof material.pbr === "object" ? material.pbr : {};
+    for (const texture of [material.diffuse_texture, ...PBR_TEXTURES.map((key) => pbr[key])]) {
+      if (texture && typeof texture.image === "string") yield [texture.image, "texture image"];
+    }
   }
 }
 

@@ -379,6 +379,50 @@ def textured_turntable(how="data"):
     return g
 
 
+def bump_png(size=16):
+    """A tangent-space normal map of ridges along u: codes around (128, 128, 255), x tilting."""
+    rows = []
+    for y in range(size):
+        row = []
+        for x in range(size):
+            tilt = math.sin(2 * math.pi * x / size) * 0.6
+            nz = math.sqrt(1 - tilt * tilt)
+            row.append((round((tilt * 0.5 + 0.5) * 255), 128, round((nz * 0.5 + 0.5) * 255)))
+        rows.append(row)
+    return png_bytes(rows)
+
+
+def pbr_turntable(how="data"):
+    """The textured turntable with every core texture of glTF's material model: the floor
+    normal-mapped (generated tangents), its checkers moved by KHR_texture_transform and read
+    through TEXCOORD_1; the striped box's metal and roughness from a texture; the sign
+    emissive through a texture and KHR_materials_emissive_strength, its occlusion from one."""
+    g = textured_turntable(how)
+    floor = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "floor")
+    red = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "red")
+    bumps = g.texture(bump_png(), "data")
+    metal_rough = g.texture(png_bytes([[(0, 40, 255), (0, 230, 0)] * 2] * 2), "data", mag_filter=9728)
+    glow = g.texture(png_bytes([[(255, 120, 20), (20, 20, 20)], [(20, 20, 20), (255, 120, 20)]]), "data")
+    floor_material = g.doc["materials"][floor]
+    floor_material["normalTexture"] = {"index": bumps, "scale": 0.8}
+    base = floor_material["pbrMetallicRoughness"]["baseColorTexture"]
+    base["texCoord"] = 1
+    base["extensions"] = {"KHR_texture_transform": {"offset": [0.1, 0.2], "rotation": 0.3, "scale": [1.5, 1.5]}}
+    floor_node = next(n for n in g.doc["nodes"] if n.get("name") == "floor")
+    floor_primitive = g.doc["meshes"][floor_node["mesh"]]["primitives"][0]
+    floor_primitive["attributes"]["TEXCOORD_1"] = g.accessor([0, 0, 0, 2, 2, 0, 2, 2], "VEC2", target=34962)
+    red_material = g.doc["materials"][red]
+    red_material["pbrMetallicRoughness"].update({"metallicFactor": 1.0, "roughnessFactor": 1.0,
+                                                 "metallicRoughnessTexture": {"index": metal_rough}})
+    red_material["emissiveTexture"] = {"index": glow}
+    red_material["emissiveFactor"] = [1.0, 1.0, 1.0]
+    red_material["occlusionTexture"] = {"index": metal_rough, "strength": 0.5}
+    red_material.setdefault("extensions", {})["KHR_materials_emissive_strength"] = {"emissiveStrength": 2.0}
+    g._use("KHR_texture_transform")
+    g._use("KHR_materials_emissive_strength")
+    return g
+
+
 def uv_sphere(radius, rings, segments):
     """A smooth UV sphere about the origin: positions, normals, uvs, indices (flat lists);
     2 * rings * segments triangles, some degenerate at the poles."""

@@ -22,13 +22,14 @@ SceneCache::Built SceneCache::Build(const std::string& sceneJson, const AssetCac
 SceneCache::Built SceneCache::Finish(std::unique_ptr<Scene> scene, const AssetCache& assets, BuildStop stop) const {
   Built built;
   for (Material& material : scene->materials) {
-    if (!material.diffuseTexture || material.diffuseTexture->asset.empty()) continue;
-    Texture& texture = *material.diffuseTexture;
-    if (auto file = assets.Find(texture.asset)) {
-      texture.file = *file;
-    } else {
-      built.missingAssets.push_back(texture.asset);
-    }
+    material.ForEachTexture([&](Texture& texture, const std::string&) {
+      if (texture.asset.empty()) return;
+      if (auto file = assets.Find(texture.asset)) {
+        texture.file = *file;
+      } else {
+        built.missingAssets.push_back(texture.asset);
+      }
+    });
   }
   built.scene = std::move(scene);
   if (!built.missingAssets.empty()) return built;

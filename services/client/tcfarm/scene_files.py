@@ -26,6 +26,10 @@ class SceneFiles:
         self.scene, self.scene_file, self.assets = scene, scene_file, assets
 
 
+# The textures of a material's "pbr" block (glTF's model), as proto/scene.schema.json names them.
+PBR_TEXTURES = ("base_color_texture", "metallic_roughness_texture", "normal_texture", "occlusion_texture",
+                "emissive_texture")
+
 def _canonical(name, scene_path, what):
     relative = posixpath.normpath(name) if name else ""
     if (not name or name.startswith("/") or "\\" in name or relative == "."
@@ -54,9 +58,13 @@ def _json_references(scene):
             yield mesh["file"], "mesh file"
     materials = scene.get("materials") if isinstance(scene, dict) else None
     for material in materials.values() if isinstance(materials, dict) else []:
-        texture = material.get("diffuse_texture") if isinstance(material, dict) else None
-        if isinstance(texture, dict) and isinstance(texture.get("image"), str):
-            yield texture["image"], "texture image"
+        if not isinstance(material, dict):
+            continue
+        pbr = material.get("pbr") if isinstance(material.get("pbr"), dict) else {}
+        textures = [material.get("diffuse_texture")] + [pbr.get(key) for key in PBR_TEXTURES]
+        for texture in textures:
+            if isinstance(texture, dict) and isinstance(texture.get("image"), str):
+                yield texture["image"], "texture image"
 
 
 def _obj_libraries(text):
