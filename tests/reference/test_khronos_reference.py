@@ -2,11 +2,10 @@
 make_assets.py rendered by both (compare.py), and per asset the median relative error of
 the lit pixels at most 2 % and the 95th percentile at most 8 %.
 
-Off by default: the tracer does not shade glTF materials with the metallic-roughness BRDF
-yet, and every asset fails. Run it with TCFARM_KHRONOS_REFERENCE=1; once it passes, drop
-the skip below so that the default run keeps it.
+The assets of NOT_YET show what the tracer does not do yet; they are rendered and printed
+in the table like the others, and their test fails once the feature lands (remove them
+from the list then).
 """
-import os
 import pathlib
 import sys
 
@@ -15,9 +14,14 @@ import pytest
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-pytestmark = pytest.mark.skipif(
-    not os.environ.get("TCFARM_KHRONOS_REFERENCE"),
-    reason="fails until the tracer shades glTF with the metallic-roughness BRDF: set TCFARM_KHRONOS_REFERENCE=1")
+# Features the tracer does not implement yet, and why the asset differs.
+NOT_YET = {
+    "alpha_mask": "alphaMode MASK: the tracer treats every surface as opaque",
+    "alpha_blend": "alphaMode BLEND: the tracer treats every surface as opaque",
+    "double_sided": "doubleSided false: the tracer does not cull back faces",
+    "debian_box_textured": "texture filtering: the Sample Renderer filters by mipmaps, the tracer bilinearly "
+                           "(ray differentials not implemented); texture edges alias",
+}
 
 MEDIAN_LIMIT, P95_LIMIT = 0.02, 0.08
 
@@ -41,6 +45,10 @@ def asset_names():
 @pytest.mark.parametrize("name", asset_names())
 def test_the_tracer_shades_as_the_sample_renderer(rows, name):
     row = rows[name]
+    passes = row.median <= MEDIAN_LIMIT and row.p95 <= P95_LIMIT
+    if name in NOT_YET:
+        assert not passes, f"{name} now matches: remove it from NOT_YET ({NOT_YET[name]})"
+        return
     assert row.lit > 1000, f"{name}: only {row.lit} lit pixels to compare"
     assert row.median <= MEDIAN_LIMIT and row.p95 <= P95_LIMIT, (
         f"{name}: median {row.median:.1%} (limit {MEDIAN_LIMIT:.0%}), p95 {row.p95:.1%} "
