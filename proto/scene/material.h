@@ -139,7 +139,11 @@ struct Material {
     if (!pbr) return reflectivity > 0;
     return !pbr->unlit && (pbr->roughness < kMirrorRoughness || pbr->metallicRoughnessTexture.has_value());
   }
-  bool Refracts() const { return pbr ? !pbr->unlit && pbr->transmission > 0 && pbr->metallic < 1 : transparency > 0; }
+  // Whether rays continue through it: refracted, or straight on past a blended surface.
+  bool Refracts() const {
+    if (!pbr) return transparency > 0;
+    return pbr->alphaMode == MetallicRoughness::Alpha::kBlend || (!pbr->unlit && pbr->transmission > 0 && pbr->metallic < 1);
+  }
 
   // A glTF surface smoother than this traces its mirror ray (weighted by Fresnel), as
   // Whitted's mirrors do; a rougher one reflects lights only, through its GGX lobe.

@@ -20,12 +20,12 @@ _COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 
 
 def png_bytes(rows):
-    """An 8-bit RGB PNG of rows of (r, g, b) codes, top row first."""
+    """An 8-bit RGB (or RGBA) PNG of rows of (r, g, b[, a]) codes, top row first."""
     def chunk(kind, data):
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
     height, width = len(rows), len(rows[0])
     raw = b"".join(b"\0" + bytes(c for texel in row for c in texel) for row in rows)
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)) +
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 6 if len(rows[0][0]) == 4 else 2, 0, 0, 0)) +
             chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
 
 
@@ -395,8 +395,9 @@ def bump_png(size=16):
 def pbr_turntable(how="data"):
     """The textured turntable with every core texture of glTF's material model: the floor
     normal-mapped (generated tangents), its checkers moved by KHR_texture_transform and read
-    through TEXCOORD_1; the striped box's metal and roughness from a texture; the sign
-    emissive through a texture and KHR_materials_emissive_strength, its occlusion from one."""
+    through TEXCOORD_1; the box's metal and roughness from a texture, its emission through a
+    texture and KHR_materials_emissive_strength, its occlusion from one, its slats cut out by
+    alpha (MASK) and seen from the front only; the glass box blended (BLEND)."""
     g = textured_turntable(how)
     floor = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "floor")
     red = next(i for i, m in enumerate(g.doc["materials"]) if m["name"] == "red")
@@ -418,6 +419,17 @@ def pbr_turntable(how="data"):
     red_material["emissiveFactor"] = [1.0, 1.0, 1.0]
     red_material["occlusionTexture"] = {"index": metal_rough, "strength": 0.5}
     red_material.setdefault("extensions", {})["KHR_materials_emissive_strength"] = {"emissiveStrength": 2.0}
+    # The box cut into slats by its base colour's alpha (MASK) and seen from its front only;
+    # the glass box half covering what is behind it (BLEND).
+    slats = g.texture(png_bytes([[(250, 200, 40, 255), (200, 30, 30, 40)] * 4] * 2), "data", mag_filter=9728)
+    red_material["pbrMetallicRoughness"]["baseColorTexture"] = {"index": slats}
+    red_material.update({"alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": False})
+    glass = next(m for m in g.doc["materials"] if m["name"] == "glass")
+    glass["pbrMetallicRoughness"]["baseColorFactor"] = [0.6, 0.8, 1.0, 0.5]
+    glass["alphaMode"] = "BLEND"
+    # Photometric, as an exporter writes them: the same watts as the plain turntable's.
+    for light in g.doc["extensions"]["KHR_lights_punctual"]["lights"]:
+        light["intensity"] *= 683
     g._use("KHR_texture_transform")
     g._use("KHR_materials_emissive_strength")
     return g

@@ -294,9 +294,9 @@ def test_a_textured_gltf_renders_through_the_farm_as_tcfarm_worker_render_does(w
 
 def test_every_core_texture_renders_through_the_farm_as_tcfarm_worker_render_does(worker_binary, tmp_path):
     """Normal, metallic-roughness, occlusion and emissive maps, TEXCOORD_1, a texture
-    transform and emissive strength on an animated file: exact through the farm equals the
-    standalone render, pixel for pixel, and the maps show (the frame differs from the same
-    file without them)."""
+    transform, emissive strength, an alpha mask, blending and a one-sided material on an
+    animated file: exact through the farm equals the standalone render, pixel for pixel, and
+    the maps show (the frame differs from the same file without them)."""
     gltf = make_gltf.pbr_turntable("data").write(tmp_path / "pbr.gltf")
     plain = make_gltf.textured_turntable("data").write(tmp_path / "plain.gltf")
     flags = ("--fps", "12", "--size", "96x72")

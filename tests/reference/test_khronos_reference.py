@@ -16,9 +16,6 @@ sys.path.insert(0, str(HERE))
 
 # Features the tracer does not implement yet, and why the asset differs.
 NOT_YET = {
-    "alpha_mask": "alphaMode MASK: the tracer treats every surface as opaque",
-    "alpha_blend": "alphaMode BLEND: the tracer treats every surface as opaque",
-    "double_sided": "doubleSided false: the tracer does not cull back faces",
     "debian_box_textured": "texture filtering: the Sample Renderer filters by mipmaps, the tracer bilinearly "
                            "(ray differentials not implemented); texture edges alias",
 }

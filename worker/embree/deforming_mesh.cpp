@@ -4,8 +4,8 @@
 
 namespace tcfarm {
 
-DeformingMesh::DeformingMesh(const EmbreeDevice& device, const Shape& shape, bool settleTies)
-    : device_(device), shape_(shape), settleTies_(settleTies),
+DeformingMesh::DeformingMesh(const EmbreeDevice& device, const Shape& shape, const SurfaceFilter* filter)
+    : device_(device), shape_(shape), filter_(filter),
       parts_(SplitIntoParts(shape.Mesh(), *shape.deformation)) {
   // The first pose is made now, so that a mesh Embree cannot build fails the scene at once.
   poses_.push_back(NewRestPose());
@@ -21,7 +21,7 @@ std::shared_ptr<DeformingMesh::Pose> DeformingMesh::NewRestPose() const {
   rtcSetSceneFlags(scene, RTCSceneFlags(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_DYNAMIC));
   RTCGeometry geometry = KindOf(shape_).NewGeometry(device_.get(), shape_);  // the rest pose
   rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
-  if (settleTies_) rtcSetGeometryIntersectFilterFunction(geometry, SettleTies);
+  SetSurfaceFilters(geometry, filter_);
   rtcCommitGeometry(geometry);
   rtcAttachGeometry(scene, geometry);
   rtcReleaseGeometry(geometry);

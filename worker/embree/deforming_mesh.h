@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "worker/embree/device.h"
+#include "worker/embree/surface_filter.h"
 #include "proto/scene/scene.h"
 #include "worker/shapes/shape_kind.h"
 
@@ -37,7 +38,8 @@ class DeformingMesh {
   };
 
   // Throws EmbreeError when Embree cannot build the rest pose.
-  DeformingMesh(const EmbreeDevice& device, const Shape& shape, bool settleTies);
+  // filter: the shape's hit filters (surface_filter.h), which outlive this mesh.
+  DeformingMesh(const EmbreeDevice& device, const Shape& shape, const SurfaceFilter* filter);
 
   // Thread-safe. The pose stays valid, and unchanged, while the caller holds it.
   std::shared_ptr<const Pose> AtFrame(int frame);
@@ -63,7 +65,7 @@ class DeformingMesh {
 
   const EmbreeDevice& device_;
   const Shape& shape_;
-  bool settleTies_;
+  const SurfaceFilter* filter_;
 
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<Pose>> poses_;  // every pose made; a use count of 1 means free

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "worker/embree/closest_hit.h"
+#include "worker/embree/surface_filter.h"
 #include "worker/embree/tie_candidates.h"
 #include "worker/shapes/shape_kind.h"
 
@@ -35,9 +36,9 @@ size_t FramesToCache(const Scene& scene) {
 
 // Attaches the shape to `scene` and returns its geometry id. Only a scene whose surfaces may
 // tie over an area pays for the tie rule (tie_candidates.h).
-unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape, bool settleTies) {
+unsigned AttachShape(RTCDevice device, RTCScene scene, const Shape& shape, const SurfaceFilter* filter) {
   RTCGeometry geometry = KindOf(shape).NewGeometry(device, shape);
-  if (settleTies) rtcSetGeometryIntersectFilterFunction(geometry, SettleTies);
+  SetSurfaceFilters(geometry, filter);
   rtcCommitGeometry(geometry);
   unsigned id = rtcAttachGeometry(scene, geometry);
   rtcReleaseGeometry(geometry);
@@ -95,7 +96,8 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
   return ApplyMatrix(normalFromObject_[shape].matrix, objectNormal);
 }
 
-SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene, BuildStop stop)
+SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene, BuildStop stop,
+                             const std::vector<const SurfaceRule*>& rules)
     : device_(device), scene_(scene), robust_(NeedsRobustTraversal(scene)),
       staticScene_(NewStaticScene(device.get(), robust_)),
       settlesTies_(SceneMayTie(scene)),
@@ -105,19 +107,22 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene, Bui
       })),
       cachedFrames_(FramesToCache(scene)) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    filters_.push_back(std::make_unique<SurfaceFilter>(SurfaceFilter{i < rules.size() ? rules[i] : nullptr, settlesTies_}));
+  }
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
     ThrowIfStopRequested(stop);
     const Shape& shape = scene.shapes[i];
     // A shape whose motion is not the identity is placed by an instance: at each frame
     // when it moves, or held at one place when it never does (PrepareForTracing builds
     // the latter in place where it can, sparing the per-frame placement).
     if (shape.Deforms()) {
-      movers_.push_back({static_cast<int>(i), SceneHandle(), std::make_unique<DeformingMesh>(device, shape, settlesTies_)});
+      movers_.push_back({static_cast<int>(i), SceneHandle(), std::make_unique<DeformingMesh>(device, shape, filters_[i].get())});
       deformingOfShape_.resize(scene.shapes.size(), nullptr);
       deformingOfShape_[i] = movers_.back().deforming.get();
     } else if (!shape.motion.IsNone()) {
       movers_.push_back({static_cast<int>(i), ObjectScene(shape), nullptr});
     } else {
-      unsigned id = AttachShape(device.get(), staticScene_.get(), shape, settlesTies_);
+      unsigned id = AttachShape(device.get(), staticScene_.get(), shape, filters_[i].get());
       if (staticShapeOfGeometry_.size() <= id) staticShapeOfGeometry_.resize(id + 1, -1);
       staticShapeOfGeometry_[id] = static_cast<int>(i);
       hasStaticShapes_ = true;
@@ -142,7 +147,9 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene, Bui
 }
 
 SceneHandle SceneGeometry::ObjectScene(const Shape& shape) {
-  if (!shape.SharesMesh()) return NewObjectScene(shape);
+  // A shape with a rule of its own (an alpha mask, culling) keeps its own tree: the rule
+  // is the geometry's, and placements may have other materials.
+  if (!shape.SharesMesh() || FilterOf(shape).rule) return NewObjectScene(shape);
   // One tree per shared mesh, whichever shape placed it first: its geometry and tie rule
   // are those of every placement (the rule keys hits by instance, i.e. by shape).
   auto [entry, isNew] = sharedMeshScenes_.try_emplace(shape.sharedMesh.get());
@@ -153,7 +160,7 @@ SceneHandle SceneGeometry::ObjectScene(const Shape& shape) {
 
 SceneHandle SceneGeometry::NewObjectScene(const Shape& shape) const {
   SceneHandle scene(NewStaticScene(device_.get(), HasSharedEdges(shape)));
-  AttachShape(device_.get(), scene.get(), shape, settlesTies_);
+  AttachShape(device_.get(), scene.get(), shape, &FilterOf(shape));
   rtcCommitScene(scene.get());
   return scene;
 }
@@ -228,6 +235,10 @@ SceneGeometry::DeformationWork SceneGeometry::DeformationCounts() const {
 uint64_t SceneGeometry::FrameBuilds() const {
   std::lock_guard<std::mutex> lock(cacheMutex_);
   return frameBuilds_;
+}
+
+const SurfaceFilter& SceneGeometry::FilterOf(const Shape& shape) const {
+  return *filters_[static_cast<size_t>(&shape - scene_.shapes.data())];
 }
 
 }  // namespace tcfarm

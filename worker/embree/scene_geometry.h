@@ -20,6 +20,7 @@
 
 #include "worker/embree/deforming_mesh.h"
 #include "worker/embree/device.h"
+#include "worker/embree/surface_filter.h"
 #include "proto/scene/scene.h"
 #include "worker/util/build_stop.h"
 
@@ -76,7 +77,10 @@ class FrameGeometry {
 class SceneGeometry {
  public:
   // Throws BuildStopped once `stop` is set (util/build_stop.h).
-  SceneGeometry(const EmbreeDevice& device, const Scene& scene, BuildStop stop = nullptr);
+  // rules: by shape, which of its hits count (surface_filter.h; null or missing: all);
+  // they outlive the geometry.
+  SceneGeometry(const EmbreeDevice& device, const Scene& scene, BuildStop stop = nullptr,
+                const std::vector<const SurfaceRule*>& rules = {});
 
   // Thread-safe. The last few frames are cached: tasks of one frame arrive together.
   std::shared_ptr<const FrameGeometry> ForFrame(int frame);
@@ -105,6 +109,7 @@ class SceneGeometry {
   // shared mesh get one scene between them.
   SceneHandle ObjectScene(const Shape& shape);
   SceneHandle NewObjectScene(const Shape& shape) const;
+  const SurfaceFilter& FilterOf(const Shape& shape) const;
 
   const EmbreeDevice& device_;
   const Scene& scene_;
@@ -116,6 +121,7 @@ class SceneGeometry {
   std::vector<Mover> movers_;
   std::vector<DeformingMesh*> deformingOfShape_;  // by shape (movers_' own); empty without any
   std::map<const TriangleMesh*, SceneHandle> sharedMeshScenes_;
+  std::vector<std::unique_ptr<SurfaceFilter>> filters_;  // by shape; its geometries point at them
   std::shared_ptr<FrameGeometry> staticFrame_;  // used for every frame when nothing moves
   // Per shape, its normals as the scene gives them; shapes placing one shared mesh share
   // them. A deforming mesh's are replaced per frame by its pose's.

@@ -42,7 +42,7 @@ struct ShadingMaterial {
     return color;
   }
   bool MirrorsOrRefracts() const {
-    return pbr ? gltf.MaySmooth() || gltf.Transmits() : reflectivity != 0 || transparency != 0;
+    return pbr ? gltf.MayContinue() : reflectivity != 0 || transparency != 0;
   }
 };
 

@@ -44,7 +44,11 @@ TextureImage::TextureImage(const Texture& texture, Encoding encoding)
   // The reader of an image in memory must outlive the read below, which is forced whole.
   std::unique_ptr<OIIO::Filesystem::IOMemReader> memory;
   if (texture.bytes) memory = std::make_unique<OIIO::Filesystem::IOMemReader>(texture.bytes->data(), texture.bytes->size());
-  OIIO::ImageBuf image(texture.bytes ? ReaderNameFor(*texture.bytes) : texture.file.string(), 0, 0, nullptr, nullptr,
+  // PNG alpha is unassociated (glTF's base colour and its coverage apart): read as it is,
+  // not premultiplied into the colour, which would darken every part less than opaque.
+  OIIO::ImageSpec config;
+  config.attribute("oiio:UnassociatedAlpha", 1);
+  OIIO::ImageBuf image(texture.bytes ? ReaderNameFor(*texture.bytes) : texture.file.string(), 0, 0, nullptr, &config,
                        memory.get());
   if (!image.read(0, 0, true, OIIO::TypeDesc::FLOAT)) {
     throw TextureError("cannot read texture image " + name + ": " + image.geterror());
@@ -57,35 +61,56 @@ TextureImage::TextureImage(const Texture& texture, Encoding encoding)
   std::vector<float> pixels(static_cast<size_t>(width_) * height_ * channels);
   image.get_pixels(roi, OIIO::TypeDesc::FLOAT, pixels.data());
   texels_.reserve(static_cast<size_t>(width_) * height_);
+  // Grey and alpha, or RGB and alpha: the last channel is coverage (glTF's base colour alpha).
+  const bool hasAlpha = channels == 2 || channels >= 4;
+  if (hasAlpha) alpha_.reserve(static_cast<size_t>(width_) * height_);
   for (size_t i = 0; i < static_cast<size_t>(width_) * height_; ++i) {
     const float* p = &pixels[i * channels];
-    // Grey images repeat their one channel; alpha is not used.
+    if (hasAlpha) alpha_.push_back(p[channels == 2 ? 1 : 3]);
+    // Grey images repeat their one channel.
     const float r = p[0], g = channels >= 3 ? p[1] : p[0], b = channels >= 3 ? p[2] : p[0];
     texels_.push_back(encoding == Encoding::kSrgb ? Float3{LinearFromSrgb(r), LinearFromSrgb(g), LinearFromSrgb(b)}
                                                   : Float3{r, g, b});
   }
 }
 
-Float3 TextureImage::Sample(float u, float v) const {
+TextureImage::Footprint TextureImage::Locate(float u, float v) const {
   // Coordinates far out (or not numbers) would overflow the texel index: they sample the
   // image's origin instead, which no sensible mesh asks for.
   float x = u * width_, y = v * height_;
   if (!(std::fabs(x) < 1e8f)) x = 0;
   if (!(std::fabs(y) < 1e8f)) y = 0;
   if (filter_ == Texture::Filter::kNearest) {
-    return Texel(WrapIndex(static_cast<int>(std::floor(x)), width_, wrapS_),
-                 WrapIndex(static_cast<int>(std::floor(y)), height_, wrapT_));
+    const int ix = WrapIndex(static_cast<int>(std::floor(x)), width_, wrapS_);
+    const int iy = WrapIndex(static_cast<int>(std::floor(y)), height_, wrapT_);
+    return {{ix, ix}, {iy, iy}, 0, 0};
   }
   // Bilinear between the four texel centres around the point.
   const float fx = x - 0.5f, fy = y - 0.5f;
   const float x0 = std::floor(fx), y0 = std::floor(fy);
-  const float wx = fx - x0, wy = fy - y0;
   const int ix = static_cast<int>(x0), iy = static_cast<int>(y0);
-  const int left = WrapIndex(ix, width_, wrapS_), right = WrapIndex(ix + 1, width_, wrapS_);
-  const int top = WrapIndex(iy, height_, wrapT_), bottom = WrapIndex(iy + 1, height_, wrapT_);
-  const Float3 upper = Texel(left, top) * (1 - wx) + Texel(right, top) * wx;
-  const Float3 lower = Texel(left, bottom) * (1 - wx) + Texel(right, bottom) * wx;
-  return upper * (1 - wy) + lower * wy;
+  return {{WrapIndex(ix, width_, wrapS_), WrapIndex(ix + 1, width_, wrapS_)},
+          {WrapIndex(iy, height_, wrapT_), WrapIndex(iy + 1, height_, wrapT_)},
+          fx - x0,
+          fy - y0};
+}
+
+Float3 TextureImage::Sample(float u, float v) const {
+  const Footprint at = Locate(u, v);
+  if (filter_ == Texture::Filter::kNearest) return Texel(at.x[0], at.y[0]);
+  const Float3 upper = Texel(at.x[0], at.y[0]) * (1 - at.wx) + Texel(at.x[1], at.y[0]) * at.wx;
+  const Float3 lower = Texel(at.x[0], at.y[1]) * (1 - at.wx) + Texel(at.x[1], at.y[1]) * at.wx;
+  return upper * (1 - at.wy) + lower * at.wy;
+}
+
+float TextureImage::SampleAlpha(float u, float v) const {
+  if (alpha_.empty()) return 1.0f;
+  const Footprint at = Locate(u, v);
+  auto texel = [&](int x, int y) { return alpha_[static_cast<size_t>(y) * width_ + x]; };
+  if (filter_ == Texture::Filter::kNearest) return texel(at.x[0], at.y[0]);
+  const float upper = texel(at.x[0], at.y[0]) * (1 - at.wx) + texel(at.x[1], at.y[0]) * at.wx;
+  const float lower = texel(at.x[0], at.y[1]) * (1 - at.wx) + texel(at.x[1], at.y[1]) * at.wx;
+  return upper * (1 - at.wy) + lower * at.wy;
 }
 
 }  // namespace tcfarm

@@ -27,6 +27,8 @@ class TextureImage {
 
   // Linear RGB at (u, v): u to the right, v down, [0, 1] across the image.
   Float3 Sample(float u, float v) const;
+  // Its alpha at (u, v), filtered as the colour is; 1 where the image has no alpha.
+  float SampleAlpha(float u, float v) const;
   int width() const { return width_; }
   int height() const { return height_; }
 
@@ -35,6 +37,13 @@ class TextureImage {
 
   int width_ = 0, height_ = 0;
   std::vector<Float3> texels_;
+  std::vector<float> alpha_;  // empty: opaque
+  // Where (u, v) falls: up to four texels and their weights (nearest: one of weight 1).
+  struct Footprint {
+    int x[2], y[2];
+    float wx, wy;
+  };
+  Footprint Locate(float u, float v) const;
   Texture::Wrap wrapS_, wrapT_;
   Texture::Filter filter_;
 };

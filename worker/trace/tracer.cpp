@@ -19,6 +19,7 @@
 #include "worker/trace/segment_fan.h"
 #include "worker/trace/lights.h"
 #include "worker/trace/materials.h"
+#include "worker/trace/materials/gltf_surface_rule.h"
 #include "worker/trace/ray_offset.h"
 
 namespace tcfarm {
@@ -49,6 +50,18 @@ float StorableChannel(float value) {
 }
 
 bool IsZero(const Float3& v) { return v.x == 0 && v.y == 0 && v.z == 0; }
+
+std::vector<const SurfaceRule*> RulesOf(const std::vector<std::unique_ptr<SurfaceRule>>& rules) {
+  std::vector<const SurfaceRule*> pointers;
+  for (const auto& rule : rules) pointers.push_back(rule.get());
+  return pointers;
+}
+
+bool AnyMaterialBlends(const Scene& scene) {
+  return std::any_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) {
+    return m.pbr && m.pbr->alphaMode == MetallicRoughness::Alpha::kBlend;
+  });
+}
 
 uint64_t ThreadCpuNanoseconds() {
   timespec now{};
@@ -119,6 +132,7 @@ struct Tracer::FrameContext {
   int samplesPerPixel;
   bool anySecondary;  // some material reflects or refracts
   bool shadows;       // shadow rays traced (RenderSettings::shadows)
+  bool anyBlend;      // some material blends (alphaMode BLEND): shadow rays weigh it
   float ambient;      // RenderSettings::ambient
 };
 
@@ -206,6 +220,10 @@ class Tracer::PixelTracer {
   Float3 Ambient(const SurfaceHit& hit) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   Float3 CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth);
+  // The share of a light that passes the blended surfaces between an unblocked shadow ray's
+  // start and the light: 1 - alpha of each, met front to back (closest hit after closest
+  // hit: the order, and so the rounding, is the ray's own).
+  float BlendTransmittance(Float3 start, Float3 direction, float distance);
   void NoteSurface(int lane, const SurfaceHit& hit);
   // For a camera sample whose hit no light reaches, once its packet's lights are done:
   // when the hit is on a moving sphere (whose surface alone set the horizon to the next
@@ -423,7 +441,50 @@ Float3 Tracer::PixelTracer::CombinePbr(const SurfaceHit& hit, const PbrMaterial&
     }
     color = color * (1.0f - transmitted) + through * transmitted;
   }
+  // A blended surface covers alpha of the ray; the rest goes straight on past it.
+  if (material.blends && hit.pbr.alpha < 1) {
+    ++counts_.refraction;
+    const Float3 behind = TraceRay(Spawn(hit, true), hit.direction, depth + 1);
+    color = color * hit.pbr.alpha + behind * (1.0f - hit.pbr.alpha);
+  }
   return color;
+}
+
+float Tracer::PixelTracer::BlendTransmittance(Float3 start, Float3 direction, float distance) {
+  // Only blended surfaces lie on the way (the occlusion query found nothing else): each
+  // closest hit is one of them.
+  constexpr int kMaxLayers = 64;
+  float through = 1;
+  Float3 origin = start;
+  float left = distance;
+  for (int layer = 0; layer < kMaxLayers && through > 0; ++layer) {
+    RTCRayHit rayHit{};
+    rayHit.ray.org_x = origin.x, rayHit.ray.org_y = origin.y, rayHit.ray.org_z = origin.z;
+    rayHit.ray.dir_x = direction.x, rayHit.ray.dir_y = direction.y, rayHit.ray.dir_z = direction.z;
+    rayHit.ray.tnear = 0;
+    rayHit.ray.tfar = left;
+    rayHit.ray.mask = ~0u;
+    rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(frame_.geometry->scene(), &context_.embree, &rayHit);
+    if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
+    const float t = HitDistance(rayHit.ray, frame_.geometry->SettlesTies());
+    const SurfaceHit hit = MakeHit(origin, direction,
+                                   {t,
+                                    {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
+                                    rayHit.hit.instID[0],
+                                    rayHit.hit.geomID,
+                                    rayHit.hit.primID,
+                                    rayHit.hit.u,
+                                    rayHit.hit.v});
+    const ShadingMaterial& m = (*frame_.materials)[hit.material];
+    if (!m.pbr || !m.gltf.blends) return 0;  // not a blended surface after all: it blocks
+    through *= 1.0f - hit.pbr.alpha;
+    origin = Spawn(hit, true);
+    left = distance - Length(origin - start);
+    if (!(left > 0)) break;
+  }
+  return through;
 }
 
 // Local shading weighted against mirror reflection and refraction, Whitted style.
@@ -500,7 +561,10 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
     const RTCRay query = shadow;
     rtcOccluded1(frame_.geometry->scene(), &context_.embree, &shadow);
     bool blocked = shadow.tfar < 0;
-    if (!blocked) local += LightContribution(hit, light, toLight, distance);
+    if (!blocked) {
+      const Float3 arriving = LightContribution(hit, light, toLight, distance);
+      local += frame_.anyBlend ? arriving * BlendTransmittance(start, toLight, distance) : arriving;
+    }
     if (!horizons_) continue;
     const int lane = horizons_->lane;
     if (!blocked) {
@@ -607,7 +671,10 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
       if (!shadowValid[lane]) continue;
       blocked[lane] = shadow.tfar[lane] < 0;
       if (blocked[lane]) continue;
-      color[lane] += LightContribution(hits[lane], light, toLight[lane], distance[lane]);
+      const Float3 arriving = LightContribution(hits[lane], light, toLight[lane], distance[lane]);
+      color[lane] += frame_.anyBlend ? arriving * BlendTransmittance({shadow.org_x[lane], shadow.org_y[lane], shadow.org_z[lane]},
+                                                                     toLight[lane], distance[lane])
+                                     : arriving;
       lit[lane] = true;
     }
     if (horizons_) ShadowHorizons<Width>(light, query, shadowValid, blocked);
@@ -706,7 +773,8 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads, BuildStop stop)
     : device_(device),
       scene_(scene),
-      geometry_(device, scene, stop),
+      surfaceRules_(MakeSurfaceRules()),
+      geometry_(device, scene, stop, RulesOf(surfaceRules_)),
       threads_(threads),
       packetWidth_(NativePacketWidth(device.get())) {
   uvs_ = PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [](const Shape& shape) {
@@ -747,6 +815,17 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
   for (const Material& material : scene.materials) {
     textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
   }
+}
+
+std::vector<std::unique_ptr<SurfaceRule>> Tracer::MakeSurfaceRules() {
+  std::vector<std::unique_ptr<SurfaceRule>> rules;
+  for (const Shape& shape : scene_.shapes) {
+    rules.push_back(GltfSurfaceRule::For(shape, scene_.materials[static_cast<size_t>(shape.material)],
+                                         [this](const Texture& texture, TextureImage::Encoding encoding) {
+                                           return LoadPbrTexture(texture, encoding);
+                                         }));
+  }
+  return rules;
 }
 
 const TextureImage* Tracer::LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding) {
@@ -796,6 +875,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                        scene_.render.samplesPerPixel,
                        scene_.AnyMaterialReflects() || scene_.AnyMaterialRefracts(),
                        scene_.render.shadows,
+                       AnyMaterialBlends(scene_),
                        static_cast<float>(scene_.render.ambient)};
   context.shapes = ShadingAt(*context.geometry);
   const int spp = context.samplesPerPixel;

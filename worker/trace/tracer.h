@@ -79,6 +79,13 @@ class Tracer {
 
   const EmbreeDevice& device_;
   const Scene& scene_;
+  // The images glTF materials read, decoded once each (by image and encoding).
+  std::map<std::pair<std::string, TextureImage::Encoding>, std::unique_ptr<TextureImage>> pbrTextures_;
+  const TextureImage* LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding);
+  // By shape, which of its hits count (alpha masks, one-sided materials): before the
+  // geometry, whose filters ask them.
+  std::vector<std::unique_ptr<SurfaceRule>> surfaceRules_;
+  std::vector<std::unique_ptr<SurfaceRule>> MakeSurfaceRules();
   SceneGeometry geometry_;
   // Per shape, texture coordinates (shapes placing one shared mesh share them). Normals
   // change with a deforming mesh's pose: the frame's geometry holds them.
@@ -94,9 +101,7 @@ class Tracer {
   std::vector<std::shared_ptr<const ShapeUvs>> uvs1_;
   using ShapeTangents = std::vector<std::array<float, 4>>;
   std::vector<std::shared_ptr<const ShapeTangents>> tangents_;
-  // The images glTF materials read, decoded once each (by image and encoding).
-  std::map<std::pair<std::string, TextureImage::Encoding>, std::unique_ptr<TextureImage>> pbrTextures_;
-  const TextureImage* LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding);
+
   TracingThreads& threads_;
   int packetWidth_;
   std::atomic<uint64_t> primary_{0}, shadow_{0}, reflection_{0}, refraction_{0};

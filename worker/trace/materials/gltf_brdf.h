@@ -19,6 +19,7 @@ struct PbrSurface {
   Float3 baseColor;  // linear
   float metallic = 1, roughness = 1;
   float occlusion = 1;  // 1: none (weighs the ambient term only)
+  float alpha = 1;      // coverage (base colour alpha), for a blended material
   Float3 emission;      // linear radiance the surface shows of itself
 };
 

@@ -3,10 +3,9 @@
 #include <cmath>
 
 namespace tcfarm {
-namespace {
 
-PbrTexture MakeTexture(const std::optional<TextureSlot>& slot, TextureImage::Encoding encoding,
-                       const TextureLoader& load) {
+PbrTexture PbrMaterial::MakeTexture(const std::optional<TextureSlot>& slot, TextureImage::Encoding encoding,
+                                    const TextureLoader& load) {
   PbrTexture texture;
   if (!slot) return texture;
   texture.image = load(slot->texture, encoding);
@@ -24,8 +23,6 @@ PbrTexture MakeTexture(const std::optional<TextureSlot>& slot, TextureImage::Enc
   return texture;
 }
 
-}  // namespace
-
 PbrMaterial::PbrMaterial(const MetallicRoughness& m, const TextureLoader& load)
     : baseColor(ToFloat3(m.baseColor)),
       metallic(static_cast<float>(m.metallic)),
@@ -33,7 +30,9 @@ PbrMaterial::PbrMaterial(const MetallicRoughness& m, const TextureLoader& load)
       emissive(ToFloat3(m.emissive) * static_cast<float>(m.emissiveStrength)),
       transmission(static_cast<float>(m.transmission)),
       indexOfRefraction(static_cast<float>(m.ior)),
-      unlit(m.unlit) {
+      unlit(m.unlit),
+      alpha(static_cast<float>(m.alpha)),
+      blends(m.alphaMode == MetallicRoughness::Alpha::kBlend) {
   const double r = (m.ior - 1) / (m.ior + 1);
   const Vec3 f0{std::min(r * r * m.specularColor.x, 1.0), std::min(r * r * m.specularColor.y, 1.0),
                 std::min(r * r * m.specularColor.z, 1.0)};
@@ -61,6 +60,7 @@ PbrSurface PbrMaterial::Surface(std::array<float, 2> uv0, std::array<float, 2> u
   PbrSurface s;
   s.baseColor = baseColor * vertexColor;
   if (baseColorTexture) s.baseColor = s.baseColor * baseColorTexture.Sample(uvOf(baseColorTexture));
+  if (blends) s.alpha = baseColorTexture ? alpha * baseColorTexture.SampleAlpha(uvOf(baseColorTexture)) : alpha;
   s.metallic = metallic;
   s.roughness = roughness;
   if (metallicRoughnessTexture) {

@@ -23,10 +23,18 @@ struct PbrTexture {
   float amount = 1;                                     // normal scale, occlusion strength
 
   explicit operator bool() const { return image != nullptr; }
-  // The texture's value at texture coordinates `uv` (after its transform).
+  // The texture's value (and alpha) at texture coordinates `uv` (after its transform).
   Float3 Sample(std::array<float, 2> uv) const {
-    if (transformed) uv = {m00 * uv[0] + m01 * uv[1] + du, m10 * uv[0] + m11 * uv[1] + dv};
+    uv = Transformed(uv);
     return image->Sample(uv[0], uv[1]);
+  }
+  float SampleAlpha(std::array<float, 2> uv) const {
+    uv = Transformed(uv);
+    return image->SampleAlpha(uv[0], uv[1]);
+  }
+  std::array<float, 2> Transformed(std::array<float, 2> uv) const {
+    if (!transformed) return uv;
+    return {m00 * uv[0] + m01 * uv[1] + du, m10 * uv[0] + m11 * uv[1] + dv};
   }
 };
 
@@ -40,6 +48,8 @@ struct PbrMaterial {
   PbrConstants constants;
   float transmission = 0, indexOfRefraction = 1.5f;
   bool unlit = false;
+  float alpha = 1;
+  bool blends = false;  // alphaMode BLEND: light passes through by 1 - alpha
   PbrTexture baseColorTexture, metallicRoughnessTexture, normalTexture, occlusionTexture, emissiveTexture;
 
   PbrMaterial() = default;
@@ -52,10 +62,14 @@ struct PbrMaterial {
   // Whether its smooth surfaces trace a mirror ray: possibly smooth somewhere.
   bool MaySmooth() const { return !unlit && (roughness < kMirrorRoughness || metallicRoughnessTexture); }
   bool Transmits() const { return !unlit && transmission > 0 && metallic < 1; }
+  bool MayContinue() const { return MaySmooth() || Transmits() || blends; }
 
   // The BRDF's inputs at a point with texture coordinates uv0, uv1 and vertex colour
   // `vertexColor` (white where the mesh has none).
   PbrSurface Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor) const;
+
+  static PbrTexture MakeTexture(const std::optional<TextureSlot>& slot, TextureImage::Encoding encoding,
+                                const TextureLoader& load);
 
   static constexpr float kMirrorRoughness = static_cast<float>(Material::kMirrorRoughness);
 };

@@ -1,0 +1,45 @@
+#include "worker/trace/materials/gltf_surface_rule.h"
+
+namespace tcfarm {
+
+std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Material& material,
+                                                  const TextureLoader& load) {
+  if (!material.pbr || shape.Mesh().triangles.empty()) return nullptr;
+  const MetallicRoughness& m = *material.pbr;
+  const bool masks = m.alphaMode == MetallicRoughness::Alpha::kMask;
+  const bool blends = m.alphaMode == MetallicRoughness::Alpha::kBlend;
+  if (!masks && !blends && m.doubleSided) return nullptr;
+  std::unique_ptr<GltfSurfaceRule> rule(new GltfSurfaceRule());
+  rule->cullBackFaces_ = !m.doubleSided;
+  rule->masks_ = masks;
+  rule->blends_ = blends;
+  rule->cutoff_ = static_cast<float>(m.alphaCutoff);
+  rule->alpha_ = static_cast<float>(m.alpha);
+  const TriangleMesh& mesh = shape.Mesh();
+  rule->triangles_ = mesh.triangles.data();
+  if (masks && m.baseColorTexture) {
+    const auto& uvs = m.baseColorTexture->texCoord == 1 ? mesh.uvs1 : mesh.uvs;
+    if (!uvs.empty()) {
+      rule->texture_ = PbrMaterial::MakeTexture(m.baseColorTexture, TextureImage::Encoding::kSrgb, load);
+      for (const auto& uv : uvs) rule->uvs_.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+    }
+  }
+  return rule;
+}
+
+float GltfSurfaceRule::AlphaAt(unsigned primitive, float u, float v) const {
+  if (!texture_) return alpha_;
+  const auto& corner = triangles_[primitive];
+  const auto &a = uvs_[corner[0]], &b = uvs_[corner[1]], &c = uvs_[corner[2]];
+  const float w = 1.0f - u - v;
+  const std::array<float, 2> uv{a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
+  return alpha_ * texture_.SampleAlpha(uv);
+}
+
+bool GltfSurfaceRule::Keeps(unsigned primitive, float u, float v, bool backFace, bool occlusion) const {
+  if (occlusion && blends_) return false;
+  if (cullBackFaces_ && backFace && !occlusion) return false;
+  return !masks_ || AlphaAt(primitive, u, v) >= cutoff_;
+}
+
+}  // namespace tcfarm
