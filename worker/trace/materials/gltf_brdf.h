@@ -44,6 +44,11 @@ inline Float3 SurfaceF90(const PbrSurface& s, const PbrConstants& c) {
   return {f90, f90, f90};
 }
 
+// alpha = roughness^2, kept above 1e-3: a perfectly smooth surface's lobe is a spike that
+// would divide zero by zero where the half vector meets the normal (its mirror ray, not the
+// lobe, shows what it reflects).
+inline float GgxAlpha(float roughness) { return std::max(roughness * roughness, 1e-3f); }
+
 // GGX's normal distribution, alpha = roughness^2.
 inline float GgxDistribution(float nDotH, float alpha) {
   const float a2 = alpha * alpha;
@@ -80,7 +85,7 @@ inline Float3 PbrReflected(const PbrSurface& s, const PbrConstants& c, Float3 to
   const Float3 fresnel = Schlick(SurfaceF0(s, c), SurfaceF90(s, c), vDotH);
   const Float3 dielectricFresnel =
       Schlick(c.dielectricF0, {c.dielectricF90, c.dielectricF90, c.dielectricF90}, vDotH);
-  const float alpha = s.roughness * s.roughness;
+  const float alpha = GgxAlpha(s.roughness);
   const Float3 diffuseColor = s.baseColor * (1.0f - s.metallic);
   const Float3 diffuse = (Float3{1, 1, 1} - dielectricFresnel) * diffuseColor * kInversePi;
   const Float3 specular = fresnel * (GgxDistribution(nDotH, alpha) * SmithVisibility(nDotL, nDotV, alpha));

@@ -46,6 +46,14 @@ TEST(GltfBrdfTest, MatchesAppendixB) {
   }
 }
 
+TEST(GltfBrdfTest, APerfectlySmoothSurfaceStaysFinite) {
+  PbrSurface surface;
+  surface.baseColor = {1, 1, 1};
+  surface.roughness = 0;
+  const Float3 got = PbrReflected(surface, PbrConstants{}, {0, 0, 1}, {0, 0, 1}, {0, 0, 1});
+  EXPECT_TRUE(std::isfinite(got.x) && got.x > 0) << got.x;
+}
+
 TEST(GltfBrdfTest, NoLightFromBehindTheSurface) {
   PbrSurface surface;
   const Float3 got = PbrReflected(surface, PbrConstants{}, {0, 0, -1}, {0, 0, 1}, {0, 0, 1});
