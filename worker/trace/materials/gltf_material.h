@@ -40,17 +40,25 @@ struct PbrMaterial {
   PbrConstants constants;
   float transmission = 0, indexOfRefraction = 1.5f;
   bool unlit = false;
+  float clearcoat = 0, clearcoatRoughness = 0;  // KHR_materials_clearcoat; 0: no coat
   PbrTexture baseColorTexture, metallicRoughnessTexture, normalTexture, occlusionTexture, emissiveTexture;
+  PbrTexture clearcoatTexture, clearcoatRoughnessTexture, clearcoatNormalTexture;
 
   PbrMaterial() = default;
   PbrMaterial(const MetallicRoughness& source, const TextureLoader& load);
 
   bool Textured() const {
-    return baseColorTexture || metallicRoughnessTexture || normalTexture || occlusionTexture || emissiveTexture;
+    return baseColorTexture || metallicRoughnessTexture || normalTexture || occlusionTexture || emissiveTexture ||
+           clearcoatTexture || clearcoatRoughnessTexture || clearcoatNormalTexture;
   }
   bool ReadsTexCoord(int set) const;
   // Whether its smooth surfaces trace a mirror ray: possibly smooth somewhere.
-  bool MaySmooth() const { return !unlit && (roughness < kMirrorRoughness || metallicRoughnessTexture); }
+  bool MaySmooth() const {
+    return !unlit && (roughness < kMirrorRoughness || metallicRoughnessTexture || MayCoatSmoothly());
+  }
+  bool MayCoatSmoothly() const {
+    return clearcoat > 0 && (clearcoatRoughness < kMirrorRoughness || clearcoatRoughnessTexture);
+  }
   bool Transmits() const { return !unlit && transmission > 0 && metallic < 1; }
 
   // The BRDF's inputs at a point with texture coordinates uv0, uv1 and vertex colour
