@@ -1,4 +1,5 @@
-// KHR_materials_clearcoat as the glTF importer maps it.
+// KHR_materials_clearcoat as the glTF importer maps it, and optional extensions it does not
+// implement, which it reports.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -42,6 +43,7 @@ TEST(GltfClearcoatTest, FactorsTexturesAndNormalScaleAreKept) {
                                    "extensions": {"KHR_texture_transform": {"offset": [0.5, 0]}}}}}})"));
   document["extensionsUsed"] = {"KHR_materials_clearcoat", "KHR_texture_transform"};
   const Scene scene = Import(document);
+  EXPECT_TRUE(scene.importWarnings.empty());
   ASSERT_EQ(scene.materials.size(), 2u);
   const MetallicRoughness& m = *scene.materials[1].pbr;
   EXPECT_DOUBLE_EQ(m.clearcoat, 0.75);
@@ -72,6 +74,17 @@ TEST(GltfClearcoatTest, FactorsTexturesAndNormalScaleAreKept) {
 TEST(GltfClearcoatTest, WithoutACoatNothingOfItIsWritten) {
   const Scene scene = Import(TriangleWithMaterial(json::parse(R"({"name": "plain"})")));
   EXPECT_FALSE(json::parse(SerializeScene(scene))["materials"]["plain"]["pbr"].contains("clearcoat"));
+}
+
+TEST(GltfClearcoatTest, OptionalExtensionsNotImplementedAreReportedWithTheirPointers) {
+  json document = TriangleWithMaterial(json::parse(R"({"name": "m"})"));
+  document["extensionsUsed"] = {"KHR_materials_clearcoat", "KHR_materials_sheen", "EXT_unknown"};
+  const Scene scene = Import(document);
+  ASSERT_EQ(scene.importWarnings.size(), 2u);
+  EXPECT_EQ(scene.importWarnings[0],
+            "the gltf scene at /extensionsUsed/1: extension \"KHR_materials_sheen\" is not implemented; "
+            "what it adds is left out");
+  EXPECT_NE(scene.importWarnings[1].find("at /extensionsUsed/2: extension \"EXT_unknown\""), std::string::npos);
 }
 
 }  // namespace
