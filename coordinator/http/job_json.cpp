@@ -65,6 +65,8 @@ json JobJson(const JobRecord& record, const json* liveStats) {
   // The id of the API token that submitted the job (never the token), when it had one.
   const json& options = record.spec.options;
   if (options.is_object() && options.contains("submitted_by")) job["submitted_by"] = options["submitted_by"];
+  // What importing the scene file left out (an extension not implemented), when anything.
+  if (options.is_object() && options.contains("import_warnings")) job["warnings"] = options["import_warnings"];
   return job;
 }
 

@@ -477,6 +477,8 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, base)
                                              : ReadSceneFromFile(*sceneFile, files, base, importOptions);
   BindTexturesToAssets(scene, assets.store, inlineScene != request.end() ? "/scene" : "/scene_file");
+  // What the import left out reaches the user with the job, not only the coordinator's log.
+  if (!scene.importWarnings.empty()) spec.options["import_warnings"] = scene.importWarnings;
   std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);
   // The canonical text, not the client's: equal scenes get equal hashes, whatever their
   // key order or spacing, so workers cache them once.

@@ -85,10 +85,21 @@ struct MetallicRoughness {
   double transmission = 0;      // KHR_materials_transmission
   double specular = 1;          // KHR_materials_specular: the dielectric f0's weight
   Vec3 specularColor{1, 1, 1};  // and its colour
+  // KHR_materials_clearcoat: a smooth dielectric layer (f0 0.04) over the rest, with its own
+  // roughness and normal map. 0: no coat (the textures then change nothing).
+  double clearcoat = 0, clearcoatRoughness = 0;
+  std::optional<TextureSlot> clearcoatTexture;           // R, times clearcoat
+  std::optional<TextureSlot> clearcoatRoughnessTexture;  // G, times clearcoatRoughness
+  std::optional<TextureSlot> clearcoatNormalTexture;     // tangent space; amount: its scale
 
+  // Whether a "pbr" block says anything of a coat (written out only then).
+  bool MentionsClearcoat() const {
+    return clearcoat > 0 || clearcoatTexture || clearcoatRoughnessTexture || clearcoatNormalTexture;
+  }
   bool ReadsTexCoord(int set) const {
     for (const auto* slot : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
-                             &emissiveTexture}) {
+                             &emissiveTexture, &clearcoatTexture, &clearcoatRoughnessTexture,
+                             &clearcoatNormalTexture}) {
       if (*slot && (*slot)->texCoord == set) return true;
     }
     return false;
@@ -99,7 +110,9 @@ struct MetallicRoughness {
     const std::pair<std::optional<TextureSlot>*, const char*> slots[] = {
         {&baseColorTexture, "base_color_texture"}, {&metallicRoughnessTexture, "metallic_roughness_texture"},
         {&normalTexture, "normal_texture"},       {&occlusionTexture, "occlusion_texture"},
-        {&emissiveTexture, "emissive_texture"}};
+        {&emissiveTexture, "emissive_texture"},   {&clearcoatTexture, "clearcoat_texture"},
+        {&clearcoatRoughnessTexture, "clearcoat_roughness_texture"},
+        {&clearcoatNormalTexture, "clearcoat_normal_texture"}};
     for (const auto& [slot, key] : slots) {
       if (*slot) visit((*slot)->texture, std::string(key));
     }
@@ -137,7 +150,10 @@ struct Material {
   }
   bool Reflects() const {
     if (!pbr) return reflectivity > 0;
-    return !pbr->unlit && (pbr->roughness < kMirrorRoughness || pbr->metallicRoughnessTexture.has_value());
+    if (pbr->unlit) return false;
+    const bool smoothCoat = pbr->clearcoat > 0 && (pbr->clearcoatRoughness < kMirrorRoughness ||
+                                                   pbr->clearcoatRoughnessTexture.has_value());
+    return pbr->roughness < kMirrorRoughness || pbr->metallicRoughnessTexture.has_value() || smoothCoat;
   }
   // Whether rays continue through it: refracted, or straight on past a blended surface.
   bool Refracts() const {

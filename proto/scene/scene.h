@@ -173,6 +173,10 @@ struct Scene {
   std::map<std::string, std::shared_ptr<const TriangleMesh>> meshes;
   Vec3 background{0, 0, 0};
   RenderSettings render;
+  // What an importer left out or could not honour (an extension it does not implement),
+  // each "<file> at <JSON pointer>: <what>", for whoever asked for the import to show its
+  // user (a submission's job record lists them). Not written out.
+  std::vector<std::string> importWarnings;
 
   bool CameraMoves() const;
   bool AnyLightChanges() const;

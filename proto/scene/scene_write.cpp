@@ -210,6 +210,16 @@ json PbrJson(const MetallicRoughness& m) {
   if (m.normalTexture) result["normal_texture"] = TextureSlotJson(*m.normalTexture, "scale");
   if (m.occlusionTexture) result["occlusion_texture"] = TextureSlotJson(*m.occlusionTexture, "strength");
   if (m.emissiveTexture) result["emissive_texture"] = TextureSlotJson(*m.emissiveTexture);
+  // Only a coated material names the coat: scenes without one keep their text (and hash).
+  if (m.MentionsClearcoat()) {
+    result["clearcoat"] = m.clearcoat;
+    result["clearcoat_roughness"] = m.clearcoatRoughness;
+  }
+  if (m.clearcoatTexture) result["clearcoat_texture"] = TextureSlotJson(*m.clearcoatTexture);
+  if (m.clearcoatRoughnessTexture) {
+    result["clearcoat_roughness_texture"] = TextureSlotJson(*m.clearcoatRoughnessTexture);
+  }
+  if (m.clearcoatNormalTexture) result["clearcoat_normal_texture"] = TextureSlotJson(*m.clearcoatNormalTexture, "scale");
   return result;
 }
 

@@ -361,6 +361,26 @@ def test_a_gltf_embedding_a_broken_image_is_refused_at_submit_naming_it(worker_b
         assert farm.client.jobs() == []
 
 
+def test_an_optional_extension_not_implemented_is_reported_by_render_and_submit(worker_binary, tmp_path):
+    """extensionsUsed naming an extension the importer does not implement: the scene renders
+    without it, and both tcfarm-worker render and tcfarm submit say so, with its pointer."""
+    document = json.loads(make_gltf.red_quad().gltf_text())
+    used = document.setdefault("extensionsUsed", [])
+    used.append("KHR_materials_sheen")
+    path = tmp_path / "sheen.gltf"
+    path.write_text(json.dumps(document))
+    said = f'sheen.gltf at /extensionsUsed/{len(used) - 1}: extension "KHR_materials_sheen" is not implemented'
+    rendered = run(worker_binary, "render", path, "--size", "8x6", "--out", tmp_path / "out", "--no-png")
+    assert rendered.returncode == 0 and f"warning: {said}" in rendered.stderr, rendered.stderr
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=1) as farm:
+        result = tcfarm_cli(farm, "submit", path, "--size", "8x6")
+        assert result.returncode == 0, result.stderr
+        assert f"warning: {said}" in result.stderr, result.stderr
+        job = farm.client.jobs()[0]
+        assert any(said in warning for warning in farm.client.job(job["id"])["warnings"])
+
+
 def test_a_moving_glTF_camera_makes_auto_pick_guarded_and_say_why(tmp_path):
     """exact cannot copy a pixel when the camera moves, so auto picks guarded, and the job
     record says which and why."""

@@ -384,9 +384,25 @@ def ior():
     return g
 
 
+def clearcoat():
+    """KHR_materials_clearcoat over a rough red dielectric: clearcoat 0, 0.5, 1 (rows, top
+    to bottom) by clearcoat roughness 0.15 to 1 (columns)."""
+    g = Asset("clearcoat")
+    for row, factor in enumerate((0.0, 0.5, 1.0)):
+        for column, roughness in enumerate((0.15, 0.3, 0.5, 0.75, 1.0)):
+            material = g.pbr(f"cc{factor}_r{roughness}", (0.8, 0.08, 0.06), 0.0, 0.8, extensions={
+                "KHR_materials_clearcoat": {"clearcoatFactor": factor, "clearcoatRoughnessFactor": roughness}})
+            g.add_mesh([sphere_primitive(g, material)], translation=[(column - 2) * 2.3, (1 - row) * 2.3, 0],
+                       scale=[0.95] * 3)
+    g.aim_camera([0, 0, 13.5], [0, 0, 0])
+    g.punctual("directional", 2.5, toward=[-0.4, -0.5, -1.0])
+    g.punctual("point", 60.0, (0.8, 0.9, 1.0), at=[4, 4, 6])
+    return g
+
+
 ASSETS = [metal_rough_spheres, metal_rough_texture, base_color_texcoord1,
           lambda: normal_map(True), lambda: normal_map(False), emissive_strength, texture_transform,
-          alpha_mask, alpha_blend, double_sided, unlit, ior]
+          alpha_mask, alpha_blend, double_sided, unlit, ior, clearcoat]
 
 
 # --- Debian's models -----------------------------------------------------------------------

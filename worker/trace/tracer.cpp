@@ -199,9 +199,14 @@ class Tracer::PixelTracer {
   // Vectors by reference: passed by value, their packed halves went through the stack
   // and stalled every hit on the store forwarding.
   SurfaceHit MakeHit(const Float3& origin, const Float3& direction, const RawHit& raw) const;
-  // A glTF material's inputs at the hit, and its normal map's normal.
+  // A glTF material's inputs at the hit, its normal map's normal and its coat's.
   void ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const;
-  Float3 MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, Float3 texel) const;
+  // The hit's normal as normal map `map` tilts it; the hit's normal itself where the map is
+  // missing, lacks its texture coordinates, or gives no normal.
+  Float3 MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
+                      std::array<float, 2> uv0, std::array<float, 2> uv1) const;
+  Float3 TangentFrameNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
+                            Float3 texel) const;
   // The hit triangle's direction of increasing u over the normal map's texture coordinates,
   // in object space, and the sign of its bitangent (v's direction against normal x tangent).
   Float3 TriangleTangent(const ShapeShading& shape, const RawHit& raw, int shapeIndex, float* handedness) const;
@@ -319,22 +324,27 @@ void Tracer::PixelTracer::ShadePbr(const ShapeShading& shape, const RawHit& raw,
   }
   const PbrMaterial& material = *shape.pbr;
   hit.pbr = material.Surface(uv0, uv1, vertexColor);
-  // A normal map needs the texture coordinates it was painted over.
-  const bool mapped = material.normalTexture && shape.triangles && (material.normalTexture.texCoord == 0 ? shape.uvs : shape.uvs1);
-  if (mapped) {
-    const Float3 texel = material.normalTexture.Sample(material.normalTexture.texCoord == 0 ? uv0 : uv1);
-    const Float3 n = MappedNormal(shape, raw, hit, texel);
-    if (!IsZero(n)) hit.normal = n;
-  }
+  // The coat's normal: its own map over the surface's normal, not over the normal map's.
+  if (hit.pbr.clearcoat > 0) hit.pbr.clearcoatNormal = MappedNormal(shape, raw, hit, material.clearcoatNormalTexture, uv0, uv1);
+  hit.normal = MappedNormal(shape, raw, hit, material.normalTexture, uv0, uv1);
 }
 
-// The normal map's normal: the texel (tangent space, [0, 1] codes for [-1, 1], x and y
+Float3 Tracer::PixelTracer::MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit,
+                                         const PbrTexture& map, std::array<float, 2> uv0,
+                                         std::array<float, 2> uv1) const {
+  // A normal map needs the texture coordinates it was painted over.
+  const bool mapped = map && shape.triangles && (map.texCoord == 0 ? shape.uvs : shape.uvs1);
+  if (!mapped) return hit.normal;
+  const Float3 n = TangentFrameNormal(shape, raw, hit, map, map.Sample(map.texCoord == 0 ? uv0 : uv1));
+  return IsZero(n) ? hit.normal : n;
+}
+
+// A normal map's normal: the texel (tangent space, [0, 1] codes for [-1, 1], x and y
 // scaled) in the frame of the hit's tangent, bitangent and shading normal. The tangent is
 // the mesh's (TANGENT) where it has them, else the triangle's direction of increasing u;
 // either is made perpendicular to the shading normal. Zero when the frame is degenerate.
-Float3 Tracer::PixelTracer::MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit,
-                                         Float3 texel) const {
-  const PbrTexture& map = shape.pbr->normalTexture;
+Float3 Tracer::PixelTracer::TangentFrameNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit,
+                                               const PbrTexture& map, Float3 texel) const {
   const auto& corner = shape.triangles[raw.primitiveId];
   Float3 tangent;
   float handedness = 1;
@@ -409,6 +419,12 @@ Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
     if (m.gltf.unlit) return s.baseColor;
     // A uniform sky of radiance `ambient` reflects about the diffuse colour and f0 of it.
     const Float3 reflected = s.baseColor * (1.0f - s.metallic) + SurfaceF0(s, m.gltf.constants);
+    if (s.clearcoat > 0) {
+      // A coat reflects its share of the sky whole, and dims what lies beneath it, emission too.
+      const float coat = ClearcoatWeight(s, -hit.direction);
+      return (reflected * (1.0f - coat) + Float3{coat, coat, coat}) * (frame_.ambient * s.occlusion) +
+             s.emission * (1.0f - coat);
+    }
     return reflected * (frame_.ambient * s.occlusion) + s.emission;
   }
   const Float3 ambient = hit.diffuse * frame_.ambient;
@@ -417,15 +433,18 @@ Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
 
 // glTF materials: a smooth surface mirrors what it faces, weighted by Fresnel at the
 // viewing angle; a transmitting one refracts its share (KHR_materials_transmission), the
-// rest of its light as it was.
+// rest of its light as it was. A coat takes its weight of both, and a smooth coat mirrors
+// about its own normal. (Under transmission the coat's highlights of lights, in `local`,
+// are weighed as the rest of it: a coated glass is rare.)
 Float3 Tracer::PixelTracer::CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth) {
   Float3 color = local;
   const Float3 mirror = Reflect(hit.direction, hit.normal);
+  const float coat = hit.pbr.clearcoat > 0 ? ClearcoatWeight(hit.pbr, -hit.direction) : 0.0f;
   if (hit.pbr.roughness < PbrMaterial::kMirrorRoughness) {
     const float nDotV = std::max(-Dot(hit.direction, hit.normal), 0.0f);
     const Float3 fresnel = Schlick(SurfaceF0(hit.pbr, material.constants), SurfaceF90(hit.pbr, material.constants), nDotV);
     ++counts_.reflection;
-    color += TraceRay(Spawn(hit, false), mirror, depth + 1) * fresnel;
+    color += TraceRay(Spawn(hit, false), mirror, depth + 1) * (coat > 0 ? fresnel * (1.0f - coat) : fresnel);
   }
   const float transmitted = material.transmission * (1.0f - hit.pbr.metallic);
   if (transmitted > 0) {
@@ -439,7 +458,11 @@ Float3 Tracer::PixelTracer::CombinePbr(const SurfaceHit& hit, const PbrMaterial&
       ++counts_.refraction;
       through = TraceRay(Spawn(hit, true), refracted, depth + 1);
     }
-    color = color * (1.0f - transmitted) + through * transmitted;
+    color = color * (1.0f - transmitted) + through * (coat > 0 ? transmitted * (1.0f - coat) : transmitted);
+  }
+  if (coat > 0 && hit.pbr.clearcoatRoughness < PbrMaterial::kMirrorRoughness) {
+    ++counts_.reflection;
+    color += TraceRay(Spawn(hit, false), Reflect(hit.direction, hit.pbr.clearcoatNormal), depth + 1) * coat;
   }
   // A blended surface covers alpha of the ray; the rest goes straight on past it.
   if (material.blends && hit.pbr.alpha < 1) {

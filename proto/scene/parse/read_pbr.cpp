@@ -44,12 +44,27 @@ TextureSlot SceneReader::ReadTextureSlot(const Node& node, const std::string& am
   return slot;
 }
 
+// KHR_materials_clearcoat's keys.
+void SceneReader::ReadClearcoat(const Node& node, MetallicRoughness& m) {
+  const std::string unit = "a number in [0, 1]";
+  if (node.Has("clearcoat")) m.clearcoat = ReadInRange(node.Member("clearcoat"), 0, 1, unit);
+  if (node.Has("clearcoat_roughness")) m.clearcoatRoughness = ReadInRange(node.Member("clearcoat_roughness"), 0, 1, unit);
+  if (node.Has("clearcoat_texture")) m.clearcoatTexture = ReadTextureSlot(node.Member("clearcoat_texture"));
+  if (node.Has("clearcoat_roughness_texture")) {
+    m.clearcoatRoughnessTexture = ReadTextureSlot(node.Member("clearcoat_roughness_texture"));
+  }
+  if (node.Has("clearcoat_normal_texture")) {
+    m.clearcoatNormalTexture = ReadTextureSlot(node.Member("clearcoat_normal_texture"), "scale");
+  }
+}
+
 MetallicRoughness SceneReader::ReadPbr(const Node& node) {
   ExpectObject(node,
                {"base_color", "alpha", "metallic", "roughness", "base_color_texture", "metallic_roughness_texture",
                 "normal_texture", "occlusion_texture", "emissive", "emissive_strength", "emissive_texture",
                 "alpha_mode", "alpha_cutoff", "double_sided", "unlit", "ior", "transmission", "specular",
-                "specular_color"},
+                "specular_color", "clearcoat", "clearcoat_roughness", "clearcoat_texture",
+                "clearcoat_roughness_texture", "clearcoat_normal_texture"},
                "a metallic-roughness material");
   const std::string unit = "a number in [0, 1]";
   MetallicRoughness m;
@@ -80,6 +95,7 @@ MetallicRoughness SceneReader::ReadPbr(const Node& node) {
   if (node.Has("transmission")) m.transmission = ReadInRange(node.Member("transmission"), 0, 1, unit);
   if (node.Has("specular")) m.specular = ReadInRange(node.Member("specular"), 0, 1, unit);
   if (node.Has("specular_color")) m.specularColor = ReadColour(node.Member("specular_color"));
+  ReadClearcoat(node, m);
   return m;
 }
 

@@ -90,6 +90,7 @@ class SceneReader {
 
   // glTF's metallic-roughness model: a material's "pbr" block (read_pbr.cpp).
   MetallicRoughness ReadPbr(const Node& node);
+  void ReadClearcoat(const Node& node, MetallicRoughness& m);
   // A texture with its texture coordinates and their transform; `amountKey` names the
   // slot's own number (a normal map's "scale", an occlusion map's "strength"), if any.
   TextureSlot ReadTextureSlot(const Node& node, const std::string& amountKey = "");

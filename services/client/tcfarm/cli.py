@@ -125,6 +125,9 @@ def cmd_submit(client, args):
                         frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
                         tolerance=args.tolerance, priority=args.priority, verify=args.verify,
                         assets=assets, scene_file=files.scene_file, **_import_options(args, files))
+    if not args.json:
+        for warning in job.get("warnings", []):
+            sys.stderr.write(f"warning: {warning}\n")
     if not args.wait:
         print(json.dumps(job) if args.json else f"submitted job {job['id']}")
         return 0

@@ -2,7 +2,7 @@
 // a Lambertian diffuse lobe and a GGX specular lobe (alpha = roughness^2, the
 // height-correlated Smith visibility), mixed by Schlick's Fresnel between a dielectric
 // (f0 from the index of refraction, weighted by KHR_materials_specular) and a metal (f0 =
-// the base colour). Inline and in float: it is asked for every lit hit.
+// the base colour); under KHR_materials_clearcoat's coat, a second GGX lobe on top. Inline and in float: it is asked for every lit hit.
 #pragma once
 
 #include <algorithm>
@@ -21,6 +21,9 @@ struct PbrSurface {
   float occlusion = 1;  // 1: none (weighs the ambient term only)
   float alpha = 1;      // coverage (base colour alpha), for a blended material
   Float3 emission;      // linear radiance the surface shows of itself
+  // KHR_materials_clearcoat: the coat's weight (0: none), roughness and unit normal.
+  float clearcoat = 0, clearcoatRoughness = 0;
+  Float3 clearcoatNormal;
 };
 
 // What a material fixes for every point of it.
@@ -65,11 +68,10 @@ inline float SmithVisibility(float nDotL, float nDotV, float alpha) {
   return sum > 0 ? 0.5f / sum : 0.0f;
 }
 
-// Radiance reflected toward unit `towardViewer` from light of unit irradiance (at normal
-// incidence) arriving from unit `towardLight`, at a point of unit shading `normal`: the BRDF
-// times the cosine.
-inline Float3 PbrReflected(const PbrSurface& s, const PbrConstants& c, Float3 towardLight, Float3 normal,
-                           Float3 towardViewer) {
+// The material under any coat (PbrReflected below): its BRDF times the cosine at its unit
+// shading `normal`.
+inline Float3 UncoatedReflected(const PbrSurface& s, const PbrConstants& c, Float3 towardLight, Float3 normal,
+                                Float3 towardViewer) {
   const float nDotL = Dot(normal, towardLight);
   if (!(nDotL > 0)) return {};
   // A normal map can tilt the normal away from a viewer who sees the face: seen edge-on.
@@ -90,6 +92,45 @@ inline Float3 PbrReflected(const PbrSurface& s, const PbrConstants& c, Float3 to
   const Float3 diffuse = (Float3{1, 1, 1} - dielectricFresnel) * diffuseColor * kInversePi;
   const Float3 specular = fresnel * (GgxDistribution(nDotH, alpha) * SmithVisibility(nDotL, nDotV, alpha));
   return (diffuse + specular) * nDotL;
+}
+
+// KHR_materials_clearcoat's coat: a dielectric of index 1.5 (f0 0.04, f90 1).
+constexpr float kClearcoatF0 = 0.04f;
+
+// The share of light the coat reflects toward a viewer at cosine `nDotV` to the coat's
+// normal (Schlick); the layer below gets the rest. At the viewing angle, not per light's
+// half vector, as the Khronos Sample Renderer has it: the same weight then serves lights,
+// mirror rays and emission.
+inline float ClearcoatWeight(const PbrSurface& s, Float3 towardViewer) {
+  const float nDotV = std::max(Dot(s.clearcoatNormal, towardViewer), 0.0f);
+  return s.clearcoat * Schlick({kClearcoatF0, kClearcoatF0, kClearcoatF0}, {1, 1, 1}, nDotV).x;
+}
+
+// The coat's GGX lobe over its own normal and roughness, without its Fresnel term (the
+// weight carries it), times the cosine to its normal.
+inline float ClearcoatLobe(const PbrSurface& s, Float3 towardLight, Float3 towardViewer) {
+  const Float3 n = s.clearcoatNormal;
+  const float nDotL = Dot(n, towardLight);
+  if (!(nDotL > 0)) return 0;
+  const float nDotV = std::max(Dot(n, towardViewer), 1e-4f);
+  Float3 half = towardLight + towardViewer;
+  const float halfLength = Length(half);
+  half = halfLength > 0 ? half * (1.0f / halfLength) : n;
+  const float alpha = s.clearcoatRoughness * s.clearcoatRoughness;
+  return GgxDistribution(std::max(Dot(n, half), 0.0f), alpha) * SmithVisibility(nDotL, nDotV, alpha) * nDotL;
+}
+
+// Radiance reflected toward unit `towardViewer` from light of unit irradiance (at normal
+// incidence) arriving from unit `towardLight`: the material's BRDF times the cosine at its
+// unit shading `normal`, and where it is coated, mixed with the coat's lobe by the coat's
+// weight w: (1 - w) base + w coat.
+inline Float3 PbrReflected(const PbrSurface& s, const PbrConstants& c, Float3 towardLight, Float3 normal,
+                           Float3 towardViewer) {
+  const Float3 base = UncoatedReflected(s, c, towardLight, normal, towardViewer);
+  if (!(s.clearcoat > 0)) return base;
+  const float weight = ClearcoatWeight(s, towardViewer);
+  const float coat = ClearcoatLobe(s, towardLight, towardViewer) * weight;
+  return base * (1.0f - weight) + Float3{coat, coat, coat};
 }
 
 }  // namespace tcfarm

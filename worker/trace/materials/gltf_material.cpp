@@ -45,11 +45,19 @@ PbrMaterial::PbrMaterial(const MetallicRoughness& m, const TextureLoader& load)
   metallicRoughnessTexture = MakeTexture(m.metallicRoughnessTexture, Encoding::kLinear, load);
   normalTexture = MakeTexture(m.normalTexture, Encoding::kLinear, load);
   occlusionTexture = MakeTexture(m.occlusionTexture, Encoding::kLinear, load);
+  if (m.clearcoat > 0) {
+    clearcoat = static_cast<float>(m.clearcoat);
+    clearcoatRoughness = static_cast<float>(m.clearcoatRoughness);
+    clearcoatTexture = MakeTexture(m.clearcoatTexture, Encoding::kLinear, load);
+    clearcoatRoughnessTexture = MakeTexture(m.clearcoatRoughnessTexture, Encoding::kLinear, load);
+    clearcoatNormalTexture = MakeTexture(m.clearcoatNormalTexture, Encoding::kLinear, load);
+  }
 }
 
 bool PbrMaterial::ReadsTexCoord(int set) const {
   for (const PbrTexture* t : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
-                              &emissiveTexture}) {
+                              &emissiveTexture, &clearcoatTexture, &clearcoatRoughnessTexture,
+                              &clearcoatNormalTexture}) {
     if (*t && t->texCoord == set) return true;
   }
   return false;
@@ -74,6 +82,14 @@ PbrSurface PbrMaterial::Surface(std::array<float, 2> uv0, std::array<float, 2> u
   }
   s.emission = emissive;
   if (emissiveTexture) s.emission = s.emission * emissiveTexture.Sample(uvOf(emissiveTexture));
+  if (clearcoat > 0) {
+    s.clearcoat = clearcoat;
+    if (clearcoatTexture) s.clearcoat *= clearcoatTexture.Sample(uvOf(clearcoatTexture)).x;
+    s.clearcoatRoughness = clearcoatRoughness;
+    if (clearcoatRoughnessTexture) {
+      s.clearcoatRoughness = std::clamp(clearcoatRoughness * clearcoatRoughnessTexture.Sample(uvOf(clearcoatRoughnessTexture)).y, 0.0f, 1.0f);
+    }
+  }
   return s;
 }
 

@@ -50,17 +50,25 @@ struct PbrMaterial {
   bool unlit = false;
   float alpha = 1;
   bool blends = false;  // alphaMode BLEND: light passes through by 1 - alpha
+  float clearcoat = 0, clearcoatRoughness = 0;  // KHR_materials_clearcoat; 0: no coat
   PbrTexture baseColorTexture, metallicRoughnessTexture, normalTexture, occlusionTexture, emissiveTexture;
+  PbrTexture clearcoatTexture, clearcoatRoughnessTexture, clearcoatNormalTexture;
 
   PbrMaterial() = default;
   PbrMaterial(const MetallicRoughness& source, const TextureLoader& load);
 
   bool Textured() const {
-    return baseColorTexture || metallicRoughnessTexture || normalTexture || occlusionTexture || emissiveTexture;
+    return baseColorTexture || metallicRoughnessTexture || normalTexture || occlusionTexture || emissiveTexture ||
+           clearcoatTexture || clearcoatRoughnessTexture || clearcoatNormalTexture;
   }
   bool ReadsTexCoord(int set) const;
   // Whether its smooth surfaces trace a mirror ray: possibly smooth somewhere.
-  bool MaySmooth() const { return !unlit && (roughness < kMirrorRoughness || metallicRoughnessTexture); }
+  bool MaySmooth() const {
+    return !unlit && (roughness < kMirrorRoughness || metallicRoughnessTexture || MayCoatSmoothly());
+  }
+  bool MayCoatSmoothly() const {
+    return clearcoat > 0 && (clearcoatRoughness < kMirrorRoughness || clearcoatRoughnessTexture);
+  }
   bool Transmits() const { return !unlit && transmission > 0 && metallic < 1; }
   bool MayContinue() const { return MaySmooth() || Transmits() || blends; }
 

@@ -13,6 +13,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <string_view>
@@ -75,7 +76,7 @@ const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
 inline const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual",          "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_mesh_quantization",        "KHR_materials_emissive_strength", "KHR_materials_unlit",
-    "KHR_materials_specular",       "KHR_texture_transform"};
+    "KHR_materials_specular",       "KHR_texture_transform",           "KHR_materials_clearcoat"};
 
 class GltfReader {
  public:
@@ -85,6 +86,8 @@ class GltfReader {
 
  private:
   [[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) const;
+  // Prints the warning (a render shows it) and keeps it for Scene::importWarnings (a
+  // submission's job record shows it).
   void Warn(const std::string& pointer, const std::string& text) const;
 
   bool IsBinary() const;
@@ -108,6 +111,7 @@ class GltfReader {
 
   void Load();
 
+  // Refuses a required extension the importer does not implement; warns of a used one.
   void CheckExtensions() const;
 
   // ---- accessors ------------------------------------------------------------------------
@@ -200,6 +204,11 @@ class GltfReader {
   // (proto/scene.md, "glTF materials").
   Material MapMaterial(const tinygltf::Material& source, size_t index) const;
   void MapExtensions(const tinygltf::Material& source, const std::string& pointer, MetallicRoughness& m) const;
+  void MapClearcoat(const tinygltf::Value& extension, const std::string& pointer, MetallicRoughness& m) const;
+  // A texture reference inside a material extension's object (tinygltf leaves those as
+  // JSON values): none when `key` is absent.
+  std::optional<TextureSlot> MapExtensionSlot(const tinygltf::Value& extension, const std::string& key,
+                                              const std::string& pointer) const;
 
   // glTF's sampler codes (WebGL's enums); a sampler that leaves one out means repeat and
   // the renderer's choice of filter, here bilinear.
@@ -343,6 +352,7 @@ class GltfReader {
   tinygltf::Model model_;
   gltf::EmbeddedData embedded_;  // while loading: the data URIs, decoded
   mutable uint64_t valueBytesRead_ = 0;  // by ReadAccessor, against kValueBytesPerBufferByte
+  mutable std::vector<std::string> warnings_;  // as Warn gave them
   // Per glTF image that a material uses: its bytes and their hash (Texture::asset).
   mutable std::map<int, std::pair<std::shared_ptr<const std::string>, std::string>> imageBytes_;
   std::vector<int> materialIndex_;  // per glTF material, its index in the scene

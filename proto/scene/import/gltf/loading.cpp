@@ -27,6 +27,7 @@ Scene GltfReader::Read() {
   scene.render.height = kDefaultHeight;
   scene.render.firstFrame = 0;
   scene.render.frameCount = frameCount_;
+  scene.importWarnings = warnings_;
   return scene;
 }
 
@@ -35,8 +36,8 @@ Scene GltfReader::Read() {
 }
 
 void GltfReader::Warn(const std::string& pointer, const std::string& text) const {
-  std::fprintf(stderr, "warning: %s%s%s: %s\n", input_.displayName.c_str(), pointer.empty() ? "" : " at ",
-               pointer.c_str(), text.c_str());
+  warnings_.push_back(input_.displayName + (pointer.empty() ? "" : " at " + pointer) + ": " + text);
+  std::fprintf(stderr, "warning: %s\n", warnings_.back().c_str());
 }
 
 bool GltfReader::IsBinary() const { return input_.bytes.compare(0, 4, "glTF") == 0; }
@@ -216,6 +217,14 @@ void GltfReader::CheckExtensions() const {
            "the file requires extension " + QuoteInput(model_.extensionsRequired[i]) +
                ", which this importer does not implement",
            "only required extensions this importer implements");
+    }
+  }
+  // An optional extension the importer does not know is left out, and the picture may
+  // differ from what the file means: said, never silent.
+  for (size_t i = 0; i < model_.extensionsUsed.size(); ++i) {
+    if (!kSupportedExtensions.count(model_.extensionsUsed[i])) {
+      Warn("/extensionsUsed/" + std::to_string(i), "extension " + QuoteInput(model_.extensionsUsed[i]) +
+                                                       " is not implemented; what it adds is left out");
     }
   }
 }

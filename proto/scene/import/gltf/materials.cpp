@@ -127,6 +127,45 @@ void GltfReader::MapExtensions(const tinygltf::Material& source, const std::stri
       if (specular->Has(textureKey)) Warn(extensions + "KHR_materials_specular/" + textureKey, "the texture is left out; its factor is used");
     }
   }
+  if (const tinygltf::Value* clearcoat = ExtensionOf(source.extensions, "KHR_materials_clearcoat")) {
+    MapClearcoat(*clearcoat, extensions + "KHR_materials_clearcoat", m);
+  }
+}
+
+void GltfReader::MapClearcoat(const tinygltf::Value& extension, const std::string& pointer,
+                              MetallicRoughness& m) const {
+  auto factor = [&](const char* key) {
+    const double value = FactorIn(extension, key, 0);
+    if (!(value >= 0 && value <= 1)) Fail(pointer + "/" + key, std::to_string(value), "a factor in [0, 1]");
+    return value;
+  };
+  m.clearcoat = factor("clearcoatFactor");
+  m.clearcoatRoughness = factor("clearcoatRoughnessFactor");
+  m.clearcoatTexture = MapExtensionSlot(extension, "clearcoatTexture", pointer);
+  m.clearcoatRoughnessTexture = MapExtensionSlot(extension, "clearcoatRoughnessTexture", pointer);
+  m.clearcoatNormalTexture = MapExtensionSlot(extension, "clearcoatNormalTexture", pointer);
+  if (m.clearcoatNormalTexture) {
+    const double scale = FactorIn(extension.Get("clearcoatNormalTexture"), "scale", 1);
+    m.clearcoatNormalTexture->amount = std::clamp(scale, -scene_limits::kMaxNormalScale, scene_limits::kMaxNormalScale);
+  }
+}
+
+std::optional<TextureSlot> GltfReader::MapExtensionSlot(const tinygltf::Value& extension, const std::string& key,
+                                                        const std::string& pointer) const {
+  if (!extension.Has(key)) return std::nullopt;
+  const tinygltf::Value& info = extension.Get(key);
+  const std::string at = pointer + "/" + key;
+  if (!info.IsObject() || !info.Has("index") || !info.Get("index").IsInt()) {
+    Fail(at, "not a texture reference", "an object with a texture's \"index\"");
+  }
+  const int texCoord = info.Has("texCoord") && info.Get("texCoord").IsInt() ? info.Get("texCoord").GetNumberAsInt() : 0;
+  // The reference's own extensions (KHR_texture_transform), as tinygltf gives a TextureInfo's.
+  tinygltf::ExtensionMap nested;
+  if (info.Has("extensions") && info.Get("extensions").IsObject()) {
+    const tinygltf::Value& extensions = info.Get("extensions");
+    for (const std::string& name : extensions.Keys()) nested[name] = extensions.Get(name);
+  }
+  return MapSlot(info.Get("index").GetNumberAsInt(), texCoord, nested, at);
 }
 
 Texture::Wrap GltfReader::WrapOf(int code) {
