@@ -17,34 +17,38 @@
 // client cannot stall rendering. Jobs are deleted through the StoreJanitor, by the same
 // code as the retention.
 //
-// GET /api/v1/events is a stream (Server-Sent Events) that stays open: each holds one of
-// the server's threads, so their number is bounded (ApiOptions::maxEventStreams, 503
-// beyond it), and each wakes at least once a second, so Stop never waits for a client.
+// The routes live in groups, each in its own file with only the stores it needs:
+// http/job_routes.h, frame_routes.h, event_routes.h (the Server-Sent Events stream, bounded
+// by ApiOptions::maxEventStreams), asset_routes.h, worker_routes.h and service_routes.h
+// (strategies, /healthz, /metrics). What they share (a route's shape, the token checks, the
+// JSON replies) is http/api_route.h. The server registers every group's routes, checks the
+// caller's token before a handler runs, reads the body within its route's limit, and
+// answers what no route takes (404, 405, OPTIONS) and every error in the one shape.
 #pragma once
 
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
-#include <functional>
 #include <memory>
-#include <mutex>
 #include <regex>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "coordinator/farm/farm_control.h"
 #include "coordinator/http/api_error.h"
+#include "coordinator/http/api_route.h"
 #include "coordinator/http/api_tokens.h"
-#include "coordinator/http/event_bell.h"
-#include "coordinator/http/job_json.h"
-#include "coordinator/http/submit_request.h"
-#include "proto/net/http_listener.h"
+#include "coordinator/http/asset_routes.h"
+#include "coordinator/http/event_routes.h"
+#include "coordinator/http/frame_routes.h"
+#include "coordinator/http/job_routes.h"
+#include "coordinator/http/service_routes.h"
+#include "coordinator/http/worker_routes.h"
 #include "coordinator/jobs/job_store.h"
 #include "coordinator/store/asset_store.h"
-#include "coordinator/store/frame_store.h"
 #include "coordinator/store/store_janitor.h"
+#include "proto/net/http_listener.h"
 
 namespace httplib {
 class Server;
@@ -53,7 +57,6 @@ struct Response;
 }  // namespace httplib
 
 namespace prometheus {
-class Counter;
 class Registry;
 }  // namespace prometheus
 
@@ -111,106 +114,35 @@ class ApiServer {
   void Stop();
 
  private:
-  // body: the request body, read by the server within options_.maxBodyBytes (httplib's
-  // Request::body stays empty for bodies read that way).
-  using Handler = void (ApiServer::*)(const httplib::Request& request, const std::string& body,
-                                      httplib::Response& response);
-  // For a body too large to hold in memory (asset uploads): the handler reads it from
-  // `read` as it arrives. `read` calls its argument per piece, false when the body could not
-  // be read whole; a request without a body has none.
-  using BodyPieces = std::function<bool(const std::function<void(const char* data, size_t length)>&)>;
-  using StreamHandler = void (ApiServer::*)(const httplib::Request& request, const BodyPieces& read,
-                                            httplib::Response& response);
-  // The least a caller needs for a route when the server has tokens.
-  enum class Access { kOpen, kRead, kSubmit, kAdmin };
-  struct Route {
-    const char* method;
-    const char* pattern;  // a regex on the decoded path; groups are the path parameters
-    Access access;
-    Handler handle;
-    StreamHandler stream = nullptr;  // instead of handle, for routes that stream their body
-  };
-  // A job's frames, which never change once it is submitted.
-  struct FrameRange {
-    int firstFrame = 0;
-    int lastFrame = 0;
-  };
-
-  static const std::vector<Route>& Routes();
   void Configure(httplib::Server& server);
   void Register(httplib::Server& server, const std::string& method, const std::string& pattern,
-                Access access, Handler handle);
-  void RegisterStream(httplib::Server& server, const std::string& pattern, Access access, StreamHandler stream);
+                http::Access access, http::Handler handle);
+  void RegisterStream(httplib::Server& server, const std::string& pattern, http::Access access,
+                      http::StreamHandler stream);
   // The largest body the request's route takes: an asset upload's or a JSON body's.
   uint64_t BodyLimitOf(const httplib::Request& request) const;
   http::ApiError TooLarge(const httplib::Request& request) const;  // the 413 naming that limit
-  // Throws ApiError 401 (no known token) or 403 (a role too low). Without tokens, allows all.
-  void Authorize(const httplib::Request& request, Access access) const;
-  // Authorize, answering the error itself: false when the request is refused.
-  bool Admit(const httplib::Request& request, Access access, httplib::Response& response);
-  // The token's owner; nullopt when the server has no tokens.
-  std::optional<http::Caller> CallerOf(const httplib::Request& request) const;
-  // A submit token cancels, retries, changes and deletes only the jobs it submitted;
-  // throws 403 for another's (404 for an unknown job).
-  void CheckMayChange(const httplib::Request& request, uint64_t id) const;
-  void Dispatch(Handler handle, const httplib::Request& request, const std::string& body,
-                httplib::Response& response);
-  // Runs a handler, turning what it throws into the one error shape.
-  void Guard(const httplib::Request& request, httplib::Response& response, const std::function<void()>& handle);
+  // Authorizes the request, answering the error itself: false when the request is refused.
+  bool Admit(const httplib::Request& request, http::Access access, httplib::Response& response);
   void RouteMiss(const httplib::Request& request, const std::string& body, httplib::Response& response);
 
-  void SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void CheckJobFitsInMemory(const JobSpec& spec) const;
-  void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void RetryJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void PatchJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void DeleteJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void GetFrameStates(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void GetJobEvents(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void StreamEvents(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void GetFrame(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void GetFrameMask(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void PutAsset(const httplib::Request& request, const BodyPieces& read, httplib::Response& response);
-  void FindMissingAssets(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void ListWorkers(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void LiftWorkerBan(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void ListStrategies(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void Health(const httplib::Request& request, const std::string& body, httplib::Response& response);
-  void Metrics(const httplib::Request& request, const std::string& body, httplib::Response& response);
-
-  JobRecord LoadJob(uint64_t id) const;  // throws ApiError 404 job_not_found
-  JobState RequireJob(uint64_t id) const;  // the job's state, without loading it; 404 the same
-  // A transition the store refused: throws 409 `code` saying the job's state ("is <already>
-  // canceled; <expected>"), or 404 when the job is gone.
-  [[noreturn]] void RefuseTransition(uint64_t id, const char* code, const std::string& already,
-                                     const std::string& expected) const;
-  // Throws 400 invalid_parameter when frame is outside job id's frames.
-  void CheckFrameInJob(uint64_t id, int frame);
-  nlohmann::json JobDetail(const JobRecord& record);
-  // Cached per job, so that serving a frame does not load the job's scene and per-frame
-  // counts each time.
-  FrameRange FrameRangeOf(uint64_t id);
-
-  JobStore& store_;
-  FarmControl& farm_;
-  std::shared_ptr<prometheus::Registry> metrics_;
   ApiOptions options_;
+  std::shared_ptr<prometheus::Registry> metrics_;
   std::unique_ptr<StoreJanitor> ownJanitor_;  // when none is given
   StoreJanitor& janitor_;
-  FrameStore frameStore_;  // where options_.storeRoot holds each job's files
   AssetStore assetStore_;  // options_.storeRoot/assets
-  prometheus::Counter* assetUploads_ = nullptr;      // with a metrics registry only
-  prometheus::Counter* assetUploadBytes_ = nullptr;
-  prometheus::Counter* unauthorized_ = nullptr;  // 401s
-  prometheus::Counter* forbidden_ = nullptr;     // 403s
-  std::vector<std::regex> routePatterns_;  // Routes() compiled once, for 405 vs 404
-
-  std::mutex frameRangesMutex_;
-  std::unordered_map<uint64_t, FrameRange> frameRanges_;
-
-  http::EventBell events_;  // what event streams wait on; stopped by Stop
+  http::FrameRanges frameRanges_;
+  // The route groups. Made in this order so that /metrics lists their counters as before.
+  http::AssetRoutes assets_;
+  http::ApiAuth auth_;
+  http::JobRoutes jobs_;
+  http::FrameRoutes frames_;
+  http::EventRoutes events_;
+  http::WorkerRoutes workers_;
+  http::ServiceRoutes service_;
+  // Every group's routes, in the order the Allow header lists a path's methods.
+  std::vector<http::Route> routes_;
+  std::vector<std::regex> routePatterns_;  // routes_ compiled once, for 405 vs 404
 
   HttpListener listener_;
 };

@@ -7,13 +7,16 @@
 #include <prometheus/counter.h>
 #include <prometheus/registry.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cstdio>
 #include <fstream>
 #include <functional>
 #include <limits>
 #include <mutex>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -1479,6 +1482,38 @@ TEST_F(ApiServerTest, UnknownRouteIs404AndWrongMethodIs405) {
   ASSERT_TRUE(options);
   EXPECT_EQ(options->status, 204);
   EXPECT_EQ(options->get_header_value("Allow"), "GET, HEAD");
+}
+
+// Every operation the spec describes is served: a route group the server leaves out, or a
+// route its group leaves out, would be missing from the Allow of its path.
+TEST_F(ApiServerTest, ServesEveryOperationTheSpecDescribes) {
+  std::ifstream in(kOpenApiSpec);
+  ASSERT_TRUE(in) << kOpenApiSpec;
+  const std::regex pathLine("  (/[^ :]*):");
+  const std::regex operationLine("    (get|post|put|patch|delete):");
+  std::string path;  // the current path of the spec's `paths`, with its parameters filled in
+  size_t operations = 0;
+  for (std::string line; std::getline(in, line);) {
+    std::smatch match;
+    if (!line.empty() && line[0] != ' ') {
+      path.clear();  // a top-level key: outside `paths` until the next path
+    } else if (std::regex_match(line, match, pathLine)) {
+      path = std::regex_replace(match[1].str(), std::regex("\\{(id|frame)\\}"), "1");
+      path = std::regex_replace(path, std::regex("\\{sha256\\}"), std::string(64, '0'));
+    } else if (!path.empty() && std::regex_match(line, match, operationLine)) {
+      std::string method = match[1];
+      std::transform(method.begin(), method.end(), method.begin(),
+                     [](char c) { return static_cast<char>(std::toupper(static_cast<unsigned char>(c))); });
+      httplib::Result options = client_->Options(path.c_str());
+      ASSERT_TRUE(options) << path;
+      EXPECT_EQ(options->status, 204) << path;
+      const std::string allowed = ", " + options->get_header_value("Allow") + ",";
+      EXPECT_NE(allowed.find(" " + method + ","), std::string::npos)
+          << method << " " << path << ": Allow is \"" << options->get_header_value("Allow") << "\"";
+      ++operations;
+    }
+  }
+  EXPECT_GE(operations, 20u) << "the spec's paths were not all read";
 }
 
 TEST_F(ApiServerTest, MetricsPassPromtool) {
