@@ -562,7 +562,7 @@ void ApiServer::SubmitJob(const httplib::Request& request, const std::string& bo
   }
   {
     std::lock_guard<std::mutex> lock(frameRangesMutex_);
-    frameRanges_[id] = FrameRange{spec.firstFrame, spec.lastFrame};
+    frameRanges_[id] = FrameRange{spec.firstFrame, spec.lastFrame, JobPreviewView(spec)};
   }
   response.set_header("Location", http::JobPath(id));
   WriteJson(response, JobDetail(LoadJob(id)), 201);
@@ -776,7 +776,7 @@ void ApiServer::GetFrame(const httplib::Request& request, const std::string&, ht
   if (file.extension == "png" && !std::filesystem::is_regular_file(path, missing)) {
     std::optional<std::string> preview;
     try {
-      preview = EncodePreview(frameStore_, id, file.frame);
+      preview = EncodePreview(frameStore_, id, file.frame, FrameRangeOf(id).previewView);
     } catch (const FrameIoError& e) {
       throw ApiError(500, error_code::kInternal,
                      "the preview of frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +
@@ -949,7 +949,7 @@ ApiServer::FrameRange ApiServer::FrameRangeOf(uint64_t id) {
     if (cached != frameRanges_.end()) return cached->second;
   }
   const JobRecord record = LoadJob(id);
-  const FrameRange range{record.spec.firstFrame, record.spec.lastFrame};
+  const FrameRange range{record.spec.firstFrame, record.spec.lastFrame, JobPreviewView(record.spec)};
   std::lock_guard<std::mutex> lock(frameRangesMutex_);
   frameRanges_.emplace(id, range);
   return range;

@@ -40,6 +40,7 @@
 #include "coordinator/http/event_bell.h"
 #include "coordinator/http/job_json.h"
 #include "coordinator/http/submit_request.h"
+#include "proto/frame/view_transform.h"
 #include "proto/net/http_listener.h"
 #include "coordinator/jobs/job_store.h"
 #include "coordinator/store/asset_store.h"
@@ -134,6 +135,7 @@ class ApiServer {
   struct FrameRange {
     int firstFrame = 0;
     int lastFrame = 0;
+    ViewTransform previewView;  // how a preview made on request shows the frames
   };
 
   static const std::vector<Route>& Routes();
