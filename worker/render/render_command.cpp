@@ -144,6 +144,11 @@ RenderOptions RenderCommandLine::Options() const {
   options.output.writeExr = !noExr_;
   options.output.writePng = !noPng_;
   options.output.view.view = *ParseView(view_);  // the parser took only a view's name
+  if (!IsValidExposure(options.output.view.exposure)) {  // NaN passes the parser's range check
+    throw std::invalid_argument("--exposure " + std::to_string(options.output.view.exposure) +
+                                ": expected a number of stops in [-" + std::to_string(int(kMaxExposure)) + ", " +
+                                std::to_string(int(kMaxExposure)) + "]");
+  }
   if (!IsLosslessExrCompression(options.output.exrCompression)) {
     throw std::invalid_argument("--exr-compression " + options.output.exrCompression +
                                 ": expected a lossless one: none, rle, zips, zip or piz");
