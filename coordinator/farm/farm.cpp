@@ -167,7 +167,7 @@ void Farm::RequeueUnfinishedFrames() {
   for (JobState state : {JobState::kCompleted, JobState::kFailed, JobState::kCanceled}) {
     for (const JobRecord& record : store_.List(state, /*limit=*/0)) {
       if (!FrameFinisher::IsFinished(frameStore_, record.id)) {
-        finisher_.Add(record.id, record.spec.firstFrame, record.spec.lastFrame);
+        finisher_.Add(record.id, record.spec.firstFrame, record.spec.lastFrame, JobPreviewView(record.spec));
       }
     }
   }
@@ -180,6 +180,7 @@ void Farm::StartJob(const JobRecord& record, uint64_t granted) {
   try {
     JobRunSettings settings;
     settings.output = WhileRendering(options_.output);
+    settings.output.view = JobPreviewView(record.spec);  // for a store that keeps only previews
     settings.workers = LiveWorkers();
     settings.pendingFrameBytes = options_.pendingFrameBytes;
     settings.jobMemoryBytes = granted;
@@ -250,7 +251,7 @@ void Farm::StopRun(uint64_t jobId) {
     run->second->FinishWriting();  // frames already finished stay downloadable
   } catch (const std::exception&) {
   }
-  finisher_.Add(jobId, run->second->firstFrame(), run->second->lastFrame());
+  finisher_.Add(jobId, run->second->firstFrame(), run->second->lastFrame(), run->second->previewView());
   runs_.erase(run);
 }
 
@@ -399,7 +400,9 @@ void Farm::FinishJob(uint64_t jobId) {
 }
 
 void Farm::Close(uint64_t jobId, ClosingJob closing) {
-  if (closing.run) finisher_.Add(jobId, closing.run->firstFrame(), closing.run->lastFrame());
+  if (closing.run) {
+    finisher_.Add(jobId, closing.run->firstFrame(), closing.run->lastFrame(), closing.run->previewView());
+  }
   ClosingJob& stored = closing_[jobId] = std::move(closing);
   if (Settle(jobId, stored)) closing_.erase(jobId);
 }

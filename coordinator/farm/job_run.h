@@ -31,6 +31,7 @@
 #include "coordinator/planner/auto_guarded_planner.h"
 #include "coordinator/planner/job_memory.h"
 #include "coordinator/planner/planner.h"
+#include "coordinator/store/frame_finisher.h"
 #include "coordinator/store/frame_store.h"
 
 namespace tcfarm {
@@ -89,6 +90,8 @@ class JobRun {
   FrameSize frameSize() const { return spec_.frameSize; }
   int firstFrame() const { return spec_.firstFrame; }
   int lastFrame() const { return spec_.lastFrame; }
+  // How the job's previews show its frames (its submission's view).
+  ViewTransform previewView() const { return JobPreviewView(spec_); }
 
   // workers: live now; the planner spreads each trace request over them.
   std::vector<DispatchTask> TakeTasks(int workers = 1);

@@ -30,6 +30,7 @@
 #include "proto/frame/frame_io.h"
 #include "proto/scene/scene.h"
 #include "proto/wire/content_hash.h"
+#include "coordinator/store/frame_finisher.h"
 #include "tests/support/cpp/required_tool.h"
 
 namespace tcfarm {
@@ -535,6 +536,21 @@ TEST_F(ApiServerTest, VerificationRequestsAreStoredWithTheJob) {
   EXPECT_DOUBLE_EQ(stored->spec.options["spot_check_share"].get<double>(), 0.015);
 }
 
+TEST_F(ApiServerTest, ThePreviewsViewIsStoredAndShownWithTheJob) {
+  json body = Submission();
+  const json standard = json::parse(Post("/api/v1/jobs", body)->body);
+  EXPECT_EQ(standard["view"], "standard");
+  EXPECT_EQ(standard["exposure"], 0);
+  body["view"] = "khr-pbr-neutral";
+  body["exposure"] = -1.5;
+  const json neutral = json::parse(Post("/api/v1/jobs", body)->body);
+  EXPECT_EQ(JobPreviewView(store_->Get(neutral["id"].get<uint64_t>())->spec),
+            (ViewTransform{View::kKhrPbrNeutral, -1.5}));
+  const json shown = json::parse(Get("/api/v1/jobs/" + neutral["id"].dump())->body);
+  EXPECT_EQ(shown["view"], "khr-pbr-neutral");
+  EXPECT_EQ(shown["exposure"], -1.5);
+}
+
 TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
   const std::vector<std::pair<std::string, json>> bad{
       {"bin_width", 1},     {"bin_width", 1001}, {"bin_width", 2.5}, {"bin_width", "10"},
@@ -542,6 +558,7 @@ TEST_F(ApiServerTest, NumbersOutOfRangeAreRefused) {
       {"priority", 101},    {"priority", -101},
       {"priority", 1e300},  {"name", 7},         {"name", std::string(300, 'x')},
       {"spot_check_share", 0.03}, {"spot_check_share", "0"},
+      {"view", "filmic"},   {"view", 1},         {"exposure", 33},  {"exposure", "1"},
   };
   for (const auto& [field, value] : bad) {
     json body = Submission();

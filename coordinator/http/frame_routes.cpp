@@ -72,7 +72,7 @@ FrameRanges::Range FrameRanges::Of(uint64_t id) {
     if (cached != ranges_.end()) return cached->second;
   }
   const JobRecord record = LoadJob(store_, id);
-  const Range range{record.spec.firstFrame, record.spec.lastFrame};
+  const Range range{record.spec.firstFrame, record.spec.lastFrame, JobPreviewView(record.spec)};
   std::lock_guard<std::mutex> lock(mutex_);
   ranges_.emplace(id, range);
   return range;
@@ -160,7 +160,7 @@ void FrameRoutes::GetFrame(const httplib::Request& request, const std::string&, 
   if (file.extension == "png" && !std::filesystem::is_regular_file(path, missing)) {
     std::optional<std::string> preview;
     try {
-      preview = EncodePreview(frameStore_, id, file.frame);
+      preview = EncodePreview(frameStore_, id, file.frame, ranges_.Of(id).previewView);
     } catch (const FrameIoError& e) {
       throw ApiError(500, error_code::kInternal,
                      "the preview of frame " + std::to_string(file.frame) + " of job " + std::to_string(id) +

@@ -15,6 +15,7 @@
 #include "coordinator/http/api_route.h"
 #include "coordinator/jobs/job_store.h"
 #include "coordinator/store/frame_store.h"
+#include "proto/frame/view_transform.h"
 
 namespace tcfarm::http {
 
@@ -26,6 +27,7 @@ class FrameRanges {
   struct Range {
     int firstFrame = 0;
     int lastFrame = 0;
+    ViewTransform previewView;  // how a preview made on request shows the frames
   };
 
   explicit FrameRanges(JobStore& store) : store_(store) {}

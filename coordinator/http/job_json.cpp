@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "coordinator/planner/strategy.h"
+#include "coordinator/store/frame_finisher.h"
 
 namespace tcfarm::http {
 
@@ -61,6 +62,10 @@ json JobJson(const JobRecord& record, const json* liveStats) {
       {"links",
        {{"self", JobPath(record.id)}, {"frames", JobPath(record.id) + "/frames/{frame}.png"}}},
   };
+  // How the job's PNG previews show its linear frames; the EXRs are the values themselves.
+  const ViewTransform view = JobPreviewView(record.spec);
+  job["view"] = std::string(ViewName(view.view));
+  job["exposure"] = view.exposure;
   if (record.state == JobState::kFailed) job["error"] = record.error;
   // The id of the API token that submitted the job (never the token), when it had one.
   const json& options = record.spec.options;

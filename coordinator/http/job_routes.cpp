@@ -1,5 +1,7 @@
 #include "coordinator/http/job_routes.h"
 
+#include "coordinator/store/frame_finisher.h"
+
 #include <httplib.h>
 
 #include <algorithm>
@@ -74,7 +76,7 @@ void JobRoutes::SubmitJob(const httplib::Request& request, const std::string& bo
     if (const std::optional<Caller> caller = auth_.CallerOf(request)) spec.options["submitted_by"] = caller->tokenId;
     id = store_.Submit(spec);
   }
-  ranges_.Remember(id, FrameRanges::Range{spec.firstFrame, spec.lastFrame});
+  ranges_.Remember(id, FrameRanges::Range{spec.firstFrame, spec.lastFrame, JobPreviewView(spec)});
   response.set_header("Location", JobPath(id));
   WriteJson(response, JobDetail(LoadJob(store_, id)), 201);
 }

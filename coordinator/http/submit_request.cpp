@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "proto/frame/encoded_image.h"
+#include "proto/frame/view_transform.h"
 #include "coordinator/http/api_error.h"
 #include "proto/json/strict_json.h"
 #include "proto/scene/import/import_options.h"
@@ -22,6 +23,7 @@
 #include "proto/scene/scene.h"
 #include "proto/scene/scene_limits.h"
 #include "proto/wire/content_hash.h"
+#include "coordinator/store/frame_finisher.h"
 
 namespace tcfarm::http {
 namespace {
@@ -30,7 +32,8 @@ using nlohmann::json;
 
 constexpr const char* kTopLevelFields[] = {"scene",     "name",      "frames",   "strategy",
                                            "bin_width", "tolerance", "priority", "verify",
-                                           "spot_check_share", "assets", "scene_file", "import"};
+                                           "spot_check_share", "assets", "scene_file", "import",
+                                           "view",      "exposure"};
 constexpr int kDefaultBinWidth = 10;
 
 // Messages read like the scene parser's: "<pointer without the leading '/'>: <problem>;
@@ -159,6 +162,30 @@ double ReadTolerance(const json& request) {
     Fail(error_code::kInvalidField, "/tolerance", ShowValue(*tolerance) + " is out of range", expected);
   }
   return value;
+}
+
+// "view" and "exposure": how the job's PNG previews show its linear frames (view_transform.h).
+ViewTransform ReadPreviewView(const json& request) {
+  ViewTransform view;
+  if (const auto name = request.find("view"); name != request.end()) {
+    const std::string expected = "one of " + ViewNames();
+    if (!name->is_string()) Fail(error_code::kInvalidField, "/view", ShowValue(*name) + " is not a string", expected);
+    const std::optional<View> known = ParseView(name->get<std::string>());
+    if (!known) Fail(error_code::kInvalidField, "/view", ShowValue(*name) + " is not a view", expected);
+    view.view = *known;
+  }
+  if (const auto exposure = request.find("exposure"); exposure != request.end()) {
+    const std::string bound = std::to_string(static_cast<int>(kMaxExposure));
+    const std::string expected = "a number of stops in [-" + bound + ", " + bound + "]";
+    if (!exposure->is_number()) {
+      Fail(error_code::kInvalidField, "/exposure", ShowValue(*exposure) + " is not a number", expected);
+    }
+    if (!IsValidExposure(exposure->get<double>())) {
+      Fail(error_code::kInvalidField, "/exposure", ShowValue(*exposure) + " is out of range", expected);
+    }
+    view.exposure = exposure->get<double>();
+  }
+  return view;
 }
 
 // The assets a submission names, checked (paths, hashes, presence, total size) before
@@ -445,6 +472,7 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   if (json share = ReadSpotCheckShare(request); !share.is_null()) {
     spec.options["spot_check_share"] = share;
   }
+  SetJobPreviewView(spec, ReadPreviewView(request));
 
   const auto inlineScene = request.find("scene");
   const auto sceneFile = request.find("scene_file");

@@ -16,6 +16,9 @@ namespace {
 constexpr const char* kFinishedMarker = ".finished";
 // Compression of the frames a job writes while it renders: none, the fastest lossless.
 constexpr const char* kRenderingCompression = "none";
+// Where a job's options keep its preview's view (JobPreviewView).
+constexpr const char* kViewOption = "view";
+constexpr const char* kExposureOption = "exposure";
 
 }  // namespace
 
@@ -27,11 +30,32 @@ FrameWriterOptions WhileRendering(const FrameWriterOptions& stored) {
   return rendering;
 }
 
-std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, int frame) {
+ViewTransform JobPreviewView(const JobSpec& spec) {
+  ViewTransform view;
+  const nlohmann::json& options = spec.options;
+  if (!options.is_object()) return view;
+  if (const auto name = options.find(kViewOption); name != options.end() && name->is_string()) {
+    view.view = ParseView(name->get<std::string>()).value_or(View::kStandard);
+  }
+  if (const auto exposure = options.find(kExposureOption); exposure != options.end() && exposure->is_number()) {
+    view.exposure = exposure->get<double>();
+  }
+  return view;
+}
+
+void SetJobPreviewView(JobSpec& spec, const ViewTransform& view) {
+  if (!spec.options.is_object()) spec.options = nlohmann::json::object();
+  spec.options.erase(kViewOption);
+  spec.options.erase(kExposureOption);
+  if (view.view != View::kStandard) spec.options[kViewOption] = std::string(ViewName(view.view));
+  if (view.exposure != 0) spec.options[kExposureOption] = view.exposure;
+}
+
+std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, int frame, const ViewTransform& view) {
   const std::filesystem::path exr = store.FramePath(job, frame, "exr");
   std::error_code missing;
   if (!std::filesystem::is_regular_file(exr, missing)) return std::nullopt;
-  std::string png = EncodePng(ReadImage(exr));
+  std::string png = EncodePng(ReadImage(exr), view);
   const std::filesystem::path path = store.FramePath(job, frame, "png");
   const std::filesystem::path partial = PartialPathFor(path);
   // Kept when the disk takes it; served from memory all the same when it does not.
@@ -56,11 +80,11 @@ FrameFinisher::~FrameFinisher() {
   thread_.join();
 }
 
-void FrameFinisher::Add(uint64_t job, int first, int last) {
+void FrameFinisher::Add(uint64_t job, int first, int last, const ViewTransform& view) {
   if (!stored_.writeExr) return;  // written as the store keeps them already
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    queue_.push_back({job, first, last});
+    queue_.push_back({job, first, last, view});
   }
   wake_.notify_all();
 }
@@ -127,7 +151,7 @@ void FrameFinisher::Finish(const Job& job) {
       if (!WaitForIdleFarm(lock)) return;
     }
     try {
-      FinishFrame(job.id, frame);
+      FinishFrame(job, frame);
       ++framesFinished_;
     } catch (const std::exception& e) {
       // A full disk, a frame gone: the frame stays as it was rendered, lossless.
@@ -153,7 +177,8 @@ bool FrameFinisher::WaitForIdleFarm(std::unique_lock<std::mutex>& lock) {
   }
 }
 
-void FrameFinisher::FinishFrame(uint64_t job, int frame) const {
+void FrameFinisher::FinishFrame(const Job& finishing, int frame) const {
+  const uint64_t job = finishing.id;
   const std::filesystem::path exr = store_.FramePath(job, frame, "exr");
   std::error_code missing;
   if (!std::filesystem::is_regular_file(exr, missing)) return;  // never written (a failed job)
@@ -164,7 +189,7 @@ void FrameFinisher::FinishFrame(uint64_t job, int frame) const {
   if (!compress && !preview) return;  // finished before (a store older than the marker)
   const Image image = ReadImage(exr);
   if (compress) WriteExr(exr, image, stored_.exrCompression);
-  if (preview) WritePng(store_.FramePath(job, frame, "png"), image);
+  if (preview) WritePng(store_.FramePath(job, frame, "png"), image, finishing.view);
 }
 
 }  // namespace tcfarm

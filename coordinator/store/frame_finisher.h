@@ -23,6 +23,8 @@
 #include <thread>
 
 #include "proto/frame/frame_writer.h"
+#include "proto/frame/view_transform.h"
+#include "coordinator/jobs/job_store.h"
 #include "coordinator/store/frame_store.h"
 
 namespace tcfarm {
@@ -32,10 +34,17 @@ namespace tcfarm {
 // PNG is the only copy, written at once).
 FrameWriterOptions WhileRendering(const FrameWriterOptions& stored);
 
-// `frame`'s PNG preview made from its EXR, and kept in its place for the next asker when
-// the disk takes it (atomically); nullopt when the EXR is not there. Throws FrameIoError
-// when the EXR cannot be read.
-std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, int frame);
+// How a job's previews show its frames: the view and exposure it was submitted with, kept
+// in its options ("view", "exposure") only when they are not the default, so that jobs
+// stored before views existed read as standard.
+ViewTransform JobPreviewView(const JobSpec& spec);
+void SetJobPreviewView(JobSpec& spec, const ViewTransform& view);
+
+// `frame`'s PNG preview made from its EXR through `view`, and kept in its place for the
+// next asker when the disk takes it (atomically); nullopt when the EXR is not there.
+// Throws FrameIoError when the EXR cannot be read.
+std::optional<std::string> EncodePreview(const FrameStore& store, uint64_t job, int frame,
+                                         const ViewTransform& view = {});
 
 class FrameFinisher {
  public:
@@ -50,8 +59,9 @@ class FrameFinisher {
   FrameFinisher(const FrameFinisher&) = delete;
   FrameFinisher& operator=(const FrameFinisher&) = delete;
 
-  // A job whose frames [first, last] are all written. Thread-safe.
-  void Add(uint64_t job, int first, int last);
+  // A job whose frames [first, last] are all written; their previews go through `view`.
+  // Thread-safe.
+  void Add(uint64_t job, int first, int last, const ViewTransform& view = {});
   // While the farm renders a job, and for idleGrace after, finishing waits (between frames).
   void SetFarmBusy(bool busy);
   // The job is being deleted: it leaves the queue, and finishing it stops after the frame
@@ -67,13 +77,14 @@ class FrameFinisher {
   struct Job {
     uint64_t id;
     int first, last;
+    ViewTransform view;
   };
   void Run();
   void Finish(const Job& job);
   // Waits until the farm has been idle for idleGrace_; false when the finisher stops or
   // the current job is dropped meanwhile. The caller holds `lock`.
   bool WaitForIdleFarm(std::unique_lock<std::mutex>& lock);
-  void FinishFrame(uint64_t job, int frame) const;
+  void FinishFrame(const Job& job, int frame) const;
 
   FrameStore store_;
   FrameWriterOptions stored_;

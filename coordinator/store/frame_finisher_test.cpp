@@ -7,7 +7,10 @@
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <functional>
+#include <iterator>
+#include <string>
 #include <thread>
 
 #include "proto/frame/frame_io.h"
@@ -134,6 +137,39 @@ TEST_F(FrameFinisherTest, DroppingDuringEncodingNeverLeavesAFolderBehind) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
     EXPECT_FALSE(fs::exists(store_.JobFolder(job))) << "round " << round;
   }
+}
+
+// The previews, whether the finisher makes them or the API on request, show the frames
+// through the job's view; the EXR master stays the traced values.
+TEST_F(FrameFinisherTest, PreviewsGoThroughTheJobsView) {
+  const ViewTransform neutral{View::kKhrPbrNeutral, 1.5};
+  FrameFinisher finisher(store_, FrameWriterOptions{}, kNoGrace);
+  finisher.Add(7, 10, 11, neutral);
+  ASSERT_TRUE(WaitFor([&] { return finisher.Idle() && FrameFinisher::IsFinished(store_, 7); }));
+  for (int frame = 10; frame <= 11; ++frame) {
+    std::ifstream file(store_.FramePath(7, frame, "png"), std::ios::binary);
+    const std::string written{std::istreambuf_iterator<char>(file), {}};
+    EXPECT_EQ(written, EncodePng(images_[frame - 10], neutral)) << frame;
+    EXPECT_NE(written, EncodePng(images_[frame - 10])) << frame;
+    EXPECT_EQ(ReadImage(store_.FramePath(7, frame, "exr")).rgb, images_[frame - 10].rgb);
+  }
+  EXPECT_EQ(EncodePreview(store_, 7, 12, neutral), EncodePng(images_[2], neutral));
+  EXPECT_EQ(EncodePreview(store_, 7, 12), EncodePng(images_[2]));
+}
+
+// A job's view lives in its options, only when it is not the default: jobs stored before
+// views existed, and jobs submitted without one, read as standard.
+TEST(JobPreviewViewTest, IsKeptInTheJobsOptionsWhenNotTheDefault) {
+  JobSpec spec;
+  spec.options = {{"verify", {{"frames", "all"}}}};
+  EXPECT_EQ(JobPreviewView(spec), ViewTransform{});
+  SetJobPreviewView(spec, {View::kKhrPbrNeutral, -0.5});
+  EXPECT_EQ(spec.options, nlohmann::json({{"verify", {{"frames", "all"}}}, {"view", "khr-pbr-neutral"}, {"exposure", -0.5}}));
+  EXPECT_EQ(JobPreviewView(spec), (ViewTransform{View::kKhrPbrNeutral, -0.5}));
+  SetJobPreviewView(spec, {});
+  EXPECT_EQ(spec.options, nlohmann::json({{"verify", {{"frames", "all"}}}}));
+  spec.options["view"] = "from a later version";  // unknown: shown as the standard view
+  EXPECT_EQ(JobPreviewView(spec).view, View::kStandard);
 }
 
 TEST_F(FrameFinisherTest, AStoreWithoutExrsHasNothingToFinish) {

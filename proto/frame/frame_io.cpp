@@ -145,17 +145,15 @@ void WriteExr(const std::filesystem::path& path, const Image& image,
   WritePixels(path, image.width, image.height, 3, OIIO::TypeDesc::FLOAT, image.rgb.data(), compression);
 }
 
-void WritePng(const std::filesystem::path& path, const Image& image) {
+void WritePng(const std::filesystem::path& path, const Image& image, const ViewTransform& view) {
   CheckShape(path, image);
-  std::vector<uint8_t> codes(image.rgb.size());
-  std::transform(image.rgb.begin(), image.rgb.end(), codes.begin(), LinearToSrgb8Fast);
+  const std::vector<uint8_t> codes = DisplayCodes(image.rgb, view);
   WritePixels(path, image.width, image.height, 3, OIIO::TypeDesc::UINT8, codes.data());
 }
 
-std::string EncodePng(const Image& image) {
+std::string EncodePng(const Image& image, const ViewTransform& view) {
   CheckShape("a PNG in memory", image);
-  std::vector<uint8_t> codes(image.rgb.size());
-  std::transform(image.rgb.begin(), image.rgb.end(), codes.begin(), LinearToSrgb8Fast);
+  const std::vector<uint8_t> codes = DisplayCodes(image.rgb, view);
   std::vector<unsigned char> bytes;
   OIIO::Filesystem::IOVecOutput memory(bytes);
   auto out = OIIO::ImageOutput::create("preview.png");

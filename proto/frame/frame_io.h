@@ -10,6 +10,8 @@
 #include <string>
 #include <vector>
 
+#include "proto/frame/view_transform.h"
+
 namespace tcfarm {
 
 struct Image {
@@ -31,9 +33,10 @@ class FrameIoError : public std::runtime_error {
 bool IsLosslessExrCompression(const std::string& name);
 void WriteExr(const std::filesystem::path& path, const Image& image,
               const std::string& compression = "zip:1");
-void WritePng(const std::filesystem::path& path, const Image& image);
+// The 8-bit preview: the image's values through `view` (view_transform.h).
+void WritePng(const std::filesystem::path& path, const Image& image, const ViewTransform& view = {});
 // The PNG file WritePng writes, as bytes. Throws FrameIoError when it cannot be encoded.
-std::string EncodePng(const Image& image);
+std::string EncodePng(const Image& image, const ViewTransform& view = {});
 // The compression an EXR file was written with, as OpenImageIO names it ("zip", "none",
 // ...; a level is not recorded). Throws FrameIoError when the file cannot be read.
 std::string ExrCompressionOf(const std::filesystem::path& path);

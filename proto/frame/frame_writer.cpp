@@ -90,7 +90,7 @@ void FrameWriter::WriteFrameFiles(const Item& item) const {
       placed.push_back(stem + ".exr");
     }
     if (options_.writePng) {
-      WritePng(stem + ".png", item.image);
+      WritePng(stem + ".png", item.image, options_.view);
       placed.push_back(stem + ".png");
     }
   } catch (...) {

@@ -32,6 +32,7 @@ struct FrameWriterOptions {
   unsigned threads = 2;
   // Frames queued before Write blocks: enough to ride out slow writes.
   size_t maxQueuedFrames = 4;
+  ViewTransform view = {};  // how the PNG preview shows the linear values
 };
 
 class FrameWriter {

@@ -290,6 +290,10 @@ function submissionOptions(files) {
   if (priority !== undefined && priority !== 0) options.priority = priority;
   const tolerance = formNumber("submit-tolerance");
   if (tolerance !== undefined) options.tolerance = tolerance;
+  const view = $("submit-view").value;
+  if (view) options.view = view;
+  const exposure = formNumber("submit-exposure");
+  if (exposure !== undefined && exposure !== 0) options.exposure = exposure;
   const verify = $("submit-verify").value;
   if (verify === "all") options.verify = { frames: "all" };
   else if (verify === "sample") options.verify = { sample: formNumber("submit-verify-sample") || 1 };

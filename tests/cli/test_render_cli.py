@@ -5,6 +5,7 @@ import struct
 import subprocess
 
 from deforming_scenes import deforming_set
+from farm_harness import compare
 
 
 def run(binary, *args):
@@ -97,3 +98,32 @@ def test_deforming_work_is_counted_and_left_out_for_rigid_scenes(worker_binary, 
     rigid = run(worker_binary, "render", small(scenes_dir / "paper_a_one_sphere.json", tmp_path, 32, 24, 3),
                 "--out", tmp_path / "rigid", "--no-png")
     assert "deforming meshes: 0 poses computed, 0 shared, 0 vertices deformed" in rigid.stdout
+
+
+def test_view_changes_only_the_png_previews(worker_binary, scenes_dir, tmp_path):
+    # --view standard is the default: the same PNG bytes. Another view (or an exposure) is
+    # another preview of the same EXR master.
+    scene = small(scenes_dir / "paper_b_twelve_spheres.json", tmp_path, count=1)
+    outputs = {
+        "default": [],
+        "standard": ["--view", "standard", "--exposure", "0"],
+        "neutral": ["--view", "khr-pbr-neutral"],
+        "brighter": ["--exposure", "1.5"],
+    }
+    for name, flags in outputs.items():
+        result = run(worker_binary, "render", scene, "--out", tmp_path / name, *flags)
+        assert result.returncode == 0, (name, result.stderr)
+    png = {name: (tmp_path / name / "frame_0000.png").read_bytes() for name in outputs}
+    assert png["standard"] == png["default"]
+    assert png["neutral"] != png["default"]
+    assert png["brighter"] != png["default"]
+    for name in ("standard", "neutral", "brighter"):  # the EXRs' pixels (their headers hold a date)
+        assert compare(tmp_path / "default", tmp_path / name)["differing_pixels"] == 0, name
+
+
+def test_bad_view_or_exposure_is_a_usage_error(worker_binary, scenes_dir, tmp_path):
+    scene = scenes_dir / "paper_a_one_sphere.json"
+    for args in (["--view", "filmic"], ["--exposure", "nan"], ["--exposure", "100"], ["--exposure", "x"]):
+        result = run(worker_binary, "render", scene, "--out", tmp_path / "out", *args)
+        assert result.returncode == 2, args
+        assert args[0] in result.stderr, (args, result.stderr)

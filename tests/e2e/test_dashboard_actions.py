@@ -136,7 +136,7 @@ def test_a_json_scene_submitted_through_the_form_runs_with_the_chosen_options(tm
             job_id = submit_through_the_form(page, {
                 "#submit-name": "from the form", "#submit-strategy": "search", "#submit-bin-width": "2",
                 "#submit-frame-start": "1", "#submit-frame-end": "4", "#submit-priority": "-20",
-                "#submit-verify": "all"})
+                "#submit-verify": "all", "#submit-view": "khr-pbr-neutral", "#submit-exposure": "0.5"})
             assert page.text("#submit-status") == f"submitted job {job_id}"
             # The page selects the new job and shows it.
             page.wait_for(f"document.getElementById('job-title').textContent === 'Job {job_id}: from the form'")
@@ -145,6 +145,7 @@ def test_a_json_scene_submitted_through_the_form_runs_with_the_chosen_options(tm
             assert (job["name"], job["strategy"], job["bin_width"], job["priority"]) == ("from the form", "search", 2, -20)
             assert job["frames"]["start"] == 1 and job["frames"]["end"] == 4
             assert job["stats"]["error"]["reference"]["frames_requested"] == 4
+            assert (job["view"], job["exposure"]) == ("khr-pbr-neutral", 0.5)
             no_page_errors(page)
 
 

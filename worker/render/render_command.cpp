@@ -119,6 +119,17 @@ RenderCommandLine::RenderCommandLine(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0));
   app.add_flag("--no-exr", noExr_, "Write no EXR frames");
   app.add_flag("--no-png", noPng_, "Write no PNG frames");
+  app.add_option("--view", view_,
+                 "How the PNG previews show the linear values: standard (clamped to [0, 1]) or khr-pbr-neutral "
+                 "(the Khronos PBR Neutral tone mapper); the EXR keeps the values as traced")
+      ->type_name("NAME")
+      ->check(CLI::IsMember({"standard", "khr-pbr-neutral"}))
+      ->capture_default_str();
+  app.add_option("--exposure", options_.output.view.exposure,
+                 "Exposure of the PNG previews in stops: values are scaled by 2^EV before the view")
+      ->type_name("EV")
+      ->check(CLI::Range(-kMaxExposure, kMaxExposure))
+      ->capture_default_str();
   app.add_option("--exr-compression", options_.output.exrCompression,
                  "Lossless EXR compression: zip[:1-9], none, rle, zips or piz")
       ->type_name("NAME")
@@ -132,6 +143,12 @@ RenderOptions RenderCommandLine::Options() const {
   if (!lightUnits_.empty()) options.import.lightUnits = *LightUnitsNamed(lightUnits_);
   options.output.writeExr = !noExr_;
   options.output.writePng = !noPng_;
+  options.output.view.view = *ParseView(view_);  // the parser took only a view's name
+  if (!IsValidExposure(options.output.view.exposure)) {  // NaN passes the parser's range check
+    throw std::invalid_argument("--exposure " + std::to_string(options.output.view.exposure) +
+                                ": expected a number of stops in [-" + std::to_string(int(kMaxExposure)) + ", " +
+                                std::to_string(int(kMaxExposure)) + "]");
+  }
   if (!IsLosslessExrCompression(options.output.exrCompression)) {
     throw std::invalid_argument("--exr-compression " + options.output.exrCompression +
                                 ": expected a lossless one: none, rle, zips, zip or piz");

@@ -47,6 +47,7 @@ class RenderCommandLine {
   bool noExr_ = false;
   bool noPng_ = false;
   std::string lightUnits_;
+  std::string view_ = "standard";
 };
 
 // Returns the process exit code.

@@ -124,7 +124,8 @@ def cmd_submit(client, args):
     job = client.submit(files.scene, name=args.name or os.path.basename(args.scene),
                         frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
                         tolerance=args.tolerance, priority=args.priority, verify=args.verify,
-                        assets=assets, scene_file=files.scene_file, **_import_options(args, files))
+                        view=args.view, exposure=args.exposure, assets=assets,
+                        scene_file=files.scene_file, **_import_options(args, files))
     if not args.json:
         for warning in job.get("warnings", []):
             sys.stderr.write(f"warning: {warning}\n")
@@ -390,6 +391,8 @@ def cmd_status(client, args):
         details.append(f"relative cost: measured {cost['measured_relative_cost']:.3f}"
                        + (f", predicted {cost['predicted_relative_cost']:.3f}"
                           if "predicted_relative_cost" in cost else ""))
+    if job.get("view", "standard") != "standard" or job.get("exposure", 0):
+        details.append(f"previews: view {job['view']}, exposure {job['exposure']:+g} EV")
     details += _verification_lines(job)
     try:
         details += _frame_strip(client.frame_states(args.job))
@@ -588,6 +591,12 @@ def _parser():
     submit.add_argument("--priority", type=int, help="-100..100, higher runs first (default 0)")
     submit.add_argument("--verify", type=_verify, help="'all' or K: also render K frames "
                                                         "brute force and report the error")
+    submit.add_argument("--view", choices=["standard", "khr-pbr-neutral"],
+                        help="how the PNG previews show the linear frames: standard (clamped, "
+                             "the default) or khr-pbr-neutral (the Khronos PBR Neutral tone "
+                             "mapper); the EXRs keep the values as traced")
+    submit.add_argument("--exposure", type=float, metavar="EV",
+                        help="exposure of the PNG previews in stops, -32..32 (default 0)")
     submit.add_argument("--wait", action="store_true", help="wait, showing progress")
     submit.add_argument("--fps", type=float, help="frames per second an animated file is sampled at (glTF)")
     submit.add_argument("--size", type=_size, help="WIDTHxHEIGHT of the frames of a scene file")

@@ -82,7 +82,8 @@ class Client:
 
     def submit(self, scene, **options):
         """Submits a job. options: name, frames={"start","end"}, strategy, bin_width,
-        tolerance, priority, verify; assets={relative path: sha256} (upload_assets gives the
+        tolerance, priority, verify, view ("standard", "khr-pbr-neutral"), exposure (EV of
+        the PNG previews); assets={relative path: sha256} (upload_assets gives the
         hashes); scene_file=a path among the assets, with scene None, for a scene that is a
         file (OBJ, glTF), and **{"import": {"fps", "size", "animation", "camera", "spp"}} for
         how it is imported. Returns the job record."""
