@@ -113,4 +113,30 @@ bool AnimatedVec3::IsAnimated() const {
   return false;
 }
 
+namespace {
+
+Vec3 Plus(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+
+}  // namespace
+
+AnimatedVec3 Offset(const AnimatedVec3& value, const Vec3& offset) {
+  switch (value.kind()) {
+    case AnimatedVec3::Kind::kConstant:
+      return AnimatedVec3::Constant(Plus(value.constant(), offset));
+    case AnimatedVec3::Kind::kPolynomial: {
+      auto coefficients = value.coefficients();
+      coefficients[0][0] += offset.x;
+      coefficients[1][0] += offset.y;
+      coefficients[2][0] += offset.z;
+      return AnimatedVec3::Polynomial(coefficients);
+    }
+    case AnimatedVec3::Kind::kKeyframes: {
+      auto keys = value.keys();
+      for (auto& key : keys) key.value = Plus(key.value, offset);
+      return AnimatedVec3::Keyframes(keys);
+    }
+  }
+  return value;
+}
+
 }  // namespace tcfarm

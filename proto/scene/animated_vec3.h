@@ -82,4 +82,7 @@ class AnimatedVec3 {
   std::vector<Keyframe> keys_;
 };
 
+// The same function moved by `offset` at every frame (a position moved with the world).
+AnimatedVec3 Offset(const AnimatedVec3& value, const Vec3& offset);
+
 }  // namespace tcfarm

@@ -4,6 +4,7 @@
 #include <memory>
 #include <utility>
 
+#include "proto/scene/lights/light_format.h"
 #include "proto/scene/shapes/shape_format.h"
 
 namespace tcfarm {
@@ -24,6 +25,10 @@ Vec3 Light::DirectionAt(double frame) const {
   Vec3 d = direction.Evaluate(frame);
   return motion.IsNone() ? d : motion.WorldFromObject(frame).ApplyLinear(d);
 }
+
+bool Light::HasPosition() const { return FormatOf(type).HasPosition(); }
+
+bool Light::HasDirection() const { return FormatOf(type).HasDirection(); }
 
 bool Light::SameAt(double a, double b) const {
   return PositionAt(a) == PositionAt(b) && DirectionAt(a) == DirectionAt(b) && intensity.SameAt(a, b);
@@ -55,30 +60,6 @@ SceneError::SceneError(std::string pointer, const std::string& message)
 namespace {
 
 Vec3 Plus(const Vec3& a, const Vec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-
-AnimatedVec3 Offset(const AnimatedVec3& value, const Vec3& offset) {
-  switch (value.kind()) {
-    case AnimatedVec3::Kind::kConstant:
-      return AnimatedVec3::Constant(Plus(value.constant(), offset));
-    case AnimatedVec3::Kind::kPolynomial: {
-      auto coefficients = value.coefficients();
-      coefficients[0][0] += offset.x;
-      coefficients[1][0] += offset.y;
-      coefficients[2][0] += offset.z;
-      return AnimatedVec3::Polynomial(coefficients);
-    }
-    case AnimatedVec3::Kind::kKeyframes: {
-      auto keys = value.keys();
-      for (auto& key : keys) key.value = Plus(key.value, offset);
-      return AnimatedVec3::Keyframes(keys);
-    }
-  }
-  return value;
-}
-
-}  // namespace
-
-namespace {
 
 // A motion moved with the world: what it turns and scales turns about the moved pivot.
 // A translation-only motion needs nothing, being relative to its object's place.
@@ -117,8 +98,8 @@ void TranslateScene(Scene& scene, const Vec3& offset) {
   scene.camera.lookAt = Offset(scene.camera.lookAt, offset);
   OffsetPivot(scene.camera.rig, offset);
   for (Light& light : scene.lights) {
-    if (light.HasPosition()) light.position = Offset(light.position, offset);
     OffsetPivot(light.motion, offset);
+    FormatOf(light.type).Translate(light, offset);
   }
   for (Shape& shape : scene.shapes) {
     OffsetPivot(shape.motion, offset);

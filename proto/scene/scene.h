@@ -50,8 +50,20 @@ struct Camera {
   bool Moves() const { return position.IsAnimated() || lookAt.IsAnimated() || rig.IsAnimated(); }
 };
 
+// Every kind of light, each named once, in Light::Type's order: X(Stem) gives the type
+// Light::Type::k<Stem>, the scene format's <Stem>LightFormat() (proto/scene/lights/<stem>.cpp:
+// reading, writing, moving it) and the worker's <Stem>Shading (worker/trace/lights.h: what
+// shading asks of it). A kind missing either part fails to compile or link.
+#define TCFARM_LIGHT_KINDS(X) X(Point) X(Directional) X(Spot)
+
 struct Light {
-  enum class Type { kPoint, kDirectional, kSpot };
+#define TCFARM_LIGHT_TYPE(Stem) k##Stem,
+  enum class Type { TCFARM_LIGHT_KINDS(TCFARM_LIGHT_TYPE) };
+#undef TCFARM_LIGHT_TYPE
+  // How many kinds there are: Light::Type runs from 0 to kTypeCount - 1.
+#define TCFARM_COUNT_LIGHT_TYPE(Stem) +1
+  static constexpr size_t kTypeCount = 0 TCFARM_LIGHT_KINDS(TCFARM_COUNT_LIGHT_TYPE);
+#undef TCFARM_COUNT_LIGHT_TYPE
   Type type = Type::kPoint;
   AnimatedVec3 position;   // point and spot lights
   AnimatedVec3 direction;  // directional and spot lights: the direction light travels
@@ -64,8 +76,9 @@ struct Light {
   // glTF's KHR_lights_punctual recommends; 0 for no limit (pure inverse square).
   double range = 0;
 
-  bool HasPosition() const { return type != Type::kDirectional; }
-  bool HasDirection() const { return type != Type::kPoint; }
+  // Whether its kind places it (point, spot) and aims it (directional, spot).
+  bool HasPosition() const;
+  bool HasDirection() const;
 
   Vec3 PositionAt(double frame) const;
   Vec3 DirectionAt(double frame) const;
@@ -185,8 +198,8 @@ struct Scene {
   bool AnyMaterialRefracts() const;
 };
 
-// The same world moved by `offset`: camera, point lights and shapes (a shape's motion is
-// relative to its place, so it stays as it is).
+// The same world moved by `offset`: camera, lights that have a position, and shapes (a
+// shape's motion is relative to its place, so it stays as it is).
 void TranslateScene(Scene& scene, const Vec3& offset);
 
 // Moves the world so that the camera stands at the origin at the first rendered frame.

@@ -9,6 +9,7 @@
 
 #include "proto/scene/scene.h"
 #include "proto/scene/scene_write.h"
+#include "proto/scene/lights/light_format.h"
 #include "proto/scene/shapes/shape_format.h"
 
 namespace tcfarm {
@@ -19,6 +20,7 @@ json scene_write::Vec3Json(const Vec3& v) { return json::array({v.x, v.y, v.z});
 
 namespace {
 
+using scene_write::AnimatedJson;
 using scene_write::MeshJson;
 using scene_write::Vec3Json;
 
@@ -31,7 +33,9 @@ json WithInterpolation(json keyed, Interpolation interpolation) {
   return keyed;
 }
 
-json AnimatedJson(const AnimatedVec3& value) {
+}  // namespace
+
+json scene_write::AnimatedJson(const AnimatedVec3& value) {
   switch (value.kind()) {
     case AnimatedVec3::Kind::kConstant:
       return Vec3Json(value.constant());
@@ -53,6 +57,8 @@ json AnimatedJson(const AnimatedVec3& value) {
   }
   return Vec3Json(value.constant());
 }
+
+namespace {
 
 json QuaternionJson(const Quaternion& q) { return json::array({q.x, q.y, q.z, q.w}); }
 
@@ -155,15 +161,10 @@ json CameraJson(const Camera& camera, const SharedParents& shared) {
 }
 
 json LightJson(const Light& light, const SharedParents& shared) {
-  json result{{"intensity", AnimatedJson(light.intensity)}};
-  static const char* const kTypeNames[] = {"point", "directional", "spot"};
-  result["type"] = kTypeNames[static_cast<int>(light.type)];
-  if (light.HasPosition()) result["position"] = AnimatedJson(light.position);
-  if (light.HasDirection()) result["direction"] = AnimatedJson(light.direction);
-  if (light.type == Light::Type::kSpot) {
-    result["inner_cone_degrees"] = light.innerConeDegrees;
-    result["outer_cone_degrees"] = light.outerConeDegrees;
-  }
+  const LightFormat& format = FormatOf(light.type);
+  json result = format.Write(light);
+  result["type"] = format.Name();
+  result["intensity"] = AnimatedJson(light.intensity);
   if (light.range > 0) result["range"] = light.range;
   if (!light.motion.IsNone()) result["motion"] = MotionJson(light.motion, shared);
   return result;

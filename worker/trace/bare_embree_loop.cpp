@@ -216,15 +216,7 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
       for (int lane = 0; lane < lanes; ++lane) {
         if (!hasHit[lane]) continue;
         const LaneHit& hit = hits[lane];
-        if (light.isPoint) {  // spot cones left out: a point light's cost
-          const Float3 v = light.position - hit.position;
-          distance[lane] = Length(v);
-          toLight[lane] = v * (1.0f / distance[lane]);
-        } else {
-          toLight[lane] = light.towardLight;
-          distance[lane] = kInfinity;
-        }
-        if (!(Dot(toLight[lane], hit.normal) > 0)) continue;
+        if (!light.Toward(hit.position, hit.normal, &toLight[lane], &distance[lane])) continue;
         const Float3 start = hit.position + hit.normal * hit.offset;
         shadowValid[lane] = -1;
         shadow.org_x[lane] = start.x, shadow.org_y[lane] = start.y, shadow.org_z[lane] = start.z;
@@ -238,7 +230,7 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
         if (!shadowValid[lane] || shadow.tfar[lane] < 0) continue;
         const LaneHit& hit = hits[lane];
         color[lane] += hit.material->Reflected(toLight[lane], hit.normal, hit.arriving, hit.material->diffuse) *
-                       light.intensity * light.Falloff(distance[lane]);
+                       light.intensity * light.Arriving(toLight[lane], distance[lane]);
       }
     }
     for (int lane = 0; lane < lanes; ++lane) {

@@ -642,20 +642,19 @@ int HorizonOracle::UnlitSphereHolds(int sphere, const RaySegment& hit, const std
 
 bool HorizonOracle::LightUnseen(const ShadingLight& light, const Vec3& p, const Vec3& outward, double slack,
                                 const Vec3& start, int blocker, int frame) const {
-  const Vec3 position{light.position.x, light.position.y, light.position.z};
-  const Vec3 toward = light.isPoint ? SubtractD(position, p)
-                                    : Vec3{light.towardLight.x, light.towardLight.y, light.towardLight.z};
+  const Vec3 toward = light.WayFrom(p);
   // Well behind the surface: the cosine between the normal and the way to the light
   // below -2 * slack / radius (compared squared: no root, no division).
   const double along = DotD(outward, toward), length2 = DotD(toward, toward);
   if (along < 0 && along * along > 4 * slack * slack * length2) return true;
   if (blocker < 0 || !(length2 > 0)) return false;
   // Else surely blocked by the sphere that blocked it at frame().
-  const Vec3 shadow = light.isPoint ? SubtractD(position, start) : toward;
+  const bool placed = light.Position() != nullptr;
+  const Vec3 shadow = placed ? light.WayFrom(start) : toward;
   const double length = std::sqrt(DotD(shadow, shadow));
   const RaySegment segment{{float(start.x), float(start.y), float(start.z)},
                            {float(shadow.x / length), float(shadow.y / length), float(shadow.z / length)},
-                           light.isPoint ? float(length) : INFINITY};
+                           placed ? float(length) : INFINITY};
   const MovingSphere& b = spheres_[static_cast<size_t>(blocker)];
   const size_t index = static_cast<size_t>(frame - frame_);
   return index < b.centers.size() && TestSureBlock(BlockedRay(segment), b.centers[index], b.radius, b.step).blocked;

@@ -181,7 +181,8 @@ class HorizonOracle {
   static Box EmptyBox();
   // For UnlitSphereHolds at one frame: whether the light adds nothing at p (on a sphere,
   // `outward` its normal radius long): well behind it, or its shadow ray from `start`
-  // surely blocked by moving sphere `blocker`.
+  // surely blocked by moving sphere `blocker`. A spot's cone and a light's range are not
+  // asked: a light they leave out counts as seen, which only ends the horizon sooner.
   bool LightUnseen(const ShadingLight& light, const Vec3& p, const Vec3& outward, double slack, const Vec3& start,
                    int blocker, int frame) const;
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);

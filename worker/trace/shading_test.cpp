@@ -1,7 +1,8 @@
-// Shading beyond the paper's spheres: smooth meshes, spot lights, emission, orthographic
-// cameras, each against its closed form.
+// Shading beyond the paper's spheres: smooth meshes, spot lights, ranged lights, emission,
+// orthographic cameras, each against its closed form.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -69,6 +70,43 @@ TEST(ShadingTest, SpotLightsLightTheirConeOnly) {
   Tracer pointTracer(device, pointScene, threads);
   pointTracer.TraceFrame(0, rgb.data());
   EXPECT_LT(spotShadowRays * 4, pointTracer.Counts().shadow) << "shadow rays outside the cone";
+}
+
+// A point light with a range, straight above a floor seen from above through an
+// orthographic camera: glTF's clamp(1 - (d / range)^4, 0, 1) / d^2 along a row, nothing and
+// no shadow ray beyond the range, and the pure inverse square without one.
+TEST(ShadingTest, RangedLightsFadeToNothingAtTheirRange) {
+  auto scene = [](const std::string& range) {
+    return ParseScene(R"({"camera": {"position": [0, 10, 0], "look_at": [0, 0, 0], "up": [0, 0, -1],
+                                     "projection": "orthographic", "ortho_height": 12.5},
+      "lights": [{"type": "point", "position": [0, 2, 0], "intensity": [16, 16, 16])" + range + R"(}],
+      "materials": {"white": {"diffuse": [1, 1, 1]}},
+      "shapes": [{"type": "quad", "corner": [-20, 0, -20], "edge_u": [0, 0, 40], "edge_v": [40, 0, 0], "material": "white"}],
+      "render": {"width": 25, "height": 25}})");
+  };
+  // The middle row's pixels are half a unit apart: pixel 12 + k sees the floor k / 2 off
+  // the light's foot, at d^2 = (k / 2)^2 + 2^2 from it, under a cosine of 2 / d.
+  auto lit = [](int k, double range) {
+    const double d2 = k * k / 4.0 + 4, d = std::sqrt(d2);
+    const double share = range > 0 ? std::clamp(1 - d2 * d2 / std::pow(range, 4), 0.0, 1.0) : 1;
+    return 0.05 + 16 * (2 / d) * share / d2;
+  };
+  auto pixel = [](const std::vector<float>& rgb, int k) { return rgb[3 * (12 * 25 + 12 + k)]; };
+  EmbreeDevice device;
+  TracingThreads threads(2);
+  Scene ranged = scene(R"(, "range": 4)"), unranged = scene("");
+  Tracer rangedTracer(device, ranged, threads), unrangedTracer(device, unranged, threads);
+  std::vector<float> rgb(25 * 25 * 3), pure(25 * 25 * 3);
+  rangedTracer.TraceFrame(0, rgb.data());
+  unrangedTracer.TraceFrame(0, pure.data());
+  for (int k : {0, 2, 4, 6}) {
+    EXPECT_NEAR(pixel(rgb, k), lit(k, 4), 1e-5) << "k = " << k;
+    EXPECT_NEAR(pixel(pure, k), lit(k, 0), 1e-5) << "k = " << k;
+  }
+  // d^2 = 20 > 16: beyond the range, the ambient term alone, while without one it is lit.
+  EXPECT_NEAR(pixel(rgb, 8), 0.05f, 1e-6f);
+  EXPECT_GT(pixel(pure, 8), 0.1f);
+  EXPECT_LT(rangedTracer.Counts().shadow * 3, unrangedTracer.Counts().shadow) << "shadow rays beyond the range";
 }
 
 // A surface shows its emission on top of what lights it, even in the dark.

@@ -219,7 +219,7 @@ class Tracer::PixelTracer {
     const ShadingMaterial& m = (*frame_.materials)[hit.material];
     const Float3 color = m.pbr ? PbrReflected(hit.pbr, m.gltf.constants, direction, hit.normal, -hit.direction)
                                : m.Reflected(direction, hit.normal, hit.direction, hit.diffuse);
-    return color * l.intensity * (l.Falloff(distance) * l.Cone(direction));
+    return color * l.intensity * l.Arriving(direction, distance);
   }
   // What the surface shows with no light: the ambient term, and its own emission.
   Float3 Ambient(const SurfaceHit& hit) const;
@@ -914,7 +914,7 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     };
     if (!context.camera.orthographic) eyeCones = conesAround(context.camera.origin);
     for (size_t light = 0; light < context.lights.size(); ++light) {
-      if (context.lights[light].isPoint) lightCones[light] = conesAround(context.lights[light].position);
+      if (const Float3* at = context.lights[light].Position()) lightCones[light] = conesAround(*at);
     }
   }
   const size_t chunk = PixelsPerChunk(pixelCount, threads_.ThreadCount(), oracle != nullptr);

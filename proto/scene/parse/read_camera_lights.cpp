@@ -1,4 +1,6 @@
-// Reading a scene's camera and lights.
+// Reading a scene's camera, and the fields every light has; each kind of light reads its
+// own (proto/scene/lights/).
+#include "proto/scene/lights/light_format.h"
 #include "proto/scene/parse/scene_reader.h"
 
 namespace tcfarm::scene_parse {
@@ -69,35 +71,16 @@ std::vector<Light> SceneReader::ReadLights(const Node& node) {
 }
 
 Light SceneReader::ReadLight(const Node& node) {
-  const std::string expected = "a light {\"type\": \"point\", \"directional\" or \"spot\", ...}";
-  if (!node.value.is_object()) FailType(node, expected);
-  const std::string typeExpected = "\"point\", \"directional\" or \"spot\"";
-  std::string type = ReadString(Required(node, "type", typeExpected), typeExpected);
+  const std::string typeExpected = LightTypeChoices();
+  if (!node.value.is_object()) FailType(node, "a light {\"type\": " + typeExpected + ", ...}");
+  std::string typeName = ReadString(Required(node, "type", typeExpected), typeExpected);
+  const std::optional<Light::Type> type = FindLightType(typeName);
+  if (!type) Fail(node.MemberPointer("type"), "unknown light type " + Quote(typeName), typeExpected);
   Light light;
-  if (type == "point") {
-    ExpectObject(node, {"type", "position", "intensity", "range", "motion"}, "a point light");
-    light.type = Light::Type::kPoint;
-    light.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
-  } else if (type == "directional") {
-    ExpectObject(node, {"type", "direction", "intensity", "motion"}, "a directional light");
-    light.type = Light::Type::kDirectional;
-    Node direction = Required(node, "direction", kAnimatedExpected);
-    light.direction = ReadAnimated(direction, range_);
-    CheckDirection(light.direction, direction);
-  } else if (type == "spot") {
-    ExpectObject(node,
-                 {"type", "position", "direction", "intensity", "range", "inner_cone_degrees", "outer_cone_degrees", "motion"},
-                 "a spot light");
-    light.type = Light::Type::kSpot;
-    light.position = ReadAnimated(Required(node, "position", kAnimatedExpected), range_);
-    Node direction = Required(node, "direction", kAnimatedExpected);
-    light.direction = ReadAnimated(direction, range_);
-    CheckDirection(light.direction, direction);
-    ReadCone(node, light);
-  } else {
-    Fail(node.MemberPointer("type"), "unknown light type " + Quote(type), typeExpected);
-  }
+  light.type = *type;
+  FormatOf(*type).Read(*this, node, light);
   if (node.Has("motion")) light.motion = ReadMotion(node.Member("motion"), range_, 0, &named_);
+  // Only the kinds that take a range let it through their fields.
   if (node.Has("range")) {
     light.range = ReadInRange(node.Member("range"), 0, kMaxMagnitude, "a range >= 0 in scene units (0: no limit)");
   }
@@ -107,24 +90,15 @@ Light SceneReader::ReadLight(const Node& node) {
   return light;
 }
 
-void SceneReader::ReadCone(const Node& node, Light& light) const {
-  const std::string outerExpected = "an outer cone angle in (0, 90] degrees from the axis";
-  if (node.Has("outer_cone_degrees")) {
-    Node outer = node.Member("outer_cone_degrees");
-    light.outerConeDegrees = ReadNumber(outer, outerExpected);
-    if (!(light.outerConeDegrees > 0 && light.outerConeDegrees <= 90)) {
-      Fail(outer.pointer, Show(outer.value) + " is out of range", outerExpected);
-    }
-  }
-  if (node.Has("inner_cone_degrees")) {
-    Node inner = node.Member("inner_cone_degrees");
-    const std::string innerExpected = "an inner cone angle in [0, outer_cone_degrees) degrees";
-    light.innerConeDegrees = ReadNumber(inner, innerExpected);
-    if (!(light.innerConeDegrees >= 0 && light.innerConeDegrees < light.outerConeDegrees)) {
-      Fail(inner.pointer, Show(inner.value) + " is not below the outer cone's " + FormatNumber(light.outerConeDegrees),
-           innerExpected);
-    }
-  }
+AnimatedVec3 SceneReader::ReadLightPosition(const Node& light) const {
+  return ReadAnimated(Required(light, "position", kAnimatedExpected), range_);
+}
+
+AnimatedVec3 SceneReader::ReadLightDirection(const Node& light) const {
+  Node direction = Required(light, "direction", kAnimatedExpected);
+  AnimatedVec3 value = ReadAnimated(direction, range_);
+  CheckDirection(value, direction);
+  return value;
 }
 
 void SceneReader::CheckDirection(const AnimatedVec3& direction, const Node& node) const {

@@ -1,7 +1,8 @@
 // The scene JSON reader: one document -> Scene, each part read and checked by its own file
 // (read_scene.cpp: the document, import and render settings; read_materials.cpp;
-// read_camera_lights.cpp; read_shapes.cpp: the fields every shape has, each kind's own read
-// by its format (proto/scene/shapes/); read_meshes.cpp: mesh geometry and deformation).
+// read_camera_lights.cpp: the camera and the fields every light has, each kind's own read
+// by its format (proto/scene/lights/); read_shapes.cpp: the same for shapes
+// (proto/scene/shapes/); read_meshes.cpp: mesh geometry and deformation).
 #pragma once
 
 #include <algorithm>
@@ -56,6 +57,14 @@ class SceneReader {
   // Counts triangles against the scene's limit, refusing the scene past it at `node`.
   void ChargeTriangles(size_t count, const Node& node);
 
+  // --- what the light kinds read with (proto/scene/lights/) ---
+
+  // A light's required "position", animated over the scene's frames.
+  AnimatedVec3 ReadLightPosition(const Node& light) const;
+
+  // A light's required "direction", animated, and non-zero at every frame.
+  AnimatedVec3 ReadLightDirection(const Node& light) const;
+
  private:
   template <typename T>
   static void Append(std::vector<T>& to, std::vector<T> more) {
@@ -109,10 +118,8 @@ class SceneReader {
 
   std::vector<Light> ReadLights(const Node& node);
 
+  // The type, then the kind's own fields (its format's), then those every light has.
   Light ReadLight(const Node& node);
-
-  // glTF's bounds: 0 <= inner < outer <= 90 degrees.
-  void ReadCone(const Node& node, Light& light) const;
 
   void CheckDirection(const AnimatedVec3& direction, const Node& node) const;
 
