@@ -332,8 +332,9 @@ def animated_hierarchy():
            rotation=axis_angle([1, 0, 0], -20))
     g.node(name="side", camera=g.camera(0.6, name="side"), translation=[7, 1, 0],
            rotation=axis_angle([0, 1, 0], 90))
-    g.node(name="bulb", light=g.light("point", 30.0, (1.0, 0.9, 0.8)), translation=[3, 5, 4])
-    g.node(name="sun", light=g.light("directional", 0.3), rotation=axis_angle([1, -0.3, 0], -60))
+    # Photometric, as an exporter writes them (683 lm/W): a 30 W/sr bulb and a 0.3 W/m2 sun.
+    g.node(name="bulb", light=g.light("point", 30.0 * 683, (1.0, 0.9, 0.8)), translation=[3, 5, 4])
+    g.node(name="sun", light=g.light("directional", 0.3 * 683), rotation=axis_angle([1, -0.3, 0], -60))
     return g
 
 
@@ -372,7 +373,7 @@ def textured_turntable(how="data"):
     assert hexagon["count"] == 8
     # A spot light on the turntable's arm, pointing down and out: its cone sweeps the floor.
     turntable = next(i for i, n in enumerate(g.doc["nodes"]) if n.get("name") == "turntable")
-    spot = g.light("spot", 40.0, (0.9, 0.9, 1.0))
+    spot = g.light("spot", 40.0 * 683, (0.9, 0.9, 1.0))
     g.doc["extensions"]["KHR_lights_punctual"]["lights"][spot]["spot"] = {"innerConeAngle": 0.2,
                                                                          "outerConeAngle": 0.35}
     g.node(turntable, name="spot", light=spot, translation=[0, 3, 2], rotation=axis_angle([1, 0, 0], -70))
@@ -427,9 +428,6 @@ def pbr_turntable(how="data"):
     glass = next(m for m in g.doc["materials"] if m["name"] == "glass")
     glass["pbrMetallicRoughness"]["baseColorFactor"] = [0.6, 0.8, 1.0, 0.5]
     glass["alphaMode"] = "BLEND"
-    # Photometric, as an exporter writes them: the same watts as the plain turntable's.
-    for light in g.doc["extensions"]["KHR_lights_punctual"]["lights"]:
-        light["intensity"] *= 683
     g._use("KHR_texture_transform")
     g._use("KHR_materials_emissive_strength")
     return g
