@@ -4,6 +4,8 @@
 #include <array>
 #include <utility>
 
+#include "proto/scene/kind_table.h"
+
 namespace tcfarm {
 namespace {
 
@@ -19,21 +21,12 @@ const std::array<const ShapeFormat*, Shape::kTypeCount>& Formats() {
 const ShapeFormat& FormatOf(Shape::Type type) { return *Formats().at(static_cast<size_t>(type)); }
 
 std::optional<Shape::Type> FindShapeType(const std::string& name) {
-  for (size_t i = 0; i < Formats().size(); ++i) {
-    if (name == Formats()[i]->Name()) return static_cast<Shape::Type>(i);
-  }
-  return std::nullopt;
+  const std::optional<size_t> index = FindKindIndex(Formats(), name);
+  return index ? std::optional(static_cast<Shape::Type>(*index)) : std::nullopt;
 }
 
 const std::string& ShapeTypeChoices() {
-  static const std::string choices = [] {
-    std::string joined;
-    for (size_t i = 0; i < Formats().size(); ++i) {
-      if (i > 0) joined += i + 1 == Formats().size() ? " or " : ", ";
-      joined += "\"" + std::string(Formats()[i]->Name()) + "\"";
-    }
-    return joined;
-  }();
+  static const std::string choices = KindChoices(Formats());
   return choices;
 }
 
