@@ -592,7 +592,7 @@ def add_arm(g, material, shoulder, length=2.0, radius=0.25, sides=8, rings=24, d
 
 
 def skinned_arm(detail=0):
-    """The issue's first proof: a skinned arm (a tube of 400 triangles, or at least `detail`)
+    """A skinned arm (a tube of 400 triangles, or at least `detail`)
     bending at the elbow in front of a still wall, lit by a point light. One second: 13
     frames at 12 per second.
 
@@ -655,7 +655,7 @@ def blob_targets(positions, indices):
 
 
 def morphing_blob():
-    """The issue's second proof: a sphere-ish blob of 3,072 triangles with two morph targets
+    """A sphere-ish blob of 3,072 triangles with two morph targets
     (tall, bumpy) animated by one CUBICSPLINE weights channel, above a floor it casts a
     shadow on, under a point light. One second: 13 frames at 12 per second."""
     g = Gltf()
@@ -679,7 +679,7 @@ def morphing_blob():
 
 
 def skinned_in_a_mirror():
-    """The issue's third proof: the skinned arm bends behind the camera, seen only in a
+    """The skinned arm bends behind the camera, seen only in a
     mirror (a smooth metal, reflectivity 1) that faces the camera over a still floor. One
     second, 13 frames at 12 per second."""
     g = mirror_set()

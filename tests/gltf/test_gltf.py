@@ -271,7 +271,7 @@ def test_tcfarm_submit_renders_a_gltf_as_tcfarm_worker_render_does(worker_binary
 
 
 def test_a_textured_gltf_renders_through_the_farm_as_tcfarm_worker_render_does(worker_binary, tmp_path):
-    """The issue's shot: rotation, a hierarchy, all three interpolations, textures (a file
+    """A shot with rotation, a hierarchy, all three interpolations, textures (a file
     beside the .gltf, a data URI, a GLB's buffer view), point, spot and directional lights,
     a still camera. Workers fetch the images by hash; exact equals the standalone render."""
     shot = tmp_path / "shot"
@@ -535,7 +535,7 @@ def deforming_farm(tmp_path_factory):
     (TEST_MODELS / MORPH_CUBE, ("--fps", "4", "--size", "64x48"), 18),
 ], ids=lambda value: pathlib.Path(value).stem if isinstance(value, (str, pathlib.Path)) else None)
 def test_farm_exact_equals_brute_force_on_deforming_meshes(deforming_farm, files, tmp_path, name, flags, frames):
-    """The issue's proof: each file submitted (with its buffers) and rendered by the farm
+    """Each file submitted (with its buffers) and rendered by the farm
     with exact, against `tcfarm-worker render` of the same file (every pixel traced): no
     pixel differs. Prints the share of pixels exact copied instead of tracing."""
     path = files[name] if name in files else pathlib.Path(name)
