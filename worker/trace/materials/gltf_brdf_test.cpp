@@ -200,5 +200,23 @@ TEST(GltfBrdfTest, ASmoothCoatMirrorsByItsWeight) {
   EXPECT_GT(tracer.Counts().reflection, 0u);
 }
 
+// A material no shape uses costs no decoding: its texture, never fetched here, is not read.
+TEST(GltfBrdfTest, TexturesOfUnusedMaterialsAreNotLoaded) {
+  auto scene = [](const std::string& material) {
+    return ParseScene(R"({"camera": {"position": [0, 0, 4], "look_at": [0, 0, 0]},
+        "materials": {"clay": {"pbr": {"base_color": [0.5, 0.5, 0.5]}},
+                      "printed": {"pbr": {"base_color_texture": {"asset": ")" + std::string(64, 'a') + R"("}}}},
+        "shapes": [{"type": "quad", "corner": [-1, -1, 0], "edge_u": [2, 0, 0], "edge_v": [0, 2, 0],
+                    "material": ")" + material + R"("}],
+        "render": {"width": 9, "height": 9}})");
+  };
+  EmbreeDevice device;
+  TracingThreads threads(1);
+  const Scene unused = scene("clay");
+  EXPECT_NO_THROW(Tracer(device, unused, threads));
+  const Scene used = scene("printed");
+  EXPECT_THROW(Tracer(device, used, threads), TextureError);
+}
+
 }  // namespace
 }  // namespace tcfarm
