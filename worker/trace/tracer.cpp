@@ -168,11 +168,12 @@ class Tracer::PixelTracer {
     Float3 diffuse;     // the material's diffuse colour here (its texture's, where it has one)
     Float3 direction;  // unit direction of the arriving ray
     bool fromInside;   // arrived against the geometric normal (leaving a solid)
+    bool unlit;        // its material shows itself whatever lights it (no shadow rays)
     float offset;      // distance that clears the hit point's rounding error
     int shape;
     uint32_t primitive;  // of a mesh: the triangle hit
     int material;
-    PbrSurface pbr;  // glTF materials: the BRDF's inputs here (base colour, not `diffuse`)
+    PbrSurface pbr{Unset{}};  // glTF materials: the BRDF's inputs here (base colour, not `diffuse`)
   };
 
   // The Embree hit fields a surface hit is made from.
@@ -296,11 +297,11 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
                                                          : (*frame_.materials)[shading.material].diffuse,
                  direction,
                  fromInside,
+                 shading.pbr && shading.pbr->unlit,
                  kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t),
                  shape,
                  raw.primitiveId,
-                 shading.material,
-                 {}};
+                 shading.material};
   if (shading.pbr) ShadePbr(shading, raw, hit);
   return hit;
 }
@@ -407,8 +408,7 @@ Float3 Tracer::PixelTracer::TurnedToWorld(int shape, const Float3& normal) const
 
 bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,
                                     float* distance) const {
-  const ShadingMaterial& m = (*frame_.materials)[hit.material];
-  if (m.pbr && m.gltf.unlit) return false;
+  if (hit.unlit) return false;
   return frame_.lights[light].Toward(hit.position, hit.normal, direction, distance);
 }
 

@@ -15,15 +15,22 @@ namespace tcfarm {
 constexpr float kInversePi = 0.318309886183790671538f;
 
 // What the BRDF needs of a surface point, once its textures are read.
+// A tag: a surface whose fields the caller writes (a hit's, filled only for glTF materials).
+struct Unset {};
+
 struct PbrSurface {
   Float3 baseColor;  // linear
-  float metallic = 1, roughness = 1;
-  float occlusion = 1;  // 1: none (weighs the ambient term only)
-  float alpha = 1;      // coverage (base colour alpha), for a blended material
-  Float3 emission;      // linear radiance the surface shows of itself
+  float metallic, roughness;
+  float occlusion;  // 1: none (weighs the ambient term only)
+  float alpha;      // coverage (base colour alpha), for a blended material
+  Float3 emission;  // linear radiance the surface shows of itself
   // KHR_materials_clearcoat: the coat's weight (0: none), roughness and unit normal.
-  float clearcoat = 0, clearcoatRoughness = 0;
+  float clearcoat, clearcoatRoughness;
   Float3 clearcoatNormal;
+
+  PbrSurface() : metallic(1), roughness(1), occlusion(1), alpha(1), clearcoat(0), clearcoatRoughness(0) {}
+  // Left unwritten: every hit carries one, and a Phong hit never reads it.
+  explicit PbrSurface(Unset) {}
 };
 
 // What a material fixes for every point of it.
