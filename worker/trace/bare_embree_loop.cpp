@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include "worker/embree/ray_packets.h"
 #include "worker/embree/scene_geometry.h"
@@ -11,6 +12,7 @@
 #include "worker/trace/float3.h"
 #include "worker/trace/lights.h"
 #include "worker/trace/materials.h"
+#include "worker/trace/materials/gltf_brdf.h"
 #include "worker/trace/ray_offset.h"
 
 namespace tcfarm {
@@ -55,7 +57,22 @@ struct LaneHit {
   Float3 position, normal, arriving;
   float offset;
   const ShadingMaterial* material;
+  PbrSurface pbr;  // a glTF material's inputs at the hit
 };
+
+// What a glTF surface shows with no light: the sky's ambient share of its diffuse colour
+// and f0, and its emission (its own colour when unlit), as the tracer has it.
+Float3 PbrAmbient(const ShadingMaterial& m, const PbrSurface& s) {
+  if (m.gltf.unlit) return s.baseColor;
+  return (s.baseColor * (1.0f - s.metallic) + SurfaceF0(s, m.gltf.constants)) * (kAmbient * s.occlusion) + s.emission;
+}
+
+// Light of unit intensity from `towardLight` reflected toward the camera.
+Float3 Reflected(const LaneHit& hit, Float3 towardLight) {
+  const ShadingMaterial& m = *hit.material;
+  if (m.pbr) return PbrReflected(hit.pbr, m.gltf.constants, towardLight, hit.normal, -hit.arriving);
+  return m.Reflected(towardLight, hit.normal, hit.arriving, m.diffuse);
+}
 
 }  // namespace
 
@@ -86,6 +103,51 @@ BareEmbreeLoop::BareEmbreeLoop(RTCDevice device, const Scene& scene, Flags flags
   }
   if (still_) rtcCommitScene(still_);
   for (auto& mover : movers_) rtcCommitScene(mover.second);
+  // Textures are decoded once, before any frame: glTF materials read theirs; Phong's
+  // textures are the tracer's own work.
+  materials_ = MakeMaterials(scene, [this](const Texture& texture, TextureImage::Encoding encoding) {
+    return textures_.emplace_back(std::make_unique<TextureImage>(texture, encoding)).get();
+  });
+  MakePbrMeshes();
+}
+
+void BareEmbreeLoop::MakePbrMeshes() {
+  std::map<const TriangleMesh*, std::shared_ptr<const PbrMesh>> byMesh;
+  for (const Shape& shape : scene_.shapes) {
+    auto& entry = pbrMeshes_.emplace_back();
+    if (!materials_[static_cast<size_t>(shape.material)].pbr || shape.Mesh().triangles.empty()) continue;
+    auto& shared = byMesh[&shape.Mesh()];
+    if (!shared) {
+      const TriangleMesh& mesh = shape.Mesh();
+      auto made = std::make_shared<PbrMesh>();
+      made->triangles = &mesh.triangles;
+      for (const auto& uv : mesh.uvs) made->uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+      for (const auto& uv : mesh.uvs1) made->uvs1.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+      for (const Vec3& color : mesh.colors) made->colors.push_back(ToFloat3(color));
+      shared = std::move(made);
+    }
+    entry = shared;
+  }
+}
+
+PbrSurface BareEmbreeLoop::SurfaceAt(int shape, unsigned primitive, float u, float v) const {
+  const PbrMaterial& material = materials_[static_cast<size_t>(scene_.shapes[shape].material)].gltf;
+  std::array<float, 2> uv0{0, 0}, uv1{0, 0};
+  Float3 color{1, 1, 1};
+  if (const PbrMesh* mesh = pbrMeshes_[shape].get()) {
+    const auto& corner = (*mesh->triangles)[primitive];
+    const float w = 1.0f - u - v;
+    auto interpolate = [&](const std::vector<std::array<float, 2>>& uvs) -> std::array<float, 2> {
+      const auto &a = uvs[corner[0]], &b = uvs[corner[1]], &c = uvs[corner[2]];
+      return {a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
+    };
+    if (!mesh->uvs.empty()) uv0 = interpolate(mesh->uvs);
+    if (!mesh->uvs1.empty()) uv1 = interpolate(mesh->uvs1);
+    if (!mesh->colors.empty()) {
+      color = mesh->colors[corner[0]] * w + mesh->colors[corner[1]] * u + mesh->colors[corner[2]] * v;
+    }
+  }
+  return material.Surface(uv0, uv1, color);
 }
 
 BareEmbreeLoop::~BareEmbreeLoop() {
@@ -97,7 +159,7 @@ BareEmbreeLoop::~BareEmbreeLoop() {
 }
 
 bool BareEmbreeLoop::Covers(const Scene& scene) {
-  return !scene.AnyMaterialReflects() && !scene.AnyMaterialRefracts();
+  return scene.render.maxDepth == 0 || (!scene.AnyMaterialReflects() && !scene.AnyMaterialRefracts());
 }
 
 RTCScene BareEmbreeLoop::NewShapesScene(bool robust) const {
@@ -137,8 +199,6 @@ void BareEmbreeLoop::TraceFrame(int frame, TracingThreads& threads, float* rgb) 
   const FrameParts parts{placed,
                          MakeCamera(scene_, frame),
                          MakeLights(scene_, frame),
-                         // The yardstick shades untextured: textures are the tracer's own work.
-                         MakeMaterials(scene_, [](const Texture&, TextureImage::Encoding) { return nullptr; }),
                          ToFloat3(scene_.background),
                          static_cast<uint32_t>(scene_.render.width),
                          scene_.render.samplesPerPixel};
@@ -205,8 +265,14 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
       n = Normalize(n);
       LaneHit& hit = hits[lane];
       hit = {o + d * t, Dot(n, d) > 0 ? -n : n, d, kRelativeRayOffset * (MaxAbsComponent(o) + t),
-             &parts.materials[scene_.shapes[shape].material]};
-      color[lane] = ShadingMaterial::Ambient(hit.material->diffuse);
+             &materials_[scene_.shapes[shape].material], {}};
+      if (hit.material->pbr) {
+        hit.pbr = SurfaceAt(shape, packet.hit.primID[lane], packet.hit.u[lane], packet.hit.v[lane]);
+        if (hit.pbr.clearcoat > 0) hit.pbr.clearcoatNormal = hit.normal;  // no coat normal maps
+        color[lane] = PbrAmbient(*hit.material, hit.pbr);
+      } else {
+        color[lane] = ShadingMaterial::Ambient(hit.material->diffuse);
+      }
     }
     for (const ShadingLight& light : parts.lights) {
       alignas(64) int shadowValid[Width] = {};
@@ -216,6 +282,7 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
       for (int lane = 0; lane < lanes; ++lane) {
         if (!hasHit[lane]) continue;
         const LaneHit& hit = hits[lane];
+        if (hit.material->pbr && hit.material->gltf.unlit) continue;
         if (!light.Toward(hit.position, hit.normal, &toLight[lane], &distance[lane])) continue;
         const Float3 start = hit.position + hit.normal * hit.offset;
         shadowValid[lane] = -1;
@@ -229,8 +296,7 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
       for (int lane = 0; lane < lanes; ++lane) {
         if (!shadowValid[lane] || shadow.tfar[lane] < 0) continue;
         const LaneHit& hit = hits[lane];
-        color[lane] += hit.material->Reflected(toLight[lane], hit.normal, hit.arriving, hit.material->diffuse) *
-                       light.intensity * light.Arriving(toLight[lane], distance[lane]);
+        color[lane] += Reflected(hit, toLight[lane]) * light.intensity * light.Arriving(toLight[lane], distance[lane]);
       }
     }
     for (int lane = 0; lane < lanes; ++lane) {

@@ -5,16 +5,20 @@
 // to a bare Embree loop over the same primitives and rays (trace/bare_embree_loop.h).
 //   build/worker/tracer_bench [--benchmark_min_time=2]
 //   build/worker/tracer_bench --benchmark_filter=TracerAgainstBareEmbree
+//   build/worker/tracer_bench --gltf=FILE.gltf --benchmark_filter=gltf   (glTF's materials, 1280x720)
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
 #include <chrono>
 #include <ctime>
+#include <filesystem>
 #include <string>
+#include <string_view>
 #include <random>
 #include <vector>
 
 #include "worker/embree/device.h"
+#include "proto/scene/import/scene_import.h"
 #include "proto/scene/scene.h"
 #include "worker/trace/bare_embree_loop.h"
 #include "worker/trace/tracer.h"
@@ -262,8 +266,7 @@ void TraceSubsetsOfAFrame(benchmark::State& state, Subset subset) {
 // threads wait for the cores does not count there); bare_tracer_flags_ms is the bare loop
 // with the tracer's Embree flags (high-quality trees, robust traversal where shapes share
 // edges: scene_geometry.h), the part of the ratio that is Embree's own.
-void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
-  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+void CompareWithBareLoop(benchmark::State& state, const Scene& scene) {
   if (!BareEmbreeLoop::Covers(scene)) {
     state.SkipWithError("the bare loop traces no mirrors or refraction");
     return;
@@ -313,6 +316,42 @@ void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
   state.counters["packet_width"] = tracer.PacketWidth();  // the bare loop's too
 }
 
+void TracerAgainstBareEmbree(benchmark::State& state, const std::string& file) {
+  CompareWithBareLoop(state, LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file));
+}
+
+// A glTF file (--gltf=FILE, any number) at 1280x720, imported as `tcfarm-worker render`
+// imports it, with no mirror or refraction rays (maxDepth 0): the bare loop traces none,
+// so both trace the same camera and shadow rays and shade them with glTF's BRDF and
+// textures. Alpha masks, blending's shadow attenuation and normal maps stay the tracer's
+// own work.
+void TracerAgainstBareEmbreeOnGltf(benchmark::State& state, const std::string& path) {
+  ImportOptions options;
+  options.width = 1280, options.height = 720;
+  Scene scene = ImportScene(path, options);
+  scene.render.maxDepth = 0;
+  CompareWithBareLoop(state, scene);
+}
+
+// Registers a TracerAgainstBareEmbree case for each --gltf=FILE, taking those arguments
+// out of the command line.
+void RegisterGltfCases(int* argc, char** argv) {
+  constexpr std::string_view kFlag = "--gltf=";
+  int kept = 1;
+  for (int i = 1; i < *argc; ++i) {
+    const std::string_view argument = argv[i];
+    if (argument.substr(0, kFlag.size()) != kFlag) {
+      argv[kept++] = argv[i];
+      continue;
+    }
+    const std::string path(argument.substr(kFlag.size()));
+    const std::string name = "TracerAgainstBareEmbree/gltf_1280x720:" + std::filesystem::path(path).filename().string();
+    benchmark::RegisterBenchmark(name.c_str(), TracerAgainstBareEmbreeOnGltf, path)
+        ->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3);
+  }
+  *argc = kept;
+}
+
 BENCHMARK_CAPTURE(TracerAgainstBareEmbree, a_one_sphere, "paper_a_one_sphere.json")
     ->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3);
 BENCHMARK_CAPTURE(TracerAgainstBareEmbree, b_twelve_spheres, "paper_b_twelve_spheres.json")
@@ -357,4 +396,11 @@ BENCHMARK_CAPTURE(TraceSceneFrames, c_terrain_flyover, "paper_c_terrain_flyover.
 }  // namespace
 }  // namespace tcfarm
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  tcfarm::RegisterGltfCases(&argc, argv);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
