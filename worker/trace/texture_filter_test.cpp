@@ -53,11 +53,12 @@ class TextureFilterTest : public testing::Test {
 
   // An unlit glTF panel 2 x 2 facing a camera `distance` away, its base colour a checker
   // of 64 x 64 single texels: each pixel shows the filtered texture alone.
-  Scene CheckerPanel(double distance, int samples = 1) {
+  Scene CheckerPanel(double distance, int samples = 1, bool mipmaps = true) {
     WriteGreyPng(folder_ / "fine.png", 64, 64, Checker);
     const std::string d = std::to_string(distance);
     return ParseScene(R"({"camera": {"position": [0, 0, )" + d + R"(], "look_at": [0, 0, 0], "fov_degrees": 60},
-      "materials": {"fine": {"pbr": {"base_color_texture": {"image": "fine.png"}, "unlit": true}}},
+      "materials": {"fine": {"pbr": {"base_color_texture": {"image": "fine.png", "mipmaps": )" +
+                          (mipmaps ? "true" : "false") + R"(}, "unlit": true}}},
       "shapes": [{"type": "mesh", "material": "fine",
                   "vertices": [[-1, 1, 0], [1, 1, 0], [1, -1, 0], [-1, -1, 0]],
                   "uvs": [[0, 0], [1, 0], [1, 1], [0, 1]],
@@ -146,6 +147,15 @@ TEST_F(TextureFilterTest, AFarCheckerShowsItsAverageANearOneItsTexels) {
   const auto near = RangeAroundCentre(Render(CheckerPanel(1.5)), 40);
   EXPECT_LT(near.first, 0.1f);
   EXPECT_GT(near.second, 0.9f);
+}
+
+TEST_F(TextureFilterTest, ATextureWithoutMipmapsReadsTheFullImageAtAnyDistance) {
+  const Scene scene = CheckerPanel(14, 1, false);
+  // Kept through the scene's JSON, which names it only when off.
+  EXPECT_NE(SerializeScene(scene).find(R"("mipmaps":false)"), std::string::npos);
+  EXPECT_EQ(SerializeScene(CheckerPanel(14)).find("mipmaps"), std::string::npos);
+  const auto far = RangeAroundCentre(Render(scene), 4);
+  EXPECT_GT(far.second - far.first, 0.5f);  // the checker's texels, aliasing
 }
 
 TEST_F(TextureFilterTest, APixelTracedAloneHasItsBitsInTheFrame) {

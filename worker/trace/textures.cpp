@@ -76,6 +76,7 @@ TextureImage::TextureImage(const Texture& texture, Encoding encoding)
                                                       : Float3{r, g, b});
   }
   levels_.push_back(std::move(full));
+  if (!texture.mipmaps) return;
   while (levels_.back().width > 1 || levels_.back().height > 1) levels_.push_back(Halved(levels_.back()));
 }
 

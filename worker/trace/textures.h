@@ -31,7 +31,8 @@ class TextureImage {
   // At mip level `lod` (log2 of the footprint's width in texels of the full image):
   // trilinear between the two levels around it, the last level beyond it; lod <= 0 (or
   // not a number) samples the full image exactly as Sample does, with the texture's filter
-  // (which magnifies: minified, every texture filters linearly).
+  // (which magnifies: minified, every texture filters linearly). A texture without mip
+  // levels (Texture::mipmaps false) samples the full image at any lod.
   Float3 Sample(float u, float v, float lod) const;
   // Its alpha at (u, v), filtered as the colour is; 1 where the image has no alpha.
   float SampleAlpha(float u, float v) const { return SampleAlphaLevel(0, u, v, filter_); }
@@ -39,7 +40,7 @@ class TextureImage {
   int width() const { return levels_[0].width; }
   int height() const { return levels_[0].height; }
   // Mip levels, the full image first: each halves the one before (rounded down, at least
-  // 1 texel), down to 1 x 1.
+  // 1 texel), down to 1 x 1; the full image alone where the texture has no mip levels.
   int Levels() const { return static_cast<int>(levels_.size()); }
   // The level's texel (x, y) and its alpha (1 where the image has none).
   Float3 LevelTexel(int level, int x, int y) const { return levels_[level].Texel(x, y); }
@@ -68,7 +69,7 @@ class TextureImage {
   template <typename Value, typename SampleAt>
   Value Trilinear(float lod, SampleAt sampleAt) const;
   // Whether `lod` samples the full image alone.
-  static bool AtFullImage(float lod) { return !(lod > 0); }
+  bool AtFullImage(float lod) const { return !(lod > 0) || levels_.size() == 1; }
 
   std::vector<Level> levels_;
   Texture::Wrap wrapS_, wrapT_;

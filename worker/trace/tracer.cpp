@@ -885,10 +885,10 @@ std::vector<std::unique_ptr<SurfaceRule>> Tracer::MakeSurfaceRules() {
 
 const TextureImage* Tracer::LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding) {
   // Materials that share an image (an occlusion map packed with metal and roughness) share
-  // its decoding; wrap and filter are part of what is decoded.
+  // its decoding; wrap, filter and mip levels are part of what is decoded.
   const std::string key = texture.asset + "|" + texture.file.string() + "|" + texture.image + "|" +
                           std::to_string(static_cast<int>(texture.wrapS)) + std::to_string(static_cast<int>(texture.wrapT)) +
-                          std::to_string(static_cast<int>(texture.filter));
+                          std::to_string(static_cast<int>(texture.filter)) + (texture.mipmaps ? "m" : "");
   auto& image = pbrTextures_[{key, encoding}];
   if (!image) image = std::make_unique<TextureImage>(texture, encoding);
   return image.get();
