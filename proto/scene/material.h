@@ -40,13 +40,17 @@ struct Texture {
   std::filesystem::path file;
   std::shared_ptr<const std::string> bytes;
   Wrap wrapS = Wrap::kRepeat, wrapT = Wrap::kRepeat;
-  Filter filter = Filter::kLinear;
+  Filter filter = Filter::kLinear;  // magnifying
+  // Minified (glTF materials only): filtered over the image's mip levels, or the full image
+  // alone (a glTF sampler whose minFilter is NEAREST or LINEAR asks for that).
+  bool mipmaps = true;
 
   // For messages: the file the scene names, or the asset's hash.
   std::string Describe() const { return image.empty() ? "asset " + asset : image; }
   // Whether two textures read the same image the same way (materials may share one).
   bool SameImage(const Texture& o) const {
-    return image == o.image && asset == o.asset && wrapS == o.wrapS && wrapT == o.wrapT && filter == o.filter;
+    return image == o.image && asset == o.asset && wrapS == o.wrapS && wrapT == o.wrapT && filter == o.filter &&
+           mipmaps == o.mipmaps;
   }
 };
 

@@ -172,10 +172,13 @@ json LightJson(const Light& light, const SharedParents& shared) {
 
 json TextureJson(const Texture& texture) {
   static const char* const kWraps[] = {"repeat", "clamp_to_edge", "mirrored_repeat"};
-  return json{{texture.asset.empty() ? "image" : "asset", texture.asset.empty() ? texture.image : texture.asset},
+  json result{{texture.asset.empty() ? "image" : "asset", texture.asset.empty() ? texture.image : texture.asset},
               {"wrap_s", kWraps[static_cast<int>(texture.wrapS)]},
               {"wrap_t", kWraps[static_cast<int>(texture.wrapT)]},
               {"filter", texture.filter == Texture::Filter::kNearest ? "nearest" : "linear"}};
+  // Written only when off: scenes written before it existed keep their bytes (and hashes).
+  if (!texture.mipmaps) result["mipmaps"] = false;
+  return result;
 }
 
 json TextureSlotJson(const TextureSlot& slot, const char* amountKey = nullptr) {

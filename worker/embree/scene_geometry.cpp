@@ -87,6 +87,7 @@ void FrameGeometry::SetNormalTransform(int shape, const Affine& worldFromObject)
   NormalTransform& out = normalFromObject_[shape];
   out.present = true;
   worldFromObject.NormalMatrix(out.matrix);
+  Cofactor(worldFromObject.linear, out.cofactor);
 }
 
 Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
@@ -94,6 +95,11 @@ Vec3 FrameGeometry::NormalToWorld(int shape, const Vec3& objectNormal) const {
     return objectNormal;
   }
   return ApplyMatrix(normalFromObject_[shape].matrix, objectNormal);
+}
+
+Vec3 FrameGeometry::AreaToWorld(int shape, const Vec3& objectCross) const {
+  if (!HasNormalTransform(shape)) return objectCross;
+  return ApplyMatrix(normalFromObject_[shape].cofactor, objectCross);
 }
 
 SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene, BuildStop stop,

@@ -55,6 +55,10 @@ class FrameGeometry {
     return static_cast<size_t>(shape) < normalFromObject_.size() && normalFromObject_[shape].present;
   }
   Vec3 NormalToWorld(int shape, const Vec3& objectNormal) const;
+  // An object-space cross product of two edges (twice a triangle's area, along its normal)
+  // carried to the world: its length there is twice the placed triangle's area. As it is
+  // where the shape has no normal transform (still, or merely translated).
+  Vec3 AreaToWorld(int shape, const Vec3& objectCross) const;
   // The shape's normals at this frame (SurfaceNormals), in its object space.
   const SurfaceNormals& Normals(int shape) const { return *normals_[static_cast<size_t>(shape)]; }
 
@@ -63,6 +67,7 @@ class FrameGeometry {
   struct NormalTransform {
     bool present = false;
     double matrix[3][3];
+    double cofactor[3][3];  // of the linear part: carries cross products (AreaToWorld)
   };
   void SetNormalTransform(int shape, const Affine& worldFromObject);
   std::vector<NormalTransform> normalFromObject_;  // by shape

@@ -36,6 +36,11 @@ PerspectiveCamera MakeCamera(const Scene& scene, int frame) {
   camera.width = static_cast<float>(r.width);
   camera.height = static_cast<float>(r.height);
   camera.orthographic = scene.camera.orthographic;
+  if (camera.orthographic) {
+    camera.pixelCone.width = static_cast<float>(scene.camera.orthographicHeight / r.height);
+  } else {
+    camera.pixelCone.spread = static_cast<float>(scene.camera.verticalFovDegrees * M_PI / 180.0 / r.height);
+  }
   return camera;
 }
 

@@ -6,6 +6,7 @@
 
 #include "proto/scene/scene.h"
 #include "worker/trace/float3.h"
+#include "worker/trace/ray_cone.h"
 
 namespace tcfarm {
 
@@ -15,6 +16,9 @@ struct PerspectiveCamera {
   Float3 origin, forward, right, up;
   float width, height;
   bool orthographic = false;
+  // A pixel's ray cone: perspective, from a point, spreading by the vertical field of view
+  // over the image's height; orthographic, as wide as a pixel everywhere.
+  RayCone pixelCone;
 
   // The ray through image point (px, py), in pixels from the top left: its origin and
   // unit direction.

@@ -151,7 +151,8 @@ class Tracer::PixelTracer {
   // colours.
   template <int Width>
   void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
-  Float3 TraceRay(Float3 origin, Float3 direction, int depth);
+  // A secondary ray, its cone `coneWidth` wide at `origin` (ray_cone.h).
+  Float3 TraceRay(Float3 origin, Float3 direction, int depth, float coneWidth);
   const RayCounts& counts() const { return counts_; }
   // Folds every ray of the packets traced from now on into their horizons.
   void TrackHorizons(HorizonTracker* tracker) { horizons_ = tracker; }
@@ -174,6 +175,10 @@ class Tracer::PixelTracer {
     uint32_t primitive;  // of a mesh: the triangle hit
     int material;
     PbrSurface pbr{Unset{}};  // glTF materials: the BRDF's inputs here (base colour, not `diffuse`)
+    // The pixel's ray cone's width here: it filters glTF textures, and the secondary rays
+    // leaving the hit start with it (spreading on as the camera's; surfaces' curvature
+    // is not followed). 0 for shadow rays' hits: their textures are read at full size.
+    float coneWidth;
   };
 
   // The Embree hit fields a surface hit is made from.
@@ -199,13 +204,15 @@ class Tracer::PixelTracer {
   Float3 TurnedToWorld(int shape, const Float3& normal) const;
   // Vectors by reference: passed by value, their packed halves went through the stack
   // and stalled every hit on the store forwarding.
-  SurfaceHit MakeHit(const Float3& origin, const Float3& direction, const RawHit& raw) const;
+  SurfaceHit MakeHit(const Float3& origin, const Float3& direction, const RawHit& raw, float coneWidth) const;
   // A glTF material's inputs at the hit, its normal map's normal and its coat's.
   void ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const;
+  // The hit's ray cone on its triangle's texture coordinates (a point without a cone).
+  UvFootprint TextureFootprint(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit) const;
   // The hit's normal as normal map `map` tilts it; the hit's normal itself where the map is
   // missing, lacks its texture coordinates, or gives no normal.
   Float3 MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
-                      std::array<float, 2> uv0, std::array<float, 2> uv1) const;
+                      std::array<float, 2> uv0, std::array<float, 2> uv1, const UvFootprint& footprint) const;
   Float3 TangentFrameNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
                             Float3 texel) const;
   // The hit triangle's direction of increasing u over the normal map's texture coordinates,
@@ -270,7 +277,7 @@ RTCScene Tracer::PixelTracer::SceneAhead(int frame) {
 }
 
 Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origin, const Float3& direction,
-                                                             const RawHit& raw) const {
+                                                             const RawHit& raw, float coneWidth) const {
   const int shape = frame_.geometry->ShapeOf(raw.instanceId, raw.geometryId);
   const ShapeShading& shading = frame_.shapes[static_cast<size_t>(shape)];
   // The face's normal (unit, computed in double from the scene), or Embree's for shapes
@@ -301,7 +308,9 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
                  kRelativeRayOffset * (MaxAbsComponent(origin) + raw.t),
                  shape,
                  raw.primitiveId,
-                 shading.material};
+                 shading.material,
+                 PbrSurface(Unset{}),
+                 coneWidth};
   if (shading.pbr) ShadePbr(shading, raw, hit);
   return hit;
 }
@@ -309,7 +318,10 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
 void Tracer::PixelTracer::ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const {
   std::array<float, 2> uv0{0, 0}, uv1{0, 0};
   Float3 vertexColor{1, 1, 1};
+  const PbrMaterial& material = *shape.pbr;
+  UvFootprint footprint;
   if (shape.triangles) {
+    if (material.Textured()) footprint = TextureFootprint(shape, raw, hit);
     const auto& corner = shape.triangles[raw.primitiveId];
     const float w = 1.0f - raw.u - raw.v;
     auto interpolate = [&](const std::array<float, 2>* uvs) -> std::array<float, 2> {
@@ -323,20 +335,38 @@ void Tracer::PixelTracer::ShadePbr(const ShapeShading& shape, const RawHit& raw,
       vertexColor = a * w + b * raw.u + c * raw.v;
     }
   }
-  const PbrMaterial& material = *shape.pbr;
-  hit.pbr = material.Surface(uv0, uv1, vertexColor);
+  hit.pbr = material.Surface(uv0, uv1, vertexColor, footprint);
   // The coat's normal: its own map over the surface's normal, not over the normal map's.
-  if (hit.pbr.clearcoat > 0) hit.pbr.clearcoatNormal = MappedNormal(shape, raw, hit, material.clearcoatNormalTexture, uv0, uv1);
-  hit.normal = MappedNormal(shape, raw, hit, material.normalTexture, uv0, uv1);
+  if (hit.pbr.clearcoat > 0) {
+    hit.pbr.clearcoatNormal = MappedNormal(shape, raw, hit, material.clearcoatNormalTexture, uv0, uv1, footprint);
+  }
+  hit.normal = MappedNormal(shape, raw, hit, material.normalTexture, uv0, uv1, footprint);
+}
+
+// The triangle's texel density is its texture coordinates' area over its area in the
+// world: its scene vertices (a deforming mesh's rest pose) as this frame places them.
+UvFootprint Tracer::PixelTracer::TextureFootprint(const ShapeShading& shape, const RawHit& raw,
+                                                  const SurfaceHit& hit) const {
+  UvFootprint footprint;
+  if (!(hit.coneWidth > 0)) return footprint;
+  const auto& corner = shape.triangles[raw.primitiveId];
+  const std::vector<Vec3>& vertices = scene_.shapes[static_cast<size_t>(hit.shape)].Mesh().vertices;
+  const Vec3 &p0 = vertices[corner[0]], &p1 = vertices[corner[1]], &p2 = vertices[corner[2]];
+  const Vec3 cross = frame_.geometry->AreaToWorld(hit.shape, CrossD(SubtractD(p1, p0), SubtractD(p2, p0)));
+  const double worldArea = std::sqrt(DotD(cross, cross));
+  const float cosine = Dot(hit.direction, hit.faceNormal);
+  if (shape.uvs) footprint.log2Width[0] = Log2UvWidth(hit.coneWidth, cosine, UvArea2(shape.uvs, corner), worldArea);
+  if (shape.uvs1) footprint.log2Width[1] = Log2UvWidth(hit.coneWidth, cosine, UvArea2(shape.uvs1, corner), worldArea);
+  return footprint;
 }
 
 Float3 Tracer::PixelTracer::MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit,
                                          const PbrTexture& map, std::array<float, 2> uv0,
-                                         std::array<float, 2> uv1) const {
+                                         std::array<float, 2> uv1, const UvFootprint& footprint) const {
   // A normal map needs the texture coordinates it was painted over.
   const bool mapped = map && shape.triangles && (map.texCoord == 0 ? shape.uvs : shape.uvs1);
   if (!mapped) return hit.normal;
-  const Float3 n = TangentFrameNormal(shape, raw, hit, map, map.Sample(map.texCoord == 0 ? uv0 : uv1));
+  const Float3 n = TangentFrameNormal(shape, raw, hit, map, map.Sample(map.texCoord == 0 ? uv0 : uv1, footprint));
   return IsZero(n) ? hit.normal : n;
 }
 
@@ -444,7 +474,7 @@ Float3 Tracer::PixelTracer::CombinePbr(const SurfaceHit& hit, const PbrMaterial&
     const float nDotV = std::max(-Dot(hit.direction, hit.normal), 0.0f);
     const Float3 fresnel = Schlick(SurfaceF0(hit.pbr, material.constants), SurfaceF90(hit.pbr, material.constants), nDotV);
     ++counts_.reflection;
-    color += TraceRay(Spawn(hit, false), mirror, depth + 1) * (coat > 0 ? fresnel * (1.0f - coat) : fresnel);
+    color += TraceRay(Spawn(hit, false), mirror, depth + 1, hit.coneWidth) * (coat > 0 ? fresnel * (1.0f - coat) : fresnel);
   }
   const float transmitted = material.transmission * (1.0f - hit.pbr.metallic);
   if (transmitted > 0) {
@@ -453,21 +483,21 @@ Float3 Tracer::PixelTracer::CombinePbr(const SurfaceHit& hit, const PbrMaterial&
     Float3 through;
     if (!Refract(hit.direction, hit.normal, eta, &refracted)) {  // total internal reflection
       ++counts_.reflection;
-      through = TraceRay(Spawn(hit, false), mirror, depth + 1);
+      through = TraceRay(Spawn(hit, false), mirror, depth + 1, hit.coneWidth);
     } else {
       ++counts_.refraction;
-      through = TraceRay(Spawn(hit, true), refracted, depth + 1);
+      through = TraceRay(Spawn(hit, true), refracted, depth + 1, hit.coneWidth);
     }
     color = color * (1.0f - transmitted) + through * (coat > 0 ? transmitted * (1.0f - coat) : transmitted);
   }
   if (coat > 0 && hit.pbr.clearcoatRoughness < PbrMaterial::kMirrorRoughness) {
     ++counts_.reflection;
-    color += TraceRay(Spawn(hit, false), Reflect(hit.direction, hit.pbr.clearcoatNormal), depth + 1) * coat;
+    color += TraceRay(Spawn(hit, false), Reflect(hit.direction, hit.pbr.clearcoatNormal), depth + 1, hit.coneWidth) * coat;
   }
   // A blended surface covers alpha of the ray; the rest goes straight on past it.
   if (material.blends && hit.pbr.alpha < 1) {
     ++counts_.refraction;
-    const Float3 behind = TraceRay(Spawn(hit, true), hit.direction, depth + 1);
+    const Float3 behind = TraceRay(Spawn(hit, true), hit.direction, depth + 1, hit.coneWidth);
     color = color * hit.pbr.alpha + behind * (1.0f - hit.pbr.alpha);
   }
   return color;
@@ -499,7 +529,8 @@ float Tracer::PixelTracer::BlendTransmittance(Float3 start, Float3 direction, fl
                                     rayHit.hit.geomID,
                                     rayHit.hit.primID,
                                     rayHit.hit.u,
-                                    rayHit.hit.v});
+                                    rayHit.hit.v},
+                                   0.0f);
     const ShadingMaterial& m = (*frame_.materials)[hit.material];
     if (!m.pbr || !m.gltf.blends) return 0;  // not a blended surface after all: it blocks
     through *= 1.0f - hit.pbr.alpha;
@@ -519,23 +550,23 @@ Float3 Tracer::PixelTracer::Combine(const SurfaceHit& hit, Float3 local, int dep
   Float3 mirror = Reflect(hit.direction, hit.normal);
   if (m.reflectivity > 0) {
     ++counts_.reflection;
-    color += TraceRay(Spawn(hit, false), mirror, depth + 1) * m.reflectivity;
+    color += TraceRay(Spawn(hit, false), mirror, depth + 1, hit.coneWidth) * m.reflectivity;
   }
   if (m.transparency > 0) {
     float eta = hit.fromInside ? m.indexOfRefraction : 1.0f / m.indexOfRefraction;
     Float3 refracted;
     if (!Refract(hit.direction, hit.normal, eta, &refracted)) {  // total internal reflection
       ++counts_.reflection;
-      color += TraceRay(Spawn(hit, false), mirror, depth + 1) * m.transparency;
+      color += TraceRay(Spawn(hit, false), mirror, depth + 1, hit.coneWidth) * m.transparency;
     } else {
       ++counts_.refraction;
-      color += TraceRay(Spawn(hit, true), refracted, depth + 1) * m.transparency;
+      color += TraceRay(Spawn(hit, true), refracted, depth + 1, hit.coneWidth) * m.transparency;
     }
   }
   return color;
 }
 
-Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth) {
+Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth, float coneWidth) {
   RTCRayHit rayHit{};
   rayHit.ray.org_x = origin.x, rayHit.ray.org_y = origin.y, rayHit.ray.org_z = origin.z;
   rayHit.ray.dir_x = direction.x, rayHit.ray.dir_y = direction.y, rayHit.ray.dir_z = direction.z;
@@ -558,7 +589,8 @@ Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth)
                             rayHit.hit.geomID,
                             rayHit.hit.primID,
                             rayHit.hit.u,
-                            rayHit.hit.v});
+                            rayHit.hit.v},
+                           RayCone{coneWidth, frame_.camera.pixelCone.spread}.WidthAt(hitDistance));
   // The surface first: a moving one settles the horizon and spares the segment's test.
   if (horizons_) {
     NoteSurface(horizons_->lane, hit);
@@ -648,7 +680,8 @@ void Tracer::PixelTracer::TracePrimaryPacket(const uint32_t* pixel, const int* s
                           packet.hit.geomID[lane],
                           packet.hit.primID[lane],
                           packet.hit.u[lane],
-                          packet.hit.v[lane]});
+                          packet.hit.v[lane]},
+                         frame_.camera.pixelCone.WidthAt(hitDistance));
     if (horizons_) {
       NoteSurface(lane, hits[lane]);
       horizons_->EyeSegment(lane, origin, direction, hitDistance);
@@ -853,10 +886,10 @@ std::vector<std::unique_ptr<SurfaceRule>> Tracer::MakeSurfaceRules() {
 
 const TextureImage* Tracer::LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding) {
   // Materials that share an image (an occlusion map packed with metal and roughness) share
-  // its decoding; wrap and filter are part of what is decoded.
+  // its decoding; wrap, filter and mip levels are part of what is decoded.
   const std::string key = texture.asset + "|" + texture.file.string() + "|" + texture.image + "|" +
                           std::to_string(static_cast<int>(texture.wrapS)) + std::to_string(static_cast<int>(texture.wrapT)) +
-                          std::to_string(static_cast<int>(texture.filter));
+                          std::to_string(static_cast<int>(texture.filter)) + (texture.mipmaps ? "m" : "");
   auto& image = pbrTextures_[{key, encoding}];
   if (!image) image = std::make_unique<TextureImage>(texture, encoding);
   return image.get();

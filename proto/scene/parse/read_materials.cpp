@@ -73,8 +73,8 @@ Material SceneReader::ReadMaterial(const Node& node) {
 
 Texture SceneReader::ReadTexture(const Node& node, const std::vector<std::string>& moreKeys) {
   const std::string expected =
-      "a texture {\"image\": file or \"asset\": SHA-256, \"wrap_s\", \"wrap_t\", \"filter\"}";
-  std::vector<std::string> keys{"image", "asset", "wrap_s", "wrap_t", "filter"};
+      "a texture {\"image\": file or \"asset\": SHA-256, \"wrap_s\", \"wrap_t\", \"filter\", \"mipmaps\"}";
+  std::vector<std::string> keys{"image", "asset", "wrap_s", "wrap_t", "filter", "mipmaps"};
   keys.insert(keys.end(), moreKeys.begin(), moreKeys.end());
   ExpectObject(node, keys, expected);
   if (node.Has("image") == node.Has("asset")) {
@@ -108,6 +108,11 @@ Texture SceneReader::ReadTexture(const Node& node, const std::vector<std::string
     const std::string name = ReadString(filter, "\"linear\" or \"nearest\"");
     if (name != "linear" && name != "nearest") Fail(filter.pointer, "unknown filter " + Quote(name), "\"linear\" or \"nearest\"");
     texture.filter = name == "nearest" ? Texture::Filter::kNearest : Texture::Filter::kLinear;
+  }
+  if (node.Has("mipmaps")) {
+    Node mipmaps = node.Member("mipmaps");
+    if (!mipmaps.value.is_boolean()) FailType(mipmaps, "true or false");
+    texture.mipmaps = mipmaps.value.get<bool>();
   }
   return texture;
 }

@@ -20,6 +20,9 @@ PbrTexture PbrMaterial::MakeTexture(const std::optional<TextureSlot>& slot, Text
   texture.m11 = static_cast<float>(c * slot->scale[1]);
   texture.du = static_cast<float>(slot->offset[0]);
   texture.dv = static_cast<float>(slot->offset[1]);
+  const double texels = static_cast<double>(texture.image->width()) * texture.image->height();
+  const double scale = texture.transformed ? std::fabs(slot->scale[0] * slot->scale[1]) : 1.0;
+  texture.lodBias = static_cast<float>(0.5 * std::log2(texels * scale));
   return texture;
 }
 
@@ -63,31 +66,32 @@ bool PbrMaterial::ReadsTexCoord(int set) const {
   return false;
 }
 
-PbrSurface PbrMaterial::Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor) const {
+PbrSurface PbrMaterial::Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor,
+                                const UvFootprint& footprint) const {
   auto uvOf = [&](const PbrTexture& t) { return t.texCoord == 1 ? uv1 : uv0; };
   PbrSurface s;
   s.baseColor = baseColor * vertexColor;
-  if (baseColorTexture) s.baseColor = s.baseColor * baseColorTexture.Sample(uvOf(baseColorTexture));
-  if (blends) s.alpha = baseColorTexture ? alpha * baseColorTexture.SampleAlpha(uvOf(baseColorTexture)) : alpha;
+  if (baseColorTexture) s.baseColor = s.baseColor * baseColorTexture.Sample(uvOf(baseColorTexture), footprint);
+  if (blends) s.alpha = baseColorTexture ? alpha * baseColorTexture.SampleAlpha(uvOf(baseColorTexture), footprint) : alpha;
   s.metallic = metallic;
   s.roughness = roughness;
   if (metallicRoughnessTexture) {
-    const Float3 texel = metallicRoughnessTexture.Sample(uvOf(metallicRoughnessTexture));
+    const Float3 texel = metallicRoughnessTexture.Sample(uvOf(metallicRoughnessTexture), footprint);
     s.metallic = std::clamp(metallic * texel.z, 0.0f, 1.0f);
     s.roughness = std::clamp(roughness * texel.y, 0.0f, 1.0f);
   }
   if (occlusionTexture) {
-    const float occluded = occlusionTexture.Sample(uvOf(occlusionTexture)).x;
+    const float occluded = occlusionTexture.Sample(uvOf(occlusionTexture), footprint).x;
     s.occlusion = 1.0f + occlusionTexture.amount * (occluded - 1.0f);
   }
   s.emission = emissive;
-  if (emissiveTexture) s.emission = s.emission * emissiveTexture.Sample(uvOf(emissiveTexture));
+  if (emissiveTexture) s.emission = s.emission * emissiveTexture.Sample(uvOf(emissiveTexture), footprint);
   if (clearcoat > 0) {
     s.clearcoat = clearcoat;
-    if (clearcoatTexture) s.clearcoat *= clearcoatTexture.Sample(uvOf(clearcoatTexture)).x;
+    if (clearcoatTexture) s.clearcoat *= clearcoatTexture.Sample(uvOf(clearcoatTexture), footprint).x;
     s.clearcoatRoughness = clearcoatRoughness;
     if (clearcoatRoughnessTexture) {
-      s.clearcoatRoughness = std::clamp(clearcoatRoughness * clearcoatRoughnessTexture.Sample(uvOf(clearcoatRoughnessTexture)).y, 0.0f, 1.0f);
+      s.clearcoatRoughness = std::clamp(clearcoatRoughness * clearcoatRoughnessTexture.Sample(uvOf(clearcoatRoughnessTexture), footprint).y, 0.0f, 1.0f);
     }
   }
   return s;

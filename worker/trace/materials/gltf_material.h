@@ -10,6 +10,7 @@
 #include "proto/scene/material.h"
 #include "worker/trace/float3.h"
 #include "worker/trace/materials/gltf_brdf.h"
+#include "worker/trace/ray_cone.h"
 #include "worker/trace/textures.h"
 
 namespace tcfarm {
@@ -21,17 +22,23 @@ struct PbrTexture {
   bool transformed = false;
   float m00 = 1, m01 = 0, m10 = 0, m11 = 1, du = 0, dv = 0;  // uv' = [m00 m01; m10 m11] uv + [du dv]
   float amount = 1;                                     // normal scale, occlusion strength
+  // What turns a footprint's log2 width in texture coordinates into a mip level: log2 of
+  // the image's size in texels (the square root of its texel count) and of the transform's
+  // scale (the square root of its determinant's magnitude).
+  float lodBias = 0;
 
   explicit operator bool() const { return image != nullptr; }
-  // The texture's value (and alpha) at texture coordinates `uv` (after its transform).
-  Float3 Sample(std::array<float, 2> uv) const {
+  // The texture's value (and alpha) at texture coordinates `uv` (after its transform),
+  // filtered over `footprint` (UvFootprint{}: a point, the full image's texels).
+  Float3 Sample(std::array<float, 2> uv, const UvFootprint& footprint = {}) const {
     uv = Transformed(uv);
-    return image->Sample(uv[0], uv[1]);
+    return image->Sample(uv[0], uv[1], Lod(footprint));
   }
-  float SampleAlpha(std::array<float, 2> uv) const {
+  float SampleAlpha(std::array<float, 2> uv, const UvFootprint& footprint = {}) const {
     uv = Transformed(uv);
-    return image->SampleAlpha(uv[0], uv[1]);
+    return image->SampleAlpha(uv[0], uv[1], Lod(footprint));
   }
+  float Lod(const UvFootprint& footprint) const { return footprint.log2Width[texCoord == 1 ? 1 : 0] + lodBias; }
   std::array<float, 2> Transformed(std::array<float, 2> uv) const {
     if (!transformed) return uv;
     return {m00 * uv[0] + m01 * uv[1] + du, m10 * uv[0] + m11 * uv[1] + dv};
@@ -73,8 +80,9 @@ struct PbrMaterial {
   bool MayContinue() const { return MaySmooth() || Transmits() || blends; }
 
   // The BRDF's inputs at a point with texture coordinates uv0, uv1 and vertex colour
-  // `vertexColor` (white where the mesh has none).
-  PbrSurface Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor) const;
+  // `vertexColor` (white where the mesh has none), its textures filtered over `footprint`.
+  PbrSurface Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor,
+                     const UvFootprint& footprint = {}) const;
 
   static PbrTexture MakeTexture(const std::optional<TextureSlot>& slot, TextureImage::Encoding encoding,
                                 const TextureLoader& load);

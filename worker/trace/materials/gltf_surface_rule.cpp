@@ -33,6 +33,8 @@ float GltfSurfaceRule::AlphaAt(unsigned primitive, float u, float v) const {
   const auto &a = uvs_[corner[0]], &b = uvs_[corner[1]], &c = uvs_[corner[2]];
   const float w = 1.0f - u - v;
   const std::array<float, 2> uv{a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
+  // At the full image (no mip level): Embree's filter callback knows the hit, not the ray's
+  // footprint, and a shadow ray has none.
   return alpha_ * texture_.SampleAlpha(uv);
 }
 

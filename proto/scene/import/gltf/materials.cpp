@@ -243,6 +243,10 @@ Texture GltfReader::MapTexture(int index, const std::string& pointer) const {
     texture.wrapS = WrapOf(sampler.wrapS);
     texture.wrapT = WrapOf(sampler.wrapT);
     if (sampler.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST) texture.filter = Texture::Filter::kNearest;
+    // A minification filter without mip levels: the full image, aliasing as the file asks.
+    if (sampler.minFilter == TINYGLTF_TEXTURE_FILTER_NEAREST || sampler.minFilter == TINYGLTF_TEXTURE_FILTER_LINEAR) {
+      texture.mipmaps = false;
+    }
   }
   return texture;
 }
