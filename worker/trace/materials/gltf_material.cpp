@@ -20,6 +20,7 @@ PbrTexture PbrMaterial::MakeTexture(const std::optional<TextureSlot>& slot, Text
   texture.m11 = static_cast<float>(c * slot->scale[1]);
   texture.du = static_cast<float>(slot->offset[0]);
   texture.dv = static_cast<float>(slot->offset[1]);
+  if (!texture.image) return texture;  // not loaded: a material no shape uses
   const double texels = static_cast<double>(texture.image->width()) * texture.image->height();
   const double scale = texture.transformed ? std::fabs(slot->scale[0] * slot->scale[1]) : 1.0;
   texture.lodBias = static_cast<float>(0.5 * std::log2(texels * scale));
