@@ -1,4 +1,5 @@
 #include "worker/trace/tracer.h"
+#include "worker/trace/pixel_tracer.h"
 
 #include <algorithm>
 #include <cmath>
@@ -39,7 +40,6 @@ size_t PixelsPerChunk(size_t pixelCount, unsigned threads, bool horizons) {
   const size_t chunksPerThread = horizons ? kChunksPerThreadWithHorizons : kChunksPerThread;
   return std::max(kMinPixelsPerChunk, pixelCount / (size_t{threads} * chunksPerThread));
 }
-constexpr float kInfinity = std::numeric_limits<float>::infinity();
 
 // A frame holds finite values only. Light beyond float range (a huge intensity at a tiny
 // distance) saturates to the largest float rather than going black; NaN, which no scene
@@ -49,7 +49,6 @@ float StorableChannel(float value) {
   return std::clamp(value, -std::numeric_limits<float>::max(), std::numeric_limits<float>::max());
 }
 
-bool IsZero(const Float3& v) { return v.x == 0 && v.y == 0 && v.z == 0; }
 
 std::vector<const SurfaceRule*> RulesOf(const std::vector<std::unique_ptr<SurfaceRule>>& rules) {
   std::vector<const SurfaceRule*> pointers;
@@ -70,25 +69,6 @@ uint64_t ThreadCpuNanoseconds() {
 }
 
 }  // namespace
-
-// What shading reads of a shape at a frame, gathered once per task: a hit reads one small
-// record instead of following the scene, the frame's geometry and the per-shape tables.
-struct Tracer::ShapeShading {
-  const Float3* faceNormals = nullptr;    // unit, by triangle; null: Embree's normal
-  const Float3* vertexNormals = nullptr;  // by vertex; null: flat
-  const std::array<uint32_t, 3>* triangles = nullptr;
-  const std::array<float, 2>* uvs = nullptr;  // null unless the shape is textured and has them
-  const TextureImage* texture = nullptr;
-  const Float3* colors = nullptr;  // linear RGB by vertex, multiplying the diffuse; null: none
-  // glTF materials: the second texture coordinates and the tangents, where the material
-  // reads them and the mesh has them.
-  const std::array<float, 2>* uvs1 = nullptr;
-  const std::array<float, 4>* tangents = nullptr;
-  const PbrMaterial* pbr = nullptr;  // the shape's material, when it is glTF's
-  bool VariesDiffuse() const { return uvs || colors; }
-  bool turns = false;  // its normals need carrying to the world (FrameGeometry::NormalToWorld)
-  int material = 0;
-};
 
 std::vector<Tracer::ShapeShading> Tracer::ShadingAt(const FrameGeometry& frame) const {
   std::vector<ShapeShading> table(scene_.shapes.size());
@@ -118,156 +98,6 @@ std::vector<Tracer::ShapeShading> Tracer::ShadingAt(const FrameGeometry& frame) 
   }
   return table;
 }
-
-struct Tracer::FrameContext {
-  int frame;
-  std::shared_ptr<const FrameGeometry> geometry;
-  SceneGeometry* frames;  // places later frames, for shadow rays re-tested there
-  PerspectiveCamera camera;
-  std::vector<ShadingLight> lights;
-  const std::vector<ShadingMaterial>* materials;
-  std::vector<ShapeShading> shapes;  // by shape
-  Float3 background;
-  int maxDepth;
-  int samplesPerPixel;
-  bool anySecondary;  // some material reflects or refracts
-  bool shadows;       // shadow rays traced (RenderSettings::shadows)
-  bool anyBlend;      // some material blends (alphaMode BLEND): shadow rays weigh it
-  float ambient;      // RenderSettings::ambient
-};
-
-// One thread's view of a frame: shades hits, casts secondary rays, counts rays.
-class Tracer::PixelTracer {
- public:
-  // Camera rays of neighbouring pixels, and their shadow rays toward one light, travel
-  // together as packets, but in Embree's incoherent mode (the context's default): its
-  // coherent mode culls by the packet's common frustum, which far from the origin (1e4
-  // and beyond) lost rays that straddle the view's axis, so a pixel's bits depended on
-  // its packet mates. Ties between coplanar surfaces are settled by the context's rule.
-  PixelTracer(const FrameContext& frame, const Scene& scene)
-      : frame_(frame), scene_(scene), context_(frame.geometry.get()) {}
-
-  // Traces `count` (<= Width, the packet's: ray_packets.h) camera samples and writes their
-  // colours.
-  template <int Width>
-  void TracePrimaryPacket(const uint32_t* pixel, const int* sample, int count, Float3* color);
-  // A secondary ray, its cone `coneWidth` wide at `origin` (ray_cone.h).
-  Float3 TraceRay(Float3 origin, Float3 direction, int depth, float coneWidth);
-  const RayCounts& counts() const { return counts_; }
-  // Folds every ray of the packets traced from now on into their horizons.
-  void TrackHorizons(HorizonTracker* tracker) { horizons_ = tracker; }
-  // Follows the blocked shadow rays of the samples traced so far, frame by frame ahead,
-  // while they stay blocked and below their sample's horizon: a blocked light adds
-  // nothing, whoever blocks it. The horizon becomes the first frame one clears at.
-  void FollowBlockedShadowRays(int32_t* sampleHorizon);
-
- private:
-  struct SurfaceHit {
-    Float3 position;
-    Float3 normal;     // unit shading normal, on the side the ray arrived from
-    Float3 faceNormal;  // unit, of the surface itself, on that side: offsets go along it
-    Float3 diffuse;     // the material's diffuse colour here (its texture's, where it has one)
-    Float3 direction;  // unit direction of the arriving ray
-    bool fromInside;   // arrived against the geometric normal (leaving a solid)
-    bool unlit;        // its material shows itself whatever lights it (no shadow rays)
-    float offset;      // distance that clears the hit point's rounding error
-    int shape;
-    uint32_t primitive;  // of a mesh: the triangle hit
-    int material;
-    PbrSurface pbr{Unset{}};  // glTF materials: the BRDF's inputs here (base colour, not `diffuse`)
-    // The pixel's ray cone's width here: it filters glTF textures, and the secondary rays
-    // leaving the hit start with it (spreading on as the camera's; surfaces' curvature
-    // is not followed). 0 for shadow rays' hits: their textures are read at full size.
-    float coneWidth;
-  };
-
-  // The Embree hit fields a surface hit is made from.
-  struct RawHit {
-    float t;
-    Float3 geometricNormal;
-    unsigned instanceId, geometryId, primitiveId;
-    float u, v;  // barycentric coordinates of the hit in its triangle
-  };
-  // The normal a smooth mesh shades this hit with, in object space; zero when flat.
-  static Float3 SmoothNormal(const ShapeShading& shape, const RawHit& raw);
-  // The diffuse colour at the hit: the material's, times its texture at the hit's
-  // interpolated texture coordinates where the shape has them.
-  Float3 SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const;
-  // A normal carried to the world and made unit (kept as it is when already unit and the
-  // shape does not turn); zero stays zero. Inline for the common shape that does not turn.
-  Float3 ToWorld(int shape, bool turns, const Float3& normal, bool unit = false) const {
-    if (turns) return TurnedToWorld(shape, normal);
-    if (unit) return normal;  // computed unit in double: kept to the bit
-    float length = Length(normal);
-    return (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
-  }
-  Float3 TurnedToWorld(int shape, const Float3& normal) const;
-  // Vectors by reference: passed by value, their packed halves went through the stack
-  // and stalled every hit on the store forwarding.
-  SurfaceHit MakeHit(const Float3& origin, const Float3& direction, const RawHit& raw, float coneWidth) const;
-  // A glTF material's inputs at the hit, its normal map's normal and its coat's.
-  void ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const;
-  // The hit's ray cone on its triangle's texture coordinates (a point without a cone).
-  UvFootprint TextureFootprint(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit) const;
-  // The hit's normal as normal map `map` tilts it; the hit's normal itself where the map is
-  // missing, lacks its texture coordinates, or gives no normal.
-  Float3 MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
-                      std::array<float, 2> uv0, std::array<float, 2> uv1, const UvFootprint& footprint) const;
-  Float3 TangentFrameNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
-                            Float3 texel) const;
-  // The hit triangle's direction of increasing u over the normal map's texture coordinates,
-  // in object space, and the sign of its bitangent (v's direction against normal x tangent).
-  Float3 TriangleTangent(const ShapeShading& shape, const RawHit& raw, int shapeIndex, float* handedness) const;
-  // Light arriving at the hit from light i if nothing blocks it; false when the light is
-  // behind the surface, or the surface is unlit (then no shadow ray is needed at all).
-  bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const;
-  // Inline: asked for every lit hit and light.
-  Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction, float distance) const {
-    const ShadingLight& l = frame_.lights[light];
-    const ShadingMaterial& m = (*frame_.materials)[hit.material];
-    const Float3 color = m.pbr ? PbrReflected(hit.pbr, m.gltf.constants, direction, hit.normal, -hit.direction)
-                               : m.Reflected(direction, hit.normal, hit.direction, hit.diffuse);
-    return color * l.intensity * l.Arriving(direction, distance);
-  }
-  // What the surface shows with no light: the ambient term, and its own emission.
-  Float3 Ambient(const SurfaceHit& hit) const;
-  Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
-  Float3 CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth);
-  // The share of a light that passes the blended surfaces between an unblocked shadow ray's
-  // start and the light: 1 - alpha of each, met front to back (closest hit after closest
-  // hit: the order, and so the rounding, is the ray's own).
-  float BlendTransmittance(Float3 start, Float3 direction, float distance);
-  void NoteSurface(int lane, const SurfaceHit& hit);
-  // For a camera sample whose hit no light reaches, once its packet's lights are done:
-  // when the hit is on a moving sphere (whose surface alone set the horizon to the next
-  // frame), the horizon by HorizonOracle::UnlitSphereHolds instead, and the camera
-  // segment's search for the other movers.
-  void SettleUnlitMovingSphere(int lane, const SurfaceHit& hit, const RaySegment& eye);
-  // Folds a packet's shadow rays toward one light into their samples' horizons.
-  template <int Width>
-  void ShadowHorizons(size_t light, const typename RayPacket<Width>::Ray& query, const int* valid,
-                      const int* blocked);
-  // A shadow ray found blocked, as it was asked, to be followed over the frames ahead.
-  struct BlockedShadowRay {
-    uint32_t sample;  // in the chunk
-    int blocker;      // the moving sphere that likely blocks it, -1: not known
-    RTCRay ray;
-  };
-  std::vector<BlockedShadowRay> walks_;
-  std::vector<int> blockers_;  // by light, for SettleUnlitMovingSphere
-  Float3 Spawn(const SurfaceHit& hit, bool transmitted) const {
-    return hit.position + hit.faceNormal * (transmitted ? -hit.offset : hit.offset);
-  }
-  // The traceable scene of a frame after this one, placed once per chunk of pixels.
-  RTCScene SceneAhead(int frame);
-
-  const FrameContext& frame_;
-  const Scene& scene_;
-  ClosestHitContext context_;
-  RayCounts counts_;
-  HorizonTracker* horizons_ = nullptr;
-  std::vector<std::shared_ptr<const FrameGeometry>> framesAhead_;  // [f - frame - 1]
-};
 
 RTCScene Tracer::PixelTracer::SceneAhead(int frame) {
   size_t index = static_cast<size_t>(frame - frame_.frame - 1);
@@ -313,94 +143,6 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
                  coneWidth};
   if (shading.pbr) ShadePbr(shading, raw, hit);
   return hit;
-}
-
-void Tracer::PixelTracer::ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const {
-  std::array<float, 2> uv0{0, 0}, uv1{0, 0};
-  Float3 vertexColor{1, 1, 1};
-  const PbrMaterial& material = *shape.pbr;
-  UvFootprint footprint;
-  if (shape.triangles) {
-    if (material.Textured()) footprint = TextureFootprint(shape, raw, hit);
-    const auto& corner = shape.triangles[raw.primitiveId];
-    const float w = 1.0f - raw.u - raw.v;
-    auto interpolate = [&](const std::array<float, 2>* uvs) -> std::array<float, 2> {
-      const auto &a = uvs[corner[0]], &b = uvs[corner[1]], &c = uvs[corner[2]];
-      return {a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v};
-    };
-    if (shape.uvs) uv0 = interpolate(shape.uvs);
-    if (shape.uvs1) uv1 = interpolate(shape.uvs1);
-    if (shape.colors) {
-      const Float3 &a = shape.colors[corner[0]], &b = shape.colors[corner[1]], &c = shape.colors[corner[2]];
-      vertexColor = a * w + b * raw.u + c * raw.v;
-    }
-  }
-  hit.pbr = material.Surface(uv0, uv1, vertexColor, footprint);
-  // The coat's normal: its own map over the surface's normal, not over the normal map's.
-  if (hit.pbr.clearcoat > 0) {
-    hit.pbr.clearcoatNormal = MappedNormal(shape, raw, hit, material.clearcoatNormalTexture, uv0, uv1, footprint);
-  }
-  hit.normal = MappedNormal(shape, raw, hit, material.normalTexture, uv0, uv1, footprint);
-}
-
-// The triangle's texel density is its texture coordinates' area over its area in the
-// world: its scene vertices (a deforming mesh's rest pose) as this frame places them.
-UvFootprint Tracer::PixelTracer::TextureFootprint(const ShapeShading& shape, const RawHit& raw,
-                                                  const SurfaceHit& hit) const {
-  UvFootprint footprint;
-  if (!(hit.coneWidth > 0)) return footprint;
-  const auto& corner = shape.triangles[raw.primitiveId];
-  const std::vector<Vec3>& vertices = scene_.shapes[static_cast<size_t>(hit.shape)].Mesh().vertices;
-  const Vec3 &p0 = vertices[corner[0]], &p1 = vertices[corner[1]], &p2 = vertices[corner[2]];
-  const Vec3 cross = frame_.geometry->AreaToWorld(hit.shape, CrossD(SubtractD(p1, p0), SubtractD(p2, p0)));
-  const double worldArea = std::sqrt(DotD(cross, cross));
-  const float cosine = Dot(hit.direction, hit.faceNormal);
-  if (shape.uvs) footprint.log2Width[0] = Log2UvWidth(hit.coneWidth, cosine, UvArea2(shape.uvs, corner), worldArea);
-  if (shape.uvs1) footprint.log2Width[1] = Log2UvWidth(hit.coneWidth, cosine, UvArea2(shape.uvs1, corner), worldArea);
-  return footprint;
-}
-
-Float3 Tracer::PixelTracer::MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit,
-                                         const PbrTexture& map, std::array<float, 2> uv0,
-                                         std::array<float, 2> uv1, const UvFootprint& footprint) const {
-  // A normal map needs the texture coordinates it was painted over.
-  const bool mapped = map && shape.triangles && (map.texCoord == 0 ? shape.uvs : shape.uvs1);
-  if (!mapped) return hit.normal;
-  const Float3 n = TangentFrameNormal(shape, raw, hit, map, map.Sample(map.texCoord == 0 ? uv0 : uv1, footprint));
-  return IsZero(n) ? hit.normal : n;
-}
-
-// A normal map's normal: the texel (tangent space, [0, 1] codes for [-1, 1], x and y
-// scaled) in the frame of the hit's tangent, bitangent and shading normal. The tangent is
-// the mesh's (TANGENT) where it has them, else the triangle's direction of increasing u;
-// either is made perpendicular to the shading normal. Zero when the frame is degenerate.
-Float3 Tracer::PixelTracer::TangentFrameNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit,
-                                               const PbrTexture& map, Float3 texel) const {
-  const auto& corner = shape.triangles[raw.primitiveId];
-  Float3 tangent;
-  float handedness = 1;
-  if (shape.tangents) {
-    const float w = 1.0f - raw.u - raw.v;
-    const auto &a = shape.tangents[corner[0]], &b = shape.tangents[corner[1]], &c = shape.tangents[corner[2]];
-    tangent = Float3{a[0], a[1], a[2]} * w + Float3{b[0], b[1], b[2]} * raw.u + Float3{c[0], c[1], c[2]} * raw.v;
-    handedness = a[3] < 0 ? -1.0f : 1.0f;
-  } else {
-    tangent = TriangleTangent(shape, raw, hit.shape, &handedness);
-  }
-  tangent = ToWorld(hit.shape, frame_.geometry->HasNormalTransform(hit.shape), tangent);
-  const Float3 n = hit.normal;
-  tangent = tangent - n * Dot(n, tangent);
-  const float length = Length(tangent);
-  if (!(length > 1e-12f)) return {};
-  tangent = tangent * (1.0f / length);
-  // The bitangent follows the shading normal's side, so a surface seen from behind keeps
-  // its bumps.
-  const Float3 bitangent = Cross(n, tangent) * handedness;
-  const float x = (texel.x * 2.0f - 1.0f) * map.amount, y = (texel.y * 2.0f - 1.0f) * map.amount;
-  const float z = texel.z * 2.0f - 1.0f;
-  const Float3 mapped = tangent * x + bitangent * y + n * z;
-  const float mappedLength = Length(mapped);
-  return mappedLength > 0 && std::isfinite(mappedLength) ? mapped * (1.0f / mappedLength) : Float3{};
 }
 
 Float3 Tracer::PixelTracer::SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const {
@@ -459,86 +201,6 @@ Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
   }
   const Float3 ambient = hit.diffuse * frame_.ambient;
   return m.emits ? ambient + m.emission : ambient;
-}
-
-// glTF materials: a smooth surface mirrors what it faces, weighted by Fresnel at the
-// viewing angle; a transmitting one refracts its share (KHR_materials_transmission), the
-// rest of its light as it was. A coat takes its weight of both, and a smooth coat mirrors
-// about its own normal. (Under transmission the coat's highlights of lights, in `local`,
-// are weighed as the rest of it: a coated glass is rare.)
-Float3 Tracer::PixelTracer::CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth) {
-  Float3 color = local;
-  const Float3 mirror = Reflect(hit.direction, hit.normal);
-  const float coat = hit.pbr.clearcoat > 0 ? ClearcoatWeight(hit.pbr, -hit.direction) : 0.0f;
-  if (hit.pbr.roughness < PbrMaterial::kMirrorRoughness) {
-    const float nDotV = std::max(-Dot(hit.direction, hit.normal), 0.0f);
-    const Float3 fresnel = Schlick(SurfaceF0(hit.pbr, material.constants), SurfaceF90(hit.pbr, material.constants), nDotV);
-    ++counts_.reflection;
-    color += TraceRay(Spawn(hit, false), mirror, depth + 1, hit.coneWidth) * (coat > 0 ? fresnel * (1.0f - coat) : fresnel);
-  }
-  const float transmitted = material.transmission * (1.0f - hit.pbr.metallic);
-  if (transmitted > 0) {
-    const float eta = hit.fromInside ? material.indexOfRefraction : 1.0f / material.indexOfRefraction;
-    Float3 refracted;
-    Float3 through;
-    if (!Refract(hit.direction, hit.normal, eta, &refracted)) {  // total internal reflection
-      ++counts_.reflection;
-      through = TraceRay(Spawn(hit, false), mirror, depth + 1, hit.coneWidth);
-    } else {
-      ++counts_.refraction;
-      through = TraceRay(Spawn(hit, true), refracted, depth + 1, hit.coneWidth);
-    }
-    color = color * (1.0f - transmitted) + through * (coat > 0 ? transmitted * (1.0f - coat) : transmitted);
-  }
-  if (coat > 0 && hit.pbr.clearcoatRoughness < PbrMaterial::kMirrorRoughness) {
-    ++counts_.reflection;
-    color += TraceRay(Spawn(hit, false), Reflect(hit.direction, hit.pbr.clearcoatNormal), depth + 1, hit.coneWidth) * coat;
-  }
-  // A blended surface covers alpha of the ray; the rest goes straight on past it.
-  if (material.blends && hit.pbr.alpha < 1) {
-    ++counts_.refraction;
-    const Float3 behind = TraceRay(Spawn(hit, true), hit.direction, depth + 1, hit.coneWidth);
-    color = color * hit.pbr.alpha + behind * (1.0f - hit.pbr.alpha);
-  }
-  return color;
-}
-
-float Tracer::PixelTracer::BlendTransmittance(Float3 start, Float3 direction, float distance) {
-  // Only blended surfaces lie on the way (the occlusion query found nothing else): each
-  // closest hit is one of them.
-  constexpr int kMaxLayers = 64;
-  float through = 1;
-  Float3 origin = start;
-  float left = distance;
-  for (int layer = 0; layer < kMaxLayers && through > 0; ++layer) {
-    RTCRayHit rayHit{};
-    rayHit.ray.org_x = origin.x, rayHit.ray.org_y = origin.y, rayHit.ray.org_z = origin.z;
-    rayHit.ray.dir_x = direction.x, rayHit.ray.dir_y = direction.y, rayHit.ray.dir_z = direction.z;
-    rayHit.ray.tnear = 0;
-    rayHit.ray.tfar = left;
-    rayHit.ray.mask = ~0u;
-    rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(frame_.geometry->scene(), &context_.embree, &rayHit);
-    if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
-    const float t = HitDistance(rayHit.ray, frame_.geometry->SettlesTies());
-    const SurfaceHit hit = MakeHit(origin, direction,
-                                   {t,
-                                    {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
-                                    rayHit.hit.instID[0],
-                                    rayHit.hit.geomID,
-                                    rayHit.hit.primID,
-                                    rayHit.hit.u,
-                                    rayHit.hit.v},
-                                   0.0f);
-    const ShadingMaterial& m = (*frame_.materials)[hit.material];
-    if (!m.pbr || !m.gltf.blends) return 0;  // not a blended surface after all: it blocks
-    through *= 1.0f - hit.pbr.alpha;
-    origin = Spawn(hit, true);
-    left = distance - Length(origin - start);
-    if (!(left > 0)) break;
-  }
-  return through;
 }
 
 // Local shading weighted against mirror reflection and refraction, Whitted style.
@@ -1058,28 +720,6 @@ RayCounts Tracer::Counts() const {
   c.reflection = reflection_;
   c.refraction = refraction_;
   return c;
-}
-
-Float3 Tracer::PixelTracer::TriangleTangent(const ShapeShading& shape, const RawHit& raw, int shapeIndex,
-                                            float* handedness) const {
-  const auto& corner = shape.triangles[raw.primitiveId];
-  const std::array<float, 2>* uvs = shape.pbr->normalTexture.texCoord == 0 ? shape.uvs : shape.uvs1;
-  const std::vector<Vec3>& vertices = scene_.shapes[static_cast<size_t>(shapeIndex)].Mesh().vertices;
-  const Vec3 &p0 = vertices[corner[0]], &p1 = vertices[corner[1]], &p2 = vertices[corner[2]];
-  const Vec3 e1 = SubtractD(p1, p0), e2 = SubtractD(p2, p0);
-  const double du1 = uvs[corner[1]][0] - uvs[corner[0]][0], dv1 = uvs[corner[1]][1] - uvs[corner[0]][1];
-  const double du2 = uvs[corner[2]][0] - uvs[corner[0]][0], dv2 = uvs[corner[2]][1] - uvs[corner[0]][1];
-  const double det = du1 * dv2 - du2 * dv1;
-  if (det == 0) return {};
-  // dp/du and dp/dv, solved from the two edges.
-  const Vec3 dpdu{(dv2 * e1.x - dv1 * e2.x) / det, (dv2 * e1.y - dv1 * e2.y) / det, (dv2 * e1.z - dv1 * e2.z) / det};
-  const Vec3 dpdv{(du1 * e2.x - du2 * e1.x) / det, (du1 * e2.y - du2 * e1.y) / det, (du1 * e2.z - du2 * e1.z) / det};
-  // glTF's v runs down the image while a normal map's green points up it: unmirrored
-  // texture coordinates have n x t along -dp/dv (w = +1, as TANGENT has it); mirrored
-  // ones flip the bitangent (w = -1), as MikkTSpace's sign says.
-  const Vec3 normal = CrossD(e1, e2);
-  *handedness = DotD(CrossD(normal, dpdu), dpdv) < 0 ? 1.0f : -1.0f;
-  return ToFloat3(dpdu);
 }
 
 }  // namespace tcfarm
