@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "worker/embree/closest_hit.h"
@@ -123,6 +124,8 @@ class Tracer::PixelTracer {
     unsigned instanceId, geometryId, primitiveId;
     float u, v;  // barycentric coordinates of the hit in its triangle
   };
+  // The closest hit along a ray within `farthest`, by the tie rule; none when it meets nothing.
+  std::optional<RawHit> ClosestHit(Float3 origin, Float3 direction, float farthest);
   // The normal a smooth mesh shades this hit with, in object space; zero when flat.
   static Float3 SmoothNormal(const ShapeShading& shape, const RawHit& raw);
   // The diffuse colour at the hit: the material's, times its texture at the hit's

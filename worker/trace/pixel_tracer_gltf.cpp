@@ -146,26 +146,9 @@ float Tracer::PixelTracer::BlendTransmittance(Float3 start, Float3 direction, fl
   Float3 origin = start;
   float left = distance;
   for (int layer = 0; layer < kMaxLayers && through > 0; ++layer) {
-    RTCRayHit rayHit{};
-    rayHit.ray.org_x = origin.x, rayHit.ray.org_y = origin.y, rayHit.ray.org_z = origin.z;
-    rayHit.ray.dir_x = direction.x, rayHit.ray.dir_y = direction.y, rayHit.ray.dir_z = direction.z;
-    rayHit.ray.tnear = 0;
-    rayHit.ray.tfar = left;
-    rayHit.ray.mask = ~0u;
-    rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(frame_.geometry->scene(), &context_.embree, &rayHit);
-    if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
-    const float t = HitDistance(rayHit.ray, frame_.geometry->SettlesTies());
-    const SurfaceHit hit = MakeHit(origin, direction,
-                                   {t,
-                                    {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
-                                    rayHit.hit.instID[0],
-                                    rayHit.hit.geomID,
-                                    rayHit.hit.primID,
-                                    rayHit.hit.u,
-                                    rayHit.hit.v},
-                                   0.0f);
+    const std::optional<RawHit> raw = ClosestHit(origin, direction, left);
+    if (!raw) break;
+    const SurfaceHit hit = MakeHit(origin, direction, *raw, 0.0f);
     const ShadingMaterial& m = (*frame_.materials)[hit.material];
     if (!m.pbr || !m.gltf.blends) return 0;  // not a blended surface after all: it blocks
     through *= 1.0f - hit.pbr.alpha;

@@ -228,30 +228,35 @@ Float3 Tracer::PixelTracer::Combine(const SurfaceHit& hit, Float3 local, int dep
   return color;
 }
 
-Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth, float coneWidth) {
+std::optional<Tracer::PixelTracer::RawHit> Tracer::PixelTracer::ClosestHit(Float3 origin, Float3 direction,
+                                                                          float farthest) {
   RTCRayHit rayHit{};
   rayHit.ray.org_x = origin.x, rayHit.ray.org_y = origin.y, rayHit.ray.org_z = origin.z;
   rayHit.ray.dir_x = direction.x, rayHit.ray.dir_y = direction.y, rayHit.ray.dir_z = direction.z;
   rayHit.ray.tnear = 0;
-  rayHit.ray.tfar = kInfinity;
+  rayHit.ray.tfar = farthest;
   rayHit.ray.mask = ~0u;
   rayHit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rayHit.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(frame_.geometry->scene(), &context_.embree, &rayHit);
-  if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) {
+  if (rayHit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  return RawHit{HitDistance(rayHit.ray, frame_.geometry->SettlesTies()),
+                {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
+                rayHit.hit.instID[0],
+                rayHit.hit.geomID,
+                rayHit.hit.primID,
+                rayHit.hit.u,
+                rayHit.hit.v};
+}
+
+Float3 Tracer::PixelTracer::TraceRay(Float3 origin, Float3 direction, int depth, float coneWidth) {
+  const std::optional<RawHit> raw = ClosestHit(origin, direction, kInfinity);
+  if (!raw) {
     if (horizons_) horizons_->Segment(horizons_->lane, origin, direction, kInfinity);
     return frame_.background;
   }
-
-  const float hitDistance = HitDistance(rayHit.ray, frame_.geometry->SettlesTies());
-  SurfaceHit hit = MakeHit(origin, direction,
-                           {hitDistance,
-                            {rayHit.hit.Ng_x, rayHit.hit.Ng_y, rayHit.hit.Ng_z},
-                            rayHit.hit.instID[0],
-                            rayHit.hit.geomID,
-                            rayHit.hit.primID,
-                            rayHit.hit.u,
-                            rayHit.hit.v},
+  const float hitDistance = raw->t;
+  SurfaceHit hit = MakeHit(origin, direction, *raw,
                            RayCone{coneWidth, frame_.camera.pixelCone.spread}.WidthAt(hitDistance));
   // The surface first: a moving one settles the horizon and spares the segment's test.
   if (horizons_) {
