@@ -75,10 +75,11 @@ class Gltf:
             accessor["max"] = [max(stored[i::n]) for i in range(n)]
         return self._add("accessors", accessor)
 
-    def texture(self, png, how="data", uri=None, wrap=None, mag_filter=None):
+    def texture(self, png, how="data", uri=None, wrap=None, mag_filter=None, min_filter=None):
         """A texture of PNG bytes stored `how`: "data" (a data URI), "view" (a buffer view,
         as a GLB holds images) or "file" (uri, a file the caller writes beside the glTF);
-        wrap: (wrapS, wrapT) codes; mag_filter: 9728 nearest, 9729 linear."""
+        wrap: (wrapS, wrapT) codes; mag_filter: 9728 nearest, 9729 linear; min_filter: those,
+        or 9984-9987 (the mipmapped ones)."""
         if how == "data":
             image = {"uri": "data:image/png;base64," + base64.b64encode(png).decode()}
         elif how == "view":
@@ -90,12 +91,14 @@ class Gltf:
         else:
             image = {"uri": uri}
         texture = {"source": self._add("images", image)}
-        if wrap or mag_filter:
+        if wrap or mag_filter or min_filter:
             sampler = {}
             if wrap:
                 sampler["wrapS"], sampler["wrapT"] = wrap
             if mag_filter:
                 sampler["magFilter"] = mag_filter
+            if min_filter:
+                sampler["minFilter"] = min_filter
             texture["sampler"] = self._add("samplers", sampler)
         return self._add("textures", texture)
 

@@ -130,6 +130,21 @@ def test_a_textured_quad_shows_its_texels_where_its_coordinates_put_them(worker_
         assert got == pytest.approx(want, rel=0.01), ((x, y), got, texel)
 
 
+@pytest.mark.parametrize("min_filter, mipmaps", [(None, True), (9987, True), (9984, True), (9729, False), (9728, False)])
+def test_a_samplers_minification_filter_says_whether_the_texture_has_mip_levels(worker_binary, tmp_path, min_filter,
+                                                                                mipmaps):
+    """glTF's minFilter LINEAR or NEAREST asks for the full image at every distance (no mip
+    levels); the mipmapped filters and no sampler filter by the ray's footprint."""
+    g = make_gltf.Gltf()
+    png = make_gltf.png_bytes(make_gltf.QUAD_TEXELS)
+    printed = g.material("printed", (1.0, 1.0, 1.0), texture=g.texture(png, "data", min_filter=min_filter))
+    g.node(mesh=g.mesh([{"positions": make_gltf.quad(2.0), "indices": [0, 1, 2, 0, 2, 3], "material": printed,
+                         "uvs": [0, 1, 1, 1, 1, 0, 0, 0]}]))
+    path = g.write(tmp_path / "quad.gltf")
+    texture = printed_scene(worker_binary, path)["materials"]["printed"]["pbr"]["base_color_texture"]
+    assert texture.get("mipmaps", True) is mipmaps, texture
+
+
 @pytest.mark.skipif(not TEST_MODELS.exists(), reason="assimp-testmodels is not installed (scripts/bootstrap)")
 def test_good_models_render(worker_binary, tmp_path):
     for model in ("BoxTextured-glTF-Binary/BoxTextured.glb", "cameras/Cameras.gltf", SIMPLE_SKIN, MORPH_CUBE):
