@@ -158,17 +158,31 @@ class Tracer::PixelTracer {
   Float3 TriangleTangent(const ShapeShading& shape, const RawHit& raw, int shapeIndex, float* handedness) const;
   // Light arriving at the hit from light i if nothing blocks it; false when the light is
   // behind the surface, or the surface is unlit (then no shadow ray is needed at all).
-  bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const;
+  // Inline, as LightContribution and Ambient: asked for every hit and light, their Phong
+  // part costs more as a call than as work (glTF's parts are calls of their own).
+  bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const {
+    if (hit.unlit) return false;
+    return frame_.lights[light].Toward(hit.position, hit.normal, direction, distance);
+  }
   // Inline: asked for every lit hit and light.
   Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction, float distance) const {
     const ShadingLight& l = frame_.lights[light];
     const ShadingMaterial& m = (*frame_.materials)[hit.material];
-    const Float3 color = m.pbr ? PbrReflected(hit.pbr, m.gltf.constants, direction, hit.normal, -hit.direction)
+    const Float3 color = m.pbr ? PbrLight(hit, m, direction)
                                : m.Reflected(direction, hit.normal, hit.direction, hit.diffuse);
     return color * l.intensity * l.Arriving(direction, distance);
   }
   // What the surface shows with no light: the ambient term, and its own emission.
-  Float3 Ambient(const SurfaceHit& hit) const;
+  Float3 Ambient(const SurfaceHit& hit) const {
+    const ShadingMaterial& m = (*frame_.materials)[hit.material];
+    if (m.pbr) return AmbientPbr(hit, m);
+    const Float3 ambient = hit.diffuse * frame_.ambient;
+    return m.emits ? ambient + m.emission : ambient;
+  }
+  // glTF's model: light of unit intensity from `direction` reflected toward the viewer, and
+  // what the surface shows with no light.
+  __attribute__((noinline)) Float3 PbrLight(const SurfaceHit& hit, const ShadingMaterial& m, Float3 direction) const;
+  __attribute__((noinline)) Float3 AmbientPbr(const SurfaceHit& hit, const ShadingMaterial& m) const;
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
   Float3 CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth);
   // The share of a light that passes the blended surfaces between an unblocked shadow ray's

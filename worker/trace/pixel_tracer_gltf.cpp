@@ -181,4 +181,22 @@ Float3 Tracer::PixelTracer::TriangleTangent(const ShapeShading& shape, const Raw
   return ToFloat3(dpdu);
 }
 
+Float3 Tracer::PixelTracer::AmbientPbr(const SurfaceHit& hit, const ShadingMaterial& m) const {
+  const PbrSurface& s = hit.pbr;
+  if (m.gltf.unlit) return s.baseColor;
+  // A uniform sky of radiance `ambient` reflects about the diffuse colour and f0 of it.
+  const Float3 reflected = s.baseColor * (1.0f - s.metallic) + SurfaceF0(s, m.gltf.constants);
+  if (s.clearcoat > 0) {
+    // A coat reflects its share of the sky whole, and dims what lies beneath it, emission too.
+    const float coat = ClearcoatWeight(s, -hit.direction);
+    return (reflected * (1.0f - coat) + Float3{coat, coat, coat}) * (frame_.ambient * s.occlusion) +
+           s.emission * (1.0f - coat);
+  }
+  return reflected * (frame_.ambient * s.occlusion) + s.emission;
+}
+
+Float3 Tracer::PixelTracer::PbrLight(const SurfaceHit& hit, const ShadingMaterial& m, Float3 direction) const {
+  return PbrReflected(hit.pbr, m.gltf.constants, direction, hit.normal, -hit.direction);
+}
+
 }  // namespace tcfarm

@@ -178,31 +178,6 @@ Float3 Tracer::PixelTracer::TurnedToWorld(int shape, const Float3& normal) const
   return length > 0 ? ToFloat3({world.x / length, world.y / length, world.z / length}) : Float3{};
 }
 
-bool Tracer::PixelTracer::ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction,
-                                    float* distance) const {
-  if (hit.unlit) return false;
-  return frame_.lights[light].Toward(hit.position, hit.normal, direction, distance);
-}
-
-Float3 Tracer::PixelTracer::Ambient(const SurfaceHit& hit) const {
-  const ShadingMaterial& m = (*frame_.materials)[hit.material];
-  if (m.pbr) {
-    const PbrSurface& s = hit.pbr;
-    if (m.gltf.unlit) return s.baseColor;
-    // A uniform sky of radiance `ambient` reflects about the diffuse colour and f0 of it.
-    const Float3 reflected = s.baseColor * (1.0f - s.metallic) + SurfaceF0(s, m.gltf.constants);
-    if (s.clearcoat > 0) {
-      // A coat reflects its share of the sky whole, and dims what lies beneath it, emission too.
-      const float coat = ClearcoatWeight(s, -hit.direction);
-      return (reflected * (1.0f - coat) + Float3{coat, coat, coat}) * (frame_.ambient * s.occlusion) +
-             s.emission * (1.0f - coat);
-    }
-    return reflected * (frame_.ambient * s.occlusion) + s.emission;
-  }
-  const Float3 ambient = hit.diffuse * frame_.ambient;
-  return m.emits ? ambient + m.emission : ambient;
-}
-
 // Local shading weighted against mirror reflection and refraction, Whitted style.
 Float3 Tracer::PixelTracer::Combine(const SurfaceHit& hit, Float3 local, int depth) {
   const ShadingMaterial& m = (*frame_.materials)[hit.material];
