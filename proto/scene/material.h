@@ -47,11 +47,6 @@ struct Texture {
 
   // For messages: the file the scene names, or the asset's hash.
   std::string Describe() const { return image.empty() ? "asset " + asset : image; }
-  // Whether two textures read the same image the same way (materials may share one).
-  bool SameImage(const Texture& o) const {
-    return image == o.image && asset == o.asset && wrapS == o.wrapS && wrapT == o.wrapT && filter == o.filter &&
-           mipmaps == o.mipmaps;
-  }
 };
 
 // Where a texture is read from a surface: which texture coordinates, moved how
@@ -100,26 +95,25 @@ struct MetallicRoughness {
   bool MentionsClearcoat() const {
     return clearcoat > 0 || clearcoatTexture || clearcoatRoughnessTexture || clearcoatNormalTexture;
   }
-  bool ReadsTexCoord(int set) const {
-    for (const auto* slot : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
-                             &emissiveTexture, &clearcoatTexture, &clearcoatRoughnessTexture,
-                             &clearcoatNormalTexture}) {
-      if (*slot && (*slot)->texCoord == set) return true;
-    }
-    return false;
+  // Each texture slot it may fill, with its key in a material's "pbr" block: the one list
+  // of them that reading, writing, fetching and shading walk.
+  template <typename Self, typename Visit>
+  static void ForEachSlot(Self& self, Visit visit) {
+    visit(self.baseColorTexture, "base_color_texture");
+    visit(self.metallicRoughnessTexture, "metallic_roughness_texture");
+    visit(self.normalTexture, "normal_texture");
+    visit(self.occlusionTexture, "occlusion_texture");
+    visit(self.emissiveTexture, "emissive_texture");
+    visit(self.clearcoatTexture, "clearcoat_texture");
+    visit(self.clearcoatRoughnessTexture, "clearcoat_roughness_texture");
+    visit(self.clearcoatNormalTexture, "clearcoat_normal_texture");
   }
-  // Each texture it reads, with its key in a material's "pbr" block.
-  template <typename Visit>
-  void ForEachTexture(Visit visit) {
-    const std::pair<std::optional<TextureSlot>*, const char*> slots[] = {
-        {&baseColorTexture, "base_color_texture"}, {&metallicRoughnessTexture, "metallic_roughness_texture"},
-        {&normalTexture, "normal_texture"},       {&occlusionTexture, "occlusion_texture"},
-        {&emissiveTexture, "emissive_texture"},   {&clearcoatTexture, "clearcoat_texture"},
-        {&clearcoatRoughnessTexture, "clearcoat_roughness_texture"},
-        {&clearcoatNormalTexture, "clearcoat_normal_texture"}};
-    for (const auto& [slot, key] : slots) {
-      if (*slot) visit((*slot)->texture, std::string(key));
-    }
+  bool ReadsTexCoord(int set) const {
+    bool reads = false;
+    ForEachSlot(*this, [&](const std::optional<TextureSlot>& slot, const char*) {
+      reads = reads || (slot && slot->texCoord == set);
+    });
+    return reads;
   }
 };
 
@@ -143,15 +137,9 @@ struct Material {
   // Each texture the material reads, with its path in the material's JSON ("diffuse_texture",
   // "pbr/normal_texture"): whoever fetches, binds or lists images asks here.
   template <typename Visit>
-  void ForEachTexture(Visit visit) {
-    if (diffuseTexture) visit(*diffuseTexture, std::string("diffuse_texture"));
-    if (pbr) pbr->ForEachTexture([&](Texture& texture, const std::string& key) { visit(texture, "pbr/" + key); });
-  }
+  void ForEachTexture(Visit visit) { VisitTextures(*this, visit); }
   template <typename Visit>
-  void ForEachTexture(Visit visit) const {
-    const_cast<Material*>(this)->ForEachTexture(
-        [&](Texture& texture, const std::string& where) { visit(static_cast<const Texture&>(texture), where); });
-  }
+  void ForEachTexture(Visit visit) const { VisitTextures(*this, visit); }
   bool Reflects() const {
     if (!pbr) return reflectivity > 0;
     if (pbr->unlit) return false;
@@ -168,6 +156,16 @@ struct Material {
   // A glTF surface smoother than this traces its mirror ray (weighted by Fresnel), as
   // Whitted's mirrors do; a rougher one reflects lights only, through its GGX lobe.
   static constexpr double kMirrorRoughness = 0.25;
+
+ private:
+  template <typename Self, typename Visit>
+  static void VisitTextures(Self& self, Visit visit) {
+    if (self.diffuseTexture) visit(*self.diffuseTexture, std::string("diffuse_texture"));
+    if (!self.pbr) return;
+    MetallicRoughness::ForEachSlot(*self.pbr, [&](auto& slot, const char* key) {
+      if (slot) visit(slot->texture, "pbr/" + std::string(key));
+    });
+  }
 };
 
 }  // namespace tcfarm

@@ -471,15 +471,12 @@ void Tracer::PixelTracer::NoteSurface(int lane, const SurfaceHit& hit) {
 Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& threads, BuildStop stop)
     : device_(device),
       scene_(scene),
+      uvs_(UvTable(scene, 0)),
+      uvs1_(UvTable(scene, 1)),
       surfaceRules_(MakeSurfaceRules()),
       geometry_(device, scene, stop, RulesOf(surfaceRules_)),
       threads_(threads),
       packetWidth_(NativePacketWidth(device.get())) {
-  uvs_ = PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [](const Shape& shape) {
-    ShapeUvs uvs;
-    for (const auto& uv : shape.Mesh().uvs) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
-    return uvs;
-  });
   colors_ = PerShapeOncePerMesh<ShapeColors>(scene.shapes, [](const Shape& shape) {
     ShapeColors colors;
     for (const Vec3& color : shape.Mesh().colors) colors.push_back(ToFloat3(color));
@@ -490,12 +487,6 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
     const Material& material = scene.materials[static_cast<size_t>(shape.material)];
     return material.pbr && reads(*material.pbr);
   };
-  uvs1_ = PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [&](const Shape& shape) {
-    ShapeUvs uvs;
-    if (!readBy(shape, [](const MetallicRoughness& m) { return m.ReadsTexCoord(1); })) return uvs;
-    for (const auto& uv : shape.Mesh().uvs1) uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
-    return uvs;
-  });
   tangents_ = PerShapeOncePerMesh<ShapeTangents>(scene.shapes, [&](const Shape& shape) {
     ShapeTangents tangents;
     if (!readBy(shape, [](const MetallicRoughness& m) { return m.normalTexture.has_value(); })) return tangents;
@@ -509,16 +500,38 @@ Tracer::Tracer(const EmbreeDevice& device, const Scene& scene, TracingThreads& t
   materials_ = MakeMaterials(scene, [this](const Texture& texture, TextureImage::Encoding encoding) {
     return LoadPbrTexture(texture, encoding);
   });
-  // Only the images a material uses are loaded, once.
+  // Only the images a material uses are loaded, once. Phong's texture is read at the hit's
+  // coordinates alone (level 0): it needs no mip levels.
   for (const Material& material : scene.materials) {
-    textures_.push_back(material.diffuseTexture ? std::make_unique<TextureImage>(*material.diffuseTexture) : nullptr);
+    if (!material.diffuseTexture) {
+      textures_.push_back(nullptr);
+      continue;
+    }
+    Texture fullImageOnly = *material.diffuseTexture;
+    fullImageOnly.mipmaps = false;
+    textures_.push_back(std::make_unique<TextureImage>(fullImageOnly));
   }
+}
+
+std::vector<std::shared_ptr<const Tracer::ShapeUvs>> Tracer::UvTable(const Scene& scene, int set) {
+  return PerShapeOncePerMesh<ShapeUvs>(scene.shapes, [&scene, set](const Shape& shape) {
+    ShapeUvs uvs;
+    const Material& material = scene.materials[static_cast<size_t>(shape.material)];
+    // The second set only where a glTF material reads it: most meshes have none.
+    if (set == 1 && !(material.pbr && material.pbr->ReadsTexCoord(1))) return uvs;
+    for (const auto& uv : set == 1 ? shape.Mesh().uvs1 : shape.Mesh().uvs) {
+      uvs.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+    }
+    return uvs;
+  });
 }
 
 std::vector<std::unique_ptr<SurfaceRule>> Tracer::MakeSurfaceRules() {
   std::vector<std::unique_ptr<SurfaceRule>> rules;
-  for (const Shape& shape : scene_.shapes) {
+  for (size_t i = 0; i < scene_.shapes.size(); ++i) {
+    const Shape& shape = scene_.shapes[i];
     rules.push_back(GltfSurfaceRule::For(shape, scene_.materials[static_cast<size_t>(shape.material)],
+                                         {uvs_[i], uvs1_[i]},
                                          [this](const Texture& texture, TextureImage::Encoding encoding) {
                                            return LoadPbrTexture(texture, encoding);
                                          }));

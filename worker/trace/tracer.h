@@ -79,6 +79,12 @@ class Tracer {
 
   const EmbreeDevice& device_;
   const Scene& scene_;
+  // Per shape, texture coordinates in float (shapes placing one shared mesh share them):
+  // TEXCOORD_0's for every mesh, TEXCOORD_1's where a glTF material reads them. Before the
+  // surface rules, whose alpha masks read them too.
+  using ShapeUvs = std::vector<std::array<float, 2>>;
+  std::vector<std::shared_ptr<const ShapeUvs>> uvs_, uvs1_;
+  static std::vector<std::shared_ptr<const ShapeUvs>> UvTable(const Scene& scene, int set);
   // The images glTF materials read, decoded once each (by image and encoding).
   std::map<std::pair<std::string, TextureImage::Encoding>, std::unique_ptr<TextureImage>> pbrTextures_;
   const TextureImage* LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding);
@@ -87,18 +93,14 @@ class Tracer {
   std::vector<std::unique_ptr<SurfaceRule>> surfaceRules_;
   std::vector<std::unique_ptr<SurfaceRule>> MakeSurfaceRules();
   SceneGeometry geometry_;
-  // Per shape, texture coordinates (shapes placing one shared mesh share them). Normals
-  // change with a deforming mesh's pose: the frame's geometry holds them.
-  using ShapeUvs = std::vector<std::array<float, 2>>;
+  // Normals change with a deforming mesh's pose: the frame's geometry holds them.
   std::vector<ShadingMaterial> materials_;
   // Per material: its decoded texture, if it has one.
   std::vector<std::unique_ptr<TextureImage>> textures_;
-  std::vector<std::shared_ptr<const ShapeUvs>> uvs_;
   // Per shape, its vertices' colours (none for most shapes), shared like the uvs.
   using ShapeColors = std::vector<Float3>;
   std::vector<std::shared_ptr<const ShapeColors>> colors_;
-  // Per shape, glTF's second texture coordinates and tangents, where a material reads them.
-  std::vector<std::shared_ptr<const ShapeUvs>> uvs1_;
+  // Per shape, glTF's tangents, where a material's normal map reads them.
   using ShapeTangents = std::vector<std::array<float, 4>>;
   std::vector<std::shared_ptr<const ShapeTangents>> tangents_;
 

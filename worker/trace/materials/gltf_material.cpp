@@ -45,7 +45,18 @@ PbrMaterial::PbrMaterial(const MetallicRoughness& m, const TextureLoader& load)
   using Encoding = TextureImage::Encoding;
   baseColorTexture = MakeTexture(m.baseColorTexture, Encoding::kSrgb, load);
   emissiveTexture = MakeTexture(m.emissiveTexture, Encoding::kSrgb, load);
-  if (unlit) return;  // an unlit surface reads its base colour only
+  if (!unlit) LoadLitTextures(m, load);  // an unlit surface reads its base colour only
+  for (const PbrTexture* texture : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
+                                    &emissiveTexture, &clearcoatTexture, &clearcoatRoughnessTexture,
+                                    &clearcoatNormalTexture}) {
+    if (!*texture) continue;
+    textured_ = true;
+    readsTexCoord_[texture->texCoord == 1] = true;
+  }
+}
+
+void PbrMaterial::LoadLitTextures(const MetallicRoughness& m, const TextureLoader& load) {
+  using Encoding = TextureImage::Encoding;
   metallicRoughnessTexture = MakeTexture(m.metallicRoughnessTexture, Encoding::kLinear, load);
   normalTexture = MakeTexture(m.normalTexture, Encoding::kLinear, load);
   occlusionTexture = MakeTexture(m.occlusionTexture, Encoding::kLinear, load);
@@ -56,15 +67,6 @@ PbrMaterial::PbrMaterial(const MetallicRoughness& m, const TextureLoader& load)
     clearcoatRoughnessTexture = MakeTexture(m.clearcoatRoughnessTexture, Encoding::kLinear, load);
     clearcoatNormalTexture = MakeTexture(m.clearcoatNormalTexture, Encoding::kLinear, load);
   }
-}
-
-bool PbrMaterial::ReadsTexCoord(int set) const {
-  for (const PbrTexture* t : {&baseColorTexture, &metallicRoughnessTexture, &normalTexture, &occlusionTexture,
-                              &emissiveTexture, &clearcoatTexture, &clearcoatRoughnessTexture,
-                              &clearcoatNormalTexture}) {
-    if (*t && t->texCoord == set) return true;
-  }
-  return false;
 }
 
 PbrSurface PbrMaterial::Surface(std::array<float, 2> uv0, std::array<float, 2> uv1, Float3 vertexColor,

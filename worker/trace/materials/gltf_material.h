@@ -64,11 +64,9 @@ struct PbrMaterial {
   PbrMaterial() = default;
   PbrMaterial(const MetallicRoughness& source, const TextureLoader& load);
 
-  bool Textured() const {
-    return baseColorTexture || metallicRoughnessTexture || normalTexture || occlusionTexture || emissiveTexture ||
-           clearcoatTexture || clearcoatRoughnessTexture || clearcoatNormalTexture;
-  }
-  bool ReadsTexCoord(int set) const;
+  // Fixed at construction: asked for every hit (textured) and every shape of a task.
+  bool Textured() const { return textured_; }
+  bool ReadsTexCoord(int set) const { return readsTexCoord_[set == 1]; }
   // Whether its smooth surfaces trace a mirror ray: possibly smooth somewhere.
   bool MaySmooth() const {
     return !unlit && (roughness < kMirrorRoughness || metallicRoughnessTexture || MayCoatSmoothly());
@@ -88,6 +86,12 @@ struct PbrMaterial {
                                 const TextureLoader& load);
 
   static constexpr float kMirrorRoughness = static_cast<float>(Material::kMirrorRoughness);
+
+ private:
+  void LoadLitTextures(const MetallicRoughness& m, const TextureLoader& load);
+
+  bool textured_ = false;                     // it holds at least one loaded texture
+  bool readsTexCoord_[2] = {false, false};  // some texture of the material reads TEXCOORD_0, _1
 };
 
 }  // namespace tcfarm

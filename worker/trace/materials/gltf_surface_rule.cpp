@@ -3,7 +3,7 @@
 namespace tcfarm {
 
 std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Material& material,
-                                                  const TextureLoader& load) {
+                                                  const std::array<Uvs, 2>& uvs, const TextureLoader& load) {
   if (!material.pbr || shape.Mesh().triangles.empty()) return nullptr;
   const MetallicRoughness& m = *material.pbr;
   const bool masks = m.alphaMode == MetallicRoughness::Alpha::kMask;
@@ -18,10 +18,10 @@ std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Mate
   const TriangleMesh& mesh = shape.Mesh();
   rule->triangles_ = mesh.triangles.data();
   if (masks && m.baseColorTexture) {
-    const auto& uvs = m.baseColorTexture->texCoord == 1 ? mesh.uvs1 : mesh.uvs;
-    if (!uvs.empty()) {
+    const Uvs& read = uvs[m.baseColorTexture->texCoord == 1];
+    if (read && !read->empty()) {
       rule->texture_ = PbrMaterial::MakeTexture(m.baseColorTexture, TextureImage::Encoding::kSrgb, load);
-      for (const auto& uv : uvs) rule->uvs_.push_back({static_cast<float>(uv[0]), static_cast<float>(uv[1])});
+      rule->uvs_ = read;
     }
   }
   return rule;
@@ -30,7 +30,7 @@ std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Mate
 float GltfSurfaceRule::AlphaAt(unsigned primitive, float u, float v) const {
   if (!texture_) return alpha_;
   const auto& corner = triangles_[primitive];
-  const auto &a = uvs_[corner[0]], &b = uvs_[corner[1]], &c = uvs_[corner[2]];
+  const auto &a = (*uvs_)[corner[0]], &b = (*uvs_)[corner[1]], &c = (*uvs_)[corner[2]];
   const float w = 1.0f - u - v;
   const std::array<float, 2> uv{a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
   // At the full image (no mip level): Embree's filter callback knows the hit, not the ray's

@@ -20,7 +20,10 @@ class GltfSurfaceRule : public SurfaceRule {
  public:
   // The rule of a shape's material, or null when every hit of it counts (Phong, opaque or
   // blended and double-sided, or a shape that is not a triangle mesh).
-  static std::unique_ptr<SurfaceRule> For(const Shape& shape, const Material& material, const TextureLoader& load);
+  // uvs: the shape's texture coordinates in float (TEXCOORD_0, _1), as the tracer holds them.
+  using Uvs = std::shared_ptr<const std::vector<std::array<float, 2>>>;
+  static std::unique_ptr<SurfaceRule> For(const Shape& shape, const Material& material, const std::array<Uvs, 2>& uvs,
+                                          const TextureLoader& load);
 
   bool Keeps(unsigned primitive, float u, float v, bool backFace, bool occlusion) const override;
 
@@ -34,7 +37,7 @@ class GltfSurfaceRule : public SurfaceRule {
   float cutoff_ = 0.5f, alpha_ = 1;
   PbrTexture texture_;  // the base colour texture, for its alpha
   const std::array<uint32_t, 3>* triangles_ = nullptr;
-  std::vector<std::array<float, 2>> uvs_;  // the texture's coordinates, by vertex
+  Uvs uvs_;  // the texture's coordinates, by vertex
 };
 
 }  // namespace tcfarm
