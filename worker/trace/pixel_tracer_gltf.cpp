@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "worker/trace/barycentric.h"
 #include "worker/trace/pixel_tracer.h"
 
 namespace tcfarm {
@@ -16,17 +17,9 @@ void Tracer::PixelTracer::ShadePbr(const ShapeShading& shape, const RawHit& raw,
   if (shape.triangles) {
     if (material.Textured()) footprint = TextureFootprint(shape, raw, hit);
     const auto& corner = shape.triangles[raw.primitiveId];
-    const float w = 1.0f - raw.u - raw.v;
-    auto interpolate = [&](const std::array<float, 2>* uvs) -> std::array<float, 2> {
-      const auto &a = uvs[corner[0]], &b = uvs[corner[1]], &c = uvs[corner[2]];
-      return {a[0] * w + b[0] * raw.u + c[0] * raw.v, a[1] * w + b[1] * raw.u + c[1] * raw.v};
-    };
-    if (shape.uvs) uv0 = interpolate(shape.uvs);
-    if (shape.uvs1) uv1 = interpolate(shape.uvs1);
-    if (shape.colors) {
-      const Float3 &a = shape.colors[corner[0]], &b = shape.colors[corner[1]], &c = shape.colors[corner[2]];
-      vertexColor = a * w + b * raw.u + c * raw.v;
-    }
+    if (shape.uvs) uv0 = AtBarycentric(shape.uvs, corner, raw.u, raw.v);
+    if (shape.uvs1) uv1 = AtBarycentric(shape.uvs1, corner, raw.u, raw.v);
+    if (shape.colors) vertexColor = AtBarycentric(shape.colors, corner, raw.u, raw.v);
   }
   hit.pbr = material.Surface(uv0, uv1, vertexColor, footprint);
   // The coat's normal: its own map over the surface's normal, not over the normal map's.

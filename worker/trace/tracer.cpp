@@ -1,4 +1,5 @@
 #include "worker/trace/tracer.h"
+#include "worker/trace/barycentric.h"
 #include "worker/trace/pixel_tracer.h"
 
 #include <algorithm>
@@ -147,17 +148,12 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
 
 Float3 Tracer::PixelTracer::SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const {
   const auto& corner = shape.triangles[raw.primitiveId];
-  const float w = 1.0f - raw.u - raw.v;
   Float3 diffuse = (*frame_.materials)[shape.material].diffuse;
   if (shape.uvs) {
-    const auto &a = shape.uvs[corner[0]], &b = shape.uvs[corner[1]], &c = shape.uvs[corner[2]];
-    diffuse = diffuse * shape.texture->Sample(a[0] * w + b[0] * raw.u + c[0] * raw.v,
-                                              a[1] * w + b[1] * raw.u + c[1] * raw.v);
+    const std::array<float, 2> uv = AtBarycentric(shape.uvs, corner, raw.u, raw.v);
+    diffuse = diffuse * shape.texture->Sample(uv[0], uv[1]);
   }
-  if (shape.colors) {
-    const Float3 &a = shape.colors[corner[0]], &b = shape.colors[corner[1]], &c = shape.colors[corner[2]];
-    diffuse = diffuse * (a * w + b * raw.u + c * raw.v);
-  }
+  if (shape.colors) diffuse = diffuse * AtBarycentric(shape.colors, corner, raw.u, raw.v);
   return diffuse;
 }
 

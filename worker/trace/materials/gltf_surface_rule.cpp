@@ -1,5 +1,7 @@
 #include "worker/trace/materials/gltf_surface_rule.h"
 
+#include "worker/trace/barycentric.h"
+
 namespace tcfarm {
 
 std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Material& material,
@@ -29,10 +31,7 @@ std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Mate
 
 float GltfSurfaceRule::AlphaAt(unsigned primitive, float u, float v) const {
   if (!texture_) return alpha_;
-  const auto& corner = triangles_[primitive];
-  const auto &a = (*uvs_)[corner[0]], &b = (*uvs_)[corner[1]], &c = (*uvs_)[corner[2]];
-  const float w = 1.0f - u - v;
-  const std::array<float, 2> uv{a[0] * w + b[0] * u + c[0] * v, a[1] * w + b[1] * u + c[1] * v};
+  const std::array<float, 2> uv = AtBarycentric(uvs_->data(), triangles_[primitive], u, v);
   // At the full image (no mip level): Embree's filter callback knows the hit, not the ray's
   // footprint, and a shadow ray has none.
   return alpha_ * texture_.SampleAlpha(uv);
