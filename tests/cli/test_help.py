@@ -102,7 +102,7 @@ TCFARM_COMMANDS = {
          "analyze"],
     ("submit",): ["scene", "--name", "--frames", "--strategy", "--bin-width", "--tolerance",
                   "--priority", "--verify", "--wait", "--fps", "--size", "--animation", "--camera",
-                  "--spp"],
+                  "--spp", "--light-units", "--view", "--exposure"],
     ("list",): ["--state", "--strategy", "--name", "--limit", "--page", "--offset"],
     ("status",): ["job"],
     ("watch",): ["job", "--read-timeout"],

@@ -95,15 +95,16 @@ def _upload(client, files, quiet):
 
 
 def _import_options(args, files):
-    """--fps, --size, --animation, --camera, --spp: how the farm imports a scene file."""
+    """--fps, --size, --animation, --camera, --spp, --light-units: how the farm imports a scene file."""
     options = {key: value for key, value in (("fps", args.fps), ("size", args.size),
                                               ("animation", args.animation), ("camera", args.camera),
-                                              ("spp", args.spp)) if value is not None}
+                                              ("spp", args.spp), ("light_units", args.light_units))
+               if value is not None}
     if not options:
         return {}
     if files.scene_file is None:
-        raise ApiError(0, "bad_input", "--fps, --size, --animation, --camera and --spp apply to a "
-                                       "scene file (.gltf, .glb, .obj), not to a JSON scene")
+        raise ApiError(0, "bad_input", "--fps, --size, --animation, --camera, --spp and --light-units apply "
+                                       "to a scene file (.gltf, .glb, .obj), not to a JSON scene")
     return {"import": options}  # a reserved word in Python, a plain field name in the API
 
 
@@ -603,6 +604,9 @@ def _parser():
     submit.add_argument("--animation", help="the glTF animation to play, by name or index")
     submit.add_argument("--camera", help="the glTF camera to look through, by name or index")
     submit.add_argument("--spp", type=int, help="samples per pixel of a scene file")
+    submit.add_argument("--light-units", choices=["photometric", "radiometric"],
+                        help="glTF light intensities: photometric (candela and lux at 683 lm/W, as Blender "
+                             "exports them; the farm's default) or radiometric (taken as they are)")
 
     listing = command("list", "list jobs, newest first, with filters and pages")
     listing.add_argument("--state", type=_states, help="only jobs in these states, e.g. "
