@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -69,6 +70,9 @@ constexpr double kSingularRatio = 1e-12;
 const Vec3 kViewFrom{0, 0.35, 1};
 constexpr double kDefaultFovDegrees = 45;
 constexpr double kFramingMargin = 1.1;
+// The most vertex deformations framing the animation may spend (frames x deformed vertices);
+// past it, evenly spaced frames are framed.
+constexpr size_t kFramingVertexBudget = size_t{20} << 20;
 // With no light in the file, one white directional light over the camera's shoulder, as OBJ.
 const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
 
@@ -87,8 +91,8 @@ class GltfReader {
  private:
   [[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) const;
   // Prints the warning (a render shows it) and keeps it for Scene::importWarnings (a
-  // submission's job record shows it).
-  void Warn(const std::string& pointer, const std::string& text) const;
+  // submission's job record shows it). `code` names the kind of warning (ImportWarning).
+  void Warn(const std::string& code, const std::string& pointer, const std::string& text) const;
 
   bool IsBinary() const;
 
@@ -290,6 +294,9 @@ class GltfReader {
                         Scene& scene);
 
   void AddShapes(Scene& scene);
+  // A material whose textures read a texture coordinate set the primitive lacks is drawn
+  // without those textures: said, not silent.
+  void WarnOfMissingTexCoords(const Material& material, const TriangleMesh& mesh, const std::string& pointer) const;
 
   // ---- skins and morph targets ----------------------------------------------------------
 
@@ -340,19 +347,29 @@ class GltfReader {
 
   // ---- lights and camera ----------------------------------------------------------------
 
+  // The file's lights, or (with none) AddDefaultLight's. After AddCamera: the default light
+  // is placed by the camera.
   void AddLights(Scene& scene) const;
+  void AddDefaultLight(Scene& scene) const;
 
-  void AddCamera(Scene& scene) const;
+  void AddCamera(Scene& scene);
 
-  // No camera in the file: one framing the shapes' bounds at frame 0, as for OBJ.
+  // No camera in the file: one framing the union of the shapes' bounds over the animation's
+  // frames, looking from kViewFrom as for OBJ.
   void FrameBounds(Scene& scene) const;
+  struct Bounds {
+    Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
+    Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
+  };
+  Bounds AnimationBounds(const Scene& scene) const;
+  static std::array<Vec3, 8> MeshBoxCorners(const TriangleMesh& mesh);
 
   const ImportInput& input_;
   const ImportOptions& options_;
   tinygltf::Model model_;
   gltf::EmbeddedData embedded_;  // while loading: the data URIs, decoded
   mutable uint64_t valueBytesRead_ = 0;  // by ReadAccessor, against kValueBytesPerBufferByte
-  mutable std::vector<std::string> warnings_;  // as Warn gave them
+  mutable std::vector<ImportWarning> warnings_;  // as Warn gave them
   // Per glTF image that a material uses: its bytes and their hash (Texture::asset).
   mutable std::map<int, std::pair<std::shared_ptr<const std::string>, std::string>> imageBytes_;
   std::vector<int> materialIndex_;  // per glTF material, its index in the scene
@@ -365,6 +382,7 @@ class GltfReader {
   std::vector<bool> inScene_;
   std::vector<int> order_;  // the chosen scene's nodes, parents before children
   int animation_ = -1;
+  bool cameraFromFile_ = false;  // AddCamera found the file's camera
   int frameCount_ = 1;
   std::vector<std::shared_ptr<const Motion>> motions_;  // per node, its world motion
   std::vector<std::map<std::string, Channel>> channels_;  // per node, its channels by path
