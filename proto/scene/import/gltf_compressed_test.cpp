@@ -3,6 +3,7 @@
 // file does, and damaged compressed data is refused with the pointer of what holds it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
 
 #include "proto/scene/import/scene_import.h"
@@ -67,9 +68,18 @@ TEST(GltfCompressedTest, QuantizedEdgebreakerDracoKeepsTheSurfaceWithinItsQuanti
   }
 }
 
+// The scene with each triangle started at its smallest index (the same triangle, the same winding).
+std::string WithTrianglesRotated(Scene scene) {
+  for (Shape& shape : scene.shapes) {
+    for (auto& t : shape.mesh.triangles) std::rotate(t.begin(), std::min_element(t.begin(), t.end()), t.end());
+  }
+  return SerializeScene(scene);
+}
+
+// meshopt's triangle codec may start a triangle at another of its corners; all else is exact.
 TEST(GltfCompressedTest, MeshoptImportsAsThePlainFileWithoutItsFallbackBuffer) {
   const auto sphere = MakeSphere(12, 24);
-  EXPECT_EQ(SerializeScene(Import(MeshoptGltf(sphere))), SerializeScene(Import(PlainGltf(sphere))));
+  EXPECT_EQ(WithTrianglesRotated(Import(MeshoptGltf(sphere))), WithTrianglesRotated(Import(PlainGltf(sphere))));
 }
 
 TEST(GltfCompressedTest, MeshoptFiltersDecodeWithinTheirPrecision) {
@@ -195,7 +205,7 @@ TEST(GltfCompressedTest, QuantizedAttributesImport) {
   EXPECT_EQ(mesh.vertices[1][0], 300);
   EXPECT_EQ(mesh.vertices[2][1], -300);
   EXPECT_EQ(mesh.normals[0][2], 1.0);
-  EXPECT_EQ(mesh.normals[1][0], -1.0);
+  EXPECT_EQ(mesh.normals[1][2], -1.0);
   EXPECT_EQ(mesh.uvs[1][0], 1.0);
   EXPECT_DOUBLE_EQ(mesh.uvs[2][1], 32768.0 / 65535);
   gltf["accessors"][1]["normalized"] = false;

@@ -36,6 +36,31 @@ bool ConvertComponents(const draco::PointAttribute& attribute, draco::AttributeV
 
 }  // namespace
 
+void GltfReader::StandInForDracoIndexViews() {
+  if (embedded_.json.find(kDraco) == std::string::npos) return;  // spares most files a second parse
+  nlohmann::json document = nlohmann::json::parse(embedded_.json, nullptr, false);
+  if (!document.is_object() || !document.contains("meshes") || !document["meshes"].is_array() ||
+      !document.contains("accessors") || !document["accessors"].is_array()) {
+    return;  // PreCheck and tinygltf say what is wrong
+  }
+  nlohmann::json& accessors = document["accessors"];
+  bool changed = false;
+  for (const nlohmann::json& mesh : document["meshes"]) {
+    if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) continue;
+    for (const nlohmann::json& primitive : mesh["primitives"]) {
+      const nlohmann::json::json_pointer view("/extensions/" + std::string(kDraco) + "/bufferView");
+      if (!primitive.is_object() || !primitive.contains(view) || !primitive.contains("indices")) continue;
+      const nlohmann::json& indices = primitive["indices"];
+      if (!indices.is_number_unsigned() || indices.get<uint64_t>() >= accessors.size()) continue;
+      nlohmann::json& accessor = accessors[indices.get<size_t>()];
+      if (!accessor.is_object() || accessor.contains("bufferView")) continue;
+      accessor["bufferView"] = primitive.at(view);
+      changed = true;
+    }
+  }
+  if (changed) embedded_.json = document.dump();
+}
+
 void GltfReader::DecodeDracoPrimitives() {
   for (size_t m = 0; m < model_.meshes.size(); ++m) {
     for (size_t p = 0; p < model_.meshes[m].primitives.size(); ++p) {

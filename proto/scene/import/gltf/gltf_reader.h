@@ -139,6 +139,10 @@ class GltfReader {
   // EXT_meshopt_compression's fallback buffers without a uri hold nothing to read; tinygltf
   // would refuse them, so each gets a one-byte stand-in in the JSON it reads. Before PreCheck.
   void StandInForFallbackBuffers();
+  // tinygltf refuses indices without a buffer view, which Draco's extension allows: such an
+  // accessor reads the Draco buffer view in the JSON tinygltf reads, until the decoded faces
+  // replace it. Before PreCheck.
+  void StandInForDracoIndexViews();
   // Every buffer view with EXT_meshopt_compression, decoded and filtered (after Load).
   void DecodeMeshoptViews();
   void DecodeMeshoptView(size_t index, const tinygltf::Value& extension);

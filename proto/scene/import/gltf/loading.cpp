@@ -12,6 +12,7 @@ GltfReader::GltfReader(const ImportInput& input) : input_(input), options_(input
 Scene GltfReader::Read() {
   embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
   StandInForFallbackBuffers();
+  StandInForDracoIndexViews();
   PreCheck(embedded_.json);
   Load();
   embedded_ = {};
