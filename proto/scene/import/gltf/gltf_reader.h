@@ -83,7 +83,7 @@ inline const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual",          "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_mesh_quantization",        "KHR_materials_emissive_strength", "KHR_materials_unlit",
     "KHR_materials_specular",       "KHR_texture_transform",           "KHR_materials_clearcoat",
-    "KHR_draco_mesh_compression",   "EXT_meshopt_compression",         "EXT_texture_webp"};
+    "KHR_draco_mesh_compression",   "EXT_meshopt_compression"};
 
 class GltfReader {
  public:
