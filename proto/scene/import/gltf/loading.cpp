@@ -11,10 +11,15 @@ GltfReader::GltfReader(const ImportInput& input) : input_(input), options_(input
 
 Scene GltfReader::Read() {
   embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+  StandInForFallbackBuffers();
+  StandInForDracoIndexViews();
   PreCheck(embedded_.json);
   Load();
   embedded_ = {};
   CheckExtensions();
+  fileBufferBytes_ = BufferBytes();
+  DecodeMeshoptViews();
+  DecodeDracoPrimitives();
   Scene scene;
   AddMaterials(scene);
   BuildGraph();

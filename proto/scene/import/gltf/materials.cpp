@@ -6,15 +6,6 @@
 #include "proto/wire/content_hash.h"
 
 namespace tcfarm::gltf {
-namespace {
-
-const tinygltf::Value* ExtensionOf(const tinygltf::ExtensionMap& extensions, const std::string& name) {
-  auto found = extensions.find(name);
-  return found != extensions.end() && found->second.IsObject() ? &found->second : nullptr;
-}
-
-}  // namespace
-
 double GltfReader::NumberIn(const tinygltf::ExtensionMap& extensions, const std::string& extension, const std::string& key,
                        double fallback) {
   const tinygltf::Value* object = ExtensionOf(extensions, extension);

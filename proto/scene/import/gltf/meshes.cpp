@@ -23,6 +23,7 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
                      {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT},
                      "a VEC3 accessor of normals");
     CheckFinite(normals, normal->second, "normal");
+    CheckNormalized(normal->second, "normals");
     if (normals.count != positions.count) {
       Fail(Pointer("accessors", static_cast<size_t>(normal->second)) + "/count",
            std::to_string(normals.count) + " normals for " + std::to_string(positions.count) + " positions",
