@@ -1,5 +1,6 @@
 // What real exporters write that glTF forbids, accepted and said: skin weights that do
-// not sum to 1, and influences of weight 0 naming joints the skin lacks.
+// not sum to 1, influences of weight 0 naming joints the skin lacks, and frames asked for
+// past the animation's end.
 #include <gtest/gtest.h>
 
 #include <cstring>
@@ -11,6 +12,7 @@
 
 #include "proto/scene/deformation.h"
 #include "proto/scene/import/scene_import.h"
+#include "proto/scene/scene_limits.h"
 #include "tests/support/cpp/gltf_builder.h"
 #include "tests/support/cpp/scene_test_support.h"
 
@@ -162,6 +164,48 @@ TEST(GltfSkinWeightsTest, JointPastTheSkinIsDroppedWhenItsWeightIsZero) {
                       ": the gltf scene: vertex 4 names joint 7 (weight 1.0) of skin 0, which has 2"),
             std::string::npos)
       << what;
+}
+
+ImportOptions ToFrame(int lastFrame) {
+  ImportOptions options;
+  options.lastFrame = lastFrame;
+  return options;
+}
+
+TEST(GltfSkinWeightsTest, FramesPastTheAnimationHoldItsLastKey) {
+  SkinnedStrip strip;  // the knee turns over frames 0 to 24
+  const Scene own = strip.gltf.Import(ToFrame(24));
+  EXPECT_EQ(own.render.frameCount, 25);
+  EXPECT_FALSE(WarningOf(own, "frames_past_animation"));
+
+  const Scene longer = strip.gltf.Import(ToFrame(40));
+  EXPECT_EQ(longer.render.firstFrame, 0);
+  EXPECT_EQ(longer.render.frameCount, 41);
+  std::optional<ImportWarning> warning = WarningOf(longer, "frames_past_animation");
+  ASSERT_TRUE(warning);
+  EXPECT_EQ(warning->pointer, "/animations/0");
+  EXPECT_EQ(warning->message, "frames 25-40 hold the last key (the animation ends at frame 24)");
+  // Frame 40 is frame 24 again, and the scene reads back with its longer range.
+  const std::vector<Vec3> last = DeformedVertices(longer.shapes[0], 24), past = DeformedVertices(longer.shapes[0], 40);
+  ASSERT_EQ(last.size(), past.size());
+  for (size_t v = 0; v < last.size(); ++v) EXPECT_EQ(std::memcmp(&last[v], &past[v], sizeof(Vec3)), 0);
+  EXPECT_EQ(ParseScene(SerializeScene(longer)).render.frameCount, 41);
+
+  EXPECT_EQ(WarningOf(strip.gltf.Import(ToFrame(25)), "frames_past_animation")->message,
+            "frame 25 holds the last key (the animation ends at frame 24)");
+  const std::string what = ErrorOf([&] { strip.gltf.Import(ToFrame(scene_limits::kMaxFrameCount)); });
+  EXPECT_NE(what.find("frames up to 100000 asked for; expected at most 100000 frames"), std::string::npos) << what;
+}
+
+TEST(GltfSkinWeightsTest, AStillFileAskedForFramesShowsItsOneFrame) {
+  GltfBuilder still;
+  still.Node({{"mesh", still.Mesh({0, 0, 0, 1, 0, 0, 0, 1, 0})}}, true);
+  const Scene scene = still.Import(ToFrame(3));
+  EXPECT_EQ(scene.render.frameCount, 4);
+  std::optional<ImportWarning> warning = WarningOf(scene, "frames_past_animation");
+  ASSERT_TRUE(warning);
+  EXPECT_EQ(warning->pointer, "");
+  EXPECT_EQ(warning->message, "the file has no animation: frames 1-3 show it as frame 0 does");
 }
 
 }  // namespace

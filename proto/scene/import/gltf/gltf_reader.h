@@ -268,6 +268,10 @@ class GltfReader {
 
   Motion LocalMotion(size_t index, const std::map<std::string, Channel>& channels) const;
 
+  // The scene's frame count: the animation's, or up to the caller's last frame
+  // (ImportOptions::lastFrame) when that is past its end, those frames holding the last key.
+  int FramesAsked() const;
+
   // ---- meshes ---------------------------------------------------------------------------
 
   TriangleMesh PrimitiveMesh(const tinygltf::Primitive& primitive, const std::string& pointer) const;
