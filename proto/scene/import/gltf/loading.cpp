@@ -45,7 +45,7 @@ void GltfReader::Warn(const std::string& code, const std::string& pointer, const
   // A sampler or texture shared by many materials is said once.
   if (std::find(warnings_.begin(), warnings_.end(), warning) != warnings_.end()) return;
   warnings_.push_back(std::move(warning));
-  std::fprintf(stderr, "warning: %s\n", warnings_.back().Line().c_str());
+  std::fprintf(stderr, "warning: [%s] %s\n", code.c_str(), warnings_.back().Line().c_str());
 }
 
 bool GltfReader::IsBinary() const { return input_.bytes.compare(0, 4, "glTF") == 0; }
