@@ -2,6 +2,7 @@
 #include <string>
 #include <vector>
 
+#include "proto/scene/import/file_sniff.h"
 #include "proto/scene/import/importers.h"
 
 namespace tcfarm {
@@ -20,7 +21,10 @@ class JsonImporter : public SceneImporter {
     return first != std::string_view::npos && head[first] == '{';
   }
 
-  Scene Import(const ImportInput& input) const override { return ParseScene(input.bytes, input.baseDirectory); }
+  Scene Import(const ImportInput& input) const override {
+    RequireJsonSceneStart(input.bytes, input.displayName);
+    return ParseScene(input.bytes, input.baseDirectory);
+  }
 };
 
 }  // namespace

@@ -3,6 +3,7 @@
 
 #include <fstream>
 
+#include "proto/scene/import/file_sniff.h"
 #include "proto/scene/import/gltf/file_access.h"
 
 namespace tcfarm::gltf {
@@ -47,6 +48,8 @@ std::string_view GltfReader::CheckContainer() const {
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) {
     Fail("", "the file holds " + std::to_string(bytes.size()) + " bytes", "a glTF file under 4 GiB");
   }
+  // An HTML page or an archive named .glb is said to be one, before a parser trips on it.
+  RequireGltfStart(bytes, input_.displayName);
   if (!IsBinary()) return bytes;
   auto word = [&](size_t offset) {
     uint32_t value = 0;
