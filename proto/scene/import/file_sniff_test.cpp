@@ -118,5 +118,34 @@ TEST(FileSniffTest, AJsonSceneThatIsHtmlIsRefusedSayingSo) {
       << what;
 }
 
+std::string AloneRefusal(const std::string& bytes, const std::string& name) {
+  try {
+    CheckSceneFileAlone(bytes, name);
+  } catch (const SceneError& error) {
+    return error.what();
+  }
+  return "";
+}
+
+// Without the buffers and images it names, a glTF file still shows its container, its
+// JSON and the extensions it requires; a JSON scene its syntax.
+TEST(FileSniffTest, AFileAloneIsCheckedAsFarAsItCanBe) {
+  const std::string external =
+      R"({"asset": {"version": "2.0"}, "buffers": [{"uri": "mesh.bin", "byteLength": 12}]})";
+  EXPECT_EQ(AloneRefusal(external, "shot.gltf"), "");
+  EXPECT_NE(AloneRefusal("<html></html>", "shot.gltf").find("this is an HTML page"), std::string::npos);
+  EXPECT_NE(AloneRefusal(R"({"asset": {"version": "2.0"}, )", "shot.gltf").find("the JSON does not parse"),
+            std::string::npos);
+  EXPECT_NE(AloneRefusal(R"({"asset": {"version": "2.0"}, "extensionsRequired": ["KHR_draco_mesh_compression"]})",
+                         "shot.gltf")
+                .find("requires extension \"KHR_draco_mesh_compression\""),
+            std::string::npos);
+  EXPECT_NE(AloneRefusal("glTF\x02\x00\x00\x00\x40\x00\x00\x00"s, "shot.glb").find("ends inside its header"), std::string::npos);
+  EXPECT_EQ(AloneRefusal(R"({"shapes": [{"type": "mesh", "file": "a.obj"}]})", "scene.json"), "");
+  EXPECT_NE(AloneRefusal(R"({"shapes": [)", "scene.json").find("scene.json: invalid JSON"), std::string::npos);
+  EXPECT_NE(AloneRefusal("PK\x03\x04"s, "scene.json").find("this is a ZIP archive"), std::string::npos);
+  EXPECT_EQ(AloneRefusal("mtllib missing.mtl\nv 0 0 0\n", "box.obj"), "");
+}
+
 }  // namespace
 }  // namespace tcfarm

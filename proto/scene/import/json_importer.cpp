@@ -2,7 +2,9 @@
 #include <string>
 #include <vector>
 
+#include "proto/json/strict_json.h"
 #include "proto/scene/import/file_sniff.h"
+#include "proto/scene/import/messages.h"
 #include "proto/scene/import/importers.h"
 
 namespace tcfarm {
@@ -19,6 +21,16 @@ class JsonImporter : public SceneImporter {
     if (head.substr(0, 3) == "\xEF\xBB\xBF") head.remove_prefix(3);
     size_t first = head.find_first_not_of(" \t\r\n");
     return first != std::string_view::npos && head[first] == '{';
+  }
+
+  // Its syntax: mesh files and textures are what it names.
+  void CheckAlone(const ImportInput& input) const override {
+    RequireJsonSceneStart(input.bytes, input.displayName);
+    try {
+      ParseStrictJson(input.bytes);
+    } catch (const JsonInputError& error) {
+      FailInput(error.pointer(), input.displayName + ": " + error.what(), "a tcfarm JSON scene (proto/scene.md)");
+    }
   }
 
   Scene Import(const ImportInput& input) const override {
