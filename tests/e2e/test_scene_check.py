@@ -60,6 +60,14 @@ def test_an_html_page_named_glb_is_refused_by_submit_before_any_upload(farm, tmp
     assert all(job["name"] != "shot.glb" for job in farm.client.jobs())
 
 
+def test_a_json_scene_that_is_html_is_refused_saying_so(farm, tmp_path):
+    scene = tmp_path / "scene.json"
+    scene.write_text("<html><body>502 Bad Gateway</body></html>\n")
+    result = tcfarm_cli(farm, "submit", scene)
+    assert result.returncode != 0
+    assert 'this is an HTML page (it starts with "<html"), not a tcfarm JSON scene' in result.stderr, result.stderr
+
+
 def test_a_good_glb_passes_the_check_and_is_submitted(farm, tmp_path):
     quad = make_gltf.red_quad().write(tmp_path / "quad.glb")
     result = tcfarm_cli(farm, "--json", "submit", quad)

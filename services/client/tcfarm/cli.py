@@ -28,7 +28,7 @@ import time
 
 from tcfarm import __version__
 from tcfarm.client import FINAL_STATES, ApiError, Client, sha256_file
-from tcfarm.scene_files import SceneFileError, scene_files
+from tcfarm.scene_files import NotItsFormat, SceneFileError, scene_files
 
 # Strategy names are not checked here: the farm knows its own (GET /api/v1/strategies), and its
 # 400 names a strategy it does not run.
@@ -148,8 +148,13 @@ def _check_scene(client, path, files, job_options):
 def cmd_submit(client, args):
     try:
         files, unreadable = scene_files(args.scene), None
-    except SceneFileError as e:
+    except NotItsFormat as e:
+        # The scene file is not what its name says: the farm, asked below, says what it is.
+        if e.path != pathlib.Path(args.scene):
+            raise ApiError(0, "bad_input", str(e))
         files, unreadable = None, e
+    except SceneFileError as e:
+        raise ApiError(0, "bad_input", str(e))
     job_options = dict(name=args.name or os.path.basename(args.scene), frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
                        tolerance=args.tolerance, priority=args.priority, verify=args.verify,
                        view=args.view, exposure=args.exposure)
