@@ -86,7 +86,10 @@ def test_the_check_answers_what_the_import_gives_with_its_warnings(farm):
     assert answer["ok"] is True and answer["complete"] is True
     assert (answer["width"], answer["height"]) == (32, 24)
     assert answer["frames"] == {"start": 0, "end": 0}
-    assert len(answer["warnings"]) == 1 and "EXT_not_known_here" in json.dumps(answer["warnings"])
+    assert len(answer["warnings"]) == 1 and "EXT_not_known_here" in answer["warnings"][0]["message"]
+    # The structure a job record gives its warnings.
+    assert answer["warnings"][0]["code"] == "extension_not_implemented"
+    assert answer["warnings"][0]["pointer"] == "/extensionsUsed/0"
 
 
 def test_the_check_refuses_what_the_submit_refuses(farm):
@@ -115,9 +118,9 @@ def test_without_its_uploads_the_check_judges_the_scene_file_alone(farm):
     status, answer = check(farm, {**inline("quad.gltf", json.dumps(document).encode()), "assets": not_uploaded})
     assert status == 200, answer
     assert answer["complete"] is False and answer["missing_assets"] == ["quad.bin"]
-    document["extensionsRequired"] = document["extensionsUsed"] = ["KHR_draco_mesh_compression"]
+    document["extensionsRequired"] = document["extensionsUsed"] = ["EXT_not_implemented_here"]
     status, answer = check(farm, {**inline("quad.gltf", json.dumps(document).encode()), "assets": not_uploaded})
-    assert status == 400 and "KHR_draco_mesh_compression" in answer["error"]["message"], answer
+    assert status == 400 and "EXT_not_implemented_here" in answer["error"]["message"], answer
 
 
 def test_the_janitor_removes_orphan_uploads_and_keeps_what_a_job_names(farm, tmp_path):

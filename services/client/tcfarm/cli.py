@@ -155,9 +155,10 @@ def cmd_submit(client, args):
         files, unreadable = None, e
     except SceneFileError as e:
         raise ApiError(0, "bad_input", str(e))
-    job_options = dict(name=args.name or os.path.basename(args.scene), frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
-                       tolerance=args.tolerance, priority=args.priority, verify=args.verify,
-                       view=args.view, exposure=args.exposure)
+    job_options = dict(name=args.name or os.path.basename(args.scene), frames=args.frames,
+                       strategy=args.strategy, bin_width=args.bin_width, tolerance=args.tolerance,
+                       priority=args.priority, verify=args.verify, view=args.view,
+                       exposure=args.exposure)
     import_options = _import_options(args, files)
     _check_scene(client, args.scene, files, dict(job_options, **import_options))
     if unreadable is not None:
@@ -166,8 +167,8 @@ def cmd_submit(client, args):
     job = client.submit(files.scene, assets=assets,
                         scene_file=files.scene_file, **job_options, **import_options)
     if not args.json:
-        for warning in job.get("warnings", []):
-            sys.stderr.write(f"warning: {warning}\n")
+        for line in _warning_lines(job):
+            sys.stderr.write(f"warning: {line}\n")
     if not args.wait:
         print(json.dumps(job) if args.json else f"submitted job {job['id']}")
         return 0
@@ -176,6 +177,18 @@ def cmd_submit(client, args):
         sys.stderr.write("\n")
     print(json.dumps(job) if args.json else _summary(job))
     return 0 if job["state"] == "completed" else 1
+
+
+def _warning_lines(job):
+    """Each import warning as one line: "[code] file at pointer: message"."""
+    lines = []
+    for warning in job.get("warnings", []):
+        if isinstance(warning, str):  # a job recorded before warnings had codes
+            lines.append(warning)
+            continue
+        where = warning.get("file", "") + (f" at {warning['pointer']}" if warning.get("pointer") else "")
+        lines.append(f"[{warning.get('code', '?')}] {where}: {warning.get('message', '')}")
+    return lines
 
 
 def _verify(text):
@@ -433,6 +446,7 @@ def cmd_status(client, args):
     if job.get("view", "standard") != "standard" or job.get("exposure", 0):
         details.append(f"previews: view {job['view']}, exposure {job['exposure']:+g} EV")
     details += _verification_lines(job)
+    details += [f"warning: {line}" for line in _warning_lines(job)]
     try:
         details += _frame_strip(client.frame_states(args.job))
     except ApiError as e:
