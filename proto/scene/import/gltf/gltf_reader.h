@@ -94,6 +94,9 @@ class GltfReader {
   GltfReader(const ImportInput& input);
 
   Scene Read();
+  // What the file alone shows, without the buffers and images it names (they may not have
+  // been uploaded yet): the container, the JSON's syntax and types, required extensions.
+  void CheckAlone();
 
  private:
   [[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) const;
@@ -111,6 +114,9 @@ class GltfReader {
   // What tinygltf reports without saying where: extensions this importer lacks, and
   // files that are missing. Syntax and type errors are left to tinygltf.
   void PreCheck(const std::string& jsonText) const;
+  // PreCheck's part that needs no other file. withSyntax: a JSON syntax error is refused
+  // here (else tinygltf says it). False when the document is not an object.
+  bool CheckDocument(const nlohmann::json& document, bool withSyntax) const;
 
   // tinygltf would report a buffer whose data URI decodes to another length than its
   // byteLength under the name that replaced the URI.

@@ -3,6 +3,8 @@
 
 #include <fstream>
 
+#include "proto/json/strict_json.h"
+#include "proto/scene/import/file_sniff.h"
 #include "proto/scene/import/gltf/file_access.h"
 
 namespace tcfarm::gltf {
@@ -55,6 +57,8 @@ std::string_view GltfReader::CheckContainer() const {
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) {
     Fail("", "the file holds " + std::to_string(bytes.size()) + " bytes", "a glTF file under 4 GiB");
   }
+  // An HTML page or an archive named .glb is said to be one, before a parser trips on it.
+  RequireGltfStart(bytes, input_.displayName);
   if (!IsBinary()) return bytes;
   auto word = [&](size_t offset) {
     uint32_t value = 0;
@@ -102,9 +106,26 @@ std::string SupportedExtensionList() {
 
 }  // namespace
 
-void GltfReader::PreCheck(const std::string& jsonText) const {
-  nlohmann::json document = nlohmann::json::parse(jsonText, nullptr, false);
-  if (!document.is_object()) return;  // tinygltf says what is wrong with the syntax
+void GltfReader::CheckAlone() {
+  embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+  const nlohmann::json document = nlohmann::json::parse(embedded_.json, nullptr, false);
+  CheckDocument(document, true);
+  embedded_ = {};
+}
+
+bool GltfReader::CheckDocument(const nlohmann::json& document, bool withSyntax) const {
+  if (withSyntax && document.is_discarded()) {
+    // The parser's own words, for the byte where it stopped.
+    try {
+      [[maybe_unused]] const nlohmann::json reparsed = nlohmann::json::parse(embedded_.json);
+    } catch (const nlohmann::json::parse_error& error) {
+      Fail("", "the JSON does not parse: " + StripJsonExceptionPrefix(error.what()), "glTF JSON");
+    }
+  }
+  if (!document.is_object()) {
+    if (withSyntax) Fail("", std::string("the JSON is a ") + document.type_name(), "a glTF JSON object");
+    return false;  // tinygltf says what is wrong with the syntax
+  }
   auto [pointer, expected] = WrongType(document, "root", "");
   if (!pointer.empty()) {
     Fail(pointer,
@@ -122,6 +143,12 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
       }
     }
   }
+  return true;
+}
+
+void GltfReader::PreCheck(const std::string& jsonText) const {
+  nlohmann::json document = nlohmann::json::parse(jsonText, nullptr, false);
+  if (!CheckDocument(document, false)) return;
   for (const char* collection : {"buffers", "images"}) {
     if (!document.contains(collection) || !document[collection].is_array()) continue;
     const auto& items = document[collection];
