@@ -112,6 +112,10 @@ class GltfReader {
   // files that are missing. Syntax and type errors are left to tinygltf.
   void PreCheck(const std::string& jsonText) const;
 
+  // asset.version: a glTF 1.0 file (whose properties have other shapes) is refused as such,
+  // before the type check would call one of its differences a wrong type.
+  void CheckVersion(const nlohmann::json& document) const;
+
   // tinygltf would report a buffer whose data URI decodes to another length than its
   // byteLength under the name that replaced the URI.
   void CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const;

@@ -105,6 +105,7 @@ std::string SupportedExtensionList() {
 void GltfReader::PreCheck(const std::string& jsonText) const {
   nlohmann::json document = nlohmann::json::parse(jsonText, nullptr, false);
   if (!document.is_object()) return;  // tinygltf says what is wrong with the syntax
+  CheckVersion(document);
   auto [pointer, expected] = WrongType(document, "root", "");
   if (!pointer.empty()) {
     Fail(pointer,
@@ -156,6 +157,21 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
       }
     }
   }
+}
+
+void GltfReader::CheckVersion(const nlohmann::json& document) const {
+  const std::string expected = "a glTF 2.0 file (asset.version \"2.0\")";
+  if (!document.contains("asset") || !document["asset"].is_object()) return;  // the type check says so
+  const nlohmann::json& asset = document["asset"];
+  if (!asset.contains("version")) Fail("/asset", "no asset.version", expected);
+  const nlohmann::json& version = asset["version"];
+  if (version.is_string() && version.get<std::string>().compare(0, 2, "2.") == 0) return;
+  const bool oneOh = version.is_string() ? version.get<std::string>().compare(0, 2, "1.") == 0
+                                         : version.is_number() && version.get<double>() == 1;
+  Fail("/asset/version",
+       "version " + version.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).substr(0, 40) +
+           (oneOh ? ": a glTF 1.0 file, which this importer does not read" : ""),
+       expected);
 }
 
 void GltfReader::CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const {

@@ -60,6 +60,11 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
     for (size_t v = 0; v < positions.count; ++v) indices.push_back(static_cast<uint32_t>(v));
   }
   int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
+  if (const size_t leftOver = indices.size() % 3; mode == TINYGLTF_MODE_TRIANGLES && leftOver != 0) {
+    Warn("incomplete_triangle", pointer,
+         std::to_string(indices.size()) + (primitive.indices >= 0 ? " indices" : " vertices") +
+             " are not whole triangles; the last " + (leftOver == 1 ? "one is" : "two are") + " left out");
+  }
   mesh.triangles = Triangles(indices, mode);
   return mesh;
 }
