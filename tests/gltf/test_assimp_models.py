@@ -9,6 +9,7 @@ import pathlib
 import re
 import resource
 import subprocess
+import sys
 
 import pytest
 
@@ -99,3 +100,23 @@ def test_every_assimp_gltf_model_renders_or_is_refused_clearly(worker_binary, tm
     print(f"\n{table}\n{summary}")
     bad = [f"{name}: {detail}" for name, outcome, detail in rows if outcome == BAD]
     assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("behaviour,outcome", [
+    ('mkdir -p "$out" && echo x > "$out/frame_0000.exr"', RENDERED),
+    ('echo "tcfarm-render: scene/nodes/0: $name: a loop; expected a tree" >&2; exit 1', REFUSED),
+    ('echo "tcfarm-render: [json.exception.parse_error.101] syntax error" >&2; exit 1', BAD),
+    ('echo "tcfarm-render: scene: $name: no pointer and no expectation" >&2; exit 1', BAD),
+    ("exit 0", BAD),
+    ("kill -SEGV $$", BAD),
+    ('sleep 5; mkdir -p "$out" && echo x > "$out/frame_0000.exr"', BAD),
+], ids=["rendered", "refused", "raw-error", "unclear", "no-frame", "crash", "hang"])
+def test_the_sweep_tells_bad_outcomes(tmp_path, monkeypatch, behaviour, outcome):
+    """The classification on a stand-in for the renderer that behaves as each case says."""
+    monkeypatch.setattr(sys.modules[__name__], "TIMEOUT_S", 1)
+    binary = tmp_path / "fake-render"
+    binary.write_text(f'#!/bin/bash\nname=$(basename "$2"); out="${{@: -1}}"\n{behaviour}\n')
+    binary.chmod(0o755)
+    model = tmp_path / "model.gltf"
+    model.write_text("{}")
+    assert sweep_one(binary, model, tmp_path / "out")[0] == outcome
