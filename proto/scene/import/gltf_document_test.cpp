@@ -1,7 +1,8 @@
 // Files real exporters wrote, or broke, as tests/gltf/test_assimp_models.py found them in
 // Debian's assimp-testmodels, each made here in its smallest form: a glTF 1.0 file is
-// refused as one, a default scene that does not exist is refused, and a TRIANGLES
-// primitive whose count is not a multiple of 3 is drawn without its leftover and says so.
+// refused as one, a default scene that does not exist is refused, a TRIANGLES primitive
+// whose count is not a multiple of 3 is drawn without its leftover and says so, and a file
+// that draws nothing says so.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -112,6 +113,22 @@ TEST(GltfDocumentTest, LeftoverIndicesOfTrianglesAreLeftOutAndSaid) {
   const std::vector<ImportWarning> warnings = WarningsOf(scene, "incomplete_triangle");
   ASSERT_EQ(warnings.size(), 1u);
   EXPECT_EQ(warnings[0].message, "7 indices are not whole triangles; the last one is left out");
+}
+
+TEST(GltfDocumentTest, AFileThatDrawsNothingSaysSo) {
+  EXPECT_TRUE(WarningsOf(ImportSceneBytes(Triangles(3).dump(), "gltf"), "empty_scene").empty());
+  json emptyScene = {{"asset", {{"version", "2.0"}}}, {"scene", 0}, {"scenes", {json::object()}}};
+  const std::vector<ImportWarning> empty = WarningsOf(ImportSceneBytes(emptyScene.dump(), "gltf"), "empty_scene");
+  ASSERT_EQ(empty.size(), 1u);
+  EXPECT_EQ(empty[0].pointer, "/scenes/0");
+  EXPECT_EQ(empty[0].message, "no node of the scene draws a triangle; the frames show only the background");
+  json points = Triangles(3);
+  points["meshes"][0]["primitives"][0]["mode"] = 0;
+  points.erase("scenes");
+  points.erase("scene");
+  const std::vector<ImportWarning> pointsOnly = WarningsOf(ImportSceneBytes(points.dump(), "gltf"), "empty_scene");
+  ASSERT_EQ(pointsOnly.size(), 1u);
+  EXPECT_EQ(pointsOnly[0].pointer, "/nodes");
 }
 
 }  // namespace

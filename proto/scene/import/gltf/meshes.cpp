@@ -174,6 +174,13 @@ void GltfReader::AddShapes(Scene& scene) {
       scene.shapes.push_back(std::move(shape));
     }
   }
+  // A valid file may draw nothing (an empty scene, points or lines only): its frames show
+  // only the background, which would look like a failed render unless said.
+  if (scene.shapes.empty()) {
+    const size_t chosen = model_.defaultScene >= 0 ? static_cast<size_t>(model_.defaultScene) : 0;
+    Warn("empty_scene", model_.scenes.empty() ? "/nodes" : Pointer("scenes", chosen),
+         "no node of the scene draws a triangle; the frames show only the background");
+  }
 }
 
 void GltfReader::WarnOfMissingTexCoords(const Material& material, const TriangleMesh& mesh,
