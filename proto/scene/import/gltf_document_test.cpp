@@ -82,6 +82,10 @@ TEST(GltfDocumentTest, OnlyVersion2IsRead) {
   gltf["asset"].erase("version");
   EXPECT_EQ(ImportError(gltf),
             "scene/asset: the gltf scene: no asset.version; expected a glTF 2.0 file (asset.version \"2.0\")");
+  gltf.erase("asset");
+  EXPECT_EQ(ImportError(gltf),
+            "scene: the gltf scene: no \"asset\" property; expected a glTF 2.0 file (asset.version \"2.0\")");
+  EXPECT_EQ(ImportError(json::object()), ImportError(gltf));  // not "JSON string too short", as tinygltf says
 }
 
 TEST(GltfDocumentTest, ADefaultSceneMustExistEvenWithoutScenes) {

@@ -161,7 +161,8 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
 
 void GltfReader::CheckVersion(const nlohmann::json& document) const {
   const std::string expected = "a glTF 2.0 file (asset.version \"2.0\")";
-  if (!document.contains("asset") || !document["asset"].is_object()) return;  // the type check says so
+  if (!document.contains("asset")) Fail("", "no \"asset\" property", expected);
+  if (!document["asset"].is_object()) return;  // the type check says so
   const nlohmann::json& asset = document["asset"];
   if (!asset.contains("version")) Fail("/asset", "no asset.version", expected);
   const nlohmann::json& version = asset["version"];
