@@ -414,6 +414,18 @@ std::pair<int, int> ReadFrameRange(const json& request, const RenderSettings& re
   return {start, end};
 }
 
+// The "frames" end asked for, before the scene is read: a glTF file's frames extend to it
+// past the animation's end (ImportOptions::lastFrame). -1 when absent or not a frame a scene
+// may have; ReadFrameRange then says what is wrong with it.
+int RequestedLastFrame(const json& request) {
+  const auto frames = request.find("frames");
+  if (frames == request.end() || !frames->is_object()) return -1;
+  const auto end = frames->find("end");
+  if (end == frames->end() || !end->is_number_integer()) return -1;
+  const int64_t last = end->get<int64_t>();
+  return last >= 0 && last < scene_limits::kMaxFrameCount ? static_cast<int>(last) : -1;
+}
+
 // "verify": {"frames": "all"} or {"sample": K}: frames also rendered brute force and
 // compared. Stored in the job's options for the farm.
 json ReadVerify(const json& request) {
@@ -484,7 +496,8 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
     Fail(error_code::kInvalidField, "/scene_file", "given beside an inline scene",
          "either \"scene\" or \"scene_file\", not both");
   }
-  const ImportOptions importOptions = ReadImportOptions(request);
+  ImportOptions importOptions = ReadImportOptions(request);
+  importOptions.lastFrame = RequestedLastFrame(request);
   const std::map<std::string, std::string> files = ReadAssets(request, assets);
   // Removed when this function returns, whether the scene parses or not.
   std::unique_ptr<AssetStore::Folder> folder;

@@ -40,6 +40,9 @@ struct ImportOptions {
   // How glTF light intensities (candela, lux) become radiometric ones (proto/scene.md,
   // "glTF lights"): as the tools that write glTF convert them (683 lm/W), or as they are.
   LightUnits lightUnits = LightUnits::kPhotometric;
+  // The last frame the caller will render; -1: none said. A glTF file's frames run to its
+  // animation's end; asked past it, they extend to this one, holding the last key.
+  int lastFrame = -1;
 };
 
 struct ImportInput {

@@ -595,7 +595,8 @@ def _parser():
     submit.add_argument("scene", help="the scene file: .json, .gltf, .glb or .obj")
     submit.add_argument("--name", help="the job's name (default: the file's name)")
     submit.add_argument("--frames", type=_frames, help="A:B, the frames to render, inclusive "
-                                                        "(default: the scene's)")
+                                                        "(default: the scene's; a glTF file's may run past "
+                                                        "its animation, holding the last key)")
     submit.add_argument("--strategy", help=f"how to save tracing: {STRATEGY_HELP} "
                                            "(default: the farm's)")
     submit.add_argument("--bin-width", type=int, help="bin width n (search, guarded) or segment "

@@ -291,6 +291,30 @@ void GltfReader::BuildMotions() {
   }
 }
 
+int GltfReader::FramesAsked() const {
+  const int last = options_.lastFrame;
+  if (last < frameCount_) return frameCount_;
+  if (last >= kMaxFrameCount) {
+    Fail("", "frames up to " + std::to_string(last) + " asked for",
+         "at most " + std::to_string(kMaxFrameCount) + " frames");
+  }
+  // Every animated value is held after its last key (proto/scene/transform.h), as Blender
+  // and glTF viewers hold it: the frames past the end are the last frame again, and the
+  // scene's range covers them so that they are checked and rendered as its own.
+  const bool one = last == frameCount_;
+  const std::string frames = (one ? "frame " : "frames ") + std::to_string(frameCount_) +
+                             (one ? "" : "-" + std::to_string(last));
+  if (animation_ < 0) {
+    Warn("frames_past_animation", "",
+         "the file has no animation: " + frames + (one ? " shows" : " show") + " it as frame 0 does");
+  } else {
+    Warn("frames_past_animation", Pointer("animations", static_cast<size_t>(animation_)),
+         frames + (one ? " holds" : " hold") + " the last key (the animation ends at frame " +
+             std::to_string(frameCount_ - 1) + ")");
+  }
+  return last + 1;
+}
+
 Motion GltfReader::LocalMotion(size_t index, const std::map<std::string, Channel>& channels) const {
   const tinygltf::Node& node = model_.nodes[index];
   const std::string pointer = Pointer("nodes", index);

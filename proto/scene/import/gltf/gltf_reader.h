@@ -327,6 +327,10 @@ class GltfReader {
 
   Motion LocalMotion(size_t index, const std::map<std::string, Channel>& channels) const;
 
+  // The scene's frame count: the animation's, or up to the caller's last frame
+  // (ImportOptions::lastFrame) when that is past its end, those frames holding the last key.
+  int FramesAsked() const;
+
   // ---- meshes ---------------------------------------------------------------------------
 
   TriangleMesh PrimitiveMesh(const tinygltf::Primitive& primitive, const std::string& pointer) const;
@@ -394,10 +398,28 @@ class GltfReader {
   std::vector<std::array<double, 4>> ReadTangents(int index, const std::string& pointer, size_t positions) const;
 
   // A primitive's skin: JOINTS_0/WEIGHTS_0 (and _1 for 8 influences), each vertex's weights
-  // divided by their sum (refused when it is further than kWeightSumTolerance from 1), and
-  // only the joints that move some vertex of the primitive, renumbered in the skin's order.
+  // divided by their sum (refused when they are all 0 or one is negative), and only the
+  // joints that move some vertex of the primitive, renumbered in the skin's order. An
+  // influence of weight 0 naming a joint the skin lacks is dropped.
   Skin BindPrimitive(const SkinJoints& joints, size_t node, const tinygltf::Primitive& primitive,
                      const std::string& pointer, size_t vertices) const;
+
+  // What BindPrimitive accepted in a primitive that glTF forbids, said once per primitive.
+  struct WeightFixes {
+    // Vertices whose weights sum further than kWeightSumTolerance from 1 (closer sums are
+    // rounding, normalised without a word), and the sum furthest from 1.
+    size_t renormalised = 0;
+    double furthestSum = 1;
+    size_t furthestVertex = 0;
+    // Influences of weight 0 naming a joint past the skin's, and where the first is.
+    size_t ignoredJoints = 0;
+    int ignoredJointsAccessor = -1;
+    size_t firstIgnoredVertex = 0;
+
+    void Renormalise(double sum, size_t vertex);
+    void IgnoreJoint(int jointsAccessor, size_t vertex);
+  };
+  void WarnOfWeightFixes(const WeightFixes& fixes, int weightsAccessor, size_t node, size_t vertices) const;
 
   // The morph targets and skin of node i's primitive p, or none when it has neither.
   std::shared_ptr<const Deformation> PrimitiveDeformation(size_t node, const SkinJoints* skin,

@@ -31,7 +31,7 @@ Scene GltfReader::Read() {
   scene.render.width = kDefaultWidth;
   scene.render.height = kDefaultHeight;
   scene.render.firstFrame = 0;
-  scene.render.frameCount = frameCount_;
+  scene.render.frameCount = FramesAsked();
   scene.importWarnings = warnings_;
   return scene;
 }
