@@ -38,11 +38,15 @@ void GltfReader::BuildGraph() {
     }
   }
   std::vector<int> roots;
+  // "scene" must name a scene even in a file without any.
+  if (model_.defaultScene >= 0 && static_cast<size_t>(model_.defaultScene) >= model_.scenes.size()) {
+    Fail("/scene",
+         "scene " + std::to_string(model_.defaultScene) + " does not exist (the file has " +
+             std::to_string(model_.scenes.size()) + " scenes)",
+         "the index of a scene");
+  }
   if (!model_.scenes.empty()) {
     size_t chosen = model_.defaultScene >= 0 ? static_cast<size_t>(model_.defaultScene) : 0;
-    if (chosen >= model_.scenes.size()) {
-      Fail("/scene", "scene " + std::to_string(chosen) + " does not exist", "the index of a scene");
-    }
     const auto& nodes = model_.scenes[chosen].nodes;
     for (size_t k = 0; k < nodes.size(); ++k) {
       std::string pointer = Pointer("scenes", chosen) + "/nodes/" + std::to_string(k);

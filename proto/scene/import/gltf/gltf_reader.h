@@ -114,9 +114,13 @@ class GltfReader {
   // What tinygltf reports without saying where: extensions this importer lacks, and
   // files that are missing. Syntax and type errors are left to tinygltf.
   void PreCheck(const std::string& jsonText) const;
-  // PreCheck's part that needs no other file. withSyntax: a JSON syntax error is refused
-  // here (else tinygltf says it). False when the document is not an object.
-  bool CheckDocument(const nlohmann::json& document, bool withSyntax) const;
+  // PreCheck's part that needs no other file: the JSON's syntax (a parse error said where
+  // it stops, in the parser's words), the version, the value types, required extensions.
+  void CheckDocument(const nlohmann::json& document) const;
+
+  // asset.version: a glTF 1.0 file (whose properties have other shapes) is refused as such,
+  // before the type check would call one of its differences a wrong type.
+  void CheckVersion(const nlohmann::json& document) const;
 
   // tinygltf would report a buffer whose data URI decodes to another length than its
   // byteLength under the name that replaced the URI.

@@ -109,12 +109,12 @@ std::string SupportedExtensionList() {
 void GltfReader::CheckAlone() {
   embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
   const nlohmann::json document = nlohmann::json::parse(embedded_.json, nullptr, false);
-  CheckDocument(document, true);
+  CheckDocument(document);
   embedded_ = {};
 }
 
-bool GltfReader::CheckDocument(const nlohmann::json& document, bool withSyntax) const {
-  if (withSyntax && document.is_discarded()) {
+void GltfReader::CheckDocument(const nlohmann::json& document) const {
+  if (document.is_discarded()) {
     // The parser's own words, for the byte where it stopped.
     try {
       [[maybe_unused]] const nlohmann::json reparsed = nlohmann::json::parse(embedded_.json);
@@ -122,10 +122,8 @@ bool GltfReader::CheckDocument(const nlohmann::json& document, bool withSyntax) 
       Fail("", "the JSON does not parse: " + StripJsonExceptionPrefix(error.what()), "glTF JSON");
     }
   }
-  if (!document.is_object()) {
-    if (withSyntax) Fail("", std::string("the JSON is a ") + document.type_name(), "a glTF JSON object");
-    return false;  // tinygltf says what is wrong with the syntax
-  }
+  if (!document.is_object()) Fail("", std::string("the JSON is a ") + document.type_name(), "a glTF JSON object");
+  CheckVersion(document);
   auto [pointer, expected] = WrongType(document, "root", "");
   if (!pointer.empty()) {
     Fail(pointer,
@@ -143,12 +141,11 @@ bool GltfReader::CheckDocument(const nlohmann::json& document, bool withSyntax) 
       }
     }
   }
-  return true;
 }
 
 void GltfReader::PreCheck(const std::string& jsonText) const {
   nlohmann::json document = nlohmann::json::parse(jsonText, nullptr, false);
-  if (!CheckDocument(document, false)) return;
+  CheckDocument(document);
   for (const char* collection : {"buffers", "images"}) {
     if (!document.contains(collection) || !document[collection].is_array()) continue;
     const auto& items = document[collection];
@@ -183,6 +180,22 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
       }
     }
   }
+}
+
+void GltfReader::CheckVersion(const nlohmann::json& document) const {
+  const std::string expected = "a glTF 2.0 file (asset.version \"2.0\")";
+  if (!document.contains("asset")) Fail("", "no \"asset\" property", expected);
+  if (!document["asset"].is_object()) return;  // the type check says so
+  const nlohmann::json& asset = document["asset"];
+  if (!asset.contains("version")) Fail("/asset", "no asset.version", expected);
+  const nlohmann::json& version = asset["version"];
+  if (version.is_string() && version.get<std::string>().compare(0, 2, "2.") == 0) return;
+  const bool oneOh = version.is_string() ? version.get<std::string>().compare(0, 2, "1.") == 0
+                                         : version.is_number() && version.get<double>() == 1;
+  Fail("/asset/version",
+       "version " + version.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).substr(0, 40) +
+           (oneOh ? ": a glTF 1.0 file, which this importer does not read" : ""),
+       expected);
 }
 
 void GltfReader::CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const {
