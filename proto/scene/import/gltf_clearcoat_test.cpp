@@ -45,7 +45,7 @@ TEST(GltfClearcoatTest, FactorsTexturesAndNormalScaleAreKept) {
   const Scene scene = Import(document);
   EXPECT_TRUE(scene.importWarnings.empty());
   ASSERT_EQ(scene.materials.size(), 2u);
-  const MetallicRoughness& m = *scene.materials[1].pbr;
+  const MetallicRoughness& m = scene.materials[1].As<MetallicRoughness>();
   EXPECT_DOUBLE_EQ(m.clearcoat, 0.75);
   EXPECT_DOUBLE_EQ(m.clearcoatRoughness, 0.25);
   ASSERT_TRUE(m.clearcoatTexture && m.clearcoatRoughnessTexture && m.clearcoatNormalTexture);
