@@ -28,6 +28,15 @@ json StrategiesJson() {
   return json{{"strategies", names}, {"default", std::string(StrategyName(kDefaultStrategy))}};
 }
 
+json ImportWarningsJson(const std::vector<ImportWarning>& warnings) {
+  json list = json::array();
+  for (const ImportWarning& warning : warnings) {
+    list.push_back({{"code", warning.code}, {"file", warning.file}, {"pointer", warning.pointer},
+                    {"message", warning.message}});
+  }
+  return list;
+}
+
 std::string JobPath(uint64_t id) { return "/api/v1/jobs/" + std::to_string(id); }
 
 json JobJson(const JobRecord& record, const json* liveStats) {

@@ -3,11 +3,13 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "coordinator/farm/farm_control.h"
 #include "coordinator/jobs/job_store.h"
+#include "proto/scene/scene.h"
 
 namespace tcfarm::http {
 
@@ -34,6 +36,10 @@ nlohmann::json BansJson(const std::vector<WorkerBan>& bans);
 // GET /api/v1/strategies: {"strategies": [names, in kStrategyNames's order], "default"}, so
 // clients offer the coordinator's own list instead of a copy of it.
 nlohmann::json StrategiesJson();
+
+// A scene's import warnings as the job record and the scene check show them: each
+// {"code", "file", "pointer", "message"}.
+nlohmann::json ImportWarningsJson(const std::vector<ImportWarning>& warnings);
 
 std::string JobPath(uint64_t id);  // "/api/v1/jobs/<id>"
 

@@ -12,6 +12,7 @@
 #include "coordinator/http/query_params.h"
 #include "coordinator/http/submit_request.h"
 #include "coordinator/planner/job_memory.h"
+#include "proto/metrics/metric_builders.h"
 
 namespace tcfarm::http {
 namespace {
@@ -29,8 +30,13 @@ int ParseLimit(const httplib::Request& request) {
 }  // namespace
 
 JobRoutes::JobRoutes(JobStore& store, FarmControl& farm, StoreJanitor& janitor, AssetStore& assets,
-                     FrameRanges& ranges, const ApiAuth& auth, JobLimits limits)
-    : store_(store), farm_(farm), janitor_(janitor), assets_(assets), ranges_(ranges), auth_(auth), limits_(limits) {}
+                     FrameRanges& ranges, const ApiAuth& auth, JobLimits limits, prometheus::Registry* metrics)
+    : store_(store), farm_(farm), janitor_(janitor), assets_(assets), ranges_(ranges), auth_(auth), limits_(limits) {
+  if (metrics == nullptr) return;
+  importWarnings_ = &NewCounterFamily(*metrics, "tcfarm_import_warnings_total",
+                                      "Warnings importing submitted scenes gave (a default added, a feature left "
+                                      "out), by code.");
+}
 
 std::vector<Route> JobRoutes::Routes() {
   return {
@@ -76,9 +82,17 @@ void JobRoutes::SubmitJob(const httplib::Request& request, const std::string& bo
     if (const std::optional<Caller> caller = auth_.CallerOf(request)) spec.options["submitted_by"] = caller->tokenId;
     id = store_.Submit(spec);
   }
+  CountImportWarnings(spec);
   ranges_.Remember(id, FrameRanges::Range{spec.firstFrame, spec.lastFrame, JobPreviewView(spec)});
   response.set_header("Location", JobPath(id));
   WriteJson(response, JobDetail(LoadJob(store_, id)), 201);
+}
+
+void JobRoutes::CountImportWarnings(const JobSpec& spec) {
+  if (importWarnings_ == nullptr || !spec.options.contains("import_warnings")) return;
+  for (const json& warning : spec.options["import_warnings"]) {
+    importWarnings_->Add({{"code", warning.value("code", "unknown")}}).Increment();
+  }
 }
 
 void JobRoutes::ListJobs(const httplib::Request& request, const std::string&, httplib::Response& response) {

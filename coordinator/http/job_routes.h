@@ -21,6 +21,13 @@
 #include "coordinator/store/asset_store.h"
 #include "coordinator/store/store_janitor.h"
 
+namespace prometheus {
+class Counter;
+class Registry;
+template <typename T>
+class Family;
+}  // namespace prometheus
+
 namespace tcfarm::http {
 
 // What a submission may need (ApiOptions has their meaning).
@@ -35,13 +42,15 @@ class JobRoutes {
   // janitor: deletes jobs, and holds the assets a submission names until it is stored.
   // assets: where a submission's assets must be. ranges: filled at submit, emptied at delete.
   JobRoutes(JobStore& store, FarmControl& farm, StoreJanitor& janitor, AssetStore& assets,
-            FrameRanges& ranges, const ApiAuth& auth, JobLimits limits);
+            FrameRanges& ranges, const ApiAuth& auth, JobLimits limits, prometheus::Registry* metrics);
 
   std::vector<Route> Routes();
 
  private:
   void SubmitJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CheckJobFitsInMemory(const JobSpec& spec) const;
+  // Counts a stored submission's import warnings by code (tcfarm_import_warnings_total).
+  void CountImportWarnings(const JobSpec& spec);
   void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
@@ -58,6 +67,7 @@ class JobRoutes {
 
   JobStore& store_;
   FarmControl& farm_;
+  prometheus::Family<prometheus::Counter>* importWarnings_ = nullptr;  // with a metrics registry only
   StoreJanitor& janitor_;
   AssetStore& assets_;
   FrameRanges& ranges_;

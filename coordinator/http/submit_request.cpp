@@ -17,6 +17,7 @@
 #include "proto/frame/encoded_image.h"
 #include "proto/frame/view_transform.h"
 #include "coordinator/http/api_error.h"
+#include "coordinator/http/job_json.h"
 #include "proto/json/strict_json.h"
 #include "proto/scene/import/import_options.h"
 #include "proto/scene/import/scene_import.h"
@@ -506,7 +507,7 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
                                              : ReadSceneFromFile(*sceneFile, files, base, importOptions);
   BindTexturesToAssets(scene, assets.store, inlineScene != request.end() ? "/scene" : "/scene_file");
   // What the import left out reaches the user with the job, not only the coordinator's log.
-  if (!scene.importWarnings.empty()) spec.options["import_warnings"] = scene.importWarnings;
+  if (!scene.importWarnings.empty()) spec.options["import_warnings"] = ImportWarningsJson(scene.importWarnings);
   std::tie(spec.firstFrame, spec.lastFrame) = ReadFrameRange(request, scene.render);
   // The canonical text, not the client's: equal scenes get equal hashes, whatever their
   // key order or spacing, so workers cache them once.

@@ -176,6 +176,21 @@ struct RenderSettings {
   int LastFrame() const { return firstFrame + frameCount - 1; }
 };
 
+// One thing an importer added, left out or could not honour. `code` is a stable snake_case
+// name (counted per code in the coordinator's metrics), `pointer` the JSON pointer into
+// `file` it concerns (empty for the whole file), `message` what happened, for a person.
+struct ImportWarning {
+  std::string code;
+  std::string file;
+  std::string pointer;
+  std::string message;
+  // "<file> at <pointer>: <message>", as a log line reads it.
+  std::string Line() const { return file + (pointer.empty() ? "" : " at " + pointer) + ": " + message; }
+  bool operator==(const ImportWarning& o) const {
+    return code == o.code && file == o.file && pointer == o.pointer && message == o.message;
+  }
+};
+
 struct Scene {
   Camera camera;
   std::vector<Light> lights;
@@ -186,10 +201,10 @@ struct Scene {
   std::map<std::string, std::shared_ptr<const TriangleMesh>> meshes;
   Vec3 background{0, 0, 0};
   RenderSettings render;
-  // What an importer left out or could not honour (an extension it does not implement),
-  // each "<file> at <JSON pointer>: <what>", for whoever asked for the import to show its
-  // user (a submission's job record lists them). Not written out.
-  std::vector<std::string> importWarnings;
+  // What an importer added, left out or could not honour (a default camera, an extension it
+  // does not implement), for whoever asked for the import to show its user (a submission's
+  // job record lists them). Not written out.
+  std::vector<ImportWarning> importWarnings;
 
   bool CameraMoves() const;
   bool AnyLightChanges() const;

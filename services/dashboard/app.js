@@ -270,6 +270,18 @@ function renderSummary(job) {
     el("span", { class: "item" }, [el("b", { text: key + " " }), el("span", { text: String(value) })])));
 }
 
+// What importing the scene added or left out (a default camera, an extension not
+// implemented): each warning's message, with its code and where in the file it points.
+function renderWarnings(job) {
+  const warnings = job.warnings || [];
+  const list = $("job-warnings");
+  list.hidden = warnings.length === 0;
+  list.replaceChildren(...warnings.map((warning) => el("li", {}, [
+    el("b", { text: `${warning.code} ` }),
+    el("span", { text: `${warning.pointer ? `at ${warning.pointer}: ` : ""}${warning.message}` }),
+  ])));
+}
+
 function renderTracedChart(job) {
   const pixels = job.width * job.height;
   const data = (job.traced_per_frame || []).map((count, i) =>
@@ -640,6 +652,7 @@ function renderJob(job) {
   $("job-title").textContent = `Job ${job.id}: ${job.name || ""}`;
   renderActions(job);
   renderSummary(job);
+  renderWarnings(job);
   renderImages(job);
   renderTracedChart(job);
   renderCoherenceChart(job);

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from browser import Browser
-from farm_harness import ROOT, LocalFarm, small_scene
+from farm_harness import ROOT, LocalFarm, small_scene, tcfarm_cli
 
 sys.path.insert(0, str(ROOT / "tests" / "gltf"))
 import make_gltf  # noqa: E402
@@ -183,6 +183,29 @@ def test_a_gltf_with_its_buffer_and_image_is_uploaded_and_rendered(tmp_path):
             # The same files again: the farm has them all, nothing is uploaded twice.
             submit_through_the_form(page, {})
             assert "3 files, 0 uploaded, the rest already on the farm" in page.text("#submit-status")
+            no_page_errors(page)
+
+
+def test_the_job_page_lists_what_the_import_added(tmp_path):
+    """A glTF without a camera or lights gets defaults, and the job page says so in its words."""
+    bare = make_gltf.Gltf()
+    bare.node(name="quad", mesh=bare.mesh([{"positions": make_gltf.quad(1.0), "indices": [0, 1, 2, 0, 2, 3]}]))
+    path = tmp_path / "bare.gltf"
+    path.write_text(bare.gltf_text())
+    (tmp_path / "farm").mkdir()
+    with LocalFarm(tmp_path / "farm", workers=0) as farm:
+        result = tcfarm_cli(farm, "submit", path, "--size", "8x6")
+        assert result.returncode == 0, result.stderr
+        job = farm.client.jobs()[0]
+        record = farm.client.job(job["id"])
+        with Browser(tmp_path / "profile") as page:
+            page.goto(f"{farm.url}/#job={job['id']}")
+            page.wait_for("!document.getElementById('job-warnings').hidden")
+            shown = page.text("#job-warnings")
+            for warning in record["warnings"]:
+                assert warning["code"] in shown and warning["message"] in shown, (shown, warning)
+            assert "default_light" in shown and "the file has no light" in shown, shown
+            assert "default_camera" in shown and "the file has no camera" in shown, shown
             no_page_errors(page)
 
 

@@ -380,7 +380,8 @@ def test_a_gltf_embedding_a_broken_image_is_refused_at_submit_naming_it(worker_b
 
 def test_an_optional_extension_not_implemented_is_reported_by_render_and_submit(worker_binary, tmp_path):
     """extensionsUsed naming an extension the importer does not implement: the scene renders
-    without it, and both tcfarm-worker render and tcfarm submit say so, with its pointer."""
+    without it, and tcfarm-worker render, tcfarm submit, tcfarm status, the job record and
+    the coordinator's metrics all say so, with its code and pointer."""
     document = json.loads(make_gltf.red_quad().gltf_text())
     used = document.setdefault("extensionsUsed", [])
     used.append("KHR_materials_sheen")
@@ -393,9 +394,17 @@ def test_an_optional_extension_not_implemented_is_reported_by_render_and_submit(
     with LocalFarm(tmp_path / "farm", workers=1) as farm:
         result = tcfarm_cli(farm, "submit", path, "--size", "8x6")
         assert result.returncode == 0, result.stderr
-        assert f"warning: {said}" in result.stderr, result.stderr
+        assert f"warning: [extension_not_implemented] {said}" in result.stderr, result.stderr
         job = farm.client.jobs()[0]
-        assert any(said in warning for warning in farm.client.job(job["id"])["warnings"])
+        warnings = farm.client.job(job["id"])["warnings"]
+        pointer = f"/extensionsUsed/{len(used) - 1}"
+        assert {"code": "extension_not_implemented", "file": "sheen.gltf", "pointer": pointer,
+                "message": 'extension "KHR_materials_sheen" is not implemented; what it adds is left out'} in warnings
+        status = tcfarm_cli(farm, "status", str(job["id"]))
+        assert f"warning: [extension_not_implemented] {said}" in status.stdout, status.stdout
+        counted = re.search(r'^tcfarm_import_warnings_total\{code="extension_not_implemented"\} (\S+)$',
+                            farm.metrics(), re.M)
+        assert counted and float(counted.group(1)) == 1, farm.metrics()
 
 
 def test_a_moving_glTF_camera_makes_auto_pick_guarded_and_say_why(tmp_path):

@@ -128,8 +128,8 @@ def cmd_submit(client, args):
                         view=args.view, exposure=args.exposure, assets=assets,
                         scene_file=files.scene_file, **_import_options(args, files))
     if not args.json:
-        for warning in job.get("warnings", []):
-            sys.stderr.write(f"warning: {warning}\n")
+        for line in _warning_lines(job):
+            sys.stderr.write(f"warning: {line}\n")
     if not args.wait:
         print(json.dumps(job) if args.json else f"submitted job {job['id']}")
         return 0
@@ -138,6 +138,18 @@ def cmd_submit(client, args):
         sys.stderr.write("\n")
     print(json.dumps(job) if args.json else _summary(job))
     return 0 if job["state"] == "completed" else 1
+
+
+def _warning_lines(job):
+    """Each import warning as one line: "[code] file at pointer: message"."""
+    lines = []
+    for warning in job.get("warnings", []):
+        if isinstance(warning, str):  # a job recorded before warnings had codes
+            lines.append(warning)
+            continue
+        where = warning.get("file", "") + (f" at {warning['pointer']}" if warning.get("pointer") else "")
+        lines.append(f"[{warning.get('code', '?')}] {where}: {warning.get('message', '')}")
+    return lines
 
 
 def _verify(text):
@@ -395,6 +407,7 @@ def cmd_status(client, args):
     if job.get("view", "standard") != "standard" or job.get("exposure", 0):
         details.append(f"previews: view {job['view']}, exposure {job['exposure']:+g} EV")
     details += _verification_lines(job)
+    details += [f"warning: {line}" for line in _warning_lines(job)]
     try:
         details += _frame_strip(client.frame_states(args.job))
     except ApiError as e:

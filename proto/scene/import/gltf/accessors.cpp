@@ -42,13 +42,22 @@ GltfReader::AccessorData GltfReader::ReadAccessor(int index, const std::string& 
 }
 
 void GltfReader::ChargeValues(uint64_t values, const std::string& pointer) const {
-  const uint64_t budget = kValueBytesPerBufferByte * BufferBytes() + kValueBytesAllowance;
-  valueBytesRead_ += values * sizeof(double);
+  ChargeValueBytes(values * sizeof(double), BufferBytes(), "reading it brings the values read from the file's accessors", pointer);
+}
+
+void GltfReader::ChargeDecodedBytes(uint64_t bytes, const std::string& pointer) const {
+  // Against the file's own buffers: what earlier decoding produced must not raise the limit.
+  ChargeValueBytes(bytes, fileBufferBytes_, "decoding it brings the values read and decoded from the file", pointer);
+}
+
+void GltfReader::ChargeValueBytes(uint64_t bytes, size_t bufferBytes, const std::string& doing,
+                                  const std::string& pointer) const {
+  const uint64_t budget = kValueBytesPerBufferByte * bufferBytes + kValueBytesAllowance;
+  valueBytesRead_ += bytes;
   if (valueBytesRead_ > budget) {
-    Fail(pointer, "reading it brings the values read from the file's accessors to " +
-                      std::to_string(valueBytesRead_) + " bytes",
+    Fail(pointer, doing + " to " + std::to_string(valueBytesRead_) + " bytes",
          "at most " + std::to_string(kValueBytesPerBufferByte) + " bytes of values per byte of the file's buffers (" +
-             std::to_string(BufferBytes()) + ") + 16 MiB: accessors that are not read over and over");
+             std::to_string(bufferBytes) + ") + 16 MiB: accessors that are not read over and over");
   }
 }
 
@@ -225,6 +234,14 @@ double GltfReader::Component(const unsigned char* at, int componentType, bool no
     case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return Load<uint32_t>(at, false);
     case TINYGLTF_COMPONENT_TYPE_FLOAT: return Load<float>(at, false);
     default: return 0;  // refused by the callers' componentTypes
+  }
+}
+
+void GltfReader::CheckNormalized(int index, const std::string& what) const {
+  const tinygltf::Accessor& accessor = model_.accessors[static_cast<size_t>(index)];
+  if (accessor.componentType != TINYGLTF_COMPONENT_TYPE_FLOAT && !accessor.normalized) {
+    Fail(Pointer("accessors", static_cast<size_t>(index)) + "/normalized", "integer " + what + " that are not normalized",
+         "normalized: true on integer " + what + " (KHR_mesh_quantization)");
   }
 }
 

@@ -2,6 +2,21 @@
 #include "proto/scene/import/gltf/gltf_reader.h"
 
 namespace tcfarm::gltf {
+namespace {
+
+Vec3 Normalized(const Vec3& v) {
+  const double length = Norm(v);
+  return length > 0 ? Vec3{v.x / length, v.y / length, v.z / length} : v;
+}
+
+// "(x, y, z)", three significant digits each: enough for a person to picture it.
+std::string Triple(const Vec3& v) {
+  char text[96];
+  std::snprintf(text, sizeof text, "(%.3g, %.3g, %.3g)", v.x, v.y, v.z);
+  return text;
+}
+
+}  // namespace
 
 void GltfReader::AddLights(Scene& scene) const {
   bool any = false;
@@ -60,17 +75,36 @@ void GltfReader::AddLights(Scene& scene) const {
     scene.lights.push_back(out);
     any = true;
   }
-  if (!any) {
-    Light light;
-    light.type = Light::Type::kDirectional;
-    light.direction = AnimatedVec3::Constant(kDefaultLightDirection);
-    // Irradiance pi: a white diffuse surface facing it shows white.
-    light.intensity = AnimatedVec3::Constant(Vec3{kPi, kPi, kPi});
-    scene.lights.push_back(light);
-  }
+  if (!any) AddDefaultLight(scene);
 }
 
-void GltfReader::AddCamera(Scene& scene) const {
+void GltfReader::AddDefaultLight(Scene& scene) const {
+  // kDefaultLightDirection in the camera's own axes (right, up, forward) at the first frame:
+  // from above and behind its right shoulder, so what the camera sees is lit whichever way
+  // the file's camera looks. For the default camera that is kDefaultLightDirection itself.
+  Vec3 direction = kDefaultLightDirection;
+  if (cameraFromFile_) {
+    const CameraPose pose = scene.camera.At(0);
+    const Vec3 forward = Normalized(Sub(pose.lookAt, pose.position));
+    const Vec3 right = Normalized(CrossProduct(forward, pose.up));
+    const Vec3 up = CrossProduct(right, forward);
+    for (int axis = 0; axis < 3; ++axis) {
+      direction[axis] = kDefaultLightDirection.x * right[axis] + kDefaultLightDirection.y * up[axis] -
+                        kDefaultLightDirection.z * forward[axis];
+    }
+  }
+  Light light;
+  light.type = Light::Type::kDirectional;
+  light.direction = AnimatedVec3::Constant(direction);
+  // Irradiance pi: a white diffuse surface facing it shows white.
+  light.intensity = AnimatedVec3::Constant(Vec3{kPi, kPi, kPi});
+  scene.lights.push_back(light);
+  Warn("default_light", "/extensions/KHR_lights_punctual",
+       "the file has no light; one white directional light (irradiance pi) shines along " + Triple(direction) +
+           ", from above and behind the camera's right shoulder");
+}
+
+void GltfReader::AddCamera(Scene& scene) {
   int chosenNode = -1;
   const std::string& wanted = options_.camera;
   for (int node : order_) {
@@ -93,6 +127,7 @@ void GltfReader::AddCamera(Scene& scene) const {
     FrameBounds(scene);
     return;
   }
+  cameraFromFile_ = true;
   const size_t cameraIndex = static_cast<size_t>(model_.nodes[static_cast<size_t>(chosenNode)].camera);
   const tinygltf::Camera& camera = model_.cameras[cameraIndex];
   const std::string pointer = Pointer("cameras", cameraIndex);
@@ -122,22 +157,55 @@ void GltfReader::AddCamera(Scene& scene) const {
   scene.camera.rig = *motions_[static_cast<size_t>(chosenNode)];
 }
 
-void GltfReader::FrameBounds(Scene& scene) const {
-  Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
-  Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
-  for (const Shape& shape : scene.shapes) {
-    Affine worldFromObject = shape.motion.WorldFromObject(0);  // the identity for a skinned mesh
-    const std::vector<Vec3> vertices =
-        shape.deformation ? Deform(shape.Mesh(), *shape.deformation, 0).positions : shape.Mesh().vertices;
-    for (const Vec3& vertex : vertices) {
-      Vec3 v = worldFromObject.Apply(vertex);
-      for (int axis = 0; axis < 3; ++axis) {
-        low[axis] = std::min(low[axis], v[axis]);
-        high[axis] = std::max(high[axis], v[axis]);
+GltfReader::Bounds GltfReader::AnimationBounds(const Scene& scene) const {
+  Bounds bounds;
+  auto add = [&](const Vec3& v) {
+    for (int axis = 0; axis < 3; ++axis) {
+      bounds.low[axis] = std::min(bounds.low[axis], v[axis]);
+      bounds.high[axis] = std::max(bounds.high[axis], v[axis]);
+    }
+  };
+  // Every frame, or evenly spaced ones when deforming every vertex at every frame would
+  // cost more than kFramingVertexBudget vertex evaluations; the framing margin covers the rest.
+  size_t deformed = 0;
+  for (const Shape& shape : scene.shapes) deformed += shape.deformation ? shape.Mesh().vertices.size() : 0;
+  const size_t frames = static_cast<size_t>(frameCount_);
+  const size_t step = std::max<size_t>(1, deformed * frames / kFramingVertexBudget);
+  std::vector<double> framed;
+  for (size_t frame = 0; frame < frames; frame += step) framed.push_back(static_cast<double>(frame));
+  if (framed.back() != static_cast<double>(frames - 1)) framed.push_back(static_cast<double>(frames - 1));
+  for (double at : framed) {
+    for (const Shape& shape : scene.shapes) {
+      if (shape.deformation) {  // placed by its joints alone: its deformed vertices are in the world
+        for (const Vec3& vertex : Deform(shape.Mesh(), *shape.deformation, at).positions) add(vertex);
+        continue;
       }
+      const Affine worldFromObject = shape.motion.WorldFromObject(at);
+      for (const Vec3& corner : MeshBoxCorners(shape.Mesh())) add(worldFromObject.Apply(corner));
     }
   }
-  if (scene.shapes.empty()) low = high = Vec3{};
+  if (scene.shapes.empty()) bounds.low = bounds.high = Vec3{};
+  return bounds;
+}
+
+std::array<Vec3, 8> GltfReader::MeshBoxCorners(const TriangleMesh& mesh) {
+  Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
+  Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
+  for (const Vec3& v : mesh.vertices) {
+    for (int axis = 0; axis < 3; ++axis) {
+      low[axis] = std::min(low[axis], v[axis]);
+      high[axis] = std::max(high[axis], v[axis]);
+    }
+  }
+  std::array<Vec3, 8> corners;
+  for (int i = 0; i < 8; ++i) corners[i] = Vec3{(i & 1) ? high.x : low.x, (i & 2) ? high.y : low.y, (i & 4) ? high.z : low.z};
+  return corners;
+}
+
+void GltfReader::FrameBounds(Scene& scene) const {
+  const Bounds bounds = AnimationBounds(scene);
+  const Vec3& low = bounds.low;
+  const Vec3& high = bounds.high;
   Vec3 center{(low.x + high.x) / 2, (low.y + high.y) / 2, (low.z + high.z) / 2};
   double radius = std::max(Norm(Sub(high, low)) / 2, 1e-3);
   double distance = kFramingMargin * radius / std::sin(kDefaultFovDegrees / 2 * kPi / 180);
@@ -153,6 +221,11 @@ void GltfReader::FrameBounds(Scene& scene) const {
   scene.camera.position = AnimatedVec3::Constant(position);
   scene.camera.lookAt = AnimatedVec3::Constant(center);
   scene.camera.verticalFovDegrees = kDefaultFovDegrees;
+  Warn("default_camera", "/cameras",
+       "the file has no camera; one at " + Triple(position) + " looks at " + Triple(center) +
+           " from the front and above, framing the model's bounds " +
+           (frameCount_ == 1 ? std::string("at its one frame")
+                             : "over all " + std::to_string(frameCount_) + " frames of the animation"));
 }
 
 }  // namespace tcfarm::gltf

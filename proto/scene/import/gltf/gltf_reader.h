@@ -1,11 +1,13 @@
 // The glTF reader: a loaded tinygltf model -> Scene, with everything the scene model relies
 // on checked and refused with the glTF pointer of the bad value. Its members are defined by
-// role: loading.cpp (the container, pre-checks, tinygltf), accessors.cpp, materials.cpp,
-// animation.cpp (node graph, transforms, animation channels), meshes.cpp, skins_morphs.cpp,
-// cameras_lights.cpp.
+// role: loading.cpp (the container, pre-checks, tinygltf), meshopt_views.cpp and
+// draco_primitives.cpp (compressed geometry, decoded into plain buffers), extension_values.cpp,
+// accessors.cpp, materials.cpp, animation.cpp (node graph, transforms, animation channels),
+// meshes.cpp, skins_morphs.cpp, cameras_lights.cpp.
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -31,6 +33,11 @@
 #include "proto/scene/scene_limits.h"
 #include "proto/scene/import/messages.h"
 #include "proto/scene/import/scene_files.h"
+
+namespace draco {
+class Mesh;
+class PointAttribute;
+}  // namespace draco
 
 namespace tcfarm::gltf {
 
@@ -69,6 +76,9 @@ constexpr double kSingularRatio = 1e-12;
 const Vec3 kViewFrom{0, 0.35, 1};
 constexpr double kDefaultFovDegrees = 45;
 constexpr double kFramingMargin = 1.1;
+// The most vertex deformations framing the animation may spend (frames x deformed vertices);
+// past it, evenly spaced frames are framed.
+constexpr size_t kFramingVertexBudget = size_t{20} << 20;
 // With no light in the file, one white directional light over the camera's shoulder, as OBJ.
 const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
 
@@ -76,7 +86,8 @@ const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
 inline const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual",          "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_mesh_quantization",        "KHR_materials_emissive_strength", "KHR_materials_unlit",
-    "KHR_materials_specular",       "KHR_texture_transform",           "KHR_materials_clearcoat"};
+    "KHR_materials_specular",       "KHR_texture_transform",           "KHR_materials_clearcoat",
+    "KHR_draco_mesh_compression",   "EXT_meshopt_compression"};
 
 class GltfReader {
  public:
@@ -87,8 +98,8 @@ class GltfReader {
  private:
   [[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) const;
   // Prints the warning (a render shows it) and keeps it for Scene::importWarnings (a
-  // submission's job record shows it).
-  void Warn(const std::string& pointer, const std::string& text) const;
+  // submission's job record shows it). `code` names the kind of warning (ImportWarning).
+  void Warn(const std::string& code, const std::string& pointer, const std::string& text) const;
 
   bool IsBinary() const;
 
@@ -113,6 +124,48 @@ class GltfReader {
 
   // Refuses a required extension the importer does not implement; warns of a used one.
   void CheckExtensions() const;
+
+  // ---- extension objects (tinygltf keeps them as Values) ---------------------------------
+
+  // The object extension `name` holds, if it is one.
+  static const tinygltf::Value* ExtensionOf(const tinygltf::ExtensionMap& extensions, const std::string& name);
+  // `key` of an extension object as a whole number (below 2^53): `fallback` when absent, else refused.
+  uint64_t WholeNumberIn(const tinygltf::Value& object, const std::string& key, const std::string& pointer,
+                         std::optional<uint64_t> fallback = std::nullopt) const;
+  std::string StringIn(const tinygltf::Value& object, const std::string& key, const std::string& pointer,
+                       const std::string& fallback) const;
+
+  // ---- compressed geometry, decoded into plain buffers -----------------------------------
+  // Both decoders write what they decode into buffers of their own appended to the model and
+  // point the buffer views (meshopt) or accessors (Draco) there, so that everything after
+  // reads plain geometry through ReadAccessor and the scene holds decoded data only.
+
+  // EXT_meshopt_compression's fallback buffers without a uri hold nothing to read; tinygltf
+  // would refuse them, so each gets a one-byte stand-in in the JSON it reads. Before PreCheck.
+  void StandInForFallbackBuffers();
+  // tinygltf refuses indices without a buffer view, which Draco's extension allows: such an
+  // accessor reads the Draco buffer view in the JSON tinygltf reads, until the decoded faces
+  // replace it. Before PreCheck.
+  void StandInForDracoIndexViews();
+  // Every buffer view with EXT_meshopt_compression, decoded and filtered (after Load).
+  void DecodeMeshoptViews();
+  void DecodeMeshoptView(size_t index, const tinygltf::Value& extension);
+  // Every primitive with KHR_draco_mesh_compression: its attributes' and indices' accessors
+  // then read the decoded mesh (after DecodeMeshoptViews).
+  void DecodeDracoPrimitives();
+  void DecodeDracoPrimitive(tinygltf::Primitive& primitive, const std::string& pointer);
+  // The accessor `index` that decoded Draco data of `count` elements fills: it exists, it is
+  // filled once, and its count is the decoded one.
+  tinygltf::Accessor& DracoAccessor(int index, size_t count, const std::string& at);
+  void WriteDracoAttribute(int index, const draco::PointAttribute& attribute, size_t points, const std::string& at);
+  void WriteDracoIndices(int index, const draco::Mesh& mesh, const std::string& at);
+  // Points the accessor at `bytes`, in a buffer and buffer view of their own.
+  void PointAccessorAt(tinygltf::Accessor& accessor, std::vector<unsigned char> bytes);
+  // Appends `bytes` as a buffer of their own; returns its index.
+  int AddDecodedBuffer(std::vector<unsigned char> bytes);
+  // Decoded bytes count against the value budget of the file's own buffers, so that a small
+  // compressed file cannot decode into gigabytes.
+  void ChargeDecodedBytes(uint64_t bytes, const std::string& pointer) const;
 
   // ---- accessors ------------------------------------------------------------------------
 
@@ -148,6 +201,10 @@ class GltfReader {
                             const std::vector<int>& componentTypes, const std::string& expected) const;
 
   void ChargeValues(uint64_t values, const std::string& pointer) const;
+  // The one counter of value bytes (ChargeValues, ChargeDecodedBytes), against a budget of
+  // kValueBytesPerBufferByte per byte of `bufferBytes`.
+  void ChargeValueBytes(uint64_t bytes, size_t bufferBytes, const std::string& doing,
+                        const std::string& pointer) const;
 
   size_t BufferBytes() const;
 
@@ -194,6 +251,8 @@ class GltfReader {
   static double Component(const unsigned char* at, int componentType, bool normalized);
 
   void CheckFinite(const AccessorData& data, int index, const std::string& what) const;
+  // Integer unit vectors (KHR_mesh_quantization's normals and tangents) are normalized.
+  void CheckNormalized(int index, const std::string& what) const;
 
   // ---- materials ------------------------------------------------------------------------
 
@@ -290,6 +349,9 @@ class GltfReader {
                         Scene& scene);
 
   void AddShapes(Scene& scene);
+  // A material whose textures read a texture coordinate set the primitive lacks is drawn
+  // without those textures: said, not silent.
+  void WarnOfMissingTexCoords(const Material& material, const TriangleMesh& mesh, const std::string& pointer) const;
 
   // ---- skins and morph targets ----------------------------------------------------------
 
@@ -340,19 +402,32 @@ class GltfReader {
 
   // ---- lights and camera ----------------------------------------------------------------
 
+  // The file's lights, or (with none) AddDefaultLight's. After AddCamera: the default light
+  // is placed by the camera.
   void AddLights(Scene& scene) const;
+  void AddDefaultLight(Scene& scene) const;
 
-  void AddCamera(Scene& scene) const;
+  void AddCamera(Scene& scene);
 
-  // No camera in the file: one framing the shapes' bounds at frame 0, as for OBJ.
+  // No camera in the file: one framing the union of the shapes' bounds over the animation's
+  // frames, looking from kViewFrom as for OBJ.
   void FrameBounds(Scene& scene) const;
+  struct Bounds {
+    Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
+    Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
+  };
+  Bounds AnimationBounds(const Scene& scene) const;
+  static std::array<Vec3, 8> MeshBoxCorners(const TriangleMesh& mesh);
 
   const ImportInput& input_;
   const ImportOptions& options_;
   tinygltf::Model model_;
   gltf::EmbeddedData embedded_;  // while loading: the data URIs, decoded
   mutable uint64_t valueBytesRead_ = 0;  // by ReadAccessor, against kValueBytesPerBufferByte
-  mutable std::vector<std::string> warnings_;  // as Warn gave them
+  size_t fileBufferBytes_ = 0;           // the file's own buffers, before anything is decoded
+  std::set<size_t> fallbackBuffers_;     // EXT_meshopt_compression's buffers without data
+  std::set<int> dracoAccessors_;         // accessors that already read a decoded Draco mesh
+  mutable std::vector<ImportWarning> warnings_;  // as Warn gave them
   // Per glTF image that a material uses: its bytes and their hash (Texture::asset).
   mutable std::map<int, std::pair<std::shared_ptr<const std::string>, std::string>> imageBytes_;
   std::vector<int> materialIndex_;  // per glTF material, its index in the scene
@@ -365,6 +440,7 @@ class GltfReader {
   std::vector<bool> inScene_;
   std::vector<int> order_;  // the chosen scene's nodes, parents before children
   int animation_ = -1;
+  bool cameraFromFile_ = false;  // AddCamera found the file's camera
   int frameCount_ = 1;
   std::vector<std::shared_ptr<const Motion>> motions_;  // per node, its world motion
   std::vector<std::map<std::string, Channel>> channels_;  // per node, its channels by path

@@ -11,18 +11,23 @@ GltfReader::GltfReader(const ImportInput& input) : input_(input), options_(input
 
 Scene GltfReader::Read() {
   embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+  StandInForFallbackBuffers();
+  StandInForDracoIndexViews();
   PreCheck(embedded_.json);
   Load();
   embedded_ = {};
   CheckExtensions();
+  fileBufferBytes_ = BufferBytes();
+  DecodeMeshoptViews();
+  DecodeDracoPrimitives();
   Scene scene;
   AddMaterials(scene);
   BuildGraph();
   ChooseAnimation();
   BuildMotions();
   AddShapes(scene);
-  AddLights(scene);
   AddCamera(scene);
+  AddLights(scene);
   scene.render.width = kDefaultWidth;
   scene.render.height = kDefaultHeight;
   scene.render.firstFrame = 0;
@@ -35,9 +40,12 @@ Scene GltfReader::Read() {
   FailInput(pointer, input_.displayName + ": " + problem, expected);
 }
 
-void GltfReader::Warn(const std::string& pointer, const std::string& text) const {
-  warnings_.push_back(input_.displayName + (pointer.empty() ? "" : " at " + pointer) + ": " + text);
-  std::fprintf(stderr, "warning: %s\n", warnings_.back().c_str());
+void GltfReader::Warn(const std::string& code, const std::string& pointer, const std::string& text) const {
+  ImportWarning warning{code, input_.displayName, pointer, text};
+  // A sampler or texture shared by many materials is said once.
+  if (std::find(warnings_.begin(), warnings_.end(), warning) != warnings_.end()) return;
+  warnings_.push_back(std::move(warning));
+  std::fprintf(stderr, "warning: %s\n", warnings_.back().Line().c_str());
 }
 
 bool GltfReader::IsBinary() const { return input_.bytes.compare(0, 4, "glTF") == 0; }
@@ -207,7 +215,7 @@ void GltfReader::Load() {
     return text;
   };
   if (!loaded) Fail("", "tinygltf cannot read it: " + oneLine(error), "a valid glTF 2.0 file");
-  if (!warning.empty()) Warn("", "tinygltf: " + oneLine(warning));
+  if (!warning.empty()) Warn("loader_warning", "", "tinygltf: " + oneLine(warning));
 }
 
 void GltfReader::CheckExtensions() const {
@@ -223,7 +231,7 @@ void GltfReader::CheckExtensions() const {
   // differ from what the file means: said, never silent.
   for (size_t i = 0; i < model_.extensionsUsed.size(); ++i) {
     if (!kSupportedExtensions.count(model_.extensionsUsed[i])) {
-      Warn("/extensionsUsed/" + std::to_string(i), "extension " + QuoteInput(model_.extensionsUsed[i]) +
+      Warn("extension_not_implemented", "/extensionsUsed/" + std::to_string(i), "extension " + QuoteInput(model_.extensionsUsed[i]) +
                                                        " is not implemented; what it adds is left out");
     }
   }

@@ -6,15 +6,6 @@
 #include "proto/wire/content_hash.h"
 
 namespace tcfarm::gltf {
-namespace {
-
-const tinygltf::Value* ExtensionOf(const tinygltf::ExtensionMap& extensions, const std::string& name) {
-  auto found = extensions.find(name);
-  return found != extensions.end() && found->second.IsObject() ? &found->second : nullptr;
-}
-
-}  // namespace
-
 double GltfReader::NumberIn(const tinygltf::ExtensionMap& extensions, const std::string& extension, const std::string& key,
                        double fallback) {
   const tinygltf::Value* object = ExtensionOf(extensions, extension);
@@ -124,7 +115,7 @@ void GltfReader::MapExtensions(const tinygltf::Material& source, const std::stri
       m.specularColor = {rgb[0], rgb[1], rgb[2]};
     }
     for (const char* textureKey : {"specularTexture", "specularColorTexture"}) {
-      if (specular->Has(textureKey)) Warn(extensions + "KHR_materials_specular/" + textureKey, "the texture is left out; its factor is used");
+      if (specular->Has(textureKey)) Warn("texture_left_out", extensions + "KHR_materials_specular/" + textureKey, "the texture is left out; its factor is used");
     }
   }
   if (const tinygltf::Value* clearcoat = ExtensionOf(source.extensions, "KHR_materials_clearcoat")) {
@@ -198,7 +189,7 @@ TextureSlot GltfReader::MapSlot(int index, int texCoord, const tinygltf::Extensi
     if (transform->Has("texCoord") && transform->Get("texCoord").IsInt()) slot.texCoord = transform->Get("texCoord").GetNumberAsInt();
   }
   if (slot.texCoord != 0 && slot.texCoord != 1) {
-    Warn(pointer + "/texCoord", "TEXCOORD_" + std::to_string(slot.texCoord) + " is not kept; the texture is sampled with TEXCOORD_0");
+    Warn("texcoord_set_missing", pointer + "/texCoord", "TEXCOORD_" + std::to_string(slot.texCoord) + " is not kept; the texture is sampled with TEXCOORD_0");
     slot.texCoord = 0;
   }
   return slot;
@@ -246,6 +237,11 @@ Texture GltfReader::MapTexture(int index, const std::string& pointer) const {
     // A minification filter without mip levels: the full image, aliasing as the file asks.
     if (sampler.minFilter == TINYGLTF_TEXTURE_FILTER_NEAREST || sampler.minFilter == TINYGLTF_TEXTURE_FILTER_LINEAR) {
       texture.mipmaps = false;
+    } else if (sampler.minFilter >= 0 && sampler.minFilter != TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR) {
+      // Mip levels are always blended linearly, and texels filtered as magFilter says.
+      Warn("sampler_filter_approximated", Pointer("samplers", static_cast<size_t>(source.sampler)) + "/minFilter",
+           "minification filter " + std::to_string(sampler.minFilter) +
+               " is approximated: mip levels are blended linearly and texels filtered as magFilter says");
     }
   }
   return texture;

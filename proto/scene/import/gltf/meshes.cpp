@@ -23,6 +23,7 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
                      {TINYGLTF_COMPONENT_TYPE_FLOAT, TINYGLTF_COMPONENT_TYPE_BYTE, TINYGLTF_COMPONENT_TYPE_SHORT},
                      "a VEC3 accessor of normals");
     CheckFinite(normals, normal->second, "normal");
+    CheckNormalized(normal->second, "normals");
     if (normals.count != positions.count) {
       Fail(Pointer("accessors", static_cast<size_t>(normal->second)) + "/count",
            std::to_string(normals.count) + " normals for " + std::to_string(positions.count) + " positions",
@@ -137,7 +138,7 @@ void GltfReader::AddShapes(Scene& scene) {
         if (mode < TINYGLTF_MODE_POINTS || mode > TINYGLTF_MODE_TRIANGLE_FAN) {
           Fail(pointer + "/mode", "mode " + std::to_string(mode), "a primitive mode from 0 to 6");
         }
-        Warn(pointer, "points and lines are not rendered; the primitive is skipped");
+        Warn("primitive_mode_skipped", pointer, "points and lines are not rendered; the primitive is skipped");
         continue;
       }
       Shape shape;
@@ -154,9 +155,10 @@ void GltfReader::AddShapes(Scene& scene) {
       SetPrimitiveMesh(shape, static_cast<size_t>(source.mesh), p, nodesPerMesh[static_cast<size_t>(source.mesh)] > 1,
                        pointer, scene);
       if (!HasArea(shape.Mesh())) {
-        Warn(pointer, "no triangle with area; the primitive is skipped");
+        Warn("primitive_without_area", pointer, "no triangle with area; the primitive is skipped");
         continue;
       }
+      WarnOfMissingTexCoords(scene.materials[static_cast<size_t>(shape.material)], shape.Mesh(), pointer);
       triangles += shape.Mesh().triangles.size();
       if (triangles > kMaxTriangles) {
         Fail(pointer, "more than " + std::to_string(kMaxTriangles) + " triangles in all", "a smaller scene");
@@ -165,6 +167,19 @@ void GltfReader::AddShapes(Scene& scene) {
           PrimitiveDeformation(static_cast<size_t>(node), skin, primitive, pointer, shape.Mesh());
       if (skin == nullptr) shape.motion = *motions_[static_cast<size_t>(node)];
       scene.shapes.push_back(std::move(shape));
+    }
+  }
+}
+
+void GltfReader::WarnOfMissingTexCoords(const Material& material, const TriangleMesh& mesh,
+                                        const std::string& pointer) const {
+  if (!material.pbr) return;
+  for (int set : {0, 1}) {
+    const bool present = !(set == 0 ? mesh.uvs : mesh.uvs1).empty();
+    if (material.pbr->ReadsTexCoord(set) && !present) {
+      Warn("texcoord_set_missing", pointer + "/attributes",
+           "the material's textures read TEXCOORD_" + std::to_string(set) +
+               ", which this primitive does not have; those textures are left out and their factors used");
     }
   }
 }

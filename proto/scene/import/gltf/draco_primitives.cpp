@@ -1,0 +1,204 @@
+// KHR_draco_mesh_compression: a primitive's attributes and indices decoded, at import, from
+// the Draco mesh in its extension's buffer view, into buffers the primitive's accessors then
+// read (the accessors keep their count, type and component type, as the extension says).
+#include <draco/compression/decode.h>
+
+#include "proto/scene/import/gltf/gltf_reader.h"
+
+namespace tcfarm::gltf {
+namespace {
+
+constexpr const char* kDraco = "KHR_draco_mesh_compression";
+
+// Draco's values of one attribute for one point, converted (with Draco's range checks) to
+// the accessor's component type T and written little-endian at `out`.
+template <typename T>
+bool ConvertInto(const draco::PointAttribute& attribute, draco::AttributeValueIndex value, int components,
+                 unsigned char* out) {
+  T converted[16];
+  if (!attribute.ConvertValue<T>(value, static_cast<int8_t>(components), converted)) return false;
+  std::memcpy(out, converted, sizeof(T) * static_cast<size_t>(components));
+  return true;
+}
+
+bool ConvertComponents(const draco::PointAttribute& attribute, draco::AttributeValueIndex value, int componentType,
+                       int components, unsigned char* out) {
+  switch (componentType) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE: return ConvertInto<int8_t>(attribute, value, components, out);
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return ConvertInto<uint8_t>(attribute, value, components, out);
+    case TINYGLTF_COMPONENT_TYPE_SHORT: return ConvertInto<int16_t>(attribute, value, components, out);
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return ConvertInto<uint16_t>(attribute, value, components, out);
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return ConvertInto<uint32_t>(attribute, value, components, out);
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return ConvertInto<float>(attribute, value, components, out);
+    default: return false;
+  }
+}
+
+}  // namespace
+
+void GltfReader::StandInForDracoIndexViews() {
+  if (embedded_.json.find(kDraco) == std::string::npos) return;  // spares most files a second parse
+  nlohmann::json document = nlohmann::json::parse(embedded_.json, nullptr, false);
+  if (!document.is_object() || !document.contains("meshes") || !document["meshes"].is_array() ||
+      !document.contains("accessors") || !document["accessors"].is_array()) {
+    return;  // PreCheck and tinygltf say what is wrong
+  }
+  nlohmann::json& accessors = document["accessors"];
+  bool changed = false;
+  for (const nlohmann::json& mesh : document["meshes"]) {
+    if (!mesh.is_object() || !mesh.contains("primitives") || !mesh["primitives"].is_array()) continue;
+    for (const nlohmann::json& primitive : mesh["primitives"]) {
+      const nlohmann::json::json_pointer view("/extensions/" + std::string(kDraco) + "/bufferView");
+      if (!primitive.is_object() || !primitive.contains(view) || !primitive.contains("indices")) continue;
+      const nlohmann::json& indices = primitive["indices"];
+      if (!indices.is_number_unsigned() || indices.get<uint64_t>() >= accessors.size()) continue;
+      nlohmann::json& accessor = accessors[indices.get<size_t>()];
+      if (!accessor.is_object() || accessor.contains("bufferView")) continue;
+      accessor["bufferView"] = primitive.at(view);
+      changed = true;
+    }
+  }
+  if (changed) embedded_.json = document.dump();
+}
+
+void GltfReader::DecodeDracoPrimitives() {
+  for (size_t m = 0; m < model_.meshes.size(); ++m) {
+    for (size_t p = 0; p < model_.meshes[m].primitives.size(); ++p) {
+      tinygltf::Primitive& primitive = model_.meshes[m].primitives[p];
+      // Points are never rendered (AddShapes skips them): nothing to decode.
+      if (primitive.mode == TINYGLTF_MODE_POINTS || !ExtensionOf(primitive.extensions, kDraco)) continue;
+      DecodeDracoPrimitive(primitive, Pointer("meshes", m) + "/primitives/" + std::to_string(p));
+    }
+  }
+}
+
+void GltfReader::DecodeDracoPrimitive(tinygltf::Primitive& primitive, const std::string& pointer) {
+  const tinygltf::Value& extension = *ExtensionOf(primitive.extensions, kDraco);
+  const std::string at = pointer + "/extensions/" + kDraco;
+  if (primitive.mode >= 0 && primitive.mode != TINYGLTF_MODE_TRIANGLES) {
+    Fail(pointer + "/mode", "mode " + std::to_string(primitive.mode) + " with Draco compression",
+         "TRIANGLES (4) or POINTS (0), the modes Draco encodes");
+  }
+  if (!extension.Has("attributes") || !extension.Get("attributes").IsObject()) {
+    Fail(at + "/attributes", "no object of attribute ids", "an object naming each attribute's Draco id");
+  }
+  const uint64_t viewIndex = WholeNumberIn(extension, "bufferView", at);
+  if (viewIndex >= model_.bufferViews.size()) {
+    Fail(at + "/bufferView", "buffer view " + std::to_string(viewIndex) + " does not exist",
+         "the index of a buffer view");
+  }
+  const size_t length = model_.bufferViews[viewIndex].byteLength;
+  const ViewElements view = InView(static_cast<int>(viewIndex), 0, length, 1, false, at);
+  draco::DecoderBuffer buffer;
+  buffer.Init(reinterpret_cast<const char*>(view.base), length);
+  draco::Decoder decoder;
+  auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
+  if (!decoded.ok()) {
+    Fail(at, "its " + std::to_string(length) + " bytes do not decode as a Draco mesh: " +
+                 decoded.status().error_msg_string(),
+         "a triangle mesh Draco's encoder wrote");
+  }
+  const std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
+  const size_t points = mesh->num_points();
+  if (mesh->num_faces() > kMaxTriangles || points > kMaxAccessorCount) {
+    Fail(at, "a decoded mesh of " + std::to_string(mesh->num_faces()) + " triangles and " + std::to_string(points) +
+                 " vertices",
+         "at most " + std::to_string(kMaxTriangles) + " triangles and " + std::to_string(kMaxAccessorCount) +
+             " vertices");
+  }
+  const tinygltf::Value& ids = extension.Get("attributes");
+  for (const std::string& name : ids.Keys()) {
+    auto accessor = primitive.attributes.find(name);
+    if (accessor == primitive.attributes.end()) continue;  // nothing reads it
+    const uint64_t id = WholeNumberIn(ids, name, at + "/attributes");
+    const draco::PointAttribute* attribute =
+        id <= std::numeric_limits<uint32_t>::max() ? mesh->GetAttributeByUniqueId(static_cast<uint32_t>(id)) : nullptr;
+    if (attribute == nullptr) {
+      Fail(at + "/attributes/" + name, "Draco attribute id " + std::to_string(id) + ", which the mesh lacks",
+           "the id of an attribute of the decoded mesh");
+    }
+    WriteDracoAttribute(accessor->second, *attribute, points, at + "/attributes/" + name);
+  }
+  WriteDracoIndices(primitive.indices, *mesh, at);
+}
+
+tinygltf::Accessor& GltfReader::DracoAccessor(int index, size_t count, const std::string& at) {
+  if (index < 0 || static_cast<size_t>(index) >= model_.accessors.size()) {
+    Fail(at, "accessor " + std::to_string(index) + " does not exist", "the index of an accessor");
+  }
+  const std::string pointer = Pointer("accessors", static_cast<size_t>(index));
+  if (!dracoAccessors_.insert(index).second) {
+    Fail(pointer, "the decoded output of two Draco attributes", "an accessor of its own for each decoded attribute");
+  }
+  tinygltf::Accessor& accessor = model_.accessors[static_cast<size_t>(index)];
+  if (accessor.count != count) {
+    Fail(pointer + "/count", std::to_string(accessor.count) + " elements where the Draco mesh decodes to " +
+                                 std::to_string(count),
+         "the count of the decoded data");
+  }
+  return accessor;
+}
+
+void GltfReader::PointAccessorAt(tinygltf::Accessor& accessor, std::vector<unsigned char> bytes) {
+  tinygltf::BufferView view;
+  view.byteLength = bytes.size();
+  view.buffer = AddDecodedBuffer(std::move(bytes));
+  model_.bufferViews.push_back(std::move(view));
+  accessor.bufferView = static_cast<int>(model_.bufferViews.size() - 1);
+  accessor.byteOffset = 0;
+}
+
+void GltfReader::WriteDracoAttribute(int index, const draco::PointAttribute& attribute, size_t points,
+                                     const std::string& at) {
+  tinygltf::Accessor& accessor = DracoAccessor(index, points, at);
+  const std::string pointer = Pointer("accessors", static_cast<size_t>(index));
+  const int components = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(accessor.type));
+  const int componentSize = tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(accessor.componentType));
+  if (components < 1 || componentSize < 1 || components != attribute.num_components()) {
+    Fail(pointer, TypeName(accessor.type) + " of " + ComponentTypeName(accessor.componentType) + " for a Draco attribute of " +
+                      std::to_string(attribute.num_components()) + " components",
+         "an accessor with as many components as its Draco attribute");
+  }
+  const size_t elementSize = static_cast<size_t>(components) * static_cast<size_t>(componentSize);
+  ChargeDecodedBytes(points * elementSize, at);
+  std::vector<unsigned char> bytes(points * elementSize);
+  for (size_t p = 0; p < points; ++p) {
+    const draco::AttributeValueIndex value = attribute.mapped_index(draco::PointIndex(static_cast<uint32_t>(p)));
+    if (value.value() >= attribute.size() ||
+        !ConvertComponents(attribute, value, accessor.componentType, components, &bytes[p * elementSize])) {
+      Fail(at, "the decoded value of vertex " + std::to_string(p) + " does not fit " +
+                   ComponentTypeName(accessor.componentType),
+           "decoded values the accessor's component type holds");
+    }
+  }
+  PointAccessorAt(accessor, std::move(bytes));
+}
+
+void GltfReader::WriteDracoIndices(int index, const draco::Mesh& mesh, const std::string& at) {
+  if (index < 0) Fail(at, "a Draco primitive without indices", "indices, which the decoded triangles fill");
+  tinygltf::Accessor& accessor = DracoAccessor(index, 3 * static_cast<size_t>(mesh.num_faces()), at);
+  const int size = accessor.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE    ? 1
+                   : accessor.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ? 2
+                   : accessor.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT   ? 4
+                                                                                        : 0;
+  const uint64_t largest = size == 4 ? 0xFFFFFFFFu : (uint64_t{1} << (8 * size)) - 1;
+  if (size == 0 || accessor.type != TINYGLTF_TYPE_SCALAR || (mesh.num_points() > 0 && mesh.num_points() - 1 > largest)) {
+    Fail(Pointer("accessors", static_cast<size_t>(index)),
+         TypeName(accessor.type) + " of " + ComponentTypeName(accessor.componentType) + " for the indices of " +
+             std::to_string(mesh.num_points()) + " decoded vertices",
+         "a SCALAR accessor of unsigned indices wide enough for every vertex");
+  }
+  ChargeDecodedBytes(3 * static_cast<uint64_t>(mesh.num_faces()) * static_cast<uint64_t>(size), at);
+  std::vector<unsigned char> bytes(3 * static_cast<size_t>(mesh.num_faces()) * static_cast<size_t>(size));
+  unsigned char* out = bytes.data();
+  for (draco::FaceIndex f(0); f < mesh.num_faces(); ++f) {
+    for (const draco::PointIndex& point : mesh.face(f)) {
+      const uint32_t value = point.value();  // below num_points: Draco's decoder checks its faces
+      std::memcpy(out, &value, static_cast<size_t>(size));  // little-endian: the low bytes first
+      out += size;
+    }
+  }
+  PointAccessorAt(accessor, std::move(bytes));
+}
+
+}  // namespace tcfarm::gltf
