@@ -56,7 +56,7 @@ class RefereeTest : public testing::Test {
 
 TEST_F(RefereeTest, TracesTheBitsAWorkerReturns) {
   Scene scene = ParseScene(TexturedScene());
-  scene.materials[1].diffuseTexture->file = assets_ / kHash;  // as a worker's cache holds it
+  scene.materials[1].As<Phong>().diffuseTexture->file = assets_ / kHash;  // as a worker's cache holds it
   PrepareForTracing(scene);
   EmbreeDevice device;
   TracingThreads threads(2);

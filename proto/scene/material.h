@@ -1,4 +1,5 @@
-// Materials: how a surface answers light. Two models, each a struct of its own:
+// Materials: how a surface answers light. Each model is a struct of its parameters here,
+// named once in TCFARM_MATERIAL_MODELS below, and a Material holds one of them:
 //
 // - Phong (the Whitted model of the paper's scenes): diffuse and specular colours, a Phong
 //   exponent, mirror reflection and refraction weights. Every scene written in tcfarm's own
@@ -7,9 +8,10 @@
 //   metallic and roughness factors and textures, normal, occlusion and emissive maps, alpha,
 //   and the KHR_materials extensions tcfarm implements. glTF and a "pbr" block use it.
 //
-// A Material holds one of the two; shading asks it which (worker/trace/materials.h).
-// A new model adds a struct here, its reading and writing (proto/scene/parse/read_materials.cpp,
-// proto/scene/scene_write.cpp) and its shading (worker/trace/materials/).
+// Each model answers the same few questions (Reflects, Refracts, Blends, ReadsTexCoord,
+// ReadsTangents, ForEachTexture), so that nothing outside its own files asks which model a
+// material has. Its reading and writing live in proto/scene/materials/<stem>.cpp, its
+// shading in worker/trace/materials/<stem>.h.
 #pragma once
 
 #include <array>
@@ -17,6 +19,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <variant>
 
 #include "proto/scene/transform.h"
 
@@ -60,6 +63,30 @@ struct TextureSlot {
   double amount = 1;
 
   bool Transformed() const { return offset != std::array<double, 2>{0, 0} || scale != std::array<double, 2>{1, 1} || rotation != 0; }
+};
+
+// The Whitted model's parameters.
+struct Phong {
+  Vec3 diffuse{0.8, 0.8, 0.8};
+  Vec3 specular{0, 0, 0};
+  double shininess = 32;      // Phong exponent
+  double reflectivity = 0;    // 0..1, mirror reflection weight
+  double transparency = 0;    // 0..1, refraction weight
+  double indexOfRefraction = 1.5;
+  // Linear RGB the surface shows of itself, whatever lights it: it lights nothing else.
+  Vec3 emission{0, 0, 0};
+  // Multiplies `diffuse` where the mesh has texture coordinates; its colours are sRGB-encoded.
+  std::optional<Texture> diffuseTexture;
+
+  bool ReadsTexCoord(int set) const { return set == 0 && diffuseTexture.has_value(); }
+  bool ReadsTangents() const { return false; }
+  bool Reflects() const { return reflectivity > 0; }
+  bool Refracts() const { return transparency > 0; }
+  bool Blends() const { return false; }
+  template <typename Self, typename Visit>
+  static void ForEachTexture(Self& self, Visit visit) {
+    if (self.diffuseTexture) visit(*self.diffuseTexture, std::string("diffuse_texture"));
+  }
 };
 
 // glTF's metallic-roughness model. Colour factors are linear; colour textures (base colour,
@@ -115,57 +142,77 @@ struct MetallicRoughness {
     });
     return reads;
   }
-};
-
-struct Material {
-  std::string name;
-  // Phong's parameters (ignored when `pbr` is set) --------------------------------------
-  Vec3 diffuse{0.8, 0.8, 0.8};
-  Vec3 specular{0, 0, 0};
-  double shininess = 32;      // Phong exponent
-  double reflectivity = 0;    // 0..1, mirror reflection weight
-  double transparency = 0;    // 0..1, refraction weight
-  double indexOfRefraction = 1.5;
-  // Linear RGB the surface shows of itself, whatever lights it: it lights nothing else.
-  Vec3 emission{0, 0, 0};
-  // Multiplies `diffuse` where the mesh has texture coordinates; its colours are sRGB-encoded.
-  std::optional<Texture> diffuseTexture;
-  // glTF's model instead of Phong's ---------------------------------------------------
-  std::optional<MetallicRoughness> pbr;
-
-  bool IsPbr() const { return pbr.has_value(); }
-  // Each texture the material reads, with its path in the material's JSON ("diffuse_texture",
-  // "pbr/normal_texture"): whoever fetches, binds or lists images asks here.
-  template <typename Visit>
-  void ForEachTexture(Visit visit) { VisitTextures(*this, visit); }
-  template <typename Visit>
-  void ForEachTexture(Visit visit) const { VisitTextures(*this, visit); }
+  bool ReadsTangents() const { return normalTexture.has_value(); }
   bool Reflects() const {
-    if (!pbr) return reflectivity > 0;
-    if (pbr->unlit) return false;
-    const bool smoothCoat = pbr->clearcoat > 0 && (pbr->clearcoatRoughness < kMirrorRoughness ||
-                                                   pbr->clearcoatRoughnessTexture.has_value());
-    return pbr->roughness < kMirrorRoughness || pbr->metallicRoughnessTexture.has_value() || smoothCoat;
+    if (unlit) return false;
+    const bool smoothCoat =
+        clearcoat > 0 && (clearcoatRoughness < kMirrorRoughness || clearcoatRoughnessTexture.has_value());
+    return roughness < kMirrorRoughness || metallicRoughnessTexture.has_value() || smoothCoat;
   }
-  // Whether rays continue through it: refracted, or straight on past a blended surface.
-  bool Refracts() const {
-    if (!pbr) return transparency > 0;
-    return pbr->alphaMode == MetallicRoughness::Alpha::kBlend || (!pbr->unlit && pbr->transmission > 0 && pbr->metallic < 1);
-  }
-
-  // A glTF surface smoother than this traces its mirror ray (weighted by Fresnel), as
-  // Whitted's mirrors do; a rougher one reflects lights only, through its GGX lobe.
-  static constexpr double kMirrorRoughness = 0.25;
-
- private:
+  bool Refracts() const { return alphaMode == Alpha::kBlend || (!unlit && transmission > 0 && metallic < 1); }
+  bool Blends() const { return alphaMode == Alpha::kBlend; }
   template <typename Self, typename Visit>
-  static void VisitTextures(Self& self, Visit visit) {
-    if (self.diffuseTexture) visit(*self.diffuseTexture, std::string("diffuse_texture"));
-    if (!self.pbr) return;
-    MetallicRoughness::ForEachSlot(*self.pbr, [&](auto& slot, const char* key) {
+  static void ForEachTexture(Self& self, Visit visit) {
+    ForEachSlot(self, [&](auto& slot, const char* key) {
       if (slot) visit(slot->texture, "pbr/" + std::string(key));
     });
   }
+
+  // A surface smoother than this traces its mirror ray (weighted by Fresnel), as
+  // Whitted's mirrors do; a rougher one reflects lights only, through its GGX lobe.
+  static constexpr double kMirrorRoughness = 0.25;
+};
+
+// Every material model, each named once, in the order of Material::model's alternatives
+// (the first is a material's default): X(Stem) gives the parameters' struct <Stem> above,
+// the scene format's <Stem>MaterialFormat() (proto/scene/materials/<stem>.cpp: reading,
+// writing, checking it) and the worker's <Stem>Shading (worker/trace/materials/<stem>.h).
+// A model missing any part fails to compile or link.
+#define TCFARM_MATERIAL_MODELS(X) X(Phong) X(MetallicRoughness)
+
+// A std::variant of the models in the list's order (the first, ignored argument takes the
+// list's leading comma).
+template <typename Ignored, typename... Models>
+using VariantOfModels = std::variant<Models...>;
+#define TCFARM_MATERIAL_MODEL_TYPE(Stem) , Stem
+using AnyMaterialModel = VariantOfModels<void TCFARM_MATERIAL_MODELS(TCFARM_MATERIAL_MODEL_TYPE)>;
+#undef TCFARM_MATERIAL_MODEL_TYPE
+
+struct Material {
+  std::string name;
+  AnyMaterialModel model;  // Phong's defaults unless set
+
+  // The model's parameters, or null when the material has another model.
+  template <typename Model>
+  Model* If() { return std::get_if<Model>(&model); }
+  template <typename Model>
+  const Model* If() const { return std::get_if<Model>(&model); }
+  template <typename Model>
+  bool Is() const { return std::holds_alternative<Model>(model); }
+  // The model's parameters; throws std::bad_variant_access for another model.
+  template <typename Model>
+  Model& As() { return std::get<Model>(model); }
+  template <typename Model>
+  const Model& As() const { return std::get<Model>(model); }
+
+  // Each texture the material reads, with its path in the material's JSON ("diffuse_texture",
+  // "pbr/normal_texture"): whoever fetches, binds or lists images asks here.
+  template <typename Visit>
+  void ForEachTexture(Visit visit) {
+    std::visit([&](auto& m) { m.ForEachTexture(m, visit); }, model);
+  }
+  template <typename Visit>
+  void ForEachTexture(Visit visit) const {
+    std::visit([&](const auto& m) { m.ForEachTexture(m, visit); }, model);
+  }
+  bool Reflects() const { return std::visit([](const auto& m) { return m.Reflects(); }, model); }
+  // Whether rays continue through it: refracted, or straight on past a blended surface.
+  bool Refracts() const { return std::visit([](const auto& m) { return m.Refracts(); }, model); }
+  // Whether shadow rays pass it, weighed by its coverage (glTF's alphaMode BLEND).
+  bool Blends() const { return std::visit([](const auto& m) { return m.Blends(); }, model); }
+  // Whether it reads a mesh's texture coordinates `set` (0 or 1), or its tangents.
+  bool ReadsTexCoord(int set) const { return std::visit([&](const auto& m) { return m.ReadsTexCoord(set); }, model); }
+  bool ReadsTangents() const { return std::visit([](const auto& m) { return m.ReadsTangents(); }, model); }
 };
 
 }  // namespace tcfarm

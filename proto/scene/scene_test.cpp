@@ -280,8 +280,20 @@ TEST(SceneMaterialTest, UserDefaultReplacesBuiltIn) {
   scene["materials"] = {{"default", {{"diffuse", {0.1, 0.2, 0.3}}}}};
   Scene parsed = ParseScene(scene.dump());
   ASSERT_EQ(parsed.materials.size(), 1u);
-  EXPECT_EQ(parsed.materials[0].diffuse, (Vec3{0.1, 0.2, 0.3}));
+  EXPECT_EQ(parsed.materials[0].As<Phong>().diffuse, (Vec3{0.1, 0.2, 0.3}));
   EXPECT_EQ(parsed.shapes[0].material, 0);
+}
+
+// A material names one model's keys: Phong's, or a "pbr" block, never both.
+TEST(SceneMaterialTest, KeysPickTheModelAndTwoModelsAreRefused) {
+  json scene = WithShape(Sphere());
+  scene["materials"] = {{"plain", json::object()}, {"metal", {{"pbr", {{"metallic", 1}}}}}};
+  Scene parsed = ParseScene(scene.dump());
+  EXPECT_TRUE(parsed.materials[2].Is<Phong>());  // "plain": no model's keys, the first model
+  ASSERT_TRUE(parsed.materials[1].Is<MetallicRoughness>());
+  EXPECT_EQ(parsed.materials[1].As<MetallicRoughness>().metallic, 1);
+  scene["materials"] = {{"both", {{"pbr", json::object()}, {"specular", {1, 1, 1}}, {"shininess", 8}}}};
+  EXPECT_TRUE(FailsAt(scene, "/materials/both/specular", "a Phong parameter beside a \"pbr\" block"));
 }
 
 // --- defaults ----------------------------------------------------------------------------
@@ -294,7 +306,7 @@ TEST(SceneDefaultsTest, MinimalScene) {
   EXPECT_TRUE(scene.shapes.empty());
   ASSERT_EQ(scene.materials.size(), 1u);
   EXPECT_EQ(scene.materials[0].name, "default");
-  EXPECT_EQ(scene.materials[0].diffuse, (Vec3{0.8, 0.8, 0.8}));
+  EXPECT_EQ(scene.materials[0].As<Phong>().diffuse, (Vec3{0.8, 0.8, 0.8}));
   EXPECT_EQ(scene.background, (Vec3{0, 0, 0}));
   EXPECT_EQ(scene.render.width, 4);
   EXPECT_EQ(scene.render.height, 3);
@@ -316,12 +328,12 @@ TEST(SceneDefaultsTest, MaterialShapeAndTerrainDefaults) {
   scene["render"]["frames"] = {{"start", 7}};
   Scene parsed = ParseScene(scene.dump());
   const Material& plain = parsed.materials.at(1);
-  EXPECT_EQ(plain.diffuse, (Vec3{0.8, 0.8, 0.8}));
-  EXPECT_EQ(plain.specular, (Vec3{0, 0, 0}));
-  EXPECT_EQ(plain.shininess, 32);
-  EXPECT_EQ(plain.reflectivity, 0);
-  EXPECT_EQ(plain.transparency, 0);
-  EXPECT_EQ(plain.indexOfRefraction, 1.5);
+  EXPECT_EQ(plain.As<Phong>().diffuse, (Vec3{0.8, 0.8, 0.8}));
+  EXPECT_EQ(plain.As<Phong>().specular, (Vec3{0, 0, 0}));
+  EXPECT_EQ(plain.As<Phong>().shininess, 32);
+  EXPECT_EQ(plain.As<Phong>().reflectivity, 0);
+  EXPECT_EQ(plain.As<Phong>().transparency, 0);
+  EXPECT_EQ(plain.As<Phong>().indexOfRefraction, 1.5);
   const Shape& sphere = parsed.shapes[0];
   EXPECT_EQ(sphere.material, 0);
   EXPECT_EQ(sphere.motion.translation.kind(), AnimatedVec3::Kind::kConstant);

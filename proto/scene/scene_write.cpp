@@ -10,6 +10,7 @@
 #include "proto/scene/scene.h"
 #include "proto/scene/scene_write.h"
 #include "proto/scene/lights/light_format.h"
+#include "proto/scene/materials/material_format.h"
 #include "proto/scene/shapes/shape_format.h"
 
 namespace tcfarm {
@@ -17,6 +18,17 @@ namespace tcfarm {
 using nlohmann::json;
 
 json scene_write::Vec3Json(const Vec3& v) { return json::array({v.x, v.y, v.z}); }
+
+json scene_write::TextureJson(const Texture& texture) {
+  static const char* const kWraps[] = {"repeat", "clamp_to_edge", "mirrored_repeat"};
+  json result{{texture.asset.empty() ? "image" : "asset", texture.asset.empty() ? texture.image : texture.asset},
+              {"wrap_s", kWraps[static_cast<int>(texture.wrapS)]},
+              {"wrap_t", kWraps[static_cast<int>(texture.wrapT)]},
+              {"filter", texture.filter == Texture::Filter::kNearest ? "nearest" : "linear"}};
+  // Written only when off: scenes written before it existed keep their bytes (and hashes).
+  if (!texture.mipmaps) result["mipmaps"] = false;
+  return result;
+}
 
 namespace {
 
@@ -170,72 +182,8 @@ json LightJson(const Light& light, const SharedParents& shared) {
   return result;
 }
 
-json TextureJson(const Texture& texture) {
-  static const char* const kWraps[] = {"repeat", "clamp_to_edge", "mirrored_repeat"};
-  json result{{texture.asset.empty() ? "image" : "asset", texture.asset.empty() ? texture.image : texture.asset},
-              {"wrap_s", kWraps[static_cast<int>(texture.wrapS)]},
-              {"wrap_t", kWraps[static_cast<int>(texture.wrapT)]},
-              {"filter", texture.filter == Texture::Filter::kNearest ? "nearest" : "linear"}};
-  // Written only when off: scenes written before it existed keep their bytes (and hashes).
-  if (!texture.mipmaps) result["mipmaps"] = false;
-  return result;
-}
 
-json TextureSlotJson(const TextureSlot& slot, const char* amountKey = nullptr) {
-  json result = TextureJson(slot.texture);
-  result["tex_coord"] = slot.texCoord;
-  if (slot.Transformed()) {
-    result["uv_offset"] = json::array({slot.offset[0], slot.offset[1]});
-    result["uv_scale"] = json::array({slot.scale[0], slot.scale[1]});
-    result["uv_rotation"] = slot.rotation;
-  }
-  if (amountKey) result[amountKey] = slot.amount;
-  return result;
-}
-
-json PbrJson(const MetallicRoughness& m) {
-  static const char* const kAlphaModes[] = {"opaque", "mask", "blend"};
-  json result{{"base_color", Vec3Json(m.baseColor)},
-              {"alpha", m.alpha},
-              {"metallic", m.metallic},
-              {"roughness", m.roughness},
-              {"emissive", Vec3Json(m.emissive)},
-              {"emissive_strength", m.emissiveStrength},
-              {"alpha_mode", kAlphaModes[static_cast<int>(m.alphaMode)]},
-              {"alpha_cutoff", m.alphaCutoff},
-              {"double_sided", m.doubleSided},
-              {"unlit", m.unlit},
-              {"ior", m.ior},
-              {"transmission", m.transmission},
-              {"specular", m.specular},
-              {"specular_color", Vec3Json(m.specularColor)}};
-  if (m.baseColorTexture) result["base_color_texture"] = TextureSlotJson(*m.baseColorTexture);
-  if (m.metallicRoughnessTexture) result["metallic_roughness_texture"] = TextureSlotJson(*m.metallicRoughnessTexture);
-  if (m.normalTexture) result["normal_texture"] = TextureSlotJson(*m.normalTexture, "scale");
-  if (m.occlusionTexture) result["occlusion_texture"] = TextureSlotJson(*m.occlusionTexture, "strength");
-  if (m.emissiveTexture) result["emissive_texture"] = TextureSlotJson(*m.emissiveTexture);
-  // Only a coated material names the coat: scenes without one keep their text (and hash).
-  if (m.MentionsClearcoat()) {
-    result["clearcoat"] = m.clearcoat;
-    result["clearcoat_roughness"] = m.clearcoatRoughness;
-  }
-  if (m.clearcoatTexture) result["clearcoat_texture"] = TextureSlotJson(*m.clearcoatTexture);
-  if (m.clearcoatRoughnessTexture) {
-    result["clearcoat_roughness_texture"] = TextureSlotJson(*m.clearcoatRoughnessTexture);
-  }
-  if (m.clearcoatNormalTexture) result["clearcoat_normal_texture"] = TextureSlotJson(*m.clearcoatNormalTexture, "scale");
-  return result;
-}
-
-json MaterialJson(const Material& material) {
-  if (material.pbr) return json{{"pbr", PbrJson(*material.pbr)}};
-  json result{{"diffuse", Vec3Json(material.diffuse)},   {"specular", Vec3Json(material.specular)},
-              {"shininess", material.shininess},         {"reflectivity", material.reflectivity},
-              {"transparency", material.transparency}, {"ior", material.indexOfRefraction}};
-  if (material.diffuseTexture) result["diffuse_texture"] = TextureJson(*material.diffuseTexture);
-  if (material.emission != Vec3{}) result["emission"] = Vec3Json(material.emission);
-  return result;
-}
+json MaterialJson(const Material& material) { return MaterialFormatOf(material).Write(material); }
 
 }  // namespace
 

@@ -1,5 +1,5 @@
-// Writing scene values as JSON: what scene_write.cpp shares with the shape and light
-// formats (proto/scene/shapes/, proto/scene/lights/), so that every kind writes its values
+// Writing scene values as JSON: what scene_write.cpp shares with the shape, light and
+// material formats (proto/scene/shapes/, lights/, materials/), so that every kind writes its values
 // as the rest of a scene does.
 #pragma once
 
@@ -10,6 +10,9 @@
 namespace tcfarm::scene_write {
 
 nlohmann::json Vec3Json(const Vec3& v);
+
+// An image and how it is sampled, as a material's texture.
+nlohmann::json TextureJson(const Texture& texture);
 
 // A constant as a vec3, a polynomial or keyframes as the parser reads them back.
 nlohmann::json AnimatedJson(const AnimatedVec3& value);

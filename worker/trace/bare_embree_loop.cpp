@@ -56,22 +56,23 @@ std::array<float, 9> NormalMatrix(const Affine& placement) {
 struct LaneHit {
   Float3 position, normal, arriving;
   float offset;
-  const ShadingMaterial* material;
+  // Its material: Phong's, or else glTF's (Covers: no other model).
+  const PhongShading* phong;
+  const MetallicRoughnessShading* gltf;
   PbrSurface pbr;  // a glTF material's inputs at the hit
 };
 
 // What a glTF surface shows with no light: the sky's ambient share of its diffuse colour
 // and f0, and its emission (its own colour when unlit), as the tracer has it.
-Float3 PbrAmbient(const ShadingMaterial& m, const PbrSurface& s) {
-  if (m.gltf.unlit) return s.baseColor;
-  return (s.baseColor * (1.0f - s.metallic) + SurfaceF0(s, m.gltf.constants)) * (kAmbient * s.occlusion) + s.emission;
+Float3 PbrAmbient(const PbrMaterial& m, const PbrSurface& s) {
+  if (m.unlit) return s.baseColor;
+  return (s.baseColor * (1.0f - s.metallic) + SurfaceF0(s, m.constants)) * (kAmbient * s.occlusion) + s.emission;
 }
 
 // Light of unit intensity from `towardLight` reflected toward the camera.
 Float3 Reflected(const LaneHit& hit, Float3 towardLight) {
-  const ShadingMaterial& m = *hit.material;
-  if (m.pbr) return PbrReflected(hit.pbr, m.gltf.constants, towardLight, hit.normal, -hit.arriving);
-  return m.Reflected(towardLight, hit.normal, hit.arriving, m.diffuse);
+  if (hit.gltf) return PbrReflected(hit.pbr, hit.gltf->gltf.constants, towardLight, hit.normal, -hit.arriving);
+  return hit.phong->Reflected({hit.phong->diffuse}, towardLight, hit.normal, hit.arriving);
 }
 
 }  // namespace
@@ -115,7 +116,8 @@ void BareEmbreeLoop::MakePbrMeshes() {
   std::map<const TriangleMesh*, std::shared_ptr<const PbrMesh>> byMesh;
   for (const Shape& shape : scene_.shapes) {
     auto& entry = pbrMeshes_.emplace_back();
-    if (!materials_[static_cast<size_t>(shape.material)].pbr || shape.Mesh().triangles.empty()) continue;
+    const ShadingMaterial& material = materials_[static_cast<size_t>(shape.material)];
+    if (!std::holds_alternative<MetallicRoughnessShading>(material) || shape.Mesh().triangles.empty()) continue;
     auto& shared = byMesh[&shape.Mesh()];
     if (!shared) {
       const TriangleMesh& mesh = shape.Mesh();
@@ -131,7 +133,8 @@ void BareEmbreeLoop::MakePbrMeshes() {
 }
 
 PbrSurface BareEmbreeLoop::SurfaceAt(int shape, unsigned primitive, float u, float v) const {
-  const PbrMaterial& material = materials_[static_cast<size_t>(scene_.shapes[shape].material)].gltf;
+  const PbrMaterial& material =
+      std::get<MetallicRoughnessShading>(materials_[static_cast<size_t>(scene_.shapes[shape].material)]).gltf;
   std::array<float, 2> uv0{0, 0}, uv1{0, 0};
   Float3 color{1, 1, 1};
   if (const PbrMesh* mesh = pbrMeshes_[shape].get()) {
@@ -159,7 +162,10 @@ BareEmbreeLoop::~BareEmbreeLoop() {
 }
 
 bool BareEmbreeLoop::Covers(const Scene& scene) {
-  return scene.render.maxDepth == 0 || (!scene.AnyMaterialReflects() && !scene.AnyMaterialRefracts());
+  const bool known = std::all_of(scene.materials.begin(), scene.materials.end(), [](const Material& m) {
+    return m.Is<Phong>() || m.Is<MetallicRoughness>();
+  });
+  return known && (scene.render.maxDepth == 0 || (!scene.AnyMaterialReflects() && !scene.AnyMaterialRefracts()));
 }
 
 RTCScene BareEmbreeLoop::NewShapesScene(bool robust) const {
@@ -264,14 +270,15 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
       const float t = packet.ray.tfar[lane];
       n = Normalize(n);
       LaneHit& hit = hits[lane];
+      const ShadingMaterial& material = materials_[scene_.shapes[shape].material];
       hit = {o + d * t, Dot(n, d) > 0 ? -n : n, d, kRelativeRayOffset * (MaxAbsComponent(o) + t),
-             &materials_[scene_.shapes[shape].material], {}};
-      if (hit.material->pbr) {
+             std::get_if<PhongShading>(&material), std::get_if<MetallicRoughnessShading>(&material), {}};
+      if (hit.gltf) {
         hit.pbr = SurfaceAt(shape, packet.hit.primID[lane], packet.hit.u[lane], packet.hit.v[lane]);
         if (hit.pbr.clearcoat > 0) hit.pbr.clearcoatNormal = hit.normal;  // no coat normal maps
-        color[lane] = PbrAmbient(*hit.material, hit.pbr);
+        color[lane] = PbrAmbient(hit.gltf->gltf, hit.pbr);
       } else {
-        color[lane] = ShadingMaterial::Ambient(hit.material->diffuse);
+        color[lane] = hit.phong->diffuse * kAmbient;
       }
     }
     for (const ShadingLight& light : parts.lights) {
@@ -282,7 +289,7 @@ void BareEmbreeLoop::TracePixels(const FrameParts& parts, size_t begin, size_t e
       for (int lane = 0; lane < lanes; ++lane) {
         if (!hasHit[lane]) continue;
         const LaneHit& hit = hits[lane];
-        if (hit.material->pbr && hit.material->gltf.unlit) continue;
+        if (hit.gltf && hit.gltf->gltf.unlit) continue;
         if (!light.Toward(hit.position, hit.normal, &toLight[lane], &distance[lane])) continue;
         const Float3 start = hit.position + hit.normal * hit.offset;
         shadowValid[lane] = -1;

@@ -41,8 +41,8 @@ class BareEmbreeLoop {
   BareEmbreeLoop(const BareEmbreeLoop&) = delete;
   BareEmbreeLoop& operator=(const BareEmbreeLoop&) = delete;
 
-  // Whether the loop traces every ray the scene asks for: no mirrors, no refraction, or
-  // none traced (maxDepth 0).
+  // Whether the loop traces every ray the scene asks for (no mirrors, no refraction, or
+  // none traced: maxDepth 0) and shades every material (Phong's and glTF's models).
   static bool Covers(const Scene& scene);
   // Every pixel of `frame`, row by row, as 3 floats of linear RGB.
   void TraceFrame(int frame, TracingThreads& threads, float* rgb);

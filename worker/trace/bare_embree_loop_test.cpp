@@ -26,7 +26,7 @@ Scene GltfQuad() {
   pbr.metallic = 0.3;
   pbr.roughness = 0.5;
   pbr.doubleSided = true;
-  scene.materials[static_cast<size_t>(scene.shapes[0].material)].pbr = pbr;
+  scene.materials[static_cast<size_t>(scene.shapes[0].material)].model = pbr;
   scene.shapes[0].mesh.colors.assign(4, Vec3{0.5, 1, 1});
   return scene;
 }
@@ -51,7 +51,7 @@ TEST(BareEmbreeLoopTest, ShadesGltfMaterialsWithTheTracersBrdf) {
 // Mirrors and refraction are out of its reach, unless the scene traces none (maxDepth 0).
 TEST(BareEmbreeLoopTest, CoversMirrorsOnlyWhenNoneAreTraced) {
   Scene scene = GltfQuad();
-  scene.materials[static_cast<size_t>(scene.shapes[0].material)].pbr->roughness = 0.1;
+  scene.materials[static_cast<size_t>(scene.shapes[0].material)].As<MetallicRoughness>().roughness = 0.1;
   EXPECT_FALSE(BareEmbreeLoop::Covers(scene));
   scene.render.maxDepth = 0;
   EXPECT_TRUE(BareEmbreeLoop::Covers(scene));

@@ -45,5 +45,14 @@ inline Vec3 NormalizeD(const Vec3& a) {
 }
 // Mirror direction of `incident` (pointing at the surface) about unit normal n.
 inline Float3 Reflect(Float3 incident, Float3 n) { return incident - n * (2.0f * Dot(incident, n)); }
+// The refracted direction of unit `arriving` through a surface of unit `normal` (facing
+// the arriving ray) with relative index eta; false for total internal reflection.
+inline bool Refract(Float3 arriving, Float3 normal, float eta, Float3* refracted) {
+  float cosIn = -Dot(arriving, normal);
+  float k = 1.0f - eta * eta * (1.0f - cosIn * cosIn);
+  if (k < 0) return false;
+  *refracted = Normalize(arriving * eta + normal * (eta * cosIn - std::sqrt(k)));
+  return true;
+}
 
 }  // namespace tcfarm

@@ -1,36 +1,41 @@
 #include "worker/trace/materials.h"
 
-#include <cmath>
-
 namespace tcfarm {
+namespace {
+
+// The shading struct of each model's parameters: <Stem> to <Stem>Shading.
+template <typename Model>
+struct ShadingOf;
+#define TCFARM_SHADING_OF(Stem)     \
+  template <>                       \
+  struct ShadingOf<Stem> {          \
+    using Type = Stem##Shading;     \
+  };
+TCFARM_MATERIAL_MODELS(TCFARM_SHADING_OF)
+#undef TCFARM_SHADING_OF
+
+template <typename Params>
+using ShadingType = typename ShadingOf<std::decay_t<Params>>::Type;
+
+}  // namespace
 
 std::vector<ShadingMaterial> MakeMaterials(const Scene& scene, const TextureLoader& load) {
-  // Only the images of materials some shape uses are decoded.
   std::vector<bool> used(scene.materials.size(), false);
   for (const Shape& shape : scene.shapes) used[static_cast<size_t>(shape.material)] = true;
-  const TextureLoader none = [](const Texture&, TextureImage::Encoding) { return nullptr; };
   std::vector<ShadingMaterial> materials;
   for (size_t i = 0; i < scene.materials.size(); ++i) {
-    const Material& m = scene.materials[i];
-    ShadingMaterial s{ToFloat3(m.diffuse), ToFloat3(m.specular), static_cast<float>(m.shininess),
-                      static_cast<float>(m.reflectivity), static_cast<float>(m.transparency),
-                      static_cast<float>(m.indexOfRefraction), ToFloat3(m.emission), m.emission != Vec3{}, false, PbrMaterial{}};
-    if (m.pbr) {
-      s.pbr = true;
-      s.gltf = PbrMaterial(*m.pbr, used[i] ? load : none);
-      s.diffuse = s.gltf.baseColor;
-    }
-    materials.push_back(s);
+    materials.push_back(std::visit(
+        [&](const auto& params) -> ShadingMaterial { return ShadingType<decltype(params)>(params, load, used[i]); },
+        scene.materials[i].model));
   }
   return materials;
 }
 
-bool Refract(Float3 arriving, Float3 normal, float eta, Float3* refracted) {
-  float cosIn = -Dot(arriving, normal);
-  float k = 1.0f - eta * eta * (1.0f - cosIn * cosIn);
-  if (k < 0) return false;
-  *refracted = Normalize(arriving * eta + normal * (eta * cosIn - std::sqrt(k)));
-  return true;
+std::unique_ptr<SurfaceRule> MakeSurfaceRule(const Shape& shape, const Material& material, const ShapeUvSets& uvs,
+                                             const TextureLoader& load) {
+  return std::visit(
+      [&](const auto& params) { return ShadingType<decltype(params)>::SurfaceRuleFor(shape, params, uvs, load); },
+      material.model);
 }
 
 }  // namespace tcfarm

@@ -1,56 +1,67 @@
-// Materials as shading sees them, one struct per model: the Whitted model's Phong terms
-// (diffuse and specular, an ambient term, mirror reflection and refraction weights), here;
-// glTF's metallic-roughness model in materials/gltf_material.h, its BRDF in
-// materials/gltf_brdf.h. A new model adds its files there and a case where the tracer asks
-// `pbr` (worker/trace/tracer.cpp: MakeHit, Ambient, LightContribution, Combine).
+// Materials as shading sees them: one struct per model, <Stem>Shading in
+// worker/trace/materials/<stem>.h, named by TCFARM_MATERIAL_MODELS (proto/scene/material.h)
+// and held in a std::variant, so that every hit reaches its model's code inline, without a
+// virtual call. Each model has
+//   using Surface: what it reads of a surface at one hit (MaterialSurface holds one);
+//   <Stem>Shading(const <Stem>& params, const TextureLoader& load, bool used): made once per
+//     scene; `used`: some shape has the material;
+//   static SurfaceRuleFor(shape, params, uvs, load): which hits of a shape count (null: all);
+//   ReadsTexCoord(set), ReadsTangents(), ReadsTriangles(): what it reads of a mesh at a hit;
+//   VariesOver(shape): whether its colour may vary over the shape (else a moving sphere's
+//     unlit hit may keep its horizon: horizons.h);
+//   Unlit(): it shows itself whatever lights it (no shadow rays); MirrorsOrRefracts();
+//   Blends(), Coverage(surface): shadow rays pass it, weighed by 1 - coverage;
+//   Shade(tracer, shape, raw, hit): the hit's Surface (and its shading normal, if it tilts it);
+//   Ambient(surface, arriving, ambient): what it shows with no light;
+//   Reflected(surface, towardLight, normal, arriving): light of unit intensity from a light;
+//   Combine(tracer, hit, surface, local, depth): its local light with the rays it spawns.
+// The tracer (pixel_tracer.h) asks each through WithModel alone.
 #pragma once
 
-#include <cmath>
+#include <memory>
+#include <type_traits>
+#include <variant>
 #include <vector>
 
 #include "proto/scene/scene.h"
 #include "worker/trace/float3.h"
-#include "worker/trace/materials/gltf_material.h"
+#include "worker/trace/materials/metallic_roughness.h"
+#include "worker/trace/materials/phong.h"
 
 namespace tcfarm {
 
 // Fraction of a material's diffuse colour seen with no light at all, so surfaces in
-// shadow keep their shape (Whitted's ambient term).
+// shadow keep their shape (Whitted's ambient term): the yardstick's (bare_embree_loop.h);
+// the tracer takes RenderSettings::ambient.
 constexpr float kAmbient = 0.05f;
 
-struct ShadingMaterial {
-  Float3 diffuse, specular;
-  float shininess, reflectivity, transparency, indexOfRefraction;
-  Float3 emission;
-  bool emits;
-  // glTF's model instead of the fields above
-  bool pbr = false;
-  PbrMaterial gltf;
+#define TCFARM_MATERIAL_SHADING(Stem) , Stem##Shading
+using ShadingMaterial = VariantOfModels<void TCFARM_MATERIAL_MODELS(TCFARM_MATERIAL_SHADING)>;
+#undef TCFARM_MATERIAL_SHADING
+#define TCFARM_MATERIAL_SURFACE(Stem) , Stem##Shading::Surface
+using MaterialSurface = VariantOfModels<void TCFARM_MATERIAL_MODELS(TCFARM_MATERIAL_SURFACE)>;
+#undef TCFARM_MATERIAL_SURFACE
 
-  // With `surfaceDiffuse` the diffuse colour at the hit (the material's, or textured).
-  static Float3 Ambient(Float3 surfaceDiffuse) { return surfaceDiffuse * kAmbient; }
-  // Phong: light of unit intensity arriving from unit direction `towardLight` at a surface
-  // of unit `normal`, seen by a ray arriving along unit `arriving`.
-  // Inline: asked for every lit hit.
-  Float3 Reflected(Float3 towardLight, Float3 normal, Float3 arriving, Float3 surfaceDiffuse) const {
-    float cosine = Dot(towardLight, normal);
-    Float3 color = surfaceDiffuse * cosine;
-    if (specular.x > 0 || specular.y > 0 || specular.z > 0) {
-      float highlight = Dot(Reflect(-towardLight, normal), -arriving);
-      if (highlight > 0) color += specular * std::pow(highlight, shininess);
-    }
-    return color;
-  }
-  bool MirrorsOrRefracts() const {
-    return pbr ? gltf.MayContinue() : reflectivity != 0 || transparency != 0;
-  }
-};
+// `visit` of a material's model's shading, inlined (std::visit over two or three
+// alternatives compiles to a jump; an if-chain over the indices measured slower).
+template <typename Visit>
+decltype(auto) WithModel(const ShadingMaterial& material, Visit visit) {
+  return std::visit(visit, material);
+}
+// A model's Surface in a hit's MaterialSurface (which the model's Shade wrote): unchecked,
+// as the model is known.
+template <typename Model>
+const typename Model::Surface& SurfaceOf(const Model&, const MaterialSurface& surface) {
+  const auto* s = std::get_if<typename Model::Surface>(&surface);
+  if (!s) __builtin_unreachable();
+  return *s;
+}
 
-// `load` decodes the textures glTF materials use (Phong's are the tracer's own table).
+// `load` decodes the textures materials use.
 std::vector<ShadingMaterial> MakeMaterials(const Scene& scene, const TextureLoader& load);
 
-// The refracted direction of unit `arriving` through a surface of unit `normal` (facing
-// the arriving ray) with relative index eta; false for total internal reflection.
-bool Refract(Float3 arriving, Float3 normal, float eta, Float3* refracted);
+// Which hits of a shape count, as its material's model says; null: every hit.
+std::unique_ptr<SurfaceRule> MakeSurfaceRule(const Shape& shape, const Material& material, const ShapeUvSets& uvs,
+                                             const TextureLoader& load);
 
 }  // namespace tcfarm

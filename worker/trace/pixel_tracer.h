@@ -1,8 +1,9 @@
-// The tracer's inside, shared by its two source files: what shading reads of each shape
-// at a frame, the frame's context, and one thread's PixelTracer. tracer.cpp traces
-// (camera packets, secondary rays, shadow rays and their horizons); pixel_tracer_gltf.cpp
-// holds what glTF's material model asks of a hit (its textures' inputs, normal maps, its
-// ray tree and blended shadows). Not part of the library's face (worker/tracing.h).
+// The tracer's inside, shared by its source files: what shading reads of each shape at a
+// frame, the frame's context, and one thread's PixelTracer. tracer.cpp traces (camera
+// packets, secondary rays, shadow rays and their horizons) and asks each hit's material
+// model (materials.h) for its shading; a model's files (worker/trace/materials/) take the
+// PixelTracer for what they ask of the hit and the rays they spawn. Not part of the
+// library's face (worker/tracing.h).
 #pragma once
 
 #include <array>
@@ -42,14 +43,12 @@ struct Tracer::ShapeShading {
   const Float3* faceNormals = nullptr;    // unit, by triangle; null: Embree's normal
   const Float3* vertexNormals = nullptr;  // by vertex; null: flat
   const std::array<uint32_t, 3>* triangles = nullptr;
-  const std::array<float, 2>* uvs = nullptr;  // null unless the shape is textured and has them
-  const TextureImage* texture = nullptr;
   const Float3* colors = nullptr;  // linear RGB by vertex, multiplying the diffuse; null: none
-  // glTF materials: the second texture coordinates and the tangents, where the material
-  // reads them and the mesh has them.
+  // Texture coordinates (TEXCOORD_0, _1) and tangents, where the material reads them and
+  // the mesh has them; else null.
+  const std::array<float, 2>* uvs = nullptr;
   const std::array<float, 2>* uvs1 = nullptr;
   const std::array<float, 4>* tangents = nullptr;
-  const PbrMaterial* pbr = nullptr;  // the shape's material, when it is glTF's
   bool VariesDiffuse() const { return uvs || colors; }
   bool turns = false;  // its normals need carrying to the world (FrameGeometry::NormalToWorld)
   int material = 0;
@@ -97,12 +96,11 @@ class Tracer::PixelTracer {
   // nothing, whoever blocks it. The horizon becomes the first frame one clears at.
   void FollowBlockedShadowRays(int32_t* sampleHorizon);
 
- private:
+  using ShapeShading = Tracer::ShapeShading;
   struct SurfaceHit {
     Float3 position;
     Float3 normal;     // unit shading normal, on the side the ray arrived from
     Float3 faceNormal;  // unit, of the surface itself, on that side: offsets go along it
-    Float3 diffuse;     // the material's diffuse colour here (its texture's, where it has one)
     Float3 direction;  // unit direction of the arriving ray
     bool fromInside;   // arrived against the geometric normal (leaving a solid)
     bool unlit;        // its material shows itself whatever lights it (no shadow rays)
@@ -110,7 +108,7 @@ class Tracer::PixelTracer {
     int shape;
     uint32_t primitive;  // of a mesh: the triangle hit
     int material;
-    PbrSurface pbr{Unset{}};  // glTF materials: the BRDF's inputs here (base colour, not `diffuse`)
+    MaterialSurface surface;  // what its material's model reads of it here (its Shade)
     // The pixel's ray cone's width here: it filters glTF textures, and the secondary rays
     // leaving the hit start with it (spreading on as the camera's; surfaces' curvature
     // is not followed). 0 for shadow rays' hits: their textures are read at full size.
@@ -124,13 +122,15 @@ class Tracer::PixelTracer {
     unsigned instanceId, geometryId, primitiveId;
     float u, v;  // barycentric coordinates of the hit in its triangle
   };
-  // The closest hit along a ray within `farthest`, by the tie rule; none when it meets nothing.
-  std::optional<RawHit> ClosestHit(Float3 origin, Float3 direction, float farthest);
-  // The normal a smooth mesh shades this hit with, in object space; zero when flat.
-  static Float3 SmoothNormal(const ShapeShading& shape, const RawHit& raw);
-  // The diffuse colour at the hit: the material's, times its texture at the hit's
-  // interpolated texture coordinates where the shape has them.
-  Float3 SurfaceDiffuse(const ShapeShading& shape, const RawHit& raw) const;
+  // For the material models (materials.h): a secondary ray leaving the hit (reflected, or
+  // transmitted through the surface) along unit `direction`, counted, and the colour it
+  // brings back; and what their shading reads of the frame.
+  Float3 Secondary(const SurfaceHit& hit, bool transmitted, Float3 direction, int depth) {
+    ++(transmitted ? counts_.refraction : counts_.reflection);
+    return TraceRay(Spawn(hit, transmitted), direction, depth + 1, hit.coneWidth);
+  }
+  const Scene& scene() const { return scene_; }
+  const FrameGeometry& geometry() const { return *frame_.geometry; }
   // A normal carried to the world and made unit (kept as it is when already unit and the
   // shape does not turn); zero stays zero. Inline for the common shape that does not turn.
   Float3 ToWorld(int shape, bool turns, const Float3& normal, bool unit = false) const {
@@ -139,27 +139,20 @@ class Tracer::PixelTracer {
     float length = Length(normal);
     return (length > 0 && std::isfinite(length)) ? normal * (1.0f / length) : Float3{};
   }
+
+ private:
+  // The closest hit along a ray within `farthest`, by the tie rule; none when it meets nothing.
+  std::optional<RawHit> ClosestHit(Float3 origin, Float3 direction, float farthest);
+  // The normal a smooth mesh shades this hit with, in object space; zero when flat.
+  static Float3 SmoothNormal(const ShapeShading& shape, const RawHit& raw);
   Float3 TurnedToWorld(int shape, const Float3& normal) const;
   // Vectors by reference: passed by value, their packed halves went through the stack
   // and stalled every hit on the store forwarding.
   SurfaceHit MakeHit(const Float3& origin, const Float3& direction, const RawHit& raw, float coneWidth) const;
-  // A glTF material's inputs at the hit, its normal map's normal and its coat's.
-  void ShadePbr(const ShapeShading& shape, const RawHit& raw, SurfaceHit& hit) const;
-  // The hit's ray cone on its triangle's texture coordinates (a point without a cone).
-  UvFootprint TextureFootprint(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit) const;
-  // The hit's normal as normal map `map` tilts it; the hit's normal itself where the map is
-  // missing, lacks its texture coordinates, or gives no normal.
-  Float3 MappedNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
-                      std::array<float, 2> uv0, std::array<float, 2> uv1, const UvFootprint& footprint) const;
-  Float3 TangentFrameNormal(const ShapeShading& shape, const RawHit& raw, const SurfaceHit& hit, const PbrTexture& map,
-                            Float3 texel) const;
-  // The hit triangle's direction of increasing u over the normal map's texture coordinates,
-  // in object space, and the sign of its bitangent (v's direction against normal x tangent).
-  Float3 TriangleTangent(const ShapeShading& shape, const RawHit& raw, int shapeIndex, float* handedness) const;
   // Light arriving at the hit from light i if nothing blocks it; false when the light is
   // behind the surface, or the surface is unlit (then no shadow ray is needed at all).
-  // Inline, as LightContribution and Ambient: asked for every hit and light, their Phong
-  // part costs more as a call than as work (glTF's parts are calls of their own).
+  // Inline, as LightContribution and Ambient: asked for every hit and light, Phong's
+  // shading costs more as a call than as work (glTF's model's parts are calls of their own).
   bool ShadowRay(const SurfaceHit& hit, size_t light, Float3* direction, float* distance) const {
     if (hit.unlit) return false;
     return frame_.lights[light].Toward(hit.position, hit.normal, direction, distance);
@@ -167,24 +160,21 @@ class Tracer::PixelTracer {
   // Inline: asked for every lit hit and light.
   Float3 LightContribution(const SurfaceHit& hit, size_t light, Float3 direction, float distance) const {
     const ShadingLight& l = frame_.lights[light];
-    const ShadingMaterial& m = (*frame_.materials)[hit.material];
-    const Float3 color = m.pbr ? PbrLight(hit, m, direction)
-                               : m.Reflected(direction, hit.normal, hit.direction, hit.diffuse);
+    const Float3 color = WithModel(MaterialOf(hit), [&](const auto& m) {
+      return m.Reflected(SurfaceOf(m, hit.surface), direction, hit.normal, hit.direction);
+    });
     return color * l.intensity * l.Arriving(direction, distance);
   }
   // What the surface shows with no light: the ambient term, and its own emission.
   Float3 Ambient(const SurfaceHit& hit) const {
-    const ShadingMaterial& m = (*frame_.materials)[hit.material];
-    if (m.pbr) return AmbientPbr(hit, m);
-    const Float3 ambient = hit.diffuse * frame_.ambient;
-    return m.emits ? ambient + m.emission : ambient;
+    return WithModel(MaterialOf(hit), [&](const auto& m) {
+      return m.Ambient(SurfaceOf(m, hit.surface), hit.direction, frame_.ambient);
+    });
   }
-  // glTF's model: light of unit intensity from `direction` reflected toward the viewer, and
-  // what the surface shows with no light.
-  __attribute__((noinline)) Float3 PbrLight(const SurfaceHit& hit, const ShadingMaterial& m, Float3 direction) const;
-  __attribute__((noinline)) Float3 AmbientPbr(const SurfaceHit& hit, const ShadingMaterial& m) const;
+  const ShadingMaterial& MaterialOf(const SurfaceHit& hit) const { return (*frame_.materials)[hit.material]; }
+  // The hit's local light with the rays its material spawns (mirror, refraction), below
+  // the depth limit.
   Float3 Combine(const SurfaceHit& hit, Float3 local, int depth);
-  Float3 CombinePbr(const SurfaceHit& hit, const PbrMaterial& material, Float3 local, int depth);
   // The share of a light that passes the blended surfaces between an unblocked shadow ray's
   // start and the light: 1 - alpha of each, met front to back (closest hit after closest
   // hit: the order, and so the rounding, is the ray's own).

@@ -139,10 +139,10 @@ TEST_F(TextureTest, AnAssetRendersLikeItsFileFromDiskOrMemory) {
   Scene cached = TexturedSquare(R"({"asset": ")" + hash + R"(", "filter": "nearest"})");
   EXPECT_THROW(Render(cached), TextureError);  // not fetched yet
   fs::copy_file(folder_ / "checker.png", folder_ / hash);
-  cached.materials[1].diffuseTexture->file = folder_ / hash;
+  cached.materials[1].As<Phong>().diffuseTexture->file = folder_ / hash;
   EXPECT_EQ(Render(cached), expected);
   Scene inMemory = TexturedSquare(R"({"asset": ")" + hash + R"(", "filter": "nearest"})");
-  inMemory.materials[1].diffuseTexture->bytes = std::make_shared<const std::string>(ReadBytes(folder_ / "checker.png"));
+  inMemory.materials[1].As<Phong>().diffuseTexture->bytes = std::make_shared<const std::string>(ReadBytes(folder_ / "checker.png"));
   EXPECT_EQ(Render(inMemory), expected);
   EXPECT_EQ(SerializeScene(inMemory).find("checker"), std::string::npos);
   EXPECT_NE(SerializeScene(inMemory).find(R"("asset":")" + hash), std::string::npos);

@@ -5,6 +5,9 @@
 // pixel's colour never depends on which other pixels are traced with it.
 #pragma once
 
+#include <array>
+#include <functional>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
@@ -75,5 +78,13 @@ class TextureImage {
   Texture::Wrap wrapS_, wrapT_;
   Texture::Filter filter_;
 };
+
+// Decodes a texture image once: the tracer keeps each image, by its colour encoding. A
+// material model's shading takes its images from one, when it is made.
+using TextureLoader = std::function<const TextureImage*(const Texture&, TextureImage::Encoding)>;
+
+// A shape's texture coordinates in float, TEXCOORD_0 and _1 (empty where it has none), as
+// the tracer holds them: shapes placing one mesh share them.
+using ShapeUvSets = std::array<std::shared_ptr<const std::vector<std::array<float, 2>>>, 2>;
 
 }  // namespace tcfarm

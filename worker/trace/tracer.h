@@ -70,37 +70,40 @@ class Tracer {
   int PacketWidth() const { return packetWidth_; }
   void SetPacketWidth(int width);
 
- private:
-  struct FrameContext;
+  // The tracer's inside (pixel_tracer.h), named here so that a material model's shading
+  // (worker/trace/materials/) can take them: what shading reads of a shape, and one
+  // thread's tracer.
   struct ShapeShading;
   class PixelTracer;
+
+ private:
+  struct FrameContext;
   // Each shape's record for shading at a frame (its normals may be a pose's).
   std::vector<ShapeShading> ShadingAt(const FrameGeometry& frame) const;
 
   const EmbreeDevice& device_;
   const Scene& scene_;
   // Per shape, texture coordinates in float (shapes placing one shared mesh share them):
-  // TEXCOORD_0's for every mesh, TEXCOORD_1's where a glTF material reads them. Before the
+  // TEXCOORD_0's for every mesh, TEXCOORD_1's where a material reads them. Before the
   // surface rules, whose alpha masks read them too.
   using ShapeUvs = std::vector<std::array<float, 2>>;
   std::vector<std::shared_ptr<const ShapeUvs>> uvs_, uvs1_;
   static std::vector<std::shared_ptr<const ShapeUvs>> UvTable(const Scene& scene, int set);
-  // The images glTF materials read, decoded once each (by image and encoding).
-  std::map<std::pair<std::string, TextureImage::Encoding>, std::unique_ptr<TextureImage>> pbrTextures_;
-  const TextureImage* LoadPbrTexture(const Texture& texture, TextureImage::Encoding encoding);
+  // The images materials read, decoded once each (by image, sampling and encoding).
+  std::map<std::pair<std::string, TextureImage::Encoding>, std::unique_ptr<TextureImage>> textureImages_;
+  const TextureImage* LoadTexture(const Texture& texture, TextureImage::Encoding encoding);
   // By shape, which of its hits count (alpha masks, one-sided materials): before the
   // geometry, whose filters ask them.
   std::vector<std::unique_ptr<SurfaceRule>> surfaceRules_;
   std::vector<std::unique_ptr<SurfaceRule>> MakeSurfaceRules();
   SceneGeometry geometry_;
   // Normals change with a deforming mesh's pose: the frame's geometry holds them.
+  // Materials never change over frames: each made for shading once, by material.
   std::vector<ShadingMaterial> materials_;
-  // Per material: its decoded texture, if it has one.
-  std::vector<std::unique_ptr<TextureImage>> textures_;
   // Per shape, its vertices' colours (none for most shapes), shared like the uvs.
   using ShapeColors = std::vector<Float3>;
   std::vector<std::shared_ptr<const ShapeColors>> colors_;
-  // Per shape, glTF's tangents, where a material's normal map reads them.
+  // Per shape, its tangents (glTF's TANGENT), where a material's normal map reads them.
   using ShapeTangents = std::vector<std::array<float, 4>>;
   std::vector<std::shared_ptr<const ShapeTangents>> tangents_;
 

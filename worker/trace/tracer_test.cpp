@@ -302,7 +302,7 @@ TEST(TracerTest, NoShadowRaysWithoutLights) {
 
 TEST(TracerTest, NoSecondaryRaysWithoutMirrorsOrGlass) {
   Scene scene = ParseScene(ShowcaseScene());
-  for (Material& m : scene.materials) m.reflectivity = m.transparency = 0;
+  for (Material& m : scene.materials) m.As<Phong>().reflectivity = m.As<Phong>().transparency = 0;
   RayCounts counts;
   RenderFrame(scene, 0, 0, &counts);
   EXPECT_EQ(counts.reflection, 0u);

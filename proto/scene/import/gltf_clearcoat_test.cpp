@@ -49,7 +49,7 @@ TEST(GltfClearcoatTest, FactorsTexturesAndNormalScaleAreKept) {
   EXPECT_EQ(codes, (std::vector<std::string>{"texcoord_set_missing", "texcoord_set_missing", "default_camera",
                                              "default_light"}));
   ASSERT_EQ(scene.materials.size(), 2u);
-  const MetallicRoughness& m = *scene.materials[1].pbr;
+  const MetallicRoughness& m = scene.materials[1].As<MetallicRoughness>();
   EXPECT_DOUBLE_EQ(m.clearcoat, 0.75);
   EXPECT_DOUBLE_EQ(m.clearcoatRoughness, 0.25);
   ASSERT_TRUE(m.clearcoatTexture && m.clearcoatRoughnessTexture && m.clearcoatNormalTexture);

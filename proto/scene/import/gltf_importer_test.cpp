@@ -223,19 +223,19 @@ TEST(GltfImporterTest, CameraLightsAndMaterials) {
 
   ASSERT_EQ(scene.materials.size(), 3u);  // default, glass, gold: the parser's order
   EXPECT_EQ(scene.materials[0].name, "default");
-  ASSERT_TRUE(scene.materials[0].IsPbr());  // glTF's default: white, metallic, rough
-  EXPECT_DOUBLE_EQ(scene.materials[0].pbr->metallic, 1);
+  ASSERT_TRUE(scene.materials[0].Is<MetallicRoughness>());  // glTF's default: white, metallic, rough
+  EXPECT_DOUBLE_EQ(scene.materials[0].As<MetallicRoughness>().metallic, 1);
   const Material& glass = scene.materials[1];
   const Material& gold = scene.materials[2];
   EXPECT_EQ(gold.name, "gold");
   EXPECT_EQ(scene.shapes[0].material, 2);
-  ASSERT_TRUE(gold.IsPbr() && glass.IsPbr());
-  ExpectNear(gold.pbr->baseColor, {1, 0.5, 0});
-  EXPECT_DOUBLE_EQ(gold.pbr->metallic, 1);
-  EXPECT_DOUBLE_EQ(gold.pbr->roughness, 0.5);
+  ASSERT_TRUE(gold.Is<MetallicRoughness>() && glass.Is<MetallicRoughness>());
+  ExpectNear(gold.As<MetallicRoughness>().baseColor, {1, 0.5, 0});
+  EXPECT_DOUBLE_EQ(gold.As<MetallicRoughness>().metallic, 1);
+  EXPECT_DOUBLE_EQ(gold.As<MetallicRoughness>().roughness, 0.5);
   EXPECT_FALSE(gold.Reflects());  // rougher than a mirror: lights only
-  EXPECT_DOUBLE_EQ(glass.pbr->transmission, 0.9);
-  EXPECT_DOUBLE_EQ(glass.pbr->ior, 1.33);
+  EXPECT_DOUBLE_EQ(glass.As<MetallicRoughness>().transmission, 0.9);
+  EXPECT_DOUBLE_EQ(glass.As<MetallicRoughness>().ior, 1.33);
   EXPECT_TRUE(glass.Reflects());
   EXPECT_TRUE(glass.Refracts());
   ExpectRoundTrip(scene);

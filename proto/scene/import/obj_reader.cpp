@@ -291,25 +291,27 @@ Material ConvertMaterial(const tinyobj::material_t& source, const std::string& l
     }
     return value;
   };
-  Material material;
-  material.name = source.name;
-  material.diffuse = colour(source.diffuse, "Kd");
-  material.specular = colour(source.specular, "Ks");
+  Phong phong;
+  phong.diffuse = colour(source.diffuse, "Kd");
+  phong.specular = colour(source.specular, "Ks");
   if (!std::isfinite(source.shininess) || source.shininess < 0 || source.shininess > kMaxMagnitude) {
     fail("Ns is not a non-negative finite exponent", "Ns in [0, 1e30]");
   }
-  material.shininess = source.shininess;
+  phong.shininess = source.shininess;
   if (!std::isfinite(source.dissolve)) fail("d (or Tr) is not finite", "d in [0, 1]");
   if (!std::isfinite(source.ior)) fail("Ni is not finite", "Ni in [1, 10]");
   // Exporters write d slightly outside [0, 1] and Ni 0 for "unset"; clamping keeps their
   // files usable, and the mapping is documented in proto/scene.md.
-  material.transparency = std::clamp(1.0 - source.dissolve, 0.0, 1.0);
-  material.indexOfRefraction = std::clamp(source.ior, scene_limits::kMinIndexOfRefraction, scene_limits::kMaxIndexOfRefraction);
+  phong.transparency = std::clamp(1.0 - source.dissolve, 0.0, 1.0);
+  phong.indexOfRefraction = std::clamp(source.ior, scene_limits::kMinIndexOfRefraction, scene_limits::kMaxIndexOfRefraction);
   // illum 3 is "reflection on, ray traced": the mirror weight is the specular colour.
   if (source.illum == 3) {
-    double strongest = std::max({material.specular.x, material.specular.y, material.specular.z});
-    material.reflectivity = std::min(strongest, 1.0 - material.transparency);
+    double strongest = std::max({phong.specular.x, phong.specular.y, phong.specular.z});
+    phong.reflectivity = std::min(strongest, 1.0 - phong.transparency);
   }
+  Material material;
+  material.name = source.name;
+  material.model = phong;
   return material;
 }
 

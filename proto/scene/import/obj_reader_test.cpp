@@ -175,21 +175,21 @@ TEST(ObjReaderTest, MaterialsMapOntoTheWhittedModel) {
   ASSERT_EQ(model.materials.size(), 4u);
   const Material& red = model.materials[0];
   EXPECT_EQ(red.name, "red");
-  EXPECT_EQ(red.diffuse, (Vec3{0.8, 0.1, 0.1}));
-  EXPECT_EQ(red.specular, (Vec3{0.2, 0.2, 0.2}));
-  EXPECT_EQ(red.shininess, 64);
-  EXPECT_EQ(red.reflectivity, 0);
-  EXPECT_EQ(red.transparency, 0);
+  EXPECT_EQ(red.As<Phong>().diffuse, (Vec3{0.8, 0.1, 0.1}));
+  EXPECT_EQ(red.As<Phong>().specular, (Vec3{0.2, 0.2, 0.2}));
+  EXPECT_EQ(red.As<Phong>().shininess, 64);
+  EXPECT_EQ(red.As<Phong>().reflectivity, 0);
+  EXPECT_EQ(red.As<Phong>().transparency, 0);
   const Material& glass = model.materials[1];
-  EXPECT_DOUBLE_EQ(glass.transparency, 0.75);
-  EXPECT_DOUBLE_EQ(glass.indexOfRefraction, 1.33);
-  EXPECT_EQ(glass.reflectivity, 0);  // illum 4 is not a mirror
+  EXPECT_DOUBLE_EQ(glass.As<Phong>().transparency, 0.75);
+  EXPECT_DOUBLE_EQ(glass.As<Phong>().indexOfRefraction, 1.33);
+  EXPECT_EQ(glass.As<Phong>().reflectivity, 0);  // illum 4 is not a mirror
   const Material& chrome = model.materials[2];
-  EXPECT_DOUBLE_EQ(chrome.reflectivity, 0.9);
+  EXPECT_DOUBLE_EQ(chrome.As<Phong>().reflectivity, 0.9);
   const Material& tinted = model.materials[3];
-  EXPECT_DOUBLE_EQ(tinted.transparency, 0.4);    // Tr is 1 - d
-  EXPECT_DOUBLE_EQ(tinted.reflectivity, 0.6);    // capped: reflectivity + transparency <= 1
-  EXPECT_EQ(tinted.indexOfRefraction, 1);        // Ni 0 clamps to [1, 10]
+  EXPECT_DOUBLE_EQ(tinted.As<Phong>().transparency, 0.4);    // Tr is 1 - d
+  EXPECT_DOUBLE_EQ(tinted.As<Phong>().reflectivity, 0.6);    // capped: reflectivity + transparency <= 1
+  EXPECT_EQ(tinted.As<Phong>().indexOfRefraction, 1);        // Ni 0 clamps to [1, 10]
 
   ASSERT_EQ(model.parts.size(), 4u);
   EXPECT_EQ(model.parts[0].name, "body");

@@ -135,7 +135,7 @@ TEST(SceneImportTest, ObjSceneHasPartsMaterialsCameraAndLight) {
   ASSERT_EQ(scene.materials.size(), 3u);
   EXPECT_EQ(scene.materials[0].name, "default");
   EXPECT_EQ(scene.materials[1].name, "chrome");
-  EXPECT_DOUBLE_EQ(scene.materials[1].reflectivity, 0.9);
+  EXPECT_DOUBLE_EQ(scene.materials[1].As<Phong>().reflectivity, 0.9);
   EXPECT_EQ(scene.materials[2].name, "red");
 
   ASSERT_EQ(scene.shapes.size(), 3u);
@@ -182,8 +182,8 @@ TEST(SceneImportTest, ObjMaterialNamedDefaultReplacesTheBuiltIn) {
   Scene scene = ImportScene(folder.Write("m.obj", std::string("mtllib m.mtl\nusemtl default\n") + kTriangle));
   ASSERT_EQ(scene.materials.size(), 1u);
   // tinyobjloader's number parser may be an ulp off strtod for MTL values.
-  EXPECT_DOUBLE_EQ(scene.materials[0].diffuse.z, 0.3);
-  EXPECT_DOUBLE_EQ(scene.materials[0].diffuse.x, 0.1);
+  EXPECT_DOUBLE_EQ(scene.materials[0].As<Phong>().diffuse.z, 0.3);
+  EXPECT_DOUBLE_EQ(scene.materials[0].As<Phong>().diffuse.x, 0.1);
   EXPECT_EQ(scene.shapes[0].material, 0);
 }
 
@@ -236,7 +236,7 @@ TEST(SceneImportTest, AJsonSceneAddsToTheFileItImports) {
     ADD_FAILURE() << "no material " << name;
     return Material{};
   };
-  EXPECT_EQ(material("red").diffuse, (Vec3{0, 1, 0}));
+  EXPECT_EQ(material("red").As<Phong>().diffuse, (Vec3{0, 1, 0}));
   EXPECT_EQ(scene.materials[static_cast<size_t>(scene.shapes[0].material)].name, base.materials[static_cast<size_t>(base.shapes[0].material)].name);
   EXPECT_EQ(scene.materials[static_cast<size_t>(scene.shapes.back().material)].name, "gold");
   // Written out, the scene stands alone: nothing of the import remains to resolve.

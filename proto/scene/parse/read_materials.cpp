@@ -1,6 +1,7 @@
 // Reading a scene's materials and their textures.
 #include "proto/scene/parse/scene_reader.h"
 
+#include "proto/scene/materials/material_format.h"
 #include "proto/wire/content_hash.h"
 
 namespace tcfarm::scene_parse {
@@ -30,44 +31,26 @@ std::vector<Material> SceneReader::ReadMaterials(const Node& root, std::vector<M
   return materials;
 }
 
+// The model whose keys the material names (the list's first, Phong, when it names none);
+// naming two models' keys is an error.
 Material SceneReader::ReadMaterial(const Node& node) {
-  ExpectObject(node, {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior", "diffuse_texture",
-                      "emission", "pbr"},
-               "a material");
-  Material material;
-  if (node.Has("pbr")) {
-    for (const char* phong : {"diffuse", "specular", "shininess", "reflectivity", "transparency", "ior",
-                              "diffuse_texture", "emission"}) {
-      if (node.Has(phong)) {
-        Fail(node.MemberPointer(phong), "a Phong parameter beside a \"pbr\" block",
-             "either Phong's parameters or one \"pbr\" block (glTF's metallic-roughness model), not both");
+  std::vector<std::string> keys;
+  for (const MaterialFormat* format : MaterialFormats()) keys.insert(keys.end(), format->Keys().begin(), format->Keys().end());
+  ExpectObject(node, keys, "a material");
+  const MaterialFormat* chosen = nullptr;
+  std::string chosenKey;
+  for (const MaterialFormat* format : MaterialFormats()) {
+    for (const std::string& key : format->Keys()) {
+      if (!node.Has(key)) continue;
+      if (chosen && chosen != format) {
+        Fail(node.MemberPointer(chosenKey), std::string(chosen->OneKey()) + " beside " + format->OneKey(),
+             std::string("either ") + chosen->AllKeys() + " or " + format->AllKeys() + ", not both");
       }
+      if (!chosen) chosen = format, chosenKey = key;
     }
-    material.pbr = ReadPbr(node.Member("pbr"));
-    return material;
   }
-  if (node.Has("diffuse_texture")) material.diffuseTexture = ReadTexture(node.Member("diffuse_texture"));
-  if (node.Has("diffuse")) material.diffuse = ReadColour(node.Member("diffuse"));
-  if (node.Has("emission")) material.emission = ReadColour(node.Member("emission"));
-  if (node.Has("specular")) material.specular = ReadColour(node.Member("specular"));
-  if (node.Has("shininess")) {
-    material.shininess = ReadNonNegative(node.Member("shininess"), "a non-negative Phong exponent");
-  }
-  if (node.Has("reflectivity")) {
-    material.reflectivity = ReadInRange(node.Member("reflectivity"), 0, 1, "a number in [0, 1]");
-  }
-  if (node.Has("transparency")) {
-    material.transparency = ReadInRange(node.Member("transparency"), 0, 1, "a number in [0, 1]");
-  }
-  if (node.Has("ior")) {
-    material.indexOfRefraction = ReadInRange(node.Member("ior"), 1, 10, "an index of refraction in [1, 10]");
-  }
-  if (material.reflectivity + material.transparency > 1) {
-    Fail(node.MemberPointer(node.Has("transparency") ? "transparency" : "reflectivity"),
-         "reflectivity " + FormatNumber(material.reflectivity) + " + transparency " +
-             FormatNumber(material.transparency) + " exceeds 1",
-         "reflectivity + transparency <= 1 (they share the light that is not absorbed)");
-  }
+  Material material;
+  (chosen ? chosen : MaterialFormats().front())->Read(*this, node, material);
   return material;
 }
 

@@ -1,6 +1,7 @@
 // The scene JSON reader: one document -> Scene, each part read and checked by its own file
-// (read_scene.cpp: the document, import and render settings; read_materials.cpp;
-// read_camera_lights.cpp: the camera and the fields every light has, each kind's own read
+// (read_scene.cpp: the document, import and render settings; read_materials.cpp: which
+// model a material has, its keys read by the model's format (proto/scene/materials/), and
+// textures; read_camera_lights.cpp: the camera and the fields every light has, each kind's own read
 // by its format (proto/scene/lights/); read_shapes.cpp: the same for shapes
 // (proto/scene/shapes/); read_meshes.cpp: mesh geometry and deformation).
 #pragma once
@@ -65,6 +66,11 @@ class SceneReader {
   // A light's required "direction", animated, and non-zero at every frame.
   AnimatedVec3 ReadLightDirection(const Node& light) const;
 
+  // For the material formats (proto/scene/materials/): a texture object, its image
+  // resolved inside the scene's folder; `moreKeys` are those its holder adds (a slot's
+  // texture coordinates).
+  Texture ReadTexture(const Node& node, const std::vector<std::string>& moreKeys = {});
+
  private:
   template <typename T>
   static void Append(std::vector<T>& to, std::vector<T> more) {
@@ -93,16 +99,6 @@ class SceneReader {
   std::vector<Material> ReadMaterials(const Node& root, std::vector<Material> base);
 
   Material ReadMaterial(const Node& node);
-
-  // A texture object; `moreKeys` are those its holder adds (a slot's texture coordinates).
-  Texture ReadTexture(const Node& node, const std::vector<std::string>& moreKeys = {});
-
-  // glTF's metallic-roughness model: a material's "pbr" block (read_pbr.cpp).
-  MetallicRoughness ReadPbr(const Node& node);
-  void ReadClearcoat(const Node& node, MetallicRoughness& m);
-  // A texture with its texture coordinates and their transform; `amountKey` names the
-  // slot's own number (a normal map's "scale", an occlusion map's "strength"), if any.
-  TextureSlot ReadTextureSlot(const Node& node, const std::string& amountKey = "");
 
   void ReadTextureFile(const Node& image, Texture& texture);
 

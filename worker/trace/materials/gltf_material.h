@@ -45,9 +45,6 @@ struct PbrTexture {
   }
 };
 
-// Decodes a texture image once: the tracer keeps each image, by its colour encoding.
-using TextureLoader = std::function<const TextureImage*(const Texture&, TextureImage::Encoding)>;
-
 struct PbrMaterial {
   Float3 baseColor;
   float metallic = 1, roughness = 1;
@@ -85,7 +82,7 @@ struct PbrMaterial {
   static PbrTexture MakeTexture(const std::optional<TextureSlot>& slot, TextureImage::Encoding encoding,
                                 const TextureLoader& load);
 
-  static constexpr float kMirrorRoughness = static_cast<float>(Material::kMirrorRoughness);
+  static constexpr float kMirrorRoughness = static_cast<float>(MetallicRoughness::kMirrorRoughness);
 
  private:
   void LoadLitTextures(const MetallicRoughness& m, const TextureLoader& load);

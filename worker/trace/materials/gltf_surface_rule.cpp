@@ -4,10 +4,9 @@
 
 namespace tcfarm {
 
-std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Material& material,
-                                                  const std::array<Uvs, 2>& uvs, const TextureLoader& load) {
-  if (!material.pbr || shape.Mesh().triangles.empty()) return nullptr;
-  const MetallicRoughness& m = *material.pbr;
+std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const MetallicRoughness& m, const ShapeUvSets& uvs,
+                                                  const TextureLoader& load) {
+  if (shape.Mesh().triangles.empty()) return nullptr;
   const bool masks = m.alphaMode == MetallicRoughness::Alpha::kMask;
   const bool blends = m.alphaMode == MetallicRoughness::Alpha::kBlend;
   if (!masks && !blends && m.doubleSided) return nullptr;
@@ -20,7 +19,7 @@ std::unique_ptr<SurfaceRule> GltfSurfaceRule::For(const Shape& shape, const Mate
   const TriangleMesh& mesh = shape.Mesh();
   rule->triangles_ = mesh.triangles.data();
   if (masks && m.baseColorTexture) {
-    const Uvs& read = uvs[m.baseColorTexture->texCoord == 1];
+    const ShapeUvSets::value_type& read = uvs[m.baseColorTexture->texCoord == 1];
     if (read && !read->empty()) {
       rule->texture_ = PbrMaterial::MakeTexture(m.baseColorTexture, TextureImage::Encoding::kSrgb, load);
       rule->uvs_ = read;

@@ -18,11 +18,9 @@ namespace tcfarm {
 
 class GltfSurfaceRule : public SurfaceRule {
  public:
-  // The rule of a shape's material, or null when every hit of it counts (Phong, opaque or
+  // The rule of a shape's material, or null when every hit of it counts (opaque or
   // blended and double-sided, or a shape that is not a triangle mesh).
-  // uvs: the shape's texture coordinates in float (TEXCOORD_0, _1), as the tracer holds them.
-  using Uvs = std::shared_ptr<const std::vector<std::array<float, 2>>>;
-  static std::unique_ptr<SurfaceRule> For(const Shape& shape, const Material& material, const std::array<Uvs, 2>& uvs,
+  static std::unique_ptr<SurfaceRule> For(const Shape& shape, const MetallicRoughness& m, const ShapeUvSets& uvs,
                                           const TextureLoader& load);
 
   bool Keeps(unsigned primitive, float u, float v, bool backFace, bool occlusion) const override;
@@ -37,7 +35,7 @@ class GltfSurfaceRule : public SurfaceRule {
   float cutoff_ = 0.5f, alpha_ = 1;
   PbrTexture texture_;  // the base colour texture, for its alpha
   const std::array<uint32_t, 3>* triangles_ = nullptr;
-  Uvs uvs_;  // the texture's coordinates, by vertex
+  ShapeUvSets::value_type uvs_;  // the texture's coordinates, by vertex
 };
 
 }  // namespace tcfarm

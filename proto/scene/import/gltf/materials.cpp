@@ -76,7 +76,7 @@ Material GltfReader::MapMaterial(const tinygltf::Material& source, size_t index)
   m.doubleSided = source.doubleSided;
   MapExtensions(source, pointer, m);
   Material material;
-  material.pbr = m;
+  material.model = m;
   return material;
 }
 
@@ -260,7 +260,7 @@ void GltfReader::AddMaterials(Scene& scene) {
   // A primitive without a material gets glTF's default: white, metallic and rough.
   scene.materials.assign(1, Material{});
   scene.materials[0].name = "default";
-  scene.materials[0].pbr = MetallicRoughness{};
+  scene.materials[0].model = MetallicRoughness{};
   materialIndex_.assign(model_.materials.size(), 0);
   for (const auto& [name, index] : byName) {
     Material material = MapMaterial(model_.materials[index], index);

@@ -185,10 +185,9 @@ void GltfReader::AddShapes(Scene& scene) {
 
 void GltfReader::WarnOfMissingTexCoords(const Material& material, const TriangleMesh& mesh,
                                         const std::string& pointer) const {
-  if (!material.pbr) return;
   for (int set : {0, 1}) {
     const bool present = !(set == 0 ? mesh.uvs : mesh.uvs1).empty();
-    if (material.pbr->ReadsTexCoord(set) && !present) {
+    if (material.ReadsTexCoord(set) && !present) {
       Warn("texcoord_set_missing", pointer + "/attributes",
            "the material's textures read TEXCOORD_" + std::to_string(set) +
                ", which this primitive does not have; those textures are left out and their factors used");
