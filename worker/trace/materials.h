@@ -18,7 +18,9 @@
 // The tracer (pixel_tracer.h) asks each through WithModel alone.
 #pragma once
 
+#include <algorithm>
 #include <memory>
+#include <new>
 #include <type_traits>
 #include <variant>
 #include <vector>
@@ -38,8 +40,34 @@ constexpr float kAmbient = 0.05f;
 #define TCFARM_MATERIAL_SHADING(Stem) , Stem##Shading
 using ShadingMaterial = VariantOfModels<void TCFARM_MATERIAL_MODELS(TCFARM_MATERIAL_SHADING)>;
 #undef TCFARM_MATERIAL_SHADING
+// What a hit's material model reads of its surface (its Surface), as its Shade wrote it:
+// storage for the largest of the models' Surfaces, not a std::variant, which GCC zeroes
+// whole at every hit (a `rep stos` that cost Phong scenes 3-5 %). Which Surface it holds,
+// the hit's material says; Surfaces are trivially copyable, so hits copy as bytes.
+template <typename... Surfaces>
+class SurfaceSlot {
+ public:
+  SurfaceSlot() {}  // left unwritten: the model's Shade writes it, nothing else reads it first
+  template <typename Surface>
+  SurfaceSlot& operator=(const Surface& surface) {
+    static_assert((std::is_same_v<Surface, Surfaces> || ...), "a Surface of a listed model");
+    static_assert(std::is_trivially_copyable_v<Surface> && std::is_trivially_destructible_v<Surface>);
+    new (bytes_) Surface(surface);
+    return *this;
+  }
+  template <typename Surface>
+  const Surface& As() const {
+    return *std::launder(reinterpret_cast<const Surface*>(bytes_));
+  }
+
+ private:
+  alignas(Surfaces...) unsigned char bytes_[std::max({sizeof(Surfaces)...})];
+};
+// SurfaceSlot of the Surfaces listed after a first, ignored type (the model list's form).
+template <typename Ignored, typename... Surfaces>
+using SurfaceSlotOfModels = SurfaceSlot<Surfaces...>;
 #define TCFARM_MATERIAL_SURFACE(Stem) , Stem##Shading::Surface
-using MaterialSurface = VariantOfModels<void TCFARM_MATERIAL_MODELS(TCFARM_MATERIAL_SURFACE)>;
+using MaterialSurface = SurfaceSlotOfModels<void TCFARM_MATERIAL_MODELS(TCFARM_MATERIAL_SURFACE)>;
 #undef TCFARM_MATERIAL_SURFACE
 
 // `visit` of a material's model's shading, inlined (std::visit over two or three
@@ -48,13 +76,10 @@ template <typename Visit>
 decltype(auto) WithModel(const ShadingMaterial& material, Visit visit) {
   return std::visit(visit, material);
 }
-// A model's Surface in a hit's MaterialSurface (which the model's Shade wrote): unchecked,
-// as the model is known.
+// A model's Surface in a hit's MaterialSurface (which the model's Shade wrote).
 template <typename Model>
 const typename Model::Surface& SurfaceOf(const Model&, const MaterialSurface& surface) {
-  const auto* s = std::get_if<typename Model::Surface>(&surface);
-  if (!s) __builtin_unreachable();
-  return *s;
+  return surface.template As<typename Model::Surface>();
 }
 
 // `load` decodes the textures materials use.

@@ -131,9 +131,7 @@ Tracer::PixelTracer::SurfaceHit Tracer::PixelTracer::MakeHit(const Float3& origi
                  shape,
                  raw.primitiveId,
                  shading.material,
-                 // Shade writes it. (GCC zeroes the variant's bytes here, a `rep stos`
-                 // the former plain fields did not need: most of the Phong scenes' 3-5 %.)
-                 {},
+                 {},  // Shade writes it
                  coneWidth};
   WithModel(MaterialOf(hit), [&](const auto& m) {
     hit.unlit = m.Unlit();
