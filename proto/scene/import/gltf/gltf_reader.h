@@ -34,10 +34,9 @@
 #include "proto/scene/import/messages.h"
 #include "proto/scene/import/scene_files.h"
 
-namespace draco {
-class Mesh;
-class PointAttribute;
-}  // namespace draco
+namespace tcfarm::draco_codec {
+class DecodedMesh;
+}  // namespace tcfarm::draco_codec
 
 namespace tcfarm::gltf {
 
@@ -157,8 +156,8 @@ class GltfReader {
   // The accessor `index` that decoded Draco data of `count` elements fills: it exists, it is
   // filled once, and its count is the decoded one.
   tinygltf::Accessor& DracoAccessor(int index, size_t count, const std::string& at);
-  void WriteDracoAttribute(int index, const draco::PointAttribute& attribute, size_t points, const std::string& at);
-  void WriteDracoIndices(int index, const draco::Mesh& mesh, const std::string& at);
+  void WriteDracoAttribute(int index, const draco_codec::DecodedMesh& mesh, uint32_t id, const std::string& at);
+  void WriteDracoIndices(int index, const draco_codec::DecodedMesh& mesh, const std::string& at);
   // Points the accessor at `bytes`, in a buffer and buffer view of their own.
   void PointAccessorAt(tinygltf::Accessor& accessor, std::vector<unsigned char> bytes);
   // Appends `bytes` as a buffer of their own; returns its index.
