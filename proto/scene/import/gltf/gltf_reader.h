@@ -86,7 +86,7 @@ inline const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual",          "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_mesh_quantization",        "KHR_materials_emissive_strength", "KHR_materials_unlit",
     "KHR_materials_specular",       "KHR_texture_transform",           "KHR_materials_clearcoat",
-    "KHR_draco_mesh_compression",   "EXT_meshopt_compression"};
+    "KHR_draco_mesh_compression",   "EXT_meshopt_compression",         "EXT_texture_webp"};
 
 class GltfReader {
  public:
@@ -272,11 +272,21 @@ class GltfReader {
   // the renderer's choice of filter, here bilinear.
   static Texture::Wrap WrapOf(int code);
 
-  Texture MapTexture(int index, const std::string& pointer) const;
+  // The image a texture shows and the pointer of the index naming it: EXT_texture_webp's
+  // source when it has one (workers decode WebP), else the texture's own. KHR_texture_basisu's
+  // KTX2 images are not decoded: the texture's own source stands in, said; without one the
+  // texture is left out (nullopt), said too.
+  struct ImageSource {
+    int64_t index;
+    std::string pointer;
+  };
+  std::optional<ImageSource> ImageSourceOf(const tinygltf::Texture& texture, const std::string& texturePointer) const;
+  // Texture `index` with its image's bytes; nullopt when it is left out (ImageSourceOf).
+  std::optional<Texture> MapTexture(int index, const std::string& pointer) const;
   // A material's texture reference (TextureInfo and its normal and occlusion kinds): the
   // texture, its texture coordinates and their KHR_texture_transform.
-  TextureSlot MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
-                      const std::string& pointer) const;
+  std::optional<TextureSlot> MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
+                                     const std::string& pointer) const;
   static double FactorIn(const tinygltf::Value& object, const std::string& key, double fallback);
 
   // Materials as the scene parser orders them ("default" first, then by name), so the
