@@ -190,4 +190,36 @@ inline nlohmann::json MeshoptGltf(const Sphere& s, bool filters = false) {
   return gltf;
 }
 
+// RFC 4648 Base64 decoded (what Base64 writes; anything else is not checked).
+inline std::string FromBase64(const std::string& text) {
+  static const std::string kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  uint32_t bits = 0;
+  int count = 0;
+  for (const char c : text) {
+    const size_t value = kAlphabet.find(c);
+    if (value == std::string::npos) continue;  // padding
+    bits = bits << 6 | static_cast<uint32_t>(value);
+    if ((count += 6) >= 8) out += static_cast<char>((bits >> (count -= 8)) & 0xFF);
+  }
+  return out;
+}
+
+// `gltf` as a GLB: buffer 0's data URI becomes the BIN chunk (other buffers stay as they are).
+inline std::string Glb(nlohmann::json gltf) {
+  nlohmann::json& buffer = gltf["buffers"][0];
+  std::string binary = FromBase64(buffer["uri"].get<std::string>().substr(buffer["uri"].get<std::string>().find(',') + 1));
+  buffer.erase("uri");
+  std::string text = gltf.dump();
+  text.append((4 - text.size() % 4) % 4, ' ');
+  binary.append((4 - binary.size() % 4) % 4, '\0');
+  const auto word = [](size_t value) {
+    const uint32_t v = static_cast<uint32_t>(value);
+    return std::string{static_cast<char>(v & 0xFF), static_cast<char>(v >> 8 & 0xFF), static_cast<char>(v >> 16 & 0xFF),
+                       static_cast<char>(v >> 24)};
+  };
+  return "glTF" + word(2) + word(12 + 8 + text.size() + 8 + binary.size()) + word(text.size()) + "JSON" + text +
+         word(binary.size()) + std::string("BIN\0", 4) + binary;
+}
+
 }  // namespace tcfarm::compressed_gltf

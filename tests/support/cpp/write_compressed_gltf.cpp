@@ -1,6 +1,7 @@
 // write_compressed_gltf RINGS SEGMENTS FOLDER: the sphere of compressed_gltf.h as
 // plain.gltf, draco.gltf (lossless, sequential), draco_edgebreaker.gltf (14-bit positions)
-// and meshopt.gltf, for tests/gltf's render comparison and tests/bench/gltf_import.sh.
+// and meshopt.gltf, and each as .glb too (buffer 0 in the BIN chunk), for tests/gltf's render
+// comparison, tests/bench's import figures and scripts/fuzz's seeds.
 #include <fstream>
 #include <iostream>
 
@@ -15,11 +16,12 @@ int main(int argc, char** argv) {
   const Sphere sphere = MakeSphere(std::stoi(argv[1]), std::stoi(argv[2]));
   const std::string folder = argv[3];
   const auto write = [&](const std::string& name, const nlohmann::json& gltf) {
-    std::ofstream(folder + "/" + name) << gltf.dump();
+    std::ofstream(folder + "/" + name + ".gltf") << gltf.dump();
+    std::ofstream(folder + "/" + name + ".glb", std::ios::binary) << Glb(gltf);
   };
-  write("plain.gltf", PlainGltf(sphere));
-  write("draco.gltf", DracoGltf(sphere));
-  write("draco_edgebreaker.gltf", DracoGltf(sphere, DracoOptions{false, 14}));
-  write("meshopt.gltf", MeshoptGltf(sphere));
+  write("plain", PlainGltf(sphere));
+  write("draco", DracoGltf(sphere));
+  write("draco_edgebreaker", DracoGltf(sphere, DracoOptions{false, 14}));
+  write("meshopt", MeshoptGltf(sphere));
   return 0;
 }

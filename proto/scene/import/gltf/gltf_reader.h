@@ -116,7 +116,7 @@ class GltfReader {
   void CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const;
 
   // What tinygltf reads: the file with its data URIs replaced by their names. A GLB's
-  // JSON chunk is rebuilt only when it held data URIs.
+  // JSON chunk is rebuilt only when that or a stand-in changed it.
   std::string GlbWithJson(const std::string& json) const;
 
   void Load();

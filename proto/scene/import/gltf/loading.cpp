@@ -199,8 +199,11 @@ void GltfReader::Load() {
   std::string error, warning;
   bool loaded = false;
   if (IsBinary()) {
-    const std::string rebuilt = embedded_.bytes.empty() ? "" : GlbWithJson(embedded_.json);
-    const std::string& glb = embedded_.bytes.empty() ? input_.bytes : rebuilt;
+    // Rebuilt when its JSON changed: data URIs taken out, or stand-ins put in (meshopt's
+    // fallback buffers, Draco's index views), which a GLB without data URIs may need too.
+    const bool changed = embedded_.json != CheckContainer();
+    const std::string rebuilt = changed ? GlbWithJson(embedded_.json) : "";
+    const std::string& glb = changed ? rebuilt : input_.bytes;
     loaded = loader.LoadBinaryFromMemory(&model_, &error, &warning,
                                          reinterpret_cast<const unsigned char*>(glb.data()),
                                          static_cast<unsigned int>(glb.size()), base, tinygltf::REQUIRE_VERSION);
