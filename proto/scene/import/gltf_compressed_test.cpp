@@ -7,7 +7,7 @@
 #include <string>
 
 #include "proto/scene/import/scene_import.h"
-#include "tests/support/cpp/compressed_gltf.h"
+#include "tests/support/cpp/skinned_compressed_gltf.h"
 
 namespace tcfarm {
 namespace {
@@ -61,6 +61,16 @@ TEST(GltfCompressedTest, DracoAndMeshoptGlbImportAsThePlainFile) {
   EXPECT_EQ(SerializeScene(ImportSceneBytes(compressed_gltf::Glb(DracoGltf(sphere)), "gltf")), plain);
   const Scene meshopt = ImportSceneBytes(compressed_gltf::Glb(MeshoptGltf(sphere)), "gltf");
   EXPECT_EQ(OnlyMesh(meshopt).vertices, OnlyMesh(Import(PlainGltf(sphere))).vertices);
+}
+
+// JOINTS_0 and WEIGHTS_0 as Draco generic attributes: the skin and its animation as plain.
+TEST(GltfCompressedTest, SkinnedDracoImportsAsThePlainFile) {
+  const auto sphere = MakeSphere(8, 16);
+  const Scene plain = Import(compressed_gltf::SkinnedPlainGltf(sphere));
+  ASSERT_EQ(plain.shapes.size(), 1u);
+  ASSERT_TRUE(plain.shapes[0].deformation && plain.shapes[0].deformation->hasSkin);
+  ASSERT_TRUE(plain.shapes[0].deformation->IsAnimated());
+  EXPECT_EQ(SerializeScene(Import(compressed_gltf::SkinnedDracoGltf(sphere))), SerializeScene(plain));
 }
 
 TEST(GltfCompressedTest, QuantizedEdgebreakerDracoKeepsTheSurfaceWithinItsQuantization) {

@@ -190,6 +190,17 @@ inline nlohmann::json MeshoptGltf(const Sphere& s, bool filters = false) {
   return gltf;
 }
 
+// The sphere with its triangles' corners in the order meshopt's index codec gives them back
+// (it may rotate a triangle, abc as bca): the plain twin a meshopt file decodes to exactly.
+inline Sphere WithMeshoptIndexOrder(Sphere s) {
+  std::vector<unsigned char> encoded(meshopt_encodeIndexBufferBound(s.indices.size(), s.Vertices()));
+  encoded.resize(meshopt_encodeIndexBuffer(encoded.data(), encoded.size(), s.indices.data(), s.indices.size()));
+  if (meshopt_decodeIndexBuffer(s.indices.data(), s.indices.size(), encoded.data(), encoded.size()) != 0) {
+    throw std::runtime_error("meshopt: the indices do not decode");
+  }
+  return s;
+}
+
 // RFC 4648 Base64 decoded (what Base64 writes; anything else is not checked).
 inline std::string FromBase64(const std::string& text) {
   static const std::string kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
