@@ -6,11 +6,13 @@ and an EXT_texture_webp texture shows its WebP image, not its fallback."""
 import base64
 import json
 import pathlib
+import re
 import shutil
 import subprocess
 import sys
 
 import pytest
+import requests
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 
@@ -90,15 +92,24 @@ def test_skinned_draco_bends_as_its_plain_twin(worker_binary, written, tmp_path)
     assert compare(tmp_path / "first", tmp_path / "last")["differing_pixels"] > 0
 
 
+def scene_cache_misses(url):
+    metrics = requests.get(url + "/metrics", timeout=10).text
+    return float(re.search(r"^tcfarm_worker_scene_cache_misses_total (\S+)$", metrics, re.M)[1])
+
+
 def test_farm_renders_draco_files_as_tcfarm_worker_render(written, tmp_path):
     """`tcfarm submit FILE --strategy exact --wait`: the coordinator decodes the file into the
-    scene it sends (the workers never see Draco), bit-identical to the standalone render."""
+    scene it sends, bit-identical to the standalone render. Workers never see Draco: the
+    Draco GLB and the plain file are one scene to them, built once."""
     (tmp_path / "farm").mkdir()
-    with LocalFarm(tmp_path / "farm", workers=2) as farm:
-        farm.wait_for_workers(2)
-        for name, flags, frames in (("draco.glb", SIZE, 1), ("skinned_draco.gltf", SKINNED, 5)):
+    with LocalFarm(tmp_path / "farm", workers=0) as farm:
+        _, url = farm.add_worker_with_metrics()
+        farm.wait_for_workers(1)
+        for name, flags, frames, misses in (("draco.glb", SIZE, 1, 1), ("plain.gltf", SIZE, 1, 1),
+                                            ("skinned_draco.gltf", SKINNED, 5, 2)):
             job, error = submit_file_and_compare(farm, written / name, flags, tmp_path / f"reference-{name}")
             assert error["differing_pixels"] == 0 and error["frames"] == frames, (name, error)
+            assert scene_cache_misses(url) == misses, name
 
 
 def data_uri(mime, data):
