@@ -111,6 +111,7 @@ struct ServeFlags {
   size_t pendingFrameMib = JobRunSettings::kDefaultPendingFrameBytes >> 20;
   uint64_t assetMaxFileMib = ApiOptions{}.assetMaxFileBytes >> 20;
   uint64_t assetMaxJobMib = ApiOptions{}.assetMaxJobBytes >> 20;
+  double assetOrphanGraceSeconds = RetentionPolicy::kDefaultOrphanAssetGraceMs / 1000.0;
   std::string apiTokens;
   bool insecureNoAuth = false;
   std::string tlsCert;
@@ -201,6 +202,12 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
                    "Per job, the assets its scene may name together; more is refused")
       ->type_name("MIB")
       ->check(IntegerFrom(1, 1 << 24))
+      ->capture_default_str();
+  serve.add_option("--asset-orphan-grace-s", flags.assetOrphanGraceSeconds,
+                   "Uploaded assets that no job names are removed once they are older than this many seconds: "
+                   "the time a client has from uploading a scene's files to submitting it")
+      ->type_name("SECONDS")
+      ->check(CLI::Range(1.0, 1e9))
       ->capture_default_str();
   serve.add_option("--api-tokens", flags.apiTokens,
                    "API tokens, one a line with its role: 'read TOKEN', 'submit TOKEN' or 'admin TOKEN' "
@@ -344,6 +351,7 @@ ServeOptions Resolve(const ServeFlags& flags) {
   options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
   ResolveSecurity(flags, &options);
   ResolveWorkerAuthentication(flags, &options);
+  options.retention.orphanAssetGraceMs = static_cast<int64_t>(flags.assetOrphanGraceSeconds * 1000);
   if (flags.keepDaysOption->count()) {
     options.retention.keepMs = static_cast<int64_t>(flags.keepDays * 24 * 3600 * 1000);
   }

@@ -1709,8 +1709,12 @@ TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
   json withAssets = Submission(SceneWithMeshFile("tri.obj"));
   withAssets["assets"] = {{"tri.obj", asset}};
   add("Job", Post("/api/v1/jobs", withAssets));
+  add("SceneCheck", Post("/api/v1/scenes/check", withAssets));
+  withAssets["assets"] = {{"tri.obj", wire::Sha256Hex("not uploaded")}};
+  add("SceneCheck", Post("/api/v1/scenes/check", withAssets));
   withAssets["assets"] = {{"tri.obj", wire::Sha256Hex("")}, {"../x", asset}};
   add("Error", Post("/api/v1/jobs", withAssets));
+  add("Error", Post("/api/v1/scenes/check", withAssets));
 
   const std::string failedPath = "/api/v1/jobs/" + std::to_string(failed);
   add("JobList", Get("/api/v1/jobs?state=failed,queued&offset=1&limit=2&name=&strategy=search"));

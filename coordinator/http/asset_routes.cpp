@@ -99,7 +99,11 @@ void AssetRoutes::PutAsset(const httplib::Request& request, const BodyPieces& re
 }
 
 void AssetRoutes::FindMissingAssets(const httplib::Request&, const std::string& body, httplib::Response& response) {
-  WriteJson(response, json{{"missing", assets_.Missing(ParseMissingAssetsQuery(body))}});
+  const std::vector<std::string> hashes = ParseMissingAssetsQuery(body);
+  // What the client will not send again it will name soon: its grace period starts now,
+  // so the janitor keeps it for the submission (store_janitor.h, orphan assets).
+  assets_.Freshen(hashes);
+  WriteJson(response, json{{"missing", assets_.Missing(hashes)}});
 }
 
 }  // namespace tcfarm::http

@@ -49,6 +49,7 @@ std::vector<Route> JobRoutes::Routes() {
       {"POST", "/api/v1/jobs/([^/]+)/retry", Access::kSubmit, Bind(this, &JobRoutes::RetryJob)},
       {"PATCH", "/api/v1/jobs/([^/]+)", Access::kSubmit, Bind(this, &JobRoutes::PatchJob)},
       {"DELETE", "/api/v1/jobs/([^/]+)", Access::kSubmit, Bind(this, &JobRoutes::DeleteJob)},
+      {"POST", "/api/v1/scenes/check", Access::kSubmit, Bind(this, &JobRoutes::CheckScene)},
   };
 }
 
@@ -93,6 +94,26 @@ void JobRoutes::CountImportWarnings(const JobSpec& spec) {
   for (const json& warning : spec.options["import_warnings"]) {
     importWarnings_->Add({{"code", warning.value("code", "unknown")}}).Increment();
   }
+}
+
+// A submission's dry run: its scene imported as the submit would, its bad input refused
+// with the same 400, nothing stored and no job made.
+void JobRoutes::CheckScene(const httplib::Request&, const std::string& body, httplib::Response& response) {
+  SceneCheck check;
+  {
+    // The assets it names stay while they are laid out, as a submission's do.
+    const auto holdAssets = janitor_.HoldAssets();
+    check = CheckSubmission(body, SubmissionAssets{&assets_, limits_.assetMaxJobBytes, "--asset-max-job-mib"});
+  }
+  json answer{{"ok", true}, {"complete", check.complete}, {"warnings", check.warnings}};
+  if (check.complete) {
+    answer["frames"] = {{"start", check.firstFrame}, {"end", check.lastFrame}};
+    answer["width"] = check.width;
+    answer["height"] = check.height;
+  } else {
+    answer["missing_assets"] = check.missingAssets;
+  }
+  WriteJson(response, answer);
 }
 
 void JobRoutes::ListJobs(const httplib::Request& request, const std::string&, httplib::Response& response) {

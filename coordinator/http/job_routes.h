@@ -6,6 +6,8 @@
 //   GET    /api/v1/jobs/{id}           one job, with its per-frame figures
 //   POST   /api/v1/jobs/{id}/cancel    POST /api/v1/jobs/{id}/retry
 //   PATCH  /api/v1/jobs/{id}           DELETE /api/v1/jobs/{id}
+//   POST   /api/v1/scenes/check        what a submit of the same body would import, nothing
+//                                      stored (http/submit_request.h, CheckSubmission)
 #pragma once
 
 #include <cstdint>
@@ -51,6 +53,7 @@ class JobRoutes {
   void CheckJobFitsInMemory(const JobSpec& spec) const;
   // Counts a stored submission's import warnings by code (tcfarm_import_warnings_total).
   void CountImportWarnings(const JobSpec& spec);
+  void CheckScene(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);

@@ -191,7 +191,10 @@ ViewTransform ReadPreviewView(const json& request) {
 
 // The assets a submission names, checked (paths, hashes, presence, total size) before
 // anything is laid out on disk.
-std::map<std::string, std::string> ReadAssets(const json& request, const SubmissionAssets& assets) {
+// missing: where a check (not a submission) lists the paths whose hash the store lacks, to
+// check the scene without them; null: such a hash is refused as missing_asset.
+std::map<std::string, std::string> ReadAssets(const json& request, const SubmissionAssets& assets,
+                                              std::vector<std::string>* missing = nullptr) {
   const auto field = request.find("assets");
   if (field == request.end()) return {};
   const std::string expected = "an object mapping relative paths to SHA-256 hashes of uploaded assets";
@@ -221,6 +224,10 @@ std::map<std::string, std::string> ReadAssets(const json& request, const Submiss
            "64 lowercase hex characters, the hash of an uploaded asset");
     }
     const std::optional<uint64_t> size = assets.store->SizeOf(hash.get<std::string>());
+    if (!size && missing != nullptr) {
+      missing->push_back(path);
+      continue;
+    }
     if (!size) {
       Fail(error_code::kMissingAsset, pointer, "the farm has no asset " + hash.get<std::string>(),
            "an asset uploaded first with PUT /api/v1/assets/" + hash.get<std::string>());
@@ -297,14 +304,14 @@ ImportOptions ReadImportOptions(const json& request) {
 }
 
 // "scene_file": one of the assets, in any format the import seam reads (tcfarm JSON, OBJ, glTF).
-Scene ReadSceneFromFile(const json& sceneFile, const std::map<std::string, std::string>& files,
+Scene ReadSceneFromFile(const json& sceneFile, const std::set<std::string>& present,
                         const std::optional<std::filesystem::path>& folder, const ImportOptions& options) {
   const std::string expected = "the path of a scene file among the submission's assets";
   if (!sceneFile.is_string()) {
     Fail(error_code::kInvalidField, "/scene_file", ShowValue(sceneFile) + " is not a string", expected);
   }
   const std::string& path = sceneFile.get_ref<const std::string&>();
-  if (files.count(path) == 0 || !folder) {
+  if (present.count(path) == 0 || !folder) {
     Fail(error_code::kInvalidField, "/scene_file", ShowValue(path) + " is not among the assets", expected);
   }
   try {
@@ -339,8 +346,9 @@ std::string TextureBytes(const Texture& texture, const AssetStore& store) {
 // submission's folder is there already, one embedded in a glTF file is stored now. Each
 // image is decoded once here, so that one no worker could read fails the submission, not
 // every task of the job.
+// keep false (a check): the images are read and decoded as for a job, and nothing is stored.
 void BindTextureToAsset(const Material& material, Texture& texture, const std::string& where, AssetStore* store,
-                        const std::string& scenePointer) {
+                        const std::string& scenePointer, bool keep) {
   const std::string pointer = TexturePointer(material, where, scenePointer);
   if (!store) {
     throw ApiError(400, error_code::kInvalidScene,
@@ -367,7 +375,7 @@ void BindTextureToAsset(const Material& material, Texture& texture, const std::s
                        *problem + "; expected a PNG, JPEG or WebP image",
                    pointer);
   }
-  if (namedByHash) return;
+  if (namedByHash || !keep) return;
   texture.asset = wire::Sha256Hex(bytes);
   try {
     if (!store->Has(texture.asset) && store->Put(texture.asset, bytes) == AssetStore::CommitResult::kHashMismatch) {
@@ -379,10 +387,10 @@ void BindTextureToAsset(const Material& material, Texture& texture, const std::s
   }
 }
 
-void BindTexturesToAssets(Scene& scene, AssetStore* store, const std::string& scenePointer) {
+void BindTexturesToAssets(Scene& scene, AssetStore* store, const std::string& scenePointer, bool keep = true) {
   for (Material& material : scene.materials) {
     material.ForEachTexture([&](Texture& texture, const std::string& where) {
-      BindTextureToAsset(material, texture, where, store, scenePointer);
+      BindTextureToAsset(material, texture, where, store, scenePointer, keep);
     });
   }
 }
@@ -412,6 +420,18 @@ std::pair<int, int> ReadFrameRange(const json& request, const RenderSettings& re
          "an end frame at or after the start frame");
   }
   return {start, end};
+}
+
+// The "frames" end asked for, before the scene is read: a glTF file's frames extend to it
+// past the animation's end (ImportOptions::lastFrame). -1 when absent or not a frame a scene
+// may have; ReadFrameRange then says what is wrong with it.
+int RequestedLastFrame(const json& request) {
+  const auto frames = request.find("frames");
+  if (frames == request.end() || !frames->is_object()) return -1;
+  const auto end = frames->find("end");
+  if (end == frames->end() || !end->is_number_integer()) return -1;
+  const int64_t last = end->get<int64_t>();
+  return last >= 0 && last < scene_limits::kMaxFrameCount ? static_cast<int>(last) : -1;
 }
 
 // "verify": {"frames": "all"} or {"sample": K}: frames also rendered brute force and
@@ -451,18 +471,21 @@ json ReadSpotCheckShare(const json& request) {
   return *share;
 }
 
-}  // namespace
-
-JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets) {
-  const json request = ParseBody(body);
+// The body of a submission or a check: a JSON object of known fields.
+json ReadRequestObject(const std::string& body, const std::vector<const char*>& fields) {
+  json request = ParseBody(body);
   if (!request.is_object()) {
     Fail(error_code::kInvalidField, "", ShowValue(request) + " is not an object",
          "a JSON object with at least a \"scene\"");
   }
-  CheckKnownFields(request, "", kTopLevelFields);
+  CheckKnownFields(request, "", fields);
+  return request;
+}
 
+// The job's own fields, read before the scene: cheap, so a typo in one of them is reported
+// before a long scene parse.
+JobSpec ReadJobFields(const json& request) {
   JobSpec spec;
-  // Cheap fields first, so a typo in one of them is reported before a long scene parse.
   spec.name = ReadName(request);
   spec.strategy = ReadStrategy(request);
   spec.binWidth = ReadOptionalInteger(request, "bin_width", kMinBinWidth, kMaxBinWidth, kDefaultBinWidth);
@@ -474,37 +497,125 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
     spec.options["spot_check_share"] = share;
   }
   SetJobPreviewView(spec, ReadPreviewView(request));
+  return spec;
+}
 
-  const auto inlineScene = request.find("scene");
-  const auto sceneFile = request.find("scene_file");
-  if (inlineScene == request.end() && sceneFile == request.end()) {
-    Fail(error_code::kMissingField, "/scene", "missing", "a scene object (proto/scene.md)");
-  }
-  if (inlineScene != request.end() && sceneFile != request.end()) {
+void RequireOneScene(const json& request) {
+  const bool inlineScene = request.contains("scene");
+  const bool sceneFile = request.contains("scene_file");
+  if (!inlineScene && !sceneFile) Fail(error_code::kMissingField, "/scene", "missing", "a scene object (proto/scene.md)");
+  if (inlineScene && sceneFile) {
     Fail(error_code::kInvalidField, "/scene_file", "given beside an inline scene",
          "either \"scene\" or \"scene_file\", not both");
   }
-  const ImportOptions importOptions = ReadImportOptions(request);
-  const std::map<std::string, std::string> files = ReadAssets(request, assets);
-  // Removed when this function returns, whether the scene parses or not.
-  std::unique_ptr<AssetStore::Folder> folder;
-  if (!files.empty()) {
-    try {
-      folder = assets.store->Materialise(files);
-    } catch (const std::invalid_argument& error) {
-      // ReadAssets checked each path and hash; what is left is a path that is another's folder.
-      throw ApiError(400, error_code::kInvalidField, std::string("assets: ") + error.what() +
-                                                         "; expected paths that name files, not folders of other paths",
-                     "/assets");
-    } catch (const std::runtime_error& error) {
-      throw ApiError(507, error_code::kInsufficientStorage,
-                     std::string("the store could not lay out the assets: ") + error.what());
+}
+
+// The submission's files laid out under their paths; removed when the result goes, whether
+// the scene parses or not. None without files.
+std::unique_ptr<AssetStore::Folder> LayOut(const std::map<std::string, std::string>& files, AssetStore* store) {
+  if (files.empty()) return nullptr;
+  try {
+    return store->Materialise(files);
+  } catch (const std::invalid_argument& error) {
+    // ReadAssets checked each path and hash; what is left is a path that is another's folder.
+    throw ApiError(400, error_code::kInvalidField, std::string("assets: ") + error.what() +
+                                                       "; expected paths that name files, not folders of other paths",
+                   "/assets");
+  } catch (const std::runtime_error& error) {
+    throw ApiError(507, error_code::kInsufficientStorage,
+                   std::string("the store could not lay out the assets: ") + error.what());
+  }
+}
+
+std::optional<std::filesystem::path> PathOf(const std::unique_ptr<AssetStore::Folder>& folder) {
+  return folder ? std::optional<std::filesystem::path>(folder->path()) : std::nullopt;
+}
+
+std::set<std::string> PathsOf(const std::map<std::string, std::string>& files) {
+  std::set<std::string> paths;
+  for (const auto& [path, hash] : files) paths.insert(path);
+  return paths;
+}
+
+// "scene_file_data": the scene file's bytes in base64 (RFC 4648, with padding), for a check
+// before the file is uploaded.
+std::string DecodeSceneFileData(const json& data) {
+  const std::string expected = "the scene file's bytes in base64 (A-Z, a-z, 0-9, +, /, '=' padding)";
+  if (!data.is_string()) Fail(error_code::kInvalidField, "/scene_file_data", ShowValue(data) + " is not a string", expected);
+  const std::string& text = data.get_ref<const std::string&>();
+  if (text.size() % 4 != 0) Fail(error_code::kInvalidField, "/scene_file_data", "its length is not a multiple of 4", expected);
+  static const std::string kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  const size_t padding = text.size() - std::min(text.find_last_not_of('=') + 1, text.size());
+  if (padding > 2) Fail(error_code::kInvalidField, "/scene_file_data", "it ends in more than two '='", expected);
+  std::string bytes;
+  bytes.reserve(text.size() / 4 * 3);
+  uint32_t bits = 0;
+  int pending = 0;
+  for (size_t i = 0; i + padding < text.size(); ++i) {
+    const size_t value = kAlphabet.find(text[i]);
+    if (value == std::string::npos) {
+      Fail(error_code::kInvalidField, "/scene_file_data", "character " + std::to_string(i) + " is not base64", expected);
+    }
+    bits = bits << 6 | static_cast<uint32_t>(value);
+    pending += 6;
+    if (pending >= 8) {
+      pending -= 8;
+      bytes += static_cast<char>(bits >> pending & 0xFF);
     }
   }
-  const std::optional<std::filesystem::path> base =
-      folder ? std::optional<std::filesystem::path>(folder->path()) : std::nullopt;
-  Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, base)
-                                             : ReadSceneFromFile(*sceneFile, files, base, importOptions);
+  return bytes;
+}
+
+// The check's scene file and its bytes: given inline, or the asset of that path the store
+// has; nullopt for an inline scene, or a scene file that is neither.
+std::optional<std::string> SceneFileBytes(const json& request, const std::map<std::string, std::string>& files,
+                                          const AssetStore& store) {
+  if (const auto data = request.find("scene_file_data"); data != request.end()) return DecodeSceneFileData(*data);
+  const auto sceneFile = request.find("scene_file");
+  if (sceneFile == request.end() || !sceneFile->is_string()) return std::nullopt;
+  const auto file = files.find(sceneFile->get<std::string>());
+  if (file == files.end()) return std::nullopt;
+  return ReadWholeFile(store.PathOf(file->second));
+}
+
+// The inline scene file's path, checked as an asset's path is: it is laid out beside them.
+std::string InlineScenePath(const json& request, const SubmissionAssets& assets) {
+  if (!request.contains("scene_file")) {
+    Fail(error_code::kMissingField, "/scene_file", "missing beside scene_file_data", "the scene file's path");
+  }
+  if (assets.store == nullptr) {
+    Fail(error_code::kInvalidField, "/scene_file_data", "this coordinator has no asset store", "a self-contained scene");
+  }
+  const json& path = request.at("scene_file");
+  if (!path.is_string() || AssetPathProblem(path.get<std::string>())) {
+    Fail(error_code::kInvalidField, "/scene_file", ShowValue(path) + " is not a path a scene file may have",
+         "a relative path, '/'-separated, without \".\", \"..\" or empty components");
+  }
+  return path.get<std::string>();
+}
+
+void WriteFile(const std::filesystem::path& path, const std::string& bytes) {
+  std::filesystem::create_directories(path.parent_path());
+  std::ofstream out(path, std::ios::binary);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  if (!out) throw ApiError(507, error_code::kInsufficientStorage, "the store could not lay out the scene file to check");
+}
+
+}  // namespace
+
+JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets) {
+  const json request =
+      ReadRequestObject(body, std::vector<const char*>(std::begin(kTopLevelFields), std::end(kTopLevelFields)));
+  JobSpec spec = ReadJobFields(request);
+  RequireOneScene(request);
+  const auto inlineScene = request.find("scene");
+  ImportOptions importOptions = ReadImportOptions(request);
+  importOptions.lastFrame = RequestedLastFrame(request);
+  const std::map<std::string, std::string> files = ReadAssets(request, assets);
+  const std::unique_ptr<AssetStore::Folder> folder = LayOut(files, assets.store);
+  Scene scene = inlineScene != request.end() ? ReadInlineScene(*inlineScene, PathOf(folder))
+                                             : ReadSceneFromFile(request.at("scene_file"), PathsOf(files), PathOf(folder),
+                                                                 importOptions);
   BindTexturesToAssets(scene, assets.store, inlineScene != request.end() ? "/scene" : "/scene_file");
   // What the import left out reaches the user with the job, not only the coordinator's log.
   if (!scene.importWarnings.empty()) spec.options["import_warnings"] = ImportWarningsJson(scene.importWarnings);
@@ -526,6 +637,50 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   }
   spec.assetHashes.assign(named.begin(), named.end());
   return spec;
+}
+
+SceneCheck CheckSubmission(const std::string& body, const SubmissionAssets& assets) {
+  std::vector<const char*> fields(std::begin(kTopLevelFields), std::end(kTopLevelFields));
+  fields.push_back("scene_file_data");
+  const json request = ReadRequestObject(body, fields);
+  ReadJobFields(request);
+  RequireOneScene(request);
+  const auto inlineScene = request.find("scene");
+  ImportOptions importOptions = ReadImportOptions(request);
+  importOptions.lastFrame = RequestedLastFrame(request);
+  SceneCheck check;
+  std::map<std::string, std::string> files = ReadAssets(request, assets, &check.missingAssets);
+  const bool inlineFile = request.contains("scene_file_data");
+  const std::string inlinePath = inlineFile ? InlineScenePath(request, assets) : "";
+  if (!check.missingAssets.empty()) {
+    // Without those files only what the scene file alone shows can be checked.
+    check.complete = false;
+    if (const std::optional<std::string> bytes = SceneFileBytes(request, files, *assets.store)) {
+      try {
+        CheckSceneFileAlone(*bytes, request.at("scene_file").get<std::string>());
+      } catch (const SceneError& error) {
+        throw ApiError(400, error_code::kInvalidScene, error.what(), "/scene_file");
+      }
+    }
+    return check;
+  }
+  if (inlineFile) files.erase(inlinePath);  // the inline bytes are the ones to check
+  std::unique_ptr<AssetStore::Folder> folder = LayOut(files, assets.store);
+  std::set<std::string> present = PathsOf(files);
+  if (inlineFile) {
+    if (!folder) folder = assets.store->Materialise({});
+    WriteFile(folder->path() / std::filesystem::path(inlinePath), DecodeSceneFileData(request.at("scene_file_data")));
+    present.insert(inlinePath);
+  }
+  Scene scene = inlineScene != request.end()
+                    ? ReadInlineScene(*inlineScene, PathOf(folder))
+                    : ReadSceneFromFile(request.at("scene_file"), present, PathOf(folder), importOptions);
+  BindTexturesToAssets(scene, assets.store, inlineScene != request.end() ? "/scene" : "/scene_file", false);
+  std::tie(check.firstFrame, check.lastFrame) = ReadFrameRange(request, scene.render);
+  check.width = scene.render.width;
+  check.height = scene.render.height;
+  check.warnings = ImportWarningsJson(scene.importWarnings);
+  return check;
 }
 
 JobChange ParseJobChange(const std::string& body) {

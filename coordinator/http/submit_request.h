@@ -52,6 +52,22 @@ struct SubmissionAssets {
 // job_too_large at /assets.
 JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets = {});
 
+// POST /api/v1/scenes/check: what the submission of this body would import, and nothing
+// stored. The body is a submission's, plus "scene_file_data" (the scene file's bytes in
+// base64, named by "scene_file", for a check before it is uploaded; it need not be among
+// the assets). When every asset named is in the store the scene is imported as the submit
+// imports it and refused with the same 400s. When some are not yet uploaded
+// (missingAssets), the job's fields are checked and the scene file alone
+// (CheckSceneFileAlone): what it names is checked once the submission brings it.
+struct SceneCheck {
+  bool complete = true;
+  std::vector<std::string> missingAssets;  // paths of "assets" whose hash the store lacks
+  // The import's result, when complete.
+  int firstFrame = 0, lastFrame = 0, width = 0, height = 0;
+  nlohmann::json warnings = nlohmann::json::array();  // Scene::importWarnings, as the job record has them
+};
+SceneCheck CheckSubmission(const std::string& body, const SubmissionAssets& assets);
+
 // PATCH /api/v1/jobs/{id}: {"priority": int in [-100, 100], "name": 1 to 200 characters},
 // either or both. Throws ApiError 400 (invalid_json, unknown_field, missing_field for {},
 // invalid_field) naming the pointer of the first bad value.

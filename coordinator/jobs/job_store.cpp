@@ -397,6 +397,18 @@ std::vector<uint64_t> JobStore::FinishedJobs(std::optional<int64_t> finishedBefo
   return ids;
 }
 
+std::set<std::string> JobStore::NamedAssets(const std::vector<std::string>& hashes) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement statement(*db_, "SELECT 1 FROM job_assets WHERE sha256 = ?1 LIMIT 1");
+  std::set<std::string> named;
+  for (const std::string& hash : hashes) {
+    statement.Reset();
+    statement.Bind(1, hash);
+    if (statement.Step()) named.insert(hash);
+  }
+  return named;
+}
+
 bool JobStore::RecordFrame(uint64_t id, int frame, uint64_t tracedPixels,
                            uint64_t copiedPixels) {
   std::lock_guard<std::mutex> lock(mutex_);

@@ -35,6 +35,7 @@
 #include <mutex>
 #include <optional>
 #include <stdexcept>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -265,6 +266,8 @@ class JobStore {
   // Finished jobs, the earliest finished first (then the lowest id), at most `limit`
   // (0: all): those that finished before finishedBeforeMs when given. For retention.
   std::vector<uint64_t> FinishedJobs(std::optional<int64_t> finishedBeforeMs, size_t limit = 0) const;
+  // Which of these assets (SHA-256) some job names: the store's janitor keeps those.
+  std::set<std::string> NamedAssets(const std::vector<std::string>& hashes) const;
 
   // A frame of a running job finished. Counts each frame once: a duplicate result (a task
   // traced twice gives the same bits) is ignored. Ignored, returning false, when the job is

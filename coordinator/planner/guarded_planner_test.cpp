@@ -704,7 +704,17 @@ TEST(Planner, ResolveStrategy) {
   EXPECT_EQ(moving.strategy, Strategy::kGuarded);
   EXPECT_EQ(moving.binWidth, kAutoWidestBin);
   EXPECT_TRUE(moving.surveyBinWidth);
-  EXPECT_EQ(ResolveStrategy(Strategy::kAuto, 10, 1, true, 4, kPixels).binWidth, 2);
+  for (bool moves : {false, true}) {  // one frame: nothing to reuse
+    const ResolvedStrategy one = ResolveStrategy(Strategy::kAuto, 10, 1, moves, 4, kPixels);
+    EXPECT_EQ(one.strategy, Strategy::kBrute);
+    EXPECT_EQ(one.binWidth, 2);
+  }
+  // Prices at which a segment costs more than brute force: brute, and the reason says why.
+  const ResolvedStrategy dear = ResolveStrategy(Strategy::kAuto, 10, 24, false, 1, kPixels, {3.0, 0.9});
+  EXPECT_EQ(dear.strategy, Strategy::kBrute) << dear.reason;
+  EXPECT_NE(dear.reason.find("at least 0.95"), std::string::npos) << dear.reason;
+  const ResolvedStrategy cheap = ResolveStrategy(Strategy::kAuto, 10, 24, false, 1, kPixels, {3.0, 0.5});
+  EXPECT_EQ(cheap.strategy, Strategy::kExact) << cheap.reason;
   EXPECT_EQ(ResolveStrategy(Strategy::kBrute, 10, 60, true, 4, kPixels).binWidth, 2);
   const ResolvedStrategy asked = ResolveStrategy(Strategy::kSearch, 7, 60, true, 4, kPixels);
   EXPECT_EQ(asked.strategy, Strategy::kSearch);

@@ -23,9 +23,17 @@ ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCoun
                                  int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices) {
   if (requested == Strategy::kBrute) return {Strategy::kBrute, 2, "every pixel of every frame", false, {}};
   if (requested != Strategy::kAuto) return {requested, binWidth, "as requested", false, {}};
+  if (frameCount == 1) return {Strategy::kBrute, 2, "one frame: nothing to reuse, every pixel traced", false, {}};
   if (!cameraOrLightsChange) {
     const SegmentPlan plan = PlanSegments(frameCount, workers, pixelsPerFrame, prices);
     char why[256];
+    if (plan.predictedRelativeCost >= kAutoBruteFromCost) {
+      std::snprintf(why, sizeof why,
+                    "camera and lights are static, but exact is predicted to cost %.3f of brute force's CPU "
+                    "(at least %.2f): every pixel traced",
+                    plan.predictedRelativeCost, kAutoBruteFromCost);
+      return {Strategy::kBrute, 2, why, false, {}};
+    }
     std::snprintf(why, sizeof why,
                   "camera and lights are static: exact, %d segment%s of %d frames for %d worker%s (predicted "
                   "relative CPU cost %.3f, parallelism %.1f; frames spread over the workers)",

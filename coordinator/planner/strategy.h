@@ -54,7 +54,12 @@ struct ResolvedStrategy {
   std::optional<SegmentPlan> segments;  // auto's exact: the cost model's choice
 };
 
-// `auto` picks exact when nothing but shapes move (every pixel then has a horizon to
+// `auto` runs brute force when exact is predicted to cost at least this share of it: the
+// prediction's error is about that size, and brute force pays no search.
+constexpr double kAutoBruteFromCost = 0.95;
+
+// `auto` runs brute force for one frame (nothing to reuse) and when exact is predicted to
+// cost kAutoBruteFromCost of it or more; it picks exact when nothing but shapes move (every pixel then has a horizon to
 // find), else guarded; exact's segments are cut as the cost model says for `workers`
 // workers, frames of pixelsPerFrame and the segment prices measured so far
 // (planner/segment_plan.h), guarded's width is surveyed up to kAutoWidestBin. `brute` is

@@ -8,7 +8,9 @@
 #include <stdexcept>
 #include <system_error>
 
+#include <fcntl.h>
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace tcfarm {
@@ -94,6 +96,39 @@ std::vector<std::string> AssetStore::Missing(const std::vector<std::string>& has
   return missing;
 }
 
+namespace {
+
+// The file's modification time in unix milliseconds; nullopt when it is gone.
+std::optional<int64_t> ModifiedMs(const fs::path& path) {
+  struct stat status;
+  if (::stat(path.c_str(), &status) != 0) return std::nullopt;
+  return int64_t{status.st_mtim.tv_sec} * 1000 + status.st_mtim.tv_nsec / 1'000'000;
+}
+
+}  // namespace
+
+std::vector<std::string> AssetStore::OlderThan(int64_t bornBeforeMs) const {
+  std::vector<std::string> old;
+  std::error_code error;
+  for (fs::directory_iterator it(root_, error), end; !error && it != end; it.increment(error)) {
+    const std::string name = it->path().filename().string();
+    if (IsAssetHash(name) && OlderThan(bornBeforeMs, name)) old.push_back(name);
+  }
+  return old;
+}
+
+bool AssetStore::OlderThan(int64_t bornBeforeMs, const std::string& hash) const {
+  const std::optional<int64_t> modified = ModifiedMs(PathOf(hash));
+  return modified && *modified < bornBeforeMs;
+}
+
+void AssetStore::Freshen(const std::vector<std::string>& hashes) const {
+  for (const std::string& hash : hashes) {
+    // Now, as the file system keeps time; an asset that is gone stays gone.
+    if (IsAssetHash(hash)) ::utimensat(AT_FDCWD, PathOf(hash).c_str(), nullptr, 0);
+  }
+}
+
 // --- uploads -------------------------------------------------------------------------------
 
 AssetStore::Upload::Upload(fs::path tempPath) : tempPath_(std::move(tempPath)), file_(nullptr, &std::fclose) {}
@@ -145,7 +180,10 @@ AssetStore::CommitResult AssetStore::Commit(Upload& upload, const std::string& e
                              SystemMessage(written ? errno : writeError));
   }
   if (hash != expectedHash) return CommitResult::kHashMismatch;
-  if (Has(hash)) return CommitResult::kAlreadyThere;  // the destructor removes the temp file
+  if (Has(hash)) {
+    Freshen({hash});  // uploaded again for a submission on its way
+    return CommitResult::kAlreadyThere;  // the destructor removes the temp file
+  }
   // rename(2) is atomic: readers see the whole file or none. Two uploads of one hash racing
   // here both succeed; their bytes are the same.
   fs::rename(upload.tempPath_, PathOf(hash));

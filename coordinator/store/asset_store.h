@@ -55,6 +55,15 @@ class AssetStore {
   // The hashes of `hashes` the store does not have, in their order, each once.
   std::vector<std::string> Missing(const std::vector<std::string>& hashes) const;
 
+  // An asset's age is its file's modification time: when it was uploaded, or last
+  // freshened. The janitor removes those no job names once they are old
+  // (store_janitor.h); a client about to name them freshens them first.
+  // The assets last touched before bornBeforeMs (unix milliseconds), by name.
+  std::vector<std::string> OlderThan(int64_t bornBeforeMs) const;
+  bool OlderThan(int64_t bornBeforeMs, const std::string& hash) const;
+  // Those of `hashes` the store has are made young again; the others are ignored.
+  void Freshen(const std::vector<std::string>& hashes) const;
+
   // One upload: bytes streamed to a temp file in .incoming and hashed on the way. The temp
   // file is removed unless Commit moved it into place.
   class Upload {

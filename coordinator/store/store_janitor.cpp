@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iterator>
+#include <set>
 #include <system_error>
 
 #include "proto/metrics/metric_builders.h"
@@ -92,6 +93,10 @@ StoreJanitor::StoreJanitor(JobStore& jobs, fs::path storeRoot, std::function<boo
                                  "lowered at once by each deletion.");
     jobsDeletedCounter_ = &NewCounter(*metrics, "tcfarm_jobs_deleted_total",
                                       "Jobs deleted with their files, on request (DELETE) or by the retention.");
+    orphansRemovedCounter_ = &NewCounter(*metrics, "tcfarm_store_orphan_assets_removed_total",
+                                         "Uploaded assets removed because no job named them within the grace period.");
+    orphanBytesRemovedCounter_ = &NewCounter(*metrics, "tcfarm_store_orphan_asset_bytes_removed_total",
+                                             "Bytes of the orphan assets removed.");
   }
 }
 
@@ -167,6 +172,39 @@ uint64_t StoreJanitor::RemoveAssets(const std::vector<std::string>& hashes) {
   return freed;
 }
 
+void StoreJanitor::RemoveOrphanAssets(int64_t nowMs) {
+  const AssetStore assets(root_ / "assets");
+  const int64_t bornBeforeMs = nowMs - policy_.orphanAssetGraceMs;
+  const std::vector<std::string> old = assets.OlderThan(bornBeforeMs);
+  if (old.empty()) return;
+  // Exclusive, as a deletion's: a submission between checking its assets and storing its
+  // job holds them shared, so an asset it names is either named by then or not yet checked.
+  std::unique_lock<std::shared_mutex> lock(assets_);
+  const std::set<std::string> named = jobs_.NamedAssets(old);
+  uint64_t count = 0, bytes = 0;
+  for (const std::string& hash : old) {
+    // Freshened meanwhile (asked about or uploaded again): a submission is on its way.
+    if (named.count(hash) != 0 || !assets.OlderThan(bornBeforeMs, hash)) continue;
+    const std::optional<uint64_t> size = assets.SizeOf(hash);
+    std::error_code error;
+    if (size && fs::remove(assets.PathOf(hash), error)) {
+      ++count;
+      bytes += *size;
+    }
+  }
+  lock.unlock();
+  if (count == 0) return;
+  std::fprintf(stderr, "coordinator: removed %llu uploaded assets (%s) that no job named within %lld s\n",
+               static_cast<unsigned long long>(count), ShowBytes(bytes).c_str(),
+               static_cast<long long>(policy_.orphanAssetGraceMs / 1000));
+  orphansRemoved_ += count;
+  if (orphansRemovedCounter_) {
+    orphansRemovedCounter_->Increment(static_cast<double>(count));
+    orphanBytesRemovedCounter_->Increment(static_cast<double>(bytes));
+  }
+  Freed(bytes);
+}
+
 void StoreJanitor::Freed(uint64_t bytes) {
   uint64_t now = storeBytes_.load();
   while (!storeBytes_.compare_exchange_weak(now, now - std::min(now, bytes))) {
@@ -237,6 +275,11 @@ void StoreJanitor::RunDue() {
       Measure();
     }
     if (first) FinishPendingDeletions();
+    const int64_t orphanIntervalMs = std::min(kOrphanIntervalMs, policy_.orphanAssetGraceMs);
+    if (!lastOrphanSweepMs_ || now - *lastOrphanSweepMs_ >= orphanIntervalMs) {
+      lastOrphanSweepMs_ = now;
+      RemoveOrphanAssets(now);
+    }
     if (policy_.Active() && (!lastRetentionMs_ || now - *lastRetentionMs_ >= kRetentionIntervalMs)) {
       lastRetentionMs_ = now;
       ApplyRetention(now);

@@ -11,6 +11,11 @@
 //  - Retention, when asked for: at start and every kRetentionIntervalMs, finished jobs
 //    that finished longer than keep ago are deleted, and while the store is larger than
 //    its budget the earliest finished jobs are deleted until it fits.
+//  - Orphan assets: every kOrphanIntervalMs (or the grace period, when shorter), uploaded
+//    assets that no job names and that are older than RetentionPolicy::orphanAssetGraceMs
+//    are removed: uploads of a submission that never came (refused, or its client gone).
+//    The grace period is the time a client has between uploading and submitting; asking
+//    which assets are missing, or uploading one again, starts it anew (AssetStore::Freshen).
 //  - Deletions a previous process left half done (the record gone, the folder not) are
 //    finished at start.
 //
@@ -42,8 +47,12 @@ class Registry;
 namespace tcfarm {
 
 struct RetentionPolicy {
+  static constexpr int64_t kDefaultOrphanAssetGraceMs = 3600 * 1000;
+
   std::optional<int64_t> keepMs;        // finished jobs that finished longer ago go
   std::optional<uint64_t> budgetBytes;  // the store's size beyond which the earliest finished jobs go
+  // An asset no job names goes once it is older than this (--asset-orphan-grace-s).
+  int64_t orphanAssetGraceMs = kDefaultOrphanAssetGraceMs;
   bool Active() const { return keepMs.has_value() || budgetBytes.has_value(); }
 };
 
@@ -67,6 +76,7 @@ class StoreJanitor {
   // kUsageWalkShare times its own duration, so walking never takes more than 5 % of a core.
   static constexpr int64_t kUsageIntervalMs = 10'000;
   static constexpr int kUsageWalkShare = 20;
+  static constexpr int64_t kOrphanIntervalMs = 60'000;
 
   // releaseJob: the farm lets go of a job's files (FarmControl::ReleaseJob); false when it
   // cannot promise that (it has stopped). metrics: where tcfarm_store_bytes and
@@ -103,6 +113,7 @@ class StoreJanitor {
 
   uint64_t StoreBytes() const { return storeBytes_; }
   uint64_t JobsDeleted() const { return jobsDeleted_; }
+  uint64_t OrphanAssetsRemoved() const { return orphansRemoved_; }
 
  private:
   void Measure();
@@ -112,6 +123,8 @@ class StoreJanitor {
   // removed (the error is logged).
   std::optional<uint64_t> RemoveFolder(uint64_t id);
   uint64_t RemoveAssets(const std::vector<std::string>& hashes);
+  // Assets older than the grace period that no job names, removed; logged and counted.
+  void RemoveOrphanAssets(int64_t nowMs);
   void Freed(uint64_t bytes);
 
   JobStore& jobs_;
@@ -122,11 +135,14 @@ class StoreJanitor {
   std::shared_mutex assets_;  // shared: submissions; exclusive: a deletion removing assets
   std::atomic<uint64_t> storeBytes_{0};
   std::atomic<uint64_t> jobsDeleted_{0};
+  std::atomic<uint64_t> orphansRemoved_{0};
+  prometheus::Counter* orphansRemovedCounter_ = nullptr;
+  prometheus::Counter* orphanBytesRemovedCounter_ = nullptr;
   prometheus::Gauge* storeBytesGauge_ = nullptr;
   prometheus::Counter* jobsDeletedCounter_ = nullptr;
 
   std::mutex dueMutex_;  // one RunDue at a time
-  std::optional<int64_t> lastMeasureMs_, lastRetentionMs_;
+  std::optional<int64_t> lastMeasureMs_, lastRetentionMs_, lastOrphanSweepMs_;
   int64_t measureIntervalMs_ = kUsageIntervalMs;
   bool overBudgetLogged_ = false;
 

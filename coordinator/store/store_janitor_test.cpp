@@ -12,6 +12,9 @@
 #include <regex>
 #include <thread>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+
 #include "coordinator/store/asset_store.h"
 #include "coordinator/store/frame_store.h"
 #include "proto/wire/content_hash.h"
@@ -282,6 +285,53 @@ TEST(ByteSizeTest, ParsesSizesInPowersOf1024) {
   }
   EXPECT_EQ(ShowBytes(1536), "1.5 KiB");
   EXPECT_EQ(ShowBytes(12), "12 B");
+}
+
+}  // namespace
+}  // namespace tcfarm
+
+namespace tcfarm {
+namespace {
+
+// An asset's age is its file's modification time; the test clock is unix milliseconds.
+void SetAssetTime(const fs::path& root, const std::string& hash, int64_t unixMs) {
+  const timespec when{static_cast<time_t>(unixMs / 1000), static_cast<long>(unixMs % 1000) * 1'000'000};
+  const timespec times[2] = {when, when};
+  ASSERT_EQ(::utimensat(AT_FDCWD, AssetStore(root / "assets").PathOf(hash).c_str(), times, 0), 0);
+}
+
+// Uploads no job names go once older than the grace period; those a job names stay, and
+// one freshened (asked about, uploaded again) has its grace period anew.
+TEST_F(StoreJanitorTest, OrphanAssetsGoAfterTheirGracePeriodNamedOnesStay) {
+  constexpr int64_t kGraceMs = 3600 * 1000;
+  const std::string orphan = Asset("uploaded, never submitted");
+  const std::string named = Asset("named by a job");
+  const std::string young = Asset("uploaded a moment ago");
+  const std::string freshened = Asset("asked about again");
+  FinishedJob(10, {named});
+  for (const std::string& hash : {orphan, named, freshened}) SetAssetTime(root_, hash, nowMs_ - kGraceMs - 1);
+  SetAssetTime(root_, young, nowMs_ - kGraceMs + 1000);
+  AssetStore(root_ / "assets").Freshen({freshened});  // real time: far younger than the test clock
+  RetentionPolicy policy;
+  policy.orphanAssetGraceMs = kGraceMs;
+  StoreJanitor& janitor = Janitor(policy);
+  janitor.RunDue();
+  EXPECT_FALSE(HasAsset(orphan));
+  EXPECT_TRUE(HasAsset(named));
+  EXPECT_TRUE(HasAsset(young));
+  EXPECT_TRUE(HasAsset(freshened));
+  EXPECT_EQ(janitor.OrphanAssetsRemoved(), 1u);
+  EXPECT_EQ(Metric("tcfarm_store_orphan_assets_removed_total"), 1);
+  EXPECT_EQ(Metric("tcfarm_store_orphan_asset_bytes_removed_total"), std::string("uploaded, never submitted").size());
+  // The young one is swept once it is old too, at the next round (a minute on).
+  nowMs_ += StoreJanitor::kOrphanIntervalMs - 1;
+  janitor.RunDue();
+  EXPECT_TRUE(HasAsset(young));
+  nowMs_ += 1;
+  janitor.RunDue();
+  EXPECT_FALSE(HasAsset(young));
+  EXPECT_TRUE(HasAsset(named));
+  EXPECT_EQ(Metric("tcfarm_store_orphan_assets_removed_total"), 2);
 }
 
 }  // namespace

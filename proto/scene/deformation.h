@@ -143,8 +143,9 @@ struct DeformationProblem {
 std::vector<DeformationProblem> CheckDeformation(const Deformation& deformation, size_t vertexCount);
 
 // Tolerance on a vertex's weight sum: glTF asks for 1 within about 2e-7 per weight for
-// floats, more for normalized integers (1/255 per weight); sums off by more are refused,
-// closer ones are normalised exactly by dividing by their sum.
+// floats, more for normalized integers (1/255 per weight). A scene's skin whose sums are
+// off by more is refused; the glTF importer divides every sum out and warns of those off
+// by more (old exporters write sums such as 0.685), closer ones being rounding.
 constexpr double kWeightSumTolerance = 2e-2;
 
 }  // namespace tcfarm

@@ -1,12 +1,20 @@
 // tcfarm dashboard: the submit form. It does what `tcfarm submit` does
 // (services/client/tcfarm/scene_files.py and client.py): finds the files a scene references,
-// asks the farm which it lacks (POST /api/v1/assets/missing), uploads those by SHA-256
+// asks the farm whether it would take the scene (POST /api/v1/scenes/check, nothing uploaded
+// yet), asks it which files it lacks (POST /api/v1/assets/missing), uploads those by SHA-256
 // (PUT /api/v1/assets/{sha256}) and submits the job (POST /api/v1/jobs).
 "use strict";
 
 // --- the files a scene references (scene_files.py, the same rules) --------------------
 
 class SceneFileError extends Error {}
+// A file that does not read as the format its name says; the farm can say what it is instead.
+class NotItsFormat extends SceneFileError {
+  constructor(path, message) {
+    super(message);
+    this.path = path;
+  }
+}
 
 const SCENE_FILE_TYPES = [".json", ".gltf", ".glb", ".obj"];
 
@@ -87,15 +95,15 @@ function decodeUri(uri, path, what) {
 function glbJson(bytes, path) {
   const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
   const word = (at) => String.fromCharCode(...bytes.subarray(at, at + 4));
-  if (bytes.length < 20 || word(0) !== "glTF") throw new SceneFileError(`${path} is not a GLB file`);
+  if (bytes.length < 20 || word(0) !== "glTF") throw new NotItsFormat(path, `${path} is not a GLB file`);
   const length = view.getUint32(12, true);
-  if (word(16) !== "JSON" || 20 + length > bytes.length) throw new SceneFileError(`${path}: its first chunk is not JSON`);
+  if (word(16) !== "JSON" || 20 + length > bytes.length) throw new NotItsFormat(path, `${path}: its first chunk is not JSON`);
   return new TextDecoder().decode(bytes.subarray(20, 20 + length));
 }
 
 function namedByGltf(text, path) {
   let documentJson;
-  try { documentJson = JSON.parse(text); } catch (e) { throw new SceneFileError(`${path} is not glTF JSON: ${e.message}`); }
+  try { documentJson = JSON.parse(text); } catch (e) { throw new NotItsFormat(path, `${path} is not glTF JSON: ${e.message}`); }
   const found = [];
   for (const [kind, what] of [["buffers", "buffer"], ["images", "image"]]) {
     const entries = documentJson && Array.isArray(documentJson[kind]) ? documentJson[kind] : [];
@@ -147,7 +155,7 @@ async function sceneFiles(sceneFile, chosen) {
   }
   if (suffix === ".json") {
     let scene;
-    try { scene = JSON.parse(await sceneFile.text()); } catch (e) { throw new SceneFileError(`${sceneFile.name} is not JSON: ${e.message}`); }
+    try { scene = JSON.parse(await sceneFile.text()); } catch (e) { throw new NotItsFormat(sceneFile.name, `${sceneFile.name} is not JSON: ${e.message}`); }
     for (const [name, what] of jsonReferences(scene)) add(name, sceneFile.name, what);
     const imported = scene && scene.import && typeof scene.import.file === "string" ? scene.import.file : null;
     if (imported) {
@@ -350,16 +358,20 @@ async function describeChosenScene() {
   }
 }
 
-async function uploadAssets(assets) {
+async function hashAssets(assets) {
   const hashes = new Map();  // relative path -> sha256
   let index = 0;
   for (const [relative, file] of assets) {
     submitStatus(`hashing ${relative} (${++index} of ${assets.size})…`);
     hashes.set(relative, await sha256OfFile(file));
   }
+  return hashes;
+}
+
+async function uploadAssets(assets, hashes) {
   const { missing } = await sendJson("POST", `${API}/assets/missing`, { hashes: Array.from(new Set(hashes.values())) });
   const byHash = new Map(Array.from(assets, ([relative, file]) => [hashes.get(relative), file]));
-  index = 0;
+  let index = 0;
   for (const sha256 of missing) {
     const file = byHash.get(sha256);
     submitStatus(`uploading ${file.name}, ${sizeText(file.size)} (${++index} of ${missing.length})…`);
@@ -370,6 +382,43 @@ async function uploadAssets(assets) {
   return { hashes: Object.fromEntries(hashes), uploaded: missing.length };
 }
 
+// A scene file larger than this is checked once uploaded, not sent inline first: the farm's
+// JSON bodies are bounded (64 MiB by default) and base64 adds a third.
+const INLINE_CHECK_BYTES = 32 * 2 ** 20;
+
+async function base64Of(file) {
+  const bytes = new Uint8Array(await file.arrayBuffer());
+  let text = "";
+  for (let i = 0; i < bytes.length; i += 0x8000) text += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+  return btoa(text);
+}
+
+// Asks the farm whether it would take the submission before anything is uploaded
+// (POST /api/v1/scenes/check): a file it refuses (an HTML page named .glb) is refused with
+// its message and none of its bytes stored. hashes: the other files' (path -> sha256). A
+// farm from before the check is not asked.
+async function checkScene(sceneFile, files, body, hashes) {
+  const check = { ...body };
+  const others = new Map(hashes);
+  if (files && files.scene) {
+    check.scene = files.scene;
+  } else {
+    check.scene_file = sceneFile.name;
+    if (sceneFile.size <= INLINE_CHECK_BYTES) {
+      check.scene_file_data = await base64Of(sceneFile);
+      others.delete(sceneFile.name);
+    }
+  }
+  if (others.size) check.assets = Object.fromEntries(others);
+  submitStatus("checking the scene…");
+  try {
+    await sendJson("POST", `${API}/scenes/check`, check);
+  } catch (error) {
+    if (error instanceof ApiError && (error.status === 404 || error.status === 405)) return;
+    throw error;
+  }
+}
+
 async function submitJob(event) {
   event.preventDefault();
   const button = $("submit-button");
@@ -377,11 +426,22 @@ async function submitJob(event) {
   try {
     const sceneFile = $("submit-scene").files[0];
     if (!sceneFile) throw new SceneFileError("choose a scene file first");
-    const files = await sceneFiles(sceneFile, Array.from($("submit-files").files));
-    const body = submissionOptions(files);
+    // A file whose references cannot be read here (an HTML page named .glb) is still shown
+    // to the farm, which says what it is.
+    let files = null, unreadable = null;
+    try {
+      files = await sceneFiles(sceneFile, Array.from($("submit-files").files));
+    } catch (error) {
+      if (!(error instanceof NotItsFormat) || error.path !== sceneFile.name) throw error;
+      unreadable = error;
+    }
+    const body = submissionOptions(files || { scene: null, sceneFile: sceneFile.name });
+    const hashes = files ? await hashAssets(files.assets) : new Map();
+    await checkScene(sceneFile, files, body, hashes);
+    if (unreadable) throw unreadable;
     let uploaded = 0;
     if (files.assets.size) {
-      const upload = await uploadAssets(files.assets);
+      const upload = await uploadAssets(files.assets, hashes);
       body.assets = upload.hashes;
       uploaded = upload.uploaded;
     }

@@ -42,6 +42,7 @@ void ParseFrameRange(const std::string& text, RenderOptions* options) {
     throw std::invalid_argument("--frames " + text +
                                 ": expected A:B with 0 <= A <= B (both inclusive)");
   }
+  options->import.lastFrame = options->lastFrame;  // a glTF file's frames may run past its animation
 }
 
 void ParseSize(const std::string& text, RenderOptions* options) {
@@ -83,7 +84,8 @@ RenderCommandLine::RenderCommandLine(CLI::App& app) {
   options_.outDirectory = "out";
   app.add_option("SCENE", options_.scenePath, "Scene file: tcfarm JSON (.json), Wavefront OBJ (.obj) or glTF 2.0 (.gltf, .glb)")->type_name("FILE")->required();
   app.add_option("--frames", frames_,
-                 "Frames to render, both inclusive, or one frame (default: the scene's own)")
+                 "Frames to render, both inclusive, or one frame (default: the scene's own; a glTF file's may "
+                 "run past its animation, holding the last key)")
       ->type_name("A:B");
   app.add_option("--out", options_.outDirectory, "Folder the frames are written to")
       ->type_name("DIR")

@@ -52,6 +52,8 @@ class GltfImporter : public SceneImporter {
     return false;
   }
 
+  void CheckAlone(const ImportInput& input) const override { gltf::GltfReader(input).CheckAlone(); }
+
   Scene Import(const ImportInput& input) const override {
     Scene scene = gltf::GltfReader(input).Read();
     // Workers receive the scene as tcfarm JSON: what the parser would refuse (a camera's up

@@ -2,6 +2,9 @@
 #include <string>
 #include <vector>
 
+#include "proto/json/strict_json.h"
+#include "proto/scene/import/file_sniff.h"
+#include "proto/scene/import/messages.h"
 #include "proto/scene/import/importers.h"
 
 namespace tcfarm {
@@ -20,7 +23,20 @@ class JsonImporter : public SceneImporter {
     return first != std::string_view::npos && head[first] == '{';
   }
 
-  Scene Import(const ImportInput& input) const override { return ParseScene(input.bytes, input.baseDirectory); }
+  // Its syntax: mesh files and textures are what it names.
+  void CheckAlone(const ImportInput& input) const override {
+    RequireJsonSceneStart(input.bytes, input.displayName);
+    try {
+      ParseStrictJson(input.bytes);
+    } catch (const JsonInputError& error) {
+      FailInput(error.pointer(), input.displayName + ": " + error.what(), "a tcfarm JSON scene (proto/scene.md)");
+    }
+  }
+
+  Scene Import(const ImportInput& input) const override {
+    RequireJsonSceneStart(input.bytes, input.displayName);
+    return ParseScene(input.bytes, input.baseDirectory);
+  }
 };
 
 }  // namespace

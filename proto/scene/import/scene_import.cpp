@@ -137,6 +137,15 @@ Scene ImportScene(const std::filesystem::path& path, const ImportOptions& option
                       options);
 }
 
+void CheckSceneFileAlone(const std::string& bytes, const std::string& fileName) {
+  const SceneImporter* importer = FindImporterForFile(fileName, bytes);
+  if (importer == nullptr) {
+    FailInput("", "cannot tell the format of scene file " + QuoteInput(fileName) + " from its name or its first bytes",
+              "a file named " + KnownExtensions() + ", or holding one of those formats");
+  }
+  importer->CheckAlone(ImportInput{bytes, fileName, std::nullopt, {}});
+}
+
 Scene ImportSceneBytes(const std::string& bytes, const std::string& type,
                        const std::optional<std::filesystem::path>& baseDirectory, const ImportOptions& options) {
   const SceneImporter* importer = nullptr;

@@ -40,6 +40,9 @@ struct ImportOptions {
   // How glTF light intensities (candela, lux) become radiometric ones (proto/scene.md,
   // "glTF lights"): as the tools that write glTF convert them (683 lm/W), or as they are.
   LightUnits lightUnits = LightUnits::kPhotometric;
+  // The last frame the caller will render; -1: none said. A glTF file's frames run to its
+  // animation's end; asked past it, they extend to this one, holding the last key.
+  int lastFrame = -1;
 };
 
 struct ImportInput {
@@ -63,6 +66,10 @@ class SceneImporter {
   virtual bool Sniff(std::string_view head) const = 0;
   // Throws SceneError naming the JSON pointer (or "" and the file and line) of bad input.
   virtual Scene Import(const ImportInput& input) const = 0;
+  // What the file alone shows, without the files it names (POST /api/v1/scenes/check before
+  // they are uploaded). Throws SceneError as Import does. By default nothing: OBJ's lines
+  // are checked only as the import reads them.
+  virtual void CheckAlone(const ImportInput& input) const { (void)input; }
 };
 
 // Every importer, in the order their Sniff is tried.
@@ -74,6 +81,10 @@ const SceneImporter* FindImporterForFile(const std::filesystem::path& path, std:
 
 // Reads a scene file of any supported format; references resolve in its folder.
 Scene ImportScene(const std::filesystem::path& path, const ImportOptions& options = {});
+// The file named fileName (for its extension and messages) with these bytes, checked as
+// far as it can be without the files it names (SceneImporter::CheckAlone). Throws
+// SceneError, also when neither the name nor the bytes tell the format.
+void CheckSceneFileAlone(const std::string& bytes, const std::string& fileName);
 // Imports bytes of the given type (an importer's Type(); "" to sniff the content).
 // Without a base directory, references to other files are rejected.
 Scene ImportSceneBytes(const std::string& bytes, const std::string& type,

@@ -27,8 +27,8 @@ import sys
 import time
 
 from tcfarm import __version__
-from tcfarm.client import FINAL_STATES, ApiError, Client
-from tcfarm.scene_files import SceneFileError, scene_files
+from tcfarm.client import FINAL_STATES, ApiError, Client, sha256_file
+from tcfarm.scene_files import NotItsFormat, SceneFileError, scene_files
 
 # Strategy names are not checked here: the farm knows its own (GET /api/v1/strategies), and its
 # 400 names a strategy it does not run.
@@ -102,7 +102,7 @@ def _import_options(args, files):
                if value is not None}
     if not options:
         return {}
-    if files.scene_file is None:
+    if files is not None and files.scene_file is None:
         raise ApiError(0, "bad_input", "--fps, --size, --animation, --camera, --spp and --light-units apply "
                                        "to a scene file (.gltf, .glb, .obj), not to a JSON scene")
     return {"import": options}  # a reserved word in Python, a plain field name in the API
@@ -116,17 +116,56 @@ def _size(text):
     return [width, height]
 
 
+# A scene file larger than this is checked after its upload, not sent inline first: the
+# farm's JSON bodies are bounded (64 MiB by default) and base64 adds a third.
+_INLINE_CHECK_BYTES = 32 << 20
+
+
+def _check_scene(client, path, files, job_options):
+    """Asks the farm whether it would take the scene before any asset is uploaded: a file it
+    refuses (an HTML page named .glb) is refused here, with the farm's message, and none of
+    its bytes stored. files: the scene's files as found here, or None when they could not
+    be read (the farm then says what the file is). A farm without the check is not asked."""
+    path = pathlib.Path(path)
+    if files is not None and files.scene is not None:
+        scene, scene_file, data = files.scene, None, None
+        assets = files.assets
+    else:
+        scene, scene_file = None, path.name
+        data = path.read_bytes() if path.stat().st_size <= _INLINE_CHECK_BYTES else None
+        assets = {name: local for name, local in (files.assets.items() if files else ())
+                  if data is None or name != scene_file}
+    hashes = {name: sha256_file(local) for name, local in assets.items()}
+    try:
+        return client.check_scene(scene, scene_file=scene_file, scene_file_data=data,
+                                  assets=hashes or None, **job_options)
+    except ApiError as e:
+        if e.status in (404, 405):
+            return None  # a farm from before the check
+        raise
+
+
 def cmd_submit(client, args):
     try:
-        files = scene_files(args.scene)
+        files, unreadable = scene_files(args.scene), None
+    except NotItsFormat as e:
+        # The scene file is not what its name says: the farm, asked below, says what it is.
+        if e.path != pathlib.Path(args.scene):
+            raise ApiError(0, "bad_input", str(e))
+        files, unreadable = None, e
     except SceneFileError as e:
         raise ApiError(0, "bad_input", str(e))
+    job_options = dict(name=args.name or os.path.basename(args.scene), frames=args.frames,
+                       strategy=args.strategy, bin_width=args.bin_width, tolerance=args.tolerance,
+                       priority=args.priority, verify=args.verify, view=args.view,
+                       exposure=args.exposure)
+    import_options = _import_options(args, files)
+    _check_scene(client, args.scene, files, dict(job_options, **import_options))
+    if unreadable is not None:
+        raise ApiError(0, "bad_input", str(unreadable))
     assets = _upload(client, files, args.json)
-    job = client.submit(files.scene, name=args.name or os.path.basename(args.scene),
-                        frames=args.frames, strategy=args.strategy, bin_width=args.bin_width,
-                        tolerance=args.tolerance, priority=args.priority, verify=args.verify,
-                        view=args.view, exposure=args.exposure, assets=assets,
-                        scene_file=files.scene_file, **_import_options(args, files))
+    job = client.submit(files.scene, assets=assets,
+                        scene_file=files.scene_file, **job_options, **import_options)
     if not args.json:
         for line in _warning_lines(job):
             sys.stderr.write(f"warning: {line}\n")
@@ -595,7 +634,8 @@ def _parser():
     submit.add_argument("scene", help="the scene file: .json, .gltf, .glb or .obj")
     submit.add_argument("--name", help="the job's name (default: the file's name)")
     submit.add_argument("--frames", type=_frames, help="A:B, the frames to render, inclusive "
-                                                        "(default: the scene's)")
+                                                        "(default: the scene's; a glTF file's may run past "
+                                                        "its animation, holding the last key)")
     submit.add_argument("--strategy", help=f"how to save tracing: {STRATEGY_HELP} "
                                            "(default: the farm's)")
     submit.add_argument("--bin-width", type=int, help="bin width n (search, guarded) or segment "

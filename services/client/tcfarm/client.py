@@ -1,4 +1,5 @@
 """A small, dependency-free client of the coordinator's /api/v1."""
+import base64
 import collections
 import hashlib
 import http.client
@@ -90,6 +91,19 @@ class Client:
         body = {} if scene is None else {"scene": scene}
         body.update({k: v for k, v in options.items() if v is not None})
         return self._request("POST", "/api/v1/jobs", body)
+
+    def check_scene(self, scene, **options):
+        """What submit(scene, **options) would import, with nothing stored and no job made:
+        {"ok", "complete", "frames", "width", "height", "warnings"} or, when some assets are
+        not uploaded yet, {"ok", "complete": False, "missing_assets"}; a scene the farm
+        refuses raises the ApiError the submit would. options as submit's, plus
+        scene_file_data: the scene file's bytes (sent in base64) when it is not uploaded yet."""
+        data = options.pop("scene_file_data", None)
+        body = {} if scene is None else {"scene": scene}
+        body.update({k: v for k, v in options.items() if v is not None})
+        if data is not None:
+            body["scene_file_data"] = base64.b64encode(data).decode("ascii")
+        return self._request("POST", "/api/v1/scenes/check", body)
 
     def missing_assets(self, hashes):
         """Which of these SHA-256 hashes the farm does not have."""

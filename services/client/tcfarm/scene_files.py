@@ -18,6 +18,15 @@ class SceneFileError(Exception):
     """A scene file that cannot be read, or that names a file it cannot have."""
 
 
+class NotItsFormat(SceneFileError):
+    """A file that does not read as the format its name says (an HTML page named .glb): the
+    farm can say what it is instead. path: that file."""
+
+    def __init__(self, path, message):
+        super().__init__(message)
+        self.path = pathlib.Path(path)
+
+
 class SceneFiles:
     """scene: the parsed JSON scene, or None for a scene sent as a file (scene_file, its
     name among the assets); assets: {relative path: local file} to upload."""
@@ -95,10 +104,10 @@ def _gltf_uris(document, path):
 def _glb_json(data, path):
     """A GLB's JSON chunk (the first, right after the 12-byte header)."""
     if len(data) < 20 or data[:4] != b"glTF":
-        raise SceneFileError(f"{path} is not a GLB file")
+        raise NotItsFormat(path, f"{path} is not a GLB file")
     length, kind = struct.unpack_from("<I4s", data, 12)
     if kind != b"JSON" or 20 + length > len(data):
-        raise SceneFileError(f"{path}: its first chunk is not JSON")
+        raise NotItsFormat(path, f"{path}: its first chunk is not JSON")
     return data[20:20 + length]
 
 
@@ -114,7 +123,7 @@ def _named_by_file(data, suffix, path):
         try:
             document = json.loads(_glb_json(data, path) if suffix == ".glb" else data)
         except ValueError as e:
-            raise SceneFileError(f"{path} is not glTF JSON: {e}") from None
+            raise NotItsFormat(path, f"{path} is not glTF JSON: {e}") from None
         yield from _gltf_uris(document, path)
     elif suffix == ".obj":
         for name in _obj_libraries(data.decode("utf-8", errors="replace")):
@@ -147,7 +156,7 @@ def scene_files(path):
         try:
             scene = json.loads(data)
         except ValueError as e:
-            raise SceneFileError(f"{path} is not JSON: {e}") from None
+            raise NotItsFormat(path, f"{path} is not JSON: {e}") from None
         assets = {}
         for name, what in _json_references(scene):
             _add(assets, folder, name, path, what)

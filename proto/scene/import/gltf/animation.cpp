@@ -38,11 +38,15 @@ void GltfReader::BuildGraph() {
     }
   }
   std::vector<int> roots;
+  // "scene" must name a scene even in a file without any.
+  if (model_.defaultScene >= 0 && static_cast<size_t>(model_.defaultScene) >= model_.scenes.size()) {
+    Fail("/scene",
+         "scene " + std::to_string(model_.defaultScene) + " does not exist (the file has " +
+             std::to_string(model_.scenes.size()) + " scenes)",
+         "the index of a scene");
+  }
   if (!model_.scenes.empty()) {
     size_t chosen = model_.defaultScene >= 0 ? static_cast<size_t>(model_.defaultScene) : 0;
-    if (chosen >= model_.scenes.size()) {
-      Fail("/scene", "scene " + std::to_string(chosen) + " does not exist", "the index of a scene");
-    }
     const auto& nodes = model_.scenes[chosen].nodes;
     for (size_t k = 0; k < nodes.size(); ++k) {
       std::string pointer = Pointer("scenes", chosen) + "/nodes/" + std::to_string(k);
@@ -285,6 +289,30 @@ void GltfReader::BuildMotions() {
     }
     motions_[static_cast<size_t>(node)] = motion;
   }
+}
+
+int GltfReader::FramesAsked() const {
+  const int last = options_.lastFrame;
+  if (last < frameCount_) return frameCount_;
+  if (last >= kMaxFrameCount) {
+    Fail("", "frames up to " + std::to_string(last) + " asked for",
+         "at most " + std::to_string(kMaxFrameCount) + " frames");
+  }
+  // Every animated value is held after its last key (proto/scene/transform.h), as Blender
+  // and glTF viewers hold it: the frames past the end are the last frame again, and the
+  // scene's range covers them so that they are checked and rendered as its own.
+  const bool one = last == frameCount_;
+  const std::string frames = (one ? "frame " : "frames ") + std::to_string(frameCount_) +
+                             (one ? "" : "-" + std::to_string(last));
+  if (animation_ < 0) {
+    Warn("frames_past_animation", "",
+         "the file has no animation: " + frames + (one ? " shows" : " show") + " it as frame 0 does");
+  } else {
+    Warn("frames_past_animation", Pointer("animations", static_cast<size_t>(animation_)),
+         frames + (one ? " holds" : " hold") + " the last key (the animation ends at frame " +
+             std::to_string(frameCount_ - 1) + ")");
+  }
+  return last + 1;
 }
 
 Motion GltfReader::LocalMotion(size_t index, const std::map<std::string, Channel>& channels) const {

@@ -98,6 +98,9 @@ class GltfReader {
   GltfReader(const ImportInput& input);
 
   Scene Read();
+  // What the file alone shows, without the buffers and images it names (they may not have
+  // been uploaded yet): the container, the JSON's syntax and types, required extensions.
+  void CheckAlone();
 
  private:
   [[noreturn]] void Fail(const std::string& pointer, const std::string& problem, const std::string& expected) const;
@@ -115,6 +118,13 @@ class GltfReader {
   // What tinygltf reports without saying where: extensions this importer lacks, and
   // files that are missing. Syntax and type errors are left to tinygltf.
   void PreCheck(const std::string& jsonText) const;
+  // PreCheck's part that needs no other file: the JSON's syntax (a parse error said where
+  // it stops, in the parser's words), the version, the value types, required extensions.
+  void CheckDocument(const nlohmann::json& document) const;
+
+  // asset.version: a glTF 1.0 file (whose properties have other shapes) is refused as such,
+  // before the type check would call one of its differences a wrong type.
+  void CheckVersion(const nlohmann::json& document) const;
 
   // tinygltf would report a buffer whose data URI decodes to another length than its
   // byteLength under the name that replaced the URI.
@@ -337,6 +347,10 @@ class GltfReader {
 
   Motion LocalMotion(size_t index, const std::map<std::string, Channel>& channels) const;
 
+  // The scene's frame count: the animation's, or up to the caller's last frame
+  // (ImportOptions::lastFrame) when that is past its end, those frames holding the last key.
+  int FramesAsked() const;
+
   // ---- meshes ---------------------------------------------------------------------------
 
   TriangleMesh PrimitiveMesh(const tinygltf::Primitive& primitive, const std::string& pointer) const;
@@ -404,10 +418,28 @@ class GltfReader {
   std::vector<std::array<double, 4>> ReadTangents(int index, const std::string& pointer, size_t positions) const;
 
   // A primitive's skin: JOINTS_0/WEIGHTS_0 (and _1 for 8 influences), each vertex's weights
-  // divided by their sum (refused when it is further than kWeightSumTolerance from 1), and
-  // only the joints that move some vertex of the primitive, renumbered in the skin's order.
+  // divided by their sum (refused when they are all 0 or one is negative), and only the
+  // joints that move some vertex of the primitive, renumbered in the skin's order. An
+  // influence of weight 0 naming a joint the skin lacks is dropped.
   Skin BindPrimitive(const SkinJoints& joints, size_t node, const tinygltf::Primitive& primitive,
                      const std::string& pointer, size_t vertices) const;
+
+  // What BindPrimitive accepted in a primitive that glTF forbids, said once per primitive.
+  struct WeightFixes {
+    // Vertices whose weights sum further than kWeightSumTolerance from 1 (closer sums are
+    // rounding, normalised without a word), and the sum furthest from 1.
+    size_t renormalised = 0;
+    double furthestSum = 1;
+    size_t furthestVertex = 0;
+    // Influences of weight 0 naming a joint past the skin's, and where the first is.
+    size_t ignoredJoints = 0;
+    int ignoredJointsAccessor = -1;
+    size_t firstIgnoredVertex = 0;
+
+    void Renormalise(double sum, size_t vertex);
+    void IgnoreJoint(int jointsAccessor, size_t vertex);
+  };
+  void WarnOfWeightFixes(const WeightFixes& fixes, int weightsAccessor, size_t node, size_t vertices) const;
 
   // The morph targets and skin of node i's primitive p, or none when it has neither.
   std::shared_ptr<const Deformation> PrimitiveDeformation(size_t node, const SkinJoints* skin,

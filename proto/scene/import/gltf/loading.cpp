@@ -3,6 +3,8 @@
 
 #include <fstream>
 
+#include "proto/json/strict_json.h"
+#include "proto/scene/import/file_sniff.h"
 #include "proto/scene/import/gltf/file_access.h"
 
 namespace tcfarm::gltf {
@@ -31,7 +33,7 @@ Scene GltfReader::Read() {
   scene.render.width = kDefaultWidth;
   scene.render.height = kDefaultHeight;
   scene.render.firstFrame = 0;
-  scene.render.frameCount = frameCount_;
+  scene.render.frameCount = FramesAsked();
   scene.importWarnings = warnings_;
   return scene;
 }
@@ -45,7 +47,7 @@ void GltfReader::Warn(const std::string& code, const std::string& pointer, const
   // A sampler or texture shared by many materials is said once.
   if (std::find(warnings_.begin(), warnings_.end(), warning) != warnings_.end()) return;
   warnings_.push_back(std::move(warning));
-  std::fprintf(stderr, "warning: %s\n", warnings_.back().Line().c_str());
+  std::fprintf(stderr, "warning: [%s] %s\n", code.c_str(), warnings_.back().Line().c_str());
 }
 
 bool GltfReader::IsBinary() const { return input_.bytes.compare(0, 4, "glTF") == 0; }
@@ -55,6 +57,8 @@ std::string_view GltfReader::CheckContainer() const {
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) {
     Fail("", "the file holds " + std::to_string(bytes.size()) + " bytes", "a glTF file under 4 GiB");
   }
+  // An HTML page or an archive named .glb is said to be one, before a parser trips on it.
+  RequireGltfStart(bytes, input_.displayName);
   if (!IsBinary()) return bytes;
   auto word = [&](size_t offset) {
     uint32_t value = 0;
@@ -102,9 +106,24 @@ std::string SupportedExtensionList() {
 
 }  // namespace
 
-void GltfReader::PreCheck(const std::string& jsonText) const {
-  nlohmann::json document = nlohmann::json::parse(jsonText, nullptr, false);
-  if (!document.is_object()) return;  // tinygltf says what is wrong with the syntax
+void GltfReader::CheckAlone() {
+  embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+  const nlohmann::json document = nlohmann::json::parse(embedded_.json, nullptr, false);
+  CheckDocument(document);
+  embedded_ = {};
+}
+
+void GltfReader::CheckDocument(const nlohmann::json& document) const {
+  if (document.is_discarded()) {
+    // The parser's own words, for the byte where it stopped.
+    try {
+      [[maybe_unused]] const nlohmann::json reparsed = nlohmann::json::parse(embedded_.json);
+    } catch (const nlohmann::json::parse_error& error) {
+      Fail("", "the JSON does not parse: " + StripJsonExceptionPrefix(error.what()), "glTF JSON");
+    }
+  }
+  if (!document.is_object()) Fail("", std::string("the JSON is a ") + document.type_name(), "a glTF JSON object");
+  CheckVersion(document);
   auto [pointer, expected] = WrongType(document, "root", "");
   if (!pointer.empty()) {
     Fail(pointer,
@@ -122,6 +141,11 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
       }
     }
   }
+}
+
+void GltfReader::PreCheck(const std::string& jsonText) const {
+  nlohmann::json document = nlohmann::json::parse(jsonText, nullptr, false);
+  CheckDocument(document);
   for (const char* collection : {"buffers", "images"}) {
     if (!document.contains(collection) || !document[collection].is_array()) continue;
     const auto& items = document[collection];
@@ -156,6 +180,22 @@ void GltfReader::PreCheck(const std::string& jsonText) const {
       }
     }
   }
+}
+
+void GltfReader::CheckVersion(const nlohmann::json& document) const {
+  const std::string expected = "a glTF 2.0 file (asset.version \"2.0\")";
+  if (!document.contains("asset")) Fail("", "no \"asset\" property", expected);
+  if (!document["asset"].is_object()) return;  // the type check says so
+  const nlohmann::json& asset = document["asset"];
+  if (!asset.contains("version")) Fail("/asset", "no asset.version", expected);
+  const nlohmann::json& version = asset["version"];
+  if (version.is_string() && version.get<std::string>().compare(0, 2, "2.") == 0) return;
+  const bool oneOh = version.is_string() ? version.get<std::string>().compare(0, 2, "1.") == 0
+                                         : version.is_number() && version.get<double>() == 1;
+  Fail("/asset/version",
+       "version " + version.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).substr(0, 40) +
+           (oneOh ? ": a glTF 1.0 file, which this importer does not read" : ""),
+       expected);
 }
 
 void GltfReader::CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const {

@@ -60,6 +60,11 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
     for (size_t v = 0; v < positions.count; ++v) indices.push_back(static_cast<uint32_t>(v));
   }
   int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
+  if (const size_t leftOver = indices.size() % 3; mode == TINYGLTF_MODE_TRIANGLES && leftOver != 0) {
+    Warn("incomplete_triangle", pointer,
+         std::to_string(indices.size()) + (primitive.indices >= 0 ? " indices" : " vertices") +
+             " are not whole triangles; the last " + (leftOver == 1 ? "one is" : "two are") + " left out");
+  }
   mesh.triangles = Triangles(indices, mode);
   return mesh;
 }
@@ -168,6 +173,13 @@ void GltfReader::AddShapes(Scene& scene) {
       if (skin == nullptr) shape.motion = *motions_[static_cast<size_t>(node)];
       scene.shapes.push_back(std::move(shape));
     }
+  }
+  // A valid file may draw nothing (an empty scene, points or lines only): its frames show
+  // only the background, which would look like a failed render unless said.
+  if (scene.shapes.empty()) {
+    const size_t chosen = model_.defaultScene >= 0 ? static_cast<size_t>(model_.defaultScene) : 0;
+    Warn("empty_scene", model_.scenes.empty() ? "/nodes" : Pointer("scenes", chosen),
+         "no node of the scene draws a triangle; the frames show only the background");
   }
 }
 

@@ -235,40 +235,45 @@ Skin GltfReader::BindPrimitive(const SkinJoints& joints, size_t node, const tiny
   skin.vertexJoints.resize(vertices * k);
   skin.vertexWeights.resize(vertices * k);
   std::vector<bool> used(joints.joints.size(), false);
+  WeightFixes fixes;
   for (size_t v = 0; v < vertices; ++v) {
     double sum = 0;
     for (size_t i = 0; i < k; ++i) {
       const Set& set = sets[i / 4];
       const double joint = set.joints.At(v, static_cast<int>(i % 4));
       const double weight = set.weights.At(v, static_cast<int>(i % 4));
-      if (!(joint < static_cast<double>(joints.joints.size()))) {
-        Fail(Pointer("accessors", static_cast<size_t>(set.jointsAccessor)),
-             "vertex " + std::to_string(v) + " names joint " + std::to_string(static_cast<uint64_t>(joint)) +
-                 " (weight " + nlohmann::json(weight).dump() + ") of skin " +
-                 std::to_string(model_.nodes[node].skin) + ", which has " + std::to_string(joints.joints.size()),
-             "joint indices below the skin's joint count");
-      }
       if (!(weight >= 0)) {
         Fail(Pointer("accessors", static_cast<size_t>(set.weightsAccessor)),
              "vertex " + std::to_string(v) + " has the weight " + nlohmann::json(weight).dump(), "weights >= 0");
       }
       skin.vertexWeights[v * k + i] = weight;
       sum += weight;
+      if (!(joint < static_cast<double>(joints.joints.size()))) {
+        if (weight != 0) {
+          Fail(Pointer("accessors", static_cast<size_t>(set.jointsAccessor)),
+               "vertex " + std::to_string(v) + " names joint " + std::to_string(static_cast<uint64_t>(joint)) +
+                   " (weight " + nlohmann::json(weight).dump() + ") of skin " +
+                   std::to_string(model_.nodes[node].skin) + ", which has " + std::to_string(joints.joints.size()),
+               "joint indices below the skin's joint count (or a weight of 0)");
+        }
+        fixes.IgnoreJoint(set.jointsAccessor, v);
+      }
       if (weight == 0) continue;  // its joint does not move the vertex: index 0 will do
       used[static_cast<size_t>(joint)] = true;
       skin.vertexJoints[v * k + i] = static_cast<uint32_t>(joint);
     }
-    if (!(std::fabs(sum - 1) <= kWeightSumTolerance)) {
+    if (sum == 0) {
       Fail(Pointer("accessors", static_cast<size_t>(sets[0].weightsAccessor)),
-           "vertex " + std::to_string(v) + "'s weights sum to " + nlohmann::json(sum).dump() +
-               (sets.size() > 1 ? " (with WEIGHTS_1)" : ""),
-           "weights summing to 1 within " + nlohmann::json(kWeightSumTolerance).dump() +
-               " (closer sums are divided by their sum)");
+           "vertex " + std::to_string(v) + "'s weights are all 0" + (sets.size() > 1 ? " (with WEIGHTS_1)" : ""),
+           "a positive weight on every vertex of a skinned primitive");
     }
+    // Exactly 1 keeps its bits; any other sum is divided out, as glTF viewers do.
     if (sum != 1) {
       for (size_t i = 0; i < k; ++i) skin.vertexWeights[v * k + i] /= sum;
     }
+    fixes.Renormalise(sum, v);
   }
+  WarnOfWeightFixes(fixes, sets[0].weightsAccessor, node, vertices);
   std::vector<uint32_t> renumbered(used.size(), 0);  // per joint of the skin, its index here
   for (size_t j = 0; j < used.size(); ++j) {
     if (!used[j]) continue;
@@ -280,6 +285,40 @@ Skin GltfReader::BindPrimitive(const SkinJoints& joints, size_t node, const tiny
     skin.vertexJoints[i] = renumbered[skin.vertexJoints[i]];
   }
   return skin;
+}
+
+void GltfReader::WeightFixes::Renormalise(double sum, size_t vertex) {
+  if (!(std::fabs(sum - 1) > kWeightSumTolerance)) return;
+  ++renormalised;
+  if (std::fabs(sum - 1) > std::fabs(furthestSum - 1)) {
+    furthestSum = sum;
+    furthestVertex = vertex;
+  }
+}
+
+void GltfReader::WeightFixes::IgnoreJoint(int jointsAccessor, size_t vertex) {
+  if (ignoredJoints++ > 0) return;
+  ignoredJointsAccessor = jointsAccessor;
+  firstIgnoredVertex = vertex;
+}
+
+void GltfReader::WarnOfWeightFixes(const WeightFixes& fixes, int weightsAccessor, size_t node,
+                                   size_t vertices) const {
+  if (fixes.renormalised > 0) {
+    char sum[32];
+    std::snprintf(sum, sizeof sum, "%.4g", fixes.furthestSum);
+    Warn("weights_renormalised", Pointer("accessors", static_cast<size_t>(weightsAccessor)),
+         std::to_string(fixes.renormalised) + " of " + std::to_string(vertices) +
+             " vertices have weights that do not sum to 1 (vertex " + std::to_string(fixes.furthestVertex) +
+             "'s sum to " + sum + ", the furthest); each vertex's weights are divided by their sum");
+  }
+  if (fixes.ignoredJoints > 0) {
+    Warn("joint_index_ignored", Pointer("accessors", static_cast<size_t>(fixes.ignoredJointsAccessor)),
+         std::to_string(fixes.ignoredJoints) + " influences of weight 0 name joints past the " +
+             std::to_string(model_.skins[static_cast<size_t>(model_.nodes[node].skin)].joints.size()) +
+             " of skin " + std::to_string(model_.nodes[node].skin) + " (the first at vertex " +
+             std::to_string(fixes.firstIgnoredVertex) + "); they are ignored");
+  }
 }
 
 std::shared_ptr<const Deformation> GltfReader::PrimitiveDeformation(size_t node, const SkinJoints* skin,
