@@ -115,10 +115,11 @@ void GltfReader::CheckAlone() {
 
 void GltfReader::CheckDocument(const nlohmann::json& document) const {
   if (document.is_discarded()) {
-    // The parser's own words, for the byte where it stopped.
+    // The parser's own words, for the byte where it stopped (a syntax error), or for the
+    // number it cannot hold (out_of_range, which is no parse_error).
     try {
       [[maybe_unused]] const nlohmann::json reparsed = nlohmann::json::parse(embedded_.json);
-    } catch (const nlohmann::json::parse_error& error) {
+    } catch (const nlohmann::json::exception& error) {
       Fail("", "the JSON does not parse: " + StripJsonExceptionPrefix(error.what()), "glTF JSON");
     }
   }
