@@ -372,7 +372,7 @@ void BindTextureToAsset(const Material& material, Texture& texture, const std::s
   if (const auto problem = EncodedImageProblem(bytes)) {
     throw ApiError(400, error_code::kInvalidScene,
                    pointer.substr(1) + ": texture image " + ShowValue(texture.Describe()) + " cannot be used: " +
-                       *problem + "; expected a PNG or JPEG image",
+                       *problem + "; expected a PNG, JPEG or WebP image",
                    pointer);
   }
   if (namedByHash || !keep) return;

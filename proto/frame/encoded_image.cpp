@@ -52,6 +52,7 @@ std::optional<std::string> DecodeProblem(const std::string& bytes) {
 std::string ReaderNameFor(const std::string& bytes) {
   if (bytes.rfind("\x89PNG", 0) == 0) return "image.png";
   if (bytes.rfind("\xff\xd8", 0) == 0) return "image.jpg";
+  if (bytes.size() >= 12 && bytes.rfind("RIFF", 0) == 0 && bytes.compare(8, 4, "WEBP") == 0) return "image.webp";
   return "image";
 }
 

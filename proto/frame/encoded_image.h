@@ -1,5 +1,5 @@
-// Images held as their file's bytes (texture images: a PNG or JPEG uploaded, or embedded in
-// a glTF file), opened by OpenImageIO straight from memory.
+// Images held as their file's bytes (texture images: a PNG or JPEG uploaded, or a PNG, JPEG
+// or WebP embedded in a glTF file), opened by OpenImageIO straight from memory.
 #pragma once
 
 #include <memory>
@@ -12,7 +12,7 @@
 namespace tcfarm {
 
 // The file name OpenImageIO should pick a reader by: bytes in memory have no extension,
-// so their signature names the format ("image.png", "image.jpg"; "image" when unknown,
+// so their signature names the format ("image.png", "image.jpg", "image.webp"; "image" when unknown,
 // and OpenImageIO then tries its readers in turn).
 std::string ReaderNameFor(const std::string& bytes);
 

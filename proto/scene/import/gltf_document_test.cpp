@@ -60,6 +60,15 @@ std::vector<ImportWarning> WarningsOf(const Scene& scene, const std::string& cod
   return found;
 }
 
+// Found by tests/fuzz/gltf_fuzz: a number past a double's range made the parser throw an
+// exception that is no parse_error, and the importer let it end the process.
+TEST(GltfDocumentTest, ANumberPastADoublesRangeIsRefused) {
+  const std::string what =
+      ErrorOf([] { ImportSceneBytes(R"({"asset": {"version": "2.0"}, "extras": 1.2e308668930054})", "gltf"); });
+  EXPECT_NE(what.find("the JSON does not parse: number overflow parsing '1.2e308668930054'"), std::string::npos)
+      << what;
+}
+
 TEST(GltfDocumentTest, AGltf1FileIsRefusedAsOne) {
   // glTF 1.0 named its default scene by a string and kept its collections in objects.
   json gltf = {{"asset", {{"version", "1.0"}}},

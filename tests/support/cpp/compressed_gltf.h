@@ -10,11 +10,10 @@
 #include <string>
 #include <vector>
 
-#include <draco/compression/encode.h>
-#include <draco/mesh/mesh.h>
 #include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
 
+#include "proto/draco/draco_codec.h"
 #include "tests/support/cpp/scene_test_support.h"
 
 namespace tcfarm::compressed_gltf {
@@ -106,47 +105,17 @@ inline nlohmann::json PlainGltf(const Sphere& s) {
   return gltf;
 }
 
-struct DracoOptions {
-  bool sequential = true;  // keeps vertex and triangle order; edgebreaker reorders both
-  int positionBits = 0;    // 0: no quantization (lossless)
-};
+using DracoOptions = draco_codec::Encoding;
 
 inline std::string DracoBytes(const Sphere& s, const DracoOptions& options, std::vector<int>* ids) {
-  const size_t n = s.Vertices();
-  draco::Mesh mesh;
-  mesh.set_num_points(static_cast<uint32_t>(n));
-  const auto add = [&](draco::GeometryAttribute::Type type, int components, draco::DataType dataType,
-                       bool normalized, const void* data, size_t componentSize) {
-    draco::GeometryAttribute attribute;
-    const size_t elementSize = static_cast<size_t>(components) * componentSize;
-    attribute.Init(type, nullptr, static_cast<uint8_t>(components), dataType, normalized,
-                   static_cast<int64_t>(elementSize), 0);
-    const int index = mesh.AddAttribute(attribute, true, static_cast<uint32_t>(n));
-    for (size_t v = 0; v < n; ++v) {
-      mesh.attribute(index)->SetAttributeValue(draco::AttributeValueIndex(static_cast<uint32_t>(v)),
-                                               static_cast<const char*>(data) + v * elementSize);
-    }
-    ids->push_back(static_cast<int>(mesh.attribute(index)->unique_id()));
-  };
-  add(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32, false, s.positions.data(), 4);
-  add(draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32, false, s.normals.data(), 4);
-  add(draco::GeometryAttribute::TEX_COORD, 2, draco::DT_FLOAT32, false, s.uvs.data(), 4);
-  add(draco::GeometryAttribute::COLOR, 4, draco::DT_UINT8, true, s.colors.data(), 1);
-  for (size_t i = 0; i < s.indices.size(); i += 3) {
-    mesh.AddFace({draco::PointIndex(s.indices[i]), draco::PointIndex(s.indices[i + 1]),
-                  draco::PointIndex(s.indices[i + 2])});
-  }
-  draco::Encoder encoder;
-  encoder.SetEncodingMethod(options.sequential ? draco::MESH_SEQUENTIAL_ENCODING : draco::MESH_EDGEBREAKER_ENCODING);
-  if (options.positionBits > 0) {
-    encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.positionBits);
-    encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, 12);
-    encoder.SetAttributeQuantization(draco::GeometryAttribute::TEX_COORD, 14);
-  }
-  draco::EncoderBuffer out;
-  const draco::Status status = encoder.EncodeMeshToBuffer(mesh, &out);
-  if (!status.ok()) throw std::runtime_error("draco: " + status.error_msg_string());
-  return std::string(out.data(), out.size());
+  using draco_codec::Component;
+  using draco_codec::Meaning;
+  return draco_codec::EncodeMesh(s.Vertices(),
+                                 {{Meaning::kPosition, 3, Component::kFloat, false, s.positions.data()},
+                                  {Meaning::kNormal, 3, Component::kFloat, false, s.normals.data()},
+                                  {Meaning::kTexCoord, 2, Component::kFloat, false, s.uvs.data()},
+                                  {Meaning::kColor, 4, Component::kUint8, true, s.colors.data()}},
+                                 s.indices, options, ids);
 }
 
 // The sphere's file around Draco bytes whose attributes have unique ids `ids` (in accessor order).
@@ -219,6 +188,49 @@ inline nlohmann::json MeshoptGltf(const Sphere& s, bool filters = false) {
   gltf["extensionsUsed"].push_back("EXT_meshopt_compression");
   gltf["extensionsRequired"].push_back("EXT_meshopt_compression");
   return gltf;
+}
+
+// The sphere with its triangles' corners in the order meshopt's index codec gives them back
+// (it may rotate a triangle, abc as bca): the plain twin a meshopt file decodes to exactly.
+inline Sphere WithMeshoptIndexOrder(Sphere s) {
+  std::vector<unsigned char> encoded(meshopt_encodeIndexBufferBound(s.indices.size(), s.Vertices()));
+  encoded.resize(meshopt_encodeIndexBuffer(encoded.data(), encoded.size(), s.indices.data(), s.indices.size()));
+  if (meshopt_decodeIndexBuffer(s.indices.data(), s.indices.size(), encoded.data(), encoded.size()) != 0) {
+    throw std::runtime_error("meshopt: the indices do not decode");
+  }
+  return s;
+}
+
+// RFC 4648 Base64 decoded (what Base64 writes; anything else is not checked).
+inline std::string FromBase64(const std::string& text) {
+  static const std::string kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  uint32_t bits = 0;
+  int count = 0;
+  for (const char c : text) {
+    const size_t value = kAlphabet.find(c);
+    if (value == std::string::npos) continue;  // padding
+    bits = bits << 6 | static_cast<uint32_t>(value);
+    if ((count += 6) >= 8) out += static_cast<char>((bits >> (count -= 8)) & 0xFF);
+  }
+  return out;
+}
+
+// `gltf` as a GLB: buffer 0's data URI becomes the BIN chunk (other buffers stay as they are).
+inline std::string Glb(nlohmann::json gltf) {
+  nlohmann::json& buffer = gltf["buffers"][0];
+  std::string binary = FromBase64(buffer["uri"].get<std::string>().substr(buffer["uri"].get<std::string>().find(',') + 1));
+  buffer.erase("uri");
+  std::string text = gltf.dump();
+  text.append((4 - text.size() % 4) % 4, ' ');
+  binary.append((4 - binary.size() % 4) % 4, '\0');
+  const auto word = [](size_t value) {
+    const uint32_t v = static_cast<uint32_t>(value);
+    return std::string{static_cast<char>(v & 0xFF), static_cast<char>(v >> 8 & 0xFF), static_cast<char>(v >> 16 & 0xFF),
+                       static_cast<char>(v >> 24)};
+  };
+  return "glTF" + word(2) + word(12 + 8 + text.size() + 8 + binary.size()) + word(text.size()) + "JSON" + text +
+         word(binary.size()) + std::string("BIN\0", 4) + binary;
 }
 
 }  // namespace tcfarm::compressed_gltf

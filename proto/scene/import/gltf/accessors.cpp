@@ -42,21 +42,23 @@ GltfReader::AccessorData GltfReader::ReadAccessor(int index, const std::string& 
 }
 
 void GltfReader::ChargeValues(uint64_t values, const std::string& pointer) const {
-  ChargeValueBytes(values * sizeof(double), BufferBytes(), "reading it brings the values read from the file's accessors", pointer);
+  ChargeValueBytes(values * sizeof(double), kValueBytesPerBufferByte, BufferBytes(),
+                   "reading it brings the values read from the file's accessors", pointer);
 }
 
 void GltfReader::ChargeDecodedBytes(uint64_t bytes, const std::string& pointer) const {
   // Against the file's own buffers: what earlier decoding produced must not raise the limit.
-  ChargeValueBytes(bytes, fileBufferBytes_, "decoding it brings the values read and decoded from the file", pointer);
+  ChargeValueBytes(bytes, kDecodedBytesPerBufferByte, fileBufferBytes_,
+                   "decoding it brings the values read and decoded from the file", pointer);
 }
 
-void GltfReader::ChargeValueBytes(uint64_t bytes, size_t bufferBytes, const std::string& doing,
+void GltfReader::ChargeValueBytes(uint64_t bytes, uint64_t perBufferByte, size_t bufferBytes, const std::string& doing,
                                   const std::string& pointer) const {
-  const uint64_t budget = kValueBytesPerBufferByte * bufferBytes + kValueBytesAllowance;
+  const uint64_t budget = perBufferByte * bufferBytes + kValueBytesAllowance;
   valueBytesRead_ += bytes;
   if (valueBytesRead_ > budget) {
     Fail(pointer, doing + " to " + std::to_string(valueBytesRead_) + " bytes",
-         "at most " + std::to_string(kValueBytesPerBufferByte) + " bytes of values per byte of the file's buffers (" +
+         "at most " + std::to_string(perBufferByte) + " bytes of values per byte of the file's buffers (" +
              std::to_string(bufferBytes) + ") + 16 MiB: accessors that are not read over and over");
   }
 }

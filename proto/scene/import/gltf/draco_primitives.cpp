@@ -1,8 +1,7 @@
 // KHR_draco_mesh_compression: a primitive's attributes and indices decoded, at import, from
 // the Draco mesh in its extension's buffer view, into buffers the primitive's accessors then
 // read (the accessors keep their count, type and component type, as the extension says).
-#include <draco/compression/decode.h>
-
+#include "proto/draco/draco_codec.h"
 #include "proto/scene/import/gltf/gltf_reader.h"
 
 namespace tcfarm::gltf {
@@ -10,26 +9,15 @@ namespace {
 
 constexpr const char* kDraco = "KHR_draco_mesh_compression";
 
-// Draco's values of one attribute for one point, converted (with Draco's range checks) to
-// the accessor's component type T and written little-endian at `out`.
-template <typename T>
-bool ConvertInto(const draco::PointAttribute& attribute, draco::AttributeValueIndex value, int components,
-                 unsigned char* out) {
-  T converted[16];
-  if (!attribute.ConvertValue<T>(value, static_cast<int8_t>(components), converted)) return false;
-  std::memcpy(out, converted, sizeof(T) * static_cast<size_t>(components));
-  return true;
-}
-
-bool ConvertComponents(const draco::PointAttribute& attribute, draco::AttributeValueIndex value, int componentType,
-                       int components, unsigned char* out) {
+// The decoder's name for a glTF component type; false for one Draco cannot fill.
+bool DracoComponent(int componentType, draco_codec::Component* component) {
   switch (componentType) {
-    case TINYGLTF_COMPONENT_TYPE_BYTE: return ConvertInto<int8_t>(attribute, value, components, out);
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return ConvertInto<uint8_t>(attribute, value, components, out);
-    case TINYGLTF_COMPONENT_TYPE_SHORT: return ConvertInto<int16_t>(attribute, value, components, out);
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return ConvertInto<uint16_t>(attribute, value, components, out);
-    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return ConvertInto<uint32_t>(attribute, value, components, out);
-    case TINYGLTF_COMPONENT_TYPE_FLOAT: return ConvertInto<float>(attribute, value, components, out);
+    case TINYGLTF_COMPONENT_TYPE_BYTE: *component = draco_codec::Component::kInt8; return true;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: *component = draco_codec::Component::kUint8; return true;
+    case TINYGLTF_COMPONENT_TYPE_SHORT: *component = draco_codec::Component::kInt16; return true;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: *component = draco_codec::Component::kUint16; return true;
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: *component = draco_codec::Component::kUint32; return true;
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: *component = draco_codec::Component::kFloat; return true;
     default: return false;
   }
 }
@@ -89,19 +77,14 @@ void GltfReader::DecodeDracoPrimitive(tinygltf::Primitive& primitive, const std:
   }
   const size_t length = model_.bufferViews[viewIndex].byteLength;
   const ViewElements view = InView(static_cast<int>(viewIndex), 0, length, 1, false, at);
-  draco::DecoderBuffer buffer;
-  buffer.Init(reinterpret_cast<const char*>(view.base), length);
-  draco::Decoder decoder;
-  auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
-  if (!decoded.ok()) {
-    Fail(at, "its " + std::to_string(length) + " bytes do not decode as a Draco mesh: " +
-                 decoded.status().error_msg_string(),
+  const draco_codec::DecodedMesh mesh(view.base, length);
+  if (!mesh.Error().empty()) {
+    Fail(at, "its " + std::to_string(length) + " bytes do not decode as a Draco mesh: " + mesh.Error(),
          "a triangle mesh Draco's encoder wrote");
   }
-  const std::unique_ptr<draco::Mesh> mesh = std::move(decoded).value();
-  const size_t points = mesh->num_points();
-  if (mesh->num_faces() > kMaxTriangles || points > kMaxAccessorCount) {
-    Fail(at, "a decoded mesh of " + std::to_string(mesh->num_faces()) + " triangles and " + std::to_string(points) +
+  const size_t points = mesh.Points();
+  if (mesh.Faces() > kMaxTriangles || points > kMaxAccessorCount) {
+    Fail(at, "a decoded mesh of " + std::to_string(mesh.Faces()) + " triangles and " + std::to_string(points) +
                  " vertices",
          "at most " + std::to_string(kMaxTriangles) + " triangles and " + std::to_string(kMaxAccessorCount) +
              " vertices");
@@ -111,15 +94,14 @@ void GltfReader::DecodeDracoPrimitive(tinygltf::Primitive& primitive, const std:
     auto accessor = primitive.attributes.find(name);
     if (accessor == primitive.attributes.end()) continue;  // nothing reads it
     const uint64_t id = WholeNumberIn(ids, name, at + "/attributes");
-    const draco::PointAttribute* attribute =
-        id <= std::numeric_limits<uint32_t>::max() ? mesh->GetAttributeByUniqueId(static_cast<uint32_t>(id)) : nullptr;
-    if (attribute == nullptr) {
+    const int components = id <= std::numeric_limits<uint32_t>::max() ? mesh.Components(static_cast<uint32_t>(id)) : 0;
+    if (components == 0) {
       Fail(at + "/attributes/" + name, "Draco attribute id " + std::to_string(id) + ", which the mesh lacks",
            "the id of an attribute of the decoded mesh");
     }
-    WriteDracoAttribute(accessor->second, *attribute, points, at + "/attributes/" + name);
+    WriteDracoAttribute(accessor->second, mesh, static_cast<uint32_t>(id), at + "/attributes/" + name);
   }
-  WriteDracoIndices(primitive.indices, *mesh, at);
+  WriteDracoIndices(primitive.indices, mesh, at);
 }
 
 tinygltf::Accessor& GltfReader::DracoAccessor(int index, size_t count, const std::string& at) {
@@ -148,56 +130,49 @@ void GltfReader::PointAccessorAt(tinygltf::Accessor& accessor, std::vector<unsig
   accessor.byteOffset = 0;
 }
 
-void GltfReader::WriteDracoAttribute(int index, const draco::PointAttribute& attribute, size_t points,
+void GltfReader::WriteDracoAttribute(int index, const draco_codec::DecodedMesh& mesh, uint32_t id,
                                      const std::string& at) {
+  const size_t points = mesh.Points();
   tinygltf::Accessor& accessor = DracoAccessor(index, points, at);
   const std::string pointer = Pointer("accessors", static_cast<size_t>(index));
   const int components = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(accessor.type));
   const int componentSize = tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(accessor.componentType));
-  if (components < 1 || componentSize < 1 || components != attribute.num_components()) {
+  draco_codec::Component component{};
+  if (components < 1 || componentSize < 1 || components != mesh.Components(id) ||
+      !DracoComponent(accessor.componentType, &component)) {
     Fail(pointer, TypeName(accessor.type) + " of " + ComponentTypeName(accessor.componentType) + " for a Draco attribute of " +
-                      std::to_string(attribute.num_components()) + " components",
+                      std::to_string(mesh.Components(id)) + " components",
          "an accessor with as many components as its Draco attribute");
   }
   const size_t elementSize = static_cast<size_t>(components) * static_cast<size_t>(componentSize);
   ChargeDecodedBytes(points * elementSize, at);
   std::vector<unsigned char> bytes(points * elementSize);
-  for (size_t p = 0; p < points; ++p) {
-    const draco::AttributeValueIndex value = attribute.mapped_index(draco::PointIndex(static_cast<uint32_t>(p)));
-    if (value.value() >= attribute.size() ||
-        !ConvertComponents(attribute, value, accessor.componentType, components, &bytes[p * elementSize])) {
-      Fail(at, "the decoded value of vertex " + std::to_string(p) + " does not fit " +
-                   ComponentTypeName(accessor.componentType),
-           "decoded values the accessor's component type holds");
-    }
+  const size_t written = mesh.WriteValues(id, component, bytes.data());
+  if (written < points) {
+    Fail(at, "the decoded value of vertex " + std::to_string(written) + " does not fit " +
+                 ComponentTypeName(accessor.componentType),
+         "decoded values the accessor's component type holds");
   }
   PointAccessorAt(accessor, std::move(bytes));
 }
 
-void GltfReader::WriteDracoIndices(int index, const draco::Mesh& mesh, const std::string& at) {
+void GltfReader::WriteDracoIndices(int index, const draco_codec::DecodedMesh& mesh, const std::string& at) {
   if (index < 0) Fail(at, "a Draco primitive without indices", "indices, which the decoded triangles fill");
-  tinygltf::Accessor& accessor = DracoAccessor(index, 3 * static_cast<size_t>(mesh.num_faces()), at);
+  tinygltf::Accessor& accessor = DracoAccessor(index, 3 * mesh.Faces(), at);
   const int size = accessor.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE    ? 1
                    : accessor.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT ? 2
                    : accessor.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT   ? 4
                                                                                         : 0;
   const uint64_t largest = size == 4 ? 0xFFFFFFFFu : (uint64_t{1} << (8 * size)) - 1;
-  if (size == 0 || accessor.type != TINYGLTF_TYPE_SCALAR || (mesh.num_points() > 0 && mesh.num_points() - 1 > largest)) {
+  if (size == 0 || accessor.type != TINYGLTF_TYPE_SCALAR || (mesh.Points() > 0 && mesh.Points() - 1 > largest)) {
     Fail(Pointer("accessors", static_cast<size_t>(index)),
          TypeName(accessor.type) + " of " + ComponentTypeName(accessor.componentType) + " for the indices of " +
-             std::to_string(mesh.num_points()) + " decoded vertices",
+             std::to_string(mesh.Points()) + " decoded vertices",
          "a SCALAR accessor of unsigned indices wide enough for every vertex");
   }
-  ChargeDecodedBytes(3 * static_cast<uint64_t>(mesh.num_faces()) * static_cast<uint64_t>(size), at);
-  std::vector<unsigned char> bytes(3 * static_cast<size_t>(mesh.num_faces()) * static_cast<size_t>(size));
-  unsigned char* out = bytes.data();
-  for (draco::FaceIndex f(0); f < mesh.num_faces(); ++f) {
-    for (const draco::PointIndex& point : mesh.face(f)) {
-      const uint32_t value = point.value();  // below num_points: Draco's decoder checks its faces
-      std::memcpy(out, &value, static_cast<size_t>(size));  // little-endian: the low bytes first
-      out += size;
-    }
-  }
+  ChargeDecodedBytes(3 * static_cast<uint64_t>(mesh.Faces()) * static_cast<uint64_t>(size), at);
+  std::vector<unsigned char> bytes(3 * mesh.Faces() * static_cast<size_t>(size));
+  mesh.WriteFaces(size, bytes.data());
   PointAccessorAt(accessor, std::move(bytes));
 }
 

@@ -25,7 +25,7 @@ bool FileExistsInside(const std::string& path, void* user);
 std::string ExpandNothing(const std::string& path, void*);
 bool ReadFileInside(std::vector<unsigned char>* out, std::string* error, const std::string& path, void* user);
 bool WriteNothing(std::string* error, const std::string&, const std::vector<unsigned char>&, void*);
-// Images are kept as their file's bytes (PNG, JPEG): workers decode them when a scene is
+// Images are kept as their file's bytes (PNG, JPEG, WebP): workers decode them when a scene is
 // built, and the bytes' hash names the image wherever the scene travels.
 bool KeepImageEncoded(tinygltf::Image* image, int imageIndex, std::string* error, std::string*, int, int,
                       const unsigned char* bytes, int size, void* loadingModel);

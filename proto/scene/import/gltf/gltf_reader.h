@@ -34,10 +34,9 @@
 #include "proto/scene/import/messages.h"
 #include "proto/scene/import/scene_files.h"
 
-namespace draco {
-class Mesh;
-class PointAttribute;
-}  // namespace draco
+namespace tcfarm::draco_codec {
+class DecodedMesh;
+}  // namespace tcfarm::draco_codec
 
 namespace tcfarm::gltf {
 
@@ -64,6 +63,11 @@ constexpr size_t kMaxAccessorCount = 3 * kMaxTriangles;
 // and a short JSON naming one large accessor over and over must not multiply it.
 constexpr uint64_t kValueBytesPerBufferByte = 16;
 constexpr uint64_t kValueBytesAllowance = uint64_t{16} << 20;
+// Decoding compressed geometry may bring more per byte of the file's buffers: Draco with
+// quantized attributes compresses a real mesh 20 to 30 times (a 2-million-triangle sphere
+// at 14 bits: 60 MB from 2.4 MB), while a run of zeros through meshopt's codec, 64 times,
+// stays refused. A file of 1 MiB still decodes to at most 48 MiB.
+constexpr uint64_t kDecodedBytesPerBufferByte = 32;
 // glTF's defaults for what a file leaves out.
 constexpr int kDefaultWidth = 640, kDefaultHeight = 480;
 // A matrix whose columns, once divided by their lengths, are further than this from
@@ -87,7 +91,7 @@ inline const std::set<std::string> kSupportedExtensions = {
     "KHR_lights_punctual",          "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_mesh_quantization",        "KHR_materials_emissive_strength", "KHR_materials_unlit",
     "KHR_materials_specular",       "KHR_texture_transform",           "KHR_materials_clearcoat",
-    "KHR_draco_mesh_compression",   "EXT_meshopt_compression"};
+    "KHR_draco_mesh_compression",   "EXT_meshopt_compression",         "EXT_texture_webp"};
 
 class GltfReader {
  public:
@@ -127,7 +131,7 @@ class GltfReader {
   void CheckEmbeddedLength(const nlohmann::json& item, size_t decoded, const std::string& pointer) const;
 
   // What tinygltf reads: the file with its data URIs replaced by their names. A GLB's
-  // JSON chunk is rebuilt only when it held data URIs.
+  // JSON chunk is rebuilt only when that or a stand-in changed it.
   std::string GlbWithJson(const std::string& json) const;
 
   void Load();
@@ -167,8 +171,8 @@ class GltfReader {
   // The accessor `index` that decoded Draco data of `count` elements fills: it exists, it is
   // filled once, and its count is the decoded one.
   tinygltf::Accessor& DracoAccessor(int index, size_t count, const std::string& at);
-  void WriteDracoAttribute(int index, const draco::PointAttribute& attribute, size_t points, const std::string& at);
-  void WriteDracoIndices(int index, const draco::Mesh& mesh, const std::string& at);
+  void WriteDracoAttribute(int index, const draco_codec::DecodedMesh& mesh, uint32_t id, const std::string& at);
+  void WriteDracoIndices(int index, const draco_codec::DecodedMesh& mesh, const std::string& at);
   // Points the accessor at `bytes`, in a buffer and buffer view of their own.
   void PointAccessorAt(tinygltf::Accessor& accessor, std::vector<unsigned char> bytes);
   // Appends `bytes` as a buffer of their own; returns its index.
@@ -212,8 +216,8 @@ class GltfReader {
 
   void ChargeValues(uint64_t values, const std::string& pointer) const;
   // The one counter of value bytes (ChargeValues, ChargeDecodedBytes), against a budget of
-  // kValueBytesPerBufferByte per byte of `bufferBytes`.
-  void ChargeValueBytes(uint64_t bytes, size_t bufferBytes, const std::string& doing,
+  // `perBufferByte` per byte of `bufferBytes`, plus kValueBytesAllowance.
+  void ChargeValueBytes(uint64_t bytes, uint64_t perBufferByte, size_t bufferBytes, const std::string& doing,
                         const std::string& pointer) const;
 
   size_t BufferBytes() const;
@@ -283,11 +287,21 @@ class GltfReader {
   // the renderer's choice of filter, here bilinear.
   static Texture::Wrap WrapOf(int code);
 
-  Texture MapTexture(int index, const std::string& pointer) const;
+  // The image a texture shows and the pointer of the index naming it: EXT_texture_webp's
+  // source when it has one (workers decode WebP), else the texture's own. KHR_texture_basisu's
+  // KTX2 images are not decoded: the texture's own source stands in, said; without one the
+  // texture is left out (nullopt), said too.
+  struct ImageSource {
+    int64_t index;
+    std::string pointer;
+  };
+  std::optional<ImageSource> ImageSourceOf(const tinygltf::Texture& texture, const std::string& texturePointer) const;
+  // Texture `index` with its image's bytes; nullopt when it is left out (ImageSourceOf).
+  std::optional<Texture> MapTexture(int index, const std::string& pointer) const;
   // A material's texture reference (TextureInfo and its normal and occlusion kinds): the
   // texture, its texture coordinates and their KHR_texture_transform.
-  TextureSlot MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
-                      const std::string& pointer) const;
+  std::optional<TextureSlot> MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
+                                     const std::string& pointer) const;
   static double FactorIn(const tinygltf::Value& object, const std::string& key, double fallback);
 
   // Materials as the scene parser orders them ("default" first, then by name), so the

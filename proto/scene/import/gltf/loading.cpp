@@ -115,10 +115,11 @@ void GltfReader::CheckAlone() {
 
 void GltfReader::CheckDocument(const nlohmann::json& document) const {
   if (document.is_discarded()) {
-    // The parser's own words, for the byte where it stopped.
+    // The parser's own words, for the byte where it stopped (a syntax error), or for the
+    // number it cannot hold (out_of_range, which is no parse_error).
     try {
       [[maybe_unused]] const nlohmann::json reparsed = nlohmann::json::parse(embedded_.json);
-    } catch (const nlohmann::json::parse_error& error) {
+    } catch (const nlohmann::json::exception& error) {
       Fail("", "the JSON does not parse: " + StripJsonExceptionPrefix(error.what()), "glTF JSON");
     }
   }
@@ -239,8 +240,11 @@ void GltfReader::Load() {
   std::string error, warning;
   bool loaded = false;
   if (IsBinary()) {
-    const std::string rebuilt = embedded_.bytes.empty() ? "" : GlbWithJson(embedded_.json);
-    const std::string& glb = embedded_.bytes.empty() ? input_.bytes : rebuilt;
+    // Rebuilt when its JSON changed: data URIs taken out, or stand-ins put in (meshopt's
+    // fallback buffers, Draco's index views), which a GLB without data URIs may need too.
+    const bool changed = embedded_.json != CheckContainer();
+    const std::string rebuilt = changed ? GlbWithJson(embedded_.json) : "";
+    const std::string& glb = changed ? rebuilt : input_.bytes;
     loaded = loader.LoadBinaryFromMemory(&model_, &error, &warning,
                                          reinterpret_cast<const unsigned char*>(glb.data()),
                                          static_cast<unsigned int>(glb.size()), base, tinygltf::REQUIRE_VERSION);

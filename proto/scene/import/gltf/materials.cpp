@@ -46,13 +46,13 @@ Material GltfReader::MapMaterial(const tinygltf::Material& source, size_t index)
   if (source.normalTexture.index >= 0) {
     m.normalTexture = MapSlot(source.normalTexture.index, source.normalTexture.texCoord,
                               source.normalTexture.extensions, pointer + "/normalTexture");
-    m.normalTexture->amount = std::clamp(source.normalTexture.scale, -scene_limits::kMaxNormalScale,
+    if (m.normalTexture) m.normalTexture->amount = std::clamp(source.normalTexture.scale, -scene_limits::kMaxNormalScale,
                                          scene_limits::kMaxNormalScale);
   }
   if (source.occlusionTexture.index >= 0) {
     m.occlusionTexture = MapSlot(source.occlusionTexture.index, source.occlusionTexture.texCoord,
                                  source.occlusionTexture.extensions, pointer + "/occlusionTexture");
-    m.occlusionTexture->amount = std::clamp(source.occlusionTexture.strength, 0.0, 1.0);
+    if (m.occlusionTexture) m.occlusionTexture->amount = std::clamp(source.occlusionTexture.strength, 0.0, 1.0);
   }
   if (source.emissiveTexture.index >= 0) {
     m.emissiveTexture = MapSlot(source.emissiveTexture.index, source.emissiveTexture.texCoord,
@@ -165,10 +165,12 @@ Texture::Wrap GltfReader::WrapOf(int code) {
   return Texture::Wrap::kRepeat;
 }
 
-TextureSlot GltfReader::MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
-                                const std::string& pointer) const {
+std::optional<TextureSlot> GltfReader::MapSlot(int index, int texCoord, const tinygltf::ExtensionMap& extensions,
+                                               const std::string& pointer) const {
+  std::optional<Texture> texture = MapTexture(index, pointer);
+  if (!texture) return std::nullopt;
   TextureSlot slot;
-  slot.texture = MapTexture(index, pointer);
+  slot.texture = std::move(*texture);
   slot.texCoord = texCoord;
   if (const tinygltf::Value* transform = ExtensionOf(extensions, "KHR_texture_transform")) {
     const std::string at = pointer + "/extensions/KHR_texture_transform";
@@ -195,25 +197,46 @@ TextureSlot GltfReader::MapSlot(int index, int texCoord, const tinygltf::Extensi
   return slot;
 }
 
-Texture GltfReader::MapTexture(int index, const std::string& pointer) const {
+std::optional<GltfReader::ImageSource> GltfReader::ImageSourceOf(const tinygltf::Texture& texture,
+                                                                 const std::string& texturePointer) const {
+  if (const tinygltf::Value* webp = ExtensionOf(texture.extensions, "EXT_texture_webp")) {
+    const std::string at = texturePointer + "/extensions/EXT_texture_webp";
+    if (webp->Has("source")) return ImageSource{static_cast<int64_t>(WholeNumberIn(*webp, "source", at)), at + "/source"};
+  }
+  if (ExtensionOf(texture.extensions, "KHR_texture_basisu") != nullptr) {
+    const std::string at = texturePointer + "/extensions/KHR_texture_basisu";
+    if (texture.source < 0) {
+      Warn("texture_left_out", at, "KTX2 (Basis Universal) images are not decoded and the texture has no other source; it is left out");
+      return std::nullopt;
+    }
+    Warn("extension_not_implemented", at, "KTX2 (Basis Universal) images are not decoded; the texture's own source is used");
+  }
+  return ImageSource{texture.source, texturePointer + "/source"};
+}
+
+std::optional<Texture> GltfReader::MapTexture(int index, const std::string& pointer) const {
   if (static_cast<size_t>(index) >= model_.textures.size()) {
     Fail(pointer + "/index", "texture " + std::to_string(index) + " does not exist",
          "an index below the file's " + std::to_string(model_.textures.size()) + " textures");
   }
   const tinygltf::Texture& source = model_.textures[static_cast<size_t>(index)];
   const std::string texturePointer = Pointer("textures", static_cast<size_t>(index));
-  if (source.source < 0 || static_cast<size_t>(source.source) >= model_.images.size()) {
-    Fail(texturePointer + "/source", "image " + std::to_string(source.source) + " does not exist",
+  const std::optional<ImageSource> found = ImageSourceOf(source, texturePointer);
+  if (!found) return std::nullopt;
+  const ImageSource& imageSource = *found;
+  if (imageSource.index < 0 || static_cast<size_t>(imageSource.index) >= model_.images.size()) {
+    Fail(imageSource.pointer, "image " + std::to_string(imageSource.index) + " does not exist",
          "an index below the file's " + std::to_string(model_.images.size()) + " images");
   }
-  const tinygltf::Image& image = model_.images[static_cast<size_t>(source.source)];
+  const int imageIndex = static_cast<int>(imageSource.index);
+  const tinygltf::Image& image = model_.images[static_cast<size_t>(imageIndex)];
   if (image.image.empty()) {
-    Fail(Pointer("images", static_cast<size_t>(source.source)), "the image holds no bytes",
-         "a PNG or JPEG image in a file, a data URI or a buffer view");
+    Fail(Pointer("images", static_cast<size_t>(imageIndex)), "the image holds no bytes",
+         "a PNG, JPEG or WebP image in a file, a data URI or a buffer view");
   }
   Texture texture;
   // One copy of an image however many materials use it: a short JSON must not multiply a large image.
-  auto& shared = imageBytes_[source.source];
+  auto& shared = imageBytes_[imageIndex];
   if (!shared.first) {
     shared.first = std::make_shared<const std::string>(image.image.begin(), image.image.end());
     shared.second = wire::Sha256Hex(*shared.first);
@@ -224,7 +247,7 @@ Texture GltfReader::MapTexture(int index, const std::string& pointer) const {
   const bool external =
       !image.uri.empty() && image.uri.compare(0, 5, "data:") != 0 && !gltf::EmbeddedIndex(image.uri);
   texture.image = external ? UrlDecode(image.uri)
-                           : input_.displayName + " at " + Pointer("images", static_cast<size_t>(source.source));
+                           : input_.displayName + " at " + Pointer("images", static_cast<size_t>(imageIndex));
   if (source.sampler >= 0) {
     if (static_cast<size_t>(source.sampler) >= model_.samplers.size()) {
       Fail(texturePointer + "/sampler", "sampler " + std::to_string(source.sampler) + " does not exist",
