@@ -47,7 +47,7 @@ Scene Import(const json& document) { return ImportSceneBytes(document.dump(), "g
 
 const MetallicRoughness& Printed(const Scene& scene) {
   for (const Material& material : scene.materials) {
-    if (material.name == "printed") return *material.pbr;
+    if (material.name == "printed") return material.As<MetallicRoughness>();
   }
   throw std::runtime_error("no material \"printed\"");
 }
