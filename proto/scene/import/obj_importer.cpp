@@ -18,22 +18,15 @@
 namespace tcfarm {
 namespace {
 
+using import::BoundingBox;
 using import::CrossProduct;
+using import::FramingPose;
+using import::kFramingFovDegrees;
 using import::HasArea;
 using import::Norm;
 using import::Sub;
 
 using scene_limits::kMaxMagnitude;
-// The default camera: a view from the front (+z, OBJ's usual facing) and a little above,
-// and the vertical field of view the JSON format defaults to.
-const Vec3 kViewFrom{0, 0.35, 1};
-constexpr double kFovDegrees = 45;
-constexpr double kPi = 3.14159265358979323846;
-// Room around the bounding sphere, so the model does not touch the frame.
-constexpr double kFramingMargin = 1.1;
-// One white directional light from above and behind the camera's right shoulder, so the
-// faces the camera sees are lit.
-const Vec3 kLightDirection{-0.4, -1, -0.7};
 
 
 // One part's triangles with only the vertices they use, in order of first use.
@@ -84,31 +77,12 @@ std::vector<int> AddMaterials(const ObjModel& model, Scene& scene) {
 }
 
 void FrameBounds(const std::vector<Shape>& shapes, Scene& scene, const std::string& displayName) {
-  Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
-  Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
-  for (const Shape& shape : shapes) {
-    for (const Vec3& v : shape.mesh.vertices) {
-      for (int axis = 0; axis < 3; ++axis) {
-        low[axis] = std::min(low[axis], v[axis]);
-        high[axis] = std::max(high[axis], v[axis]);
-      }
-    }
-  }
-  Vec3 center{(low.x + high.x) / 2, (low.y + high.y) / 2, (low.z + high.z) / 2};
-  double radius = Norm(Sub(high, low)) / 2;
-  double distance = kFramingMargin * radius / std::sin(kFovDegrees / 2 * kPi / 180);
-  double length = Norm(kViewFrom);
-  Vec3 position{center.x + kViewFrom.x / length * distance, center.y + kViewFrom.y / length * distance,
-                center.z + kViewFrom.z / length * distance};
-  for (int axis = 0; axis < 3; ++axis) {
-    if (!(std::fabs(position[axis]) <= kMaxMagnitude)) {
-      FailInput("", displayName + ": the model spans " + std::to_string(radius * 2) + " units, too far to frame",
-                "a model whose camera stays within 1e30 of the origin");
-    }
-  }
-  scene.camera.position = AnimatedVec3::Constant(position);
-  scene.camera.lookAt = AnimatedVec3::Constant(center);
-  scene.camera.verticalFovDegrees = kFovDegrees;
+  BoundingBox box;
+  for (const Shape& shape : shapes) box.Add(shape.mesh.vertices);
+  const CameraPose pose = FramingPose(box, displayName);
+  scene.camera.position = AnimatedVec3::Constant(pose.position);
+  scene.camera.lookAt = AnimatedVec3::Constant(pose.lookAt);
+  scene.camera.verticalFovDegrees = kFramingFovDegrees;
 }
 
 class ObjImporter : public SceneImporter {
@@ -173,7 +147,7 @@ class ObjImporter : public SceneImporter {
     FrameBounds(scene.shapes, scene, input.displayName);
     Light light;
     light.type = Light::Type::kDirectional;
-    light.direction = AnimatedVec3::Constant(kLightDirection);
+    light.direction = AnimatedVec3::Constant(import::kDefaultLightDirection);
     light.intensity = AnimatedVec3::Constant(Vec3{1, 1, 1});
     scene.lights.push_back(light);
     return scene;

@@ -157,14 +157,7 @@ void GltfReader::AddCamera(Scene& scene) {
   scene.camera.rig = *motions_[static_cast<size_t>(chosenNode)];
 }
 
-GltfReader::Bounds GltfReader::AnimationBounds(const Scene& scene) const {
-  Bounds bounds;
-  auto add = [&](const Vec3& v) {
-    for (int axis = 0; axis < 3; ++axis) {
-      bounds.low[axis] = std::min(bounds.low[axis], v[axis]);
-      bounds.high[axis] = std::max(bounds.high[axis], v[axis]);
-    }
-  };
+import::BoundingBox GltfReader::AnimationBounds(const Scene& scene) const {
   // Every frame, or evenly spaced ones when deforming every vertex at every frame would
   // cost more than kFramingVertexBudget vertex evaluations; the framing margin covers the rest.
   size_t deformed = 0;
@@ -174,55 +167,35 @@ GltfReader::Bounds GltfReader::AnimationBounds(const Scene& scene) const {
   std::vector<double> framed;
   for (size_t frame = 0; frame < frames; frame += step) framed.push_back(static_cast<double>(frame));
   if (framed.back() != static_cast<double>(frames - 1)) framed.push_back(static_cast<double>(frames - 1));
+  // A rigid shape's box, once: its corners placed at each frame bound it there.
+  std::vector<std::array<Vec3, 8>> corners(scene.shapes.size());
+  for (size_t i = 0; i < scene.shapes.size(); ++i) {
+    import::BoundingBox box;
+    if (!scene.shapes[i].deformation) box.Add(scene.shapes[i].Mesh().vertices);
+    corners[i] = box.Corners();
+  }
+  import::BoundingBox bounds;
   for (double at : framed) {
-    for (const Shape& shape : scene.shapes) {
+    for (size_t i = 0; i < scene.shapes.size(); ++i) {
+      const Shape& shape = scene.shapes[i];
       if (shape.deformation) {  // placed by its joints alone: its deformed vertices are in the world
-        for (const Vec3& vertex : Deform(shape.Mesh(), *shape.deformation, at).positions) add(vertex);
+        bounds.Add(Deform(shape.Mesh(), *shape.deformation, at).positions);
         continue;
       }
       const Affine worldFromObject = shape.motion.WorldFromObject(at);
-      for (const Vec3& corner : MeshBoxCorners(shape.Mesh())) add(worldFromObject.Apply(corner));
+      for (const Vec3& corner : corners[i]) bounds.Add(worldFromObject.Apply(corner));
     }
   }
-  if (scene.shapes.empty()) bounds.low = bounds.high = Vec3{};
   return bounds;
 }
 
-std::array<Vec3, 8> GltfReader::MeshBoxCorners(const TriangleMesh& mesh) {
-  Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
-  Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
-  for (const Vec3& v : mesh.vertices) {
-    for (int axis = 0; axis < 3; ++axis) {
-      low[axis] = std::min(low[axis], v[axis]);
-      high[axis] = std::max(high[axis], v[axis]);
-    }
-  }
-  std::array<Vec3, 8> corners;
-  for (int i = 0; i < 8; ++i) corners[i] = Vec3{(i & 1) ? high.x : low.x, (i & 2) ? high.y : low.y, (i & 4) ? high.z : low.z};
-  return corners;
-}
-
 void GltfReader::FrameBounds(Scene& scene) const {
-  const Bounds bounds = AnimationBounds(scene);
-  const Vec3& low = bounds.low;
-  const Vec3& high = bounds.high;
-  Vec3 center{(low.x + high.x) / 2, (low.y + high.y) / 2, (low.z + high.z) / 2};
-  double radius = std::max(Norm(Sub(high, low)) / 2, 1e-3);
-  double distance = kFramingMargin * radius / std::sin(kDefaultFovDegrees / 2 * kPi / 180);
-  double length = Norm(kViewFrom);
-  Vec3 position{center.x + kViewFrom.x / length * distance, center.y + kViewFrom.y / length * distance,
-                center.z + kViewFrom.z / length * distance};
-  for (int axis = 0; axis < 3; ++axis) {
-    if (!(std::fabs(position[axis]) <= kMaxMagnitude)) {
-      Fail("", "the model spans " + std::to_string(radius * 2) + " units, too far to frame",
-           "a model whose camera stays within 1e30 of the origin");
-    }
-  }
-  scene.camera.position = AnimatedVec3::Constant(position);
-  scene.camera.lookAt = AnimatedVec3::Constant(center);
-  scene.camera.verticalFovDegrees = kDefaultFovDegrees;
+  const CameraPose pose = import::FramingPose(AnimationBounds(scene), input_.displayName);
+  scene.camera.position = AnimatedVec3::Constant(pose.position);
+  scene.camera.lookAt = AnimatedVec3::Constant(pose.lookAt);
+  scene.camera.verticalFovDegrees = import::kFramingFovDegrees;
   Warn("default_camera", "/cameras",
-       "the file has no camera; one at " + Triple(position) + " looks at " + Triple(center) +
+       "the file has no camera; one at " + Triple(pose.position) + " looks at " + Triple(pose.lookAt) +
            " from the front and above, framing the model's bounds " +
            (frameCount_ == 1 ? std::string("at its one frame")
                              : "over all " + std::to_string(frameCount_) + " frames of the animation"));

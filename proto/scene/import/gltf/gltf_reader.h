@@ -76,15 +76,10 @@ constexpr int kDefaultWidth = 640, kDefaultHeight = 480;
 constexpr double kOrthonormalTolerance = 1e-5;
 // A column shorter than this (relative to the longest) makes the matrix singular.
 constexpr double kSingularRatio = 1e-12;
-// The camera a file without one gets: as the OBJ importer's, from the front and above.
-const Vec3 kViewFrom{0, 0.35, 1};
-constexpr double kDefaultFovDegrees = 45;
-constexpr double kFramingMargin = 1.1;
 // The most vertex deformations framing the animation may spend (frames x deformed vertices);
 // past it, evenly spaced frames are framed.
 constexpr size_t kFramingVertexBudget = size_t{20} << 20;
-// With no light in the file, one white directional light over the camera's shoulder, as OBJ.
-const Vec3 kDefaultLightDirection{-0.4, -1, -0.7};
+using import::kDefaultLightDirection;
 
 // What this importer implements, for extensionsRequired; optional others are ignored.
 inline const std::set<std::string> kSupportedExtensions = {
@@ -456,14 +451,9 @@ class GltfReader {
   void AddCamera(Scene& scene);
 
   // No camera in the file: one framing the union of the shapes' bounds over the animation's
-  // frames, looking from kViewFrom as for OBJ.
+  // frames, as for OBJ (import::FramingPose).
   void FrameBounds(Scene& scene) const;
-  struct Bounds {
-    Vec3 low{kMaxMagnitude, kMaxMagnitude, kMaxMagnitude};
-    Vec3 high{-kMaxMagnitude, -kMaxMagnitude, -kMaxMagnitude};
-  };
-  Bounds AnimationBounds(const Scene& scene) const;
-  static std::array<Vec3, 8> MeshBoxCorners(const TriangleMesh& mesh);
+  import::BoundingBox AnimationBounds(const Scene& scene) const;
 
   const ImportInput& input_;
   const ImportOptions& options_;
