@@ -276,10 +276,15 @@ function renderWarnings(job) {
   const warnings = job.warnings || [];
   const list = $("job-warnings");
   list.hidden = warnings.length === 0;
-  list.replaceChildren(...warnings.map((warning) => el("li", {}, [
+  list.replaceChildren(...warnings.map(warningItem));
+}
+
+function warningItem(warning) {
+  if (typeof warning === "string") return el("li", { text: warning });  // recorded before warnings had codes
+  return el("li", {}, [
     el("b", { text: `${warning.code} ` }),
     el("span", { text: `${warning.pointer ? `at ${warning.pointer}: ` : ""}${warning.message}` }),
-  ])));
+  ]);
 }
 
 function renderTracedChart(job) {

@@ -437,7 +437,8 @@ async function submitJob(event) {
     }
     const body = submissionOptions(files || { scene: null, sceneFile: sceneFile.name });
     const hashes = files ? await hashAssets(files.assets) : new Map();
-    await checkScene(sceneFile, files, body, hashes);
+    // Only where files are about to travel: else the submit itself refuses the same way.
+    if (!files || files.assets.size) await checkScene(sceneFile, files, body, hashes);
     if (unreadable) throw unreadable;
     let uploaded = 0;
     if (files.assets.size) {

@@ -160,7 +160,8 @@ def cmd_submit(client, args):
                        priority=args.priority, verify=args.verify, view=args.view,
                        exposure=args.exposure)
     import_options = _import_options(args, files)
-    _check_scene(client, args.scene, files, dict(job_options, **import_options))
+    if files is None or files.assets:  # else nothing travels first: the submit refuses the same way
+        _check_scene(client, args.scene, files, dict(job_options, **import_options))
     if unreadable is not None:
         raise ApiError(0, "bad_input", str(unreadable))
     assets = _upload(client, files, args.json)
