@@ -92,7 +92,7 @@ void JobRoutes::SubmitJob(const httplib::Request& request, const std::string& bo
 void JobRoutes::CountImportWarnings(const JobSpec& spec) {
   if (importWarnings_ == nullptr || !spec.options.contains("import_warnings")) return;
   for (const json& warning : spec.options["import_warnings"]) {
-    importWarnings_->Add({{"code", warning.value("code", "unknown")}}).Increment();
+    importWarnings_->Add({{"code", warning.at("code").get<std::string>()}}).Increment();
   }
 }
 

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <string>
+#include <utility>
 
 namespace tcfarm {
 
@@ -19,11 +21,18 @@ std::string_view StrategyName(Strategy strategy) {
   return "unknown";
 }
 
+namespace {
+
+// Brute force: the search with bins of 2, every pixel of every frame.
+ResolvedStrategy Brute(std::string why) { return {Strategy::kBrute, 2, std::move(why), false, {}}; }
+
+}  // namespace
+
 ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount, bool cameraOrLightsChange,
                                  int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices) {
-  if (requested == Strategy::kBrute) return {Strategy::kBrute, 2, "every pixel of every frame", false, {}};
+  if (requested == Strategy::kBrute) return Brute("every pixel of every frame");
   if (requested != Strategy::kAuto) return {requested, binWidth, "as requested", false, {}};
-  if (frameCount == 1) return {Strategy::kBrute, 2, "one frame: nothing to reuse, every pixel traced", false, {}};
+  if (frameCount == 1) return Brute("one frame: nothing to reuse, every pixel traced");
   if (!cameraOrLightsChange) {
     const SegmentPlan plan = PlanSegments(frameCount, workers, pixelsPerFrame, prices);
     char why[256];
@@ -32,7 +41,7 @@ ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCoun
                     "camera and lights are static, but exact is predicted to cost %.3f of brute force's CPU "
                     "(at least %.2f): every pixel traced",
                     plan.predictedRelativeCost, kAutoBruteFromCost);
-      return {Strategy::kBrute, 2, why, false, {}};
+      return Brute(why);
     }
     std::snprintf(why, sizeof why,
                   "camera and lights are static: exact, %d segment%s of %d frames for %d worker%s (predicted "
