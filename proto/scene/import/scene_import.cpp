@@ -97,6 +97,21 @@ const SceneImporter* FindImporterByType(const std::string& type) {
   return nullptr;
 }
 
+namespace {
+
+// FindImporterForFile's, or refused saying the formats it knows.
+const SceneImporter& RequireImporterForFile(const std::filesystem::path& path, std::string_view head) {
+  const SceneImporter* importer = FindImporterForFile(path, head);
+  if (importer == nullptr) {
+    FailInput("", "cannot tell the format of scene file " + QuoteInput(path.string()) +
+                      " from its name or its first bytes",
+              "a file named " + KnownExtensions() + ", or holding one of those formats");
+  }
+  return *importer;
+}
+
+}  // namespace
+
 const SceneImporter* FindImporterForFile(const std::filesystem::path& path, std::string_view head) {
   const std::string extension = Lower(path.extension().string());
   for (const SceneImporter* importer : SceneImporters()) {
@@ -126,24 +141,14 @@ Scene ImportScene(const std::filesystem::path& path, const ImportOptions& option
   if (in.gcount() != static_cast<std::streamsize>(bytes.size())) {
     FailInput("", "read error in scene file " + path.string(), "a readable scene file");
   }
-  const SceneImporter* importer = FindImporterForFile(path, bytes);
-  if (importer == nullptr) {
-    FailInput("", "cannot tell the format of scene file " + QuoteInput(path.string()) +
-                      " from its name or its first bytes",
-              "a file named " + KnownExtensions() + ", or holding one of those formats");
-  }
+  const SceneImporter* importer = &RequireImporterForFile(path, bytes);
   return ApplyOptions(importer->Import(ImportInput{std::move(bytes), path.filename().string(),
                                                    std::filesystem::absolute(path).parent_path(), options}),
                       options);
 }
 
 void CheckSceneFileAlone(const std::string& bytes, const std::string& fileName) {
-  const SceneImporter* importer = FindImporterForFile(fileName, bytes);
-  if (importer == nullptr) {
-    FailInput("", "cannot tell the format of scene file " + QuoteInput(fileName) + " from its name or its first bytes",
-              "a file named " + KnownExtensions() + ", or holding one of those formats");
-  }
-  importer->CheckAlone(ImportInput{bytes, fileName, std::nullopt, {}});
+  RequireImporterForFile(fileName, bytes).CheckAlone(ImportInput{bytes, fileName, std::nullopt, {}});
 }
 
 Scene ImportSceneBytes(const std::string& bytes, const std::string& type,
