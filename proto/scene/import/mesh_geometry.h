@@ -15,6 +15,11 @@ namespace tcfarm::import {
 
 inline Vec3 Sub(const Vec3& a, const Vec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
 inline double Norm(const Vec3& v) { return std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z); }
+// v made unit; zero stays zero.
+inline Vec3 Normalized(const Vec3& v) {
+  const double length = Norm(v);
+  return length > 0 ? Vec3{v.x / length, v.y / length, v.z / length} : v;
+}
 inline Vec3 CrossProduct(const Vec3& a, const Vec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }

@@ -4,11 +4,6 @@
 namespace tcfarm::gltf {
 namespace {
 
-Vec3 Normalized(const Vec3& v) {
-  const double length = Norm(v);
-  return length > 0 ? Vec3{v.x / length, v.y / length, v.z / length} : v;
-}
-
 // "(x, y, z)", three significant digits each: enough for a person to picture it.
 std::string Triple(const Vec3& v) {
   char text[96];

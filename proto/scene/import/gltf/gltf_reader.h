@@ -43,6 +43,7 @@ namespace tcfarm::gltf {
 using import::CrossProduct;
 using import::HasArea;
 using import::Norm;
+using import::Normalized;
 using import::Sub;
 
 // The scene format's limits (scene_limits.h), checked here so that a glTF file is refused
