@@ -19,6 +19,7 @@
 #include "coordinator/http/api_error.h"
 #include "coordinator/http/job_json.h"
 #include "proto/json/strict_json.h"
+#include "proto/scene/import/gltf_data_uris.h"
 #include "proto/scene/import/import_options.h"
 #include "proto/scene/import/scene_import.h"
 #include "proto/scene/scene.h"
@@ -544,7 +545,6 @@ std::string DecodeSceneFileData(const json& data) {
   if (!data.is_string()) Fail(error_code::kInvalidField, "/scene_file_data", ShowValue(data) + " is not a string", expected);
   const std::string& text = data.get_ref<const std::string&>();
   if (text.size() % 4 != 0) Fail(error_code::kInvalidField, "/scene_file_data", "its length is not a multiple of 4", expected);
-  static const std::string kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
   const size_t padding = text.size() - std::min(text.find_last_not_of('=') + 1, text.size());
   if (padding > 2) Fail(error_code::kInvalidField, "/scene_file_data", "it ends in more than two '='", expected);
   std::string bytes;
@@ -552,8 +552,8 @@ std::string DecodeSceneFileData(const json& data) {
   uint32_t bits = 0;
   int pending = 0;
   for (size_t i = 0; i + padding < text.size(); ++i) {
-    const size_t value = kAlphabet.find(text[i]);
-    if (value == std::string::npos) {
+    const int value = gltf::Base64Value(static_cast<unsigned char>(text[i]));
+    if (value < 0) {
       Fail(error_code::kInvalidField, "/scene_file_data", "character " + std::to_string(i) + " is not base64", expected);
     }
     bits = bits << 6 | static_cast<uint32_t>(value);

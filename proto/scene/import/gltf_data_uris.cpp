@@ -99,15 +99,6 @@ bool IsUriValue(std::string_view text, size_t quote) {
   return false;
 }
 
-int Base64Value(unsigned char c) {
-  if (c >= 'A' && c <= 'Z') return c - 'A';
-  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
-  if (c >= '0' && c <= '9') return c - '0' + 52;
-  if (c == '+') return 62;
-  if (c == '/') return 63;
-  return -1;
-}
-
 [[noreturn]] void Fail(const std::string& displayName, size_t offset, const std::string& problem,
                        const std::string& expected) {
   FailInput("", displayName + ": byte " + std::to_string(offset) + ": " + problem, expected);
@@ -221,6 +212,15 @@ EmbeddedData ExtractDataUris(std::string_view json, const std::string& displayNa
   }
   data.json.append(json.substr(from));
   return data;
+}
+
+int Base64Value(unsigned char c) {
+  if (c >= 'A' && c <= 'Z') return c - 'A';
+  if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+  if (c >= '0' && c <= '9') return c - '0' + 52;
+  if (c == '+') return 62;
+  if (c == '/') return 63;
+  return -1;
 }
 
 }  // namespace tcfarm::gltf

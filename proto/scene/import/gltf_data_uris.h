@@ -28,6 +28,9 @@ std::string EmbeddedName(size_t index);
 // The index EmbeddedName gave `uri`, if it is one.
 std::optional<size_t> EmbeddedIndex(std::string_view uri);
 
+// The value of one base64 digit (RFC 4648: A-Z, a-z, 0-9, +, /), -1 for any other byte.
+int Base64Value(unsigned char c);
+
 // `json` with its base64 data URIs taken out and decoded. Throws SceneError naming
 // `displayName` and the byte offset of a URI that is not base64, or of a "uri" that uses
 // the reserved EmbeddedName form. JSON that does not parse is left for tinygltf to report.
