@@ -99,19 +99,16 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const De
     });
   });
   int last = std::min(frame + window, scene.render.LastFrame());
-  shapeChange_.assign(scene.shapes.size(), SurfaceChanges::kNever);
+  wholeChange_.assign(scene.shapes.size(), Unbounded());
   sphereOfShape_.assign(scene.shapes.size(), -1);
   partChanges_.resize(scene.shapes.size());
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     const Shape& shape = scene.shapes[i];
     if (!shape.Moves()) continue;
-    shapeChange_[i] = SurfaceChanges::kNextFrame;
     if (shape.Deforms()) {
       AddDeformingMesh(shape, i, last, *deforming(i));
     } else {
-      const BoundingSphere rest = KindOf(shape).Bounds(shape);
-      AddMover(shape, last, [&](int) { return rest; });
-      sphereOfShape_[i] = sphereOfMover_.back();
+      AddRigidShape(shape, i, last);
     }
   }
   std::vector<Box> swept;
@@ -184,70 +181,86 @@ BoundingSphere Union(const std::vector<BoundingSphere>& spheres) {
 
 }  // namespace
 
+namespace {
+
+constexpr BoundingSphere kNoBounds{{}, -1};
+
+// The first frame in (frame, lastFrame] at which `changed(f)` holds, else `none`.
+template <typename Changed>
+int FirstFrameWhere(int frame, int lastFrame, int none, Changed changed) {
+  for (int f = frame + 1; f <= lastFrame; ++f) {
+    if (changed(f)) return f;
+  }
+  return none;
+}
+
+}  // namespace
+
+void HorizonOracle::AddRigidShape(const Shape& shape, size_t index, int lastFrame) {
+  // A shape placed at f by the same transform as at frame() is where the trace saw it, to
+  // the bit: a pause in its motion changes nothing.
+  const Affine atFrame = shape.motion.WorldFromObject(frame_);
+  auto placedAsAtFrame = [&](int f) { return shape.motion.WorldFromObject(f) == atFrame; };
+  wholeChange_[index] = FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return !placedAsAtFrame(f); });
+  const BoundingSphere rest = KindOf(shape).Bounds(shape);
+  AddMover(shape, lastFrame, [&](int f) { return placedAsAtFrame(f) ? kNoBounds : rest; }, &rest);
+  sphereOfShape_[index] = sphereOfMover_.back();
+}
+
 void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastFrame, DeformingMesh& mesh) {
+  const std::shared_ptr<const DeformingMesh::PoseKey> base = mesh.KeyOf(frame_);
   if (shape.motion.IsAnimated()) {
-    // Carried as a whole too: every part may move, at every frame.
-    AddMover(shape, lastFrame, [&](int f) { return Union(*mesh.PartBoundsAt(f)); });
+    // Placed as a whole too: every part may move, at every frame it is placed or posed
+    // otherwise than at frame().
+    const Affine atFrame = shape.motion.WorldFromObject(frame_);
+    auto asAtFrame = [&](int f) { return shape.motion.WorldFromObject(f) == atFrame && *mesh.KeyOf(f) == *base; };
+    wholeChange_[index] = FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return !asAtFrame(f); });
+    AddMover(shape, lastFrame, [&](int f) { return asAtFrame(f) ? kNoBounds : Union(*mesh.PartBoundsAt(f)); });
     return;
   }
-  shapeChange_[index] = SurfaceChanges::kByPart;
   const DeformationParts& parts = mesh.Parts();
-  // The first frame each joint's matrix and each target's weight differs from frame()'s.
-  const std::shared_ptr<const DeformingMesh::PoseKey> base = mesh.KeyOf(frame_);
-  std::vector<int> jointChange(base->skinMatrices.size(), Unbounded());
-  std::vector<int> targetChange(base->morphWeights.size(), Unbounded());
+  // Per part, per frame from frame() on: whether it is posed otherwise than at frame(),
+  // which its joints' matrices and its targets' weights say.
+  const size_t frames = static_cast<size_t>(lastFrame - frame_) + 1;
+  std::vector<std::vector<uint8_t>> moved(parts.groups.size(), std::vector<uint8_t>(frames, 0));
+  std::vector<uint8_t> jointMoved(base->skinMatrices.size()), targetMoved(base->morphWeights.size());
   for (int f = frame_ + 1; f <= lastFrame; ++f) {
     const std::shared_ptr<const DeformingMesh::PoseKey> key = mesh.KeyOf(f);
-    for (size_t j = 0; j < jointChange.size(); ++j) {
-      if (jointChange[j] == Unbounded() && !(key->skinMatrices[j] == base->skinMatrices[j])) jointChange[j] = f;
-    }
-    for (size_t t = 0; t < targetChange.size(); ++t) {
-      if (targetChange[t] == Unbounded() && key->morphWeights[t] != base->morphWeights[t]) targetChange[t] = f;
+    for (size_t j = 0; j < jointMoved.size(); ++j) jointMoved[j] = !(key->skinMatrices[j] == base->skinMatrices[j]);
+    for (size_t t = 0; t < targetMoved.size(); ++t) targetMoved[t] = key->morphWeights[t] != base->morphWeights[t];
+    for (size_t g = 0; g < parts.groups.size(); ++g) {
+      const DeformationParts::Group& group = parts.groups[g];
+      moved[g][static_cast<size_t>(f - frame_)] =
+          std::any_of(group.joints.begin(), group.joints.end(), [&](uint32_t j) { return jointMoved[j]; }) ||
+          std::any_of(group.targets.begin(), group.targets.end(), [&](uint32_t t) { return targetMoved[t]; });
     }
   }
   PartChanges& changes = partChanges_[index];
   changes.parts = &parts;
   changes.mesh = &shape.Mesh();
-  std::map<int, std::vector<size_t>> groupsChangingAt;
+  const std::shared_ptr<const std::vector<BoundingSphere>> atFrame = mesh.PartBoundsAt(frame_);
   for (size_t g = 0; g < parts.groups.size(); ++g) {
-    int change = Unbounded();
-    for (uint32_t j : parts.groups[g].joints) change = std::min(change, jointChange[j]);
-    for (uint32_t t : parts.groups[g].targets) change = std::min(change, targetChange[t]);
-    changes.groupChange.push_back(change);
-    if (change < Unbounded()) groupsChangingAt[change].push_back(g);
-  }
-  // One mover per frame at which some parts start to change: from then on, the bounds of
-  // those parts; before, nothing (they are as at frame(), where the trace saw them). Parts
-  // that hold still over the window are no mover at all.
-  for (const auto& [start, groups] : groupsChangingAt) {
-    auto boundsAt = [&mesh, &groups = groups](int f) {
-      std::vector<BoundingSphere> spheres;
-      const std::shared_ptr<const std::vector<BoundingSphere>> all = mesh.PartBoundsAt(f);
-      for (size_t g : groups) spheres.push_back((*all)[g]);
-      return Union(spheres);
-    };
-    const BoundingSphere atFrame = boundsAt(frame_);
-    const int from = start;
-    AddMover(shape, lastFrame, [&](int f) { return f < from ? BoundingSphere{{}, -1} : boundsAt(f); }, &atFrame);
+    const std::vector<uint8_t>& partMoved = moved[g];
+    changes.groupChange.push_back(
+        FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return partMoved[size_t(f - frame_)] != 0; }));
+    if (changes.groupChange.back() == Unbounded()) continue;  // holds still: no mover
+    // Each part is a mover of its own, bounded by its own vertices: the union of a
+    // character's parts is a sphere around the whole body, which most of the rays near
+    // it meet though few pass a part that moves.
+    AddMover(shape, lastFrame,
+             [&](int f) { return partMoved[size_t(f - frame_)] ? (*mesh.PartBoundsAt(f))[g] : kNoBounds; },
+             &(*atFrame)[g]);
   }
 }
 
 int HorizonOracle::SurfaceChange(int shape, uint32_t primitive) const {
-  switch (shapeChange_[static_cast<size_t>(shape)]) {
-    case SurfaceChanges::kNever:
-      return Unbounded();
-    case SurfaceChanges::kNextFrame:
-      return frame_ + 1;
-    case SurfaceChanges::kByPart: {
-      const PartChanges& changes = partChanges_[static_cast<size_t>(shape)];
-      int change = Unbounded();
-      for (uint32_t corner : changes.mesh->triangles[primitive]) {
-        change = std::min(change, changes.groupChange[changes.parts->groupOfVertex[corner]]);
-      }
-      return change;
-    }
+  const PartChanges& changes = partChanges_[static_cast<size_t>(shape)];
+  if (changes.groupChange.empty()) return wholeChange_[static_cast<size_t>(shape)];
+  int change = Unbounded();
+  for (uint32_t corner : changes.mesh->triangles[primitive]) {
+    change = std::min(change, changes.groupChange[changes.parts->groupOfVertex[corner]]);
   }
-  return frame_ + 1;  // unreachable; the earliest answer is always safe
+  return change;
 }
 
 void HorizonOracle::AddMover(const Shape& shape, int lastFrame,

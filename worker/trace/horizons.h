@@ -192,13 +192,16 @@ class HorizonOracle {
   // by default.
   void AddMover(const Shape& shape, int lastFrame, const std::function<BoundingSphere(int frame)>& objectBounds,
                 const BoundingSphere* atFrame = nullptr);
-  // A deforming mesh: as one mover, or as one per set of its parts that start to change
-  // at one frame, leaving out the parts that hold still over the window.
+  // A rigid shape: one mover, met nowhere at the frames it is placed as at frame().
+  void AddRigidShape(const Shape& shape, size_t index, int lastFrame);
+  // A deforming mesh: as one mover when it is placed as a whole too, else as one mover per
+  // part (DeformationParts), each met only at the frames its part is posed otherwise
+  // than at frame(); parts that hold still over the window are no mover at all.
   void AddDeformingMesh(const Shape& shape, size_t index, int lastFrame, DeformingMesh& mesh);
-  // How a shape's surface may change after frame(): never, at the next frame (it moves
-  // as a whole), or triangle by triangle as its parts start to deform.
-  enum class SurfaceChanges : uint8_t { kNever, kNextFrame, kByPart };
-  std::vector<SurfaceChanges> shapeChange_;  // by shape
+  // The first frame after frame() at which each shape, as a whole, may look different:
+  // placed otherwise than at frame() (a pause in its motion is no change), else
+  // Unbounded(). For a shape deforming in parts, Unbounded(): its triangles say.
+  std::vector<int> wholeChange_;  // by shape
   // Per shape deforming in parts: its vertices' group and each group's first change.
   struct PartChanges {
     const DeformationParts* parts = nullptr;
