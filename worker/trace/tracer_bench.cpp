@@ -89,6 +89,12 @@ constexpr size_t kTaskPixels = 16384;
 
 // The pixel sets of a whole `exact` sequence, frame by frame: frame 0 in full, then each
 // frame only the pixels whose horizon it is.
+// A scene of tests/scenes by its name, or any scene file by its path (--exact-scene).
+Scene BenchScene(const std::string& file) {
+  if (std::filesystem::exists(file)) return ImportScene(file, ImportOptions{});
+  return LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+}
+
 std::vector<std::vector<uint32_t>> ExactPixelSets(Tracer& tracer, const Scene& scene) {
   const size_t pixels = static_cast<size_t>(scene.render.width) * scene.render.height;
   const int first = scene.render.firstFrame, last = scene.render.LastFrame();
@@ -132,7 +138,7 @@ double BruteForceCpuSeconds(Tracer& tracer, const Scene& scene) {
 // them. cpu_ratio: its tracing threads' CPU over brute force's in the same process, as
 // the farm prices a job (stats.cost); the process's time also holds the bookkeeping.
 void TraceExactSequence(benchmark::State& state, const std::string& file) {
-  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+  Scene scene = BenchScene(file);
   EmbreeDevice device;
   TracingThreads pool;
   Tracer tracer(device, scene, pool);
@@ -151,7 +157,7 @@ void TraceExactSequence(benchmark::State& state, const std::string& file) {
 // frame traced in full (brute force), its exact pixel set traced with horizons (exact)
 // and again without (sets). horizons = exact - sets: what the horizons cost.
 void ExactCostInParts(benchmark::State& state, const std::string& file) {
-  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+  Scene scene = BenchScene(file);
   EmbreeDevice device;
   TracingThreads pool;
   Tracer tracer(device, scene, pool);
@@ -192,7 +198,7 @@ void ExactCostInParts(benchmark::State& state, const std::string& file) {
 // frame is needless when the pixel did not change. Missed changes would be errors (the
 // tests hold them at 0); they are counted here too.
 void ExactNeedlessTraces(benchmark::State& state, const std::string& file) {
-  Scene scene = LoadSceneFile(std::string(TCFARM_SCENES_DIR) + "/" + file);
+  Scene scene = BenchScene(file);
   EmbreeDevice device;
   TracingThreads pool;
   Tracer tracer(device, scene, pool);
@@ -333,21 +339,32 @@ void TracerAgainstBareEmbreeOnGltf(benchmark::State& state, const std::string& p
   CompareWithBareLoop(state, scene);
 }
 
-// Registers a TracerAgainstBareEmbree case for each --gltf=FILE, taking those arguments
-// out of the command line.
-void RegisterGltfCases(int* argc, char** argv) {
-  constexpr std::string_view kFlag = "--gltf=";
+// Registers a TracerAgainstBareEmbree case for each --gltf=FILE, and the exact cost
+// cases (TraceExactSequence, ExactCostInParts, ExactNeedlessTraces) for each --exact-scene=FILE (a scene file
+// at its own size and frames), taking those arguments out of the command line.
+void RegisterFileCases(int* argc, char** argv) {
+  constexpr std::string_view kGltf = "--gltf=", kExact = "--exact-scene=";
+  auto valueOf = [](std::string_view argument, std::string_view flag) {
+    return argument.substr(0, flag.size()) == flag ? std::string(argument.substr(flag.size())) : std::string();
+  };
   int kept = 1;
   for (int i = 1; i < *argc; ++i) {
     const std::string_view argument = argv[i];
-    if (argument.substr(0, kFlag.size()) != kFlag) {
+    if (const std::string path = valueOf(argument, kGltf); !path.empty()) {
+      const std::string name = "TracerAgainstBareEmbree/gltf_1280x720:" + std::filesystem::path(path).filename().string();
+      benchmark::RegisterBenchmark(name.c_str(), TracerAgainstBareEmbreeOnGltf, path)
+          ->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3);
+    } else if (const std::string scene = valueOf(argument, kExact); !scene.empty()) {
+      const std::string file = std::filesystem::path(scene).filename().string();
+      benchmark::RegisterBenchmark(("TraceExactSequence/" + file).c_str(), TraceExactSequence, scene)
+          ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime()->Iterations(1);
+      benchmark::RegisterBenchmark(("ExactCostInParts/" + file).c_str(), ExactCostInParts, scene)
+          ->Unit(benchmark::kMillisecond)->Iterations(1);
+      benchmark::RegisterBenchmark(("ExactNeedlessTraces/" + file).c_str(), ExactNeedlessTraces, scene)
+          ->Unit(benchmark::kMillisecond)->Iterations(1);
+    } else {
       argv[kept++] = argv[i];
-      continue;
     }
-    const std::string path(argument.substr(kFlag.size()));
-    const std::string name = "TracerAgainstBareEmbree/gltf_1280x720:" + std::filesystem::path(path).filename().string();
-    benchmark::RegisterBenchmark(name.c_str(), TracerAgainstBareEmbreeOnGltf, path)
-        ->Unit(benchmark::kMillisecond)->UseRealTime()->MinTime(3);
   }
   *argc = kept;
 }
@@ -397,7 +414,7 @@ BENCHMARK_CAPTURE(TraceSceneFrames, c_terrain_flyover, "paper_c_terrain_flyover.
 }  // namespace tcfarm
 
 int main(int argc, char** argv) {
-  tcfarm::RegisterGltfCases(&argc, argv);
+  tcfarm::RegisterFileCases(&argc, argv);
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();
