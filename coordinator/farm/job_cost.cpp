@@ -39,18 +39,23 @@ void JobCost::OnAnyResult(const wire::Result& result, const TaskTime& time) {
 
 void JobCost::OnFrameFinished(int frame, uint64_t tracedCount) {
   const bool full = tracedCount == pixelsPerFrame_, horizons = framesWithHorizons_.count(frame) > 0;
-  if (full && !horizons) {
-    fullFrameTime_ += frameTraceTime_[frame];
-    ++fullFrames_;
+  if (segmentLength_ > 0) {
+    Count(frame % segmentLength_ == 0 ? startFrames_ : laterFrames_,
+          frame % segmentLength_ == 0 ? startFrameTime_ : laterFrameTime_, frame);
+  } else if (full && !horizons) {
+    Count(fullFrames_, fullFrameTime_, frame);
   } else if (full) {
-    startFrameTime_ += frameTraceTime_[frame];
-    ++startFrames_;
+    Count(startFrames_, startFrameTime_, frame);
   } else {
-    laterFrameTime_ += frameTraceTime_[frame];  // copies only: nothing, and counted so
-    ++laterFrames_;
+    Count(laterFrames_, laterFrameTime_, frame);  // copies only: nothing, and counted so
   }
   frameTraceTime_.erase(frame);
   framesWithHorizons_.erase(frame);
+}
+
+void JobCost::Count(int& frames, TaskTime& time, int frame) {
+  ++frames;
+  time += frameTraceTime_[frame];
 }
 
 void JobCost::AddTo(nlohmann::json& stats, const RunningStats& frameToFrame) const {

@@ -34,7 +34,9 @@ struct TaskTime {
 
 class JobCost {
  public:
-  JobCost(uint64_t pixelsPerFrame, int frameCount) : pixelsPerFrame_(pixelsPerFrame), frames_(frameCount) {}
+  // segmentLength: an exact job's (its segments start at multiples of it); 0 for others.
+  JobCost(uint64_t pixelsPerFrame, int frameCount, int segmentLength = 0)
+      : pixelsPerFrame_(pixelsPerFrame), frames_(frameCount), segmentLength_(segmentLength) {}
 
   // A planner task's result; `frame` relative to the job; chain and step as the task
   // had them (TraceTask): the job's span follows its dependencies.
@@ -44,9 +46,10 @@ class JobCost {
   void OnVerificationResult(const wire::Result& result, bool reference);
   // A frame traced again in full because a distrusted worker's values reached it.
   void OnRepairResult(const wire::Result& result) { repairTime_ += TimeOfResult(result); }
-  // The planner finished `frame` with tracedCount of its pixels traced: one traced plainly
-  // in full (no horizons) shows what brute force pays for a frame; one traced in full
-  // with horizons is an exact segment's start.
+  // The planner finished `frame` with tracedCount of its pixels traced. In an exact job a
+  // frame is its segment's start or a later frame by where it lies (a later frame whose
+  // every pixel changed is traced in full too); in others one traced plainly in full shows
+  // what brute force pays for a frame.
   void OnFrameFinished(int frame, uint64_t tracedCount);
 
   // What an exact job measured of auto's segment prices (planner/segment_plan.h), in
@@ -67,6 +70,8 @@ class JobCost {
 
  private:
   void OnAnyResult(const wire::Result& result, const TaskTime& time);
+  // The finished frame's tracing time into one kind of frame's tally.
+  void Count(int& frames, TaskTime& time, int frame);
   nlohmann::json Figures(const RunningStats& frameToFrame) const;
   // The tracing the job cost, by part: traces, spot_checks, audit (reference frames), repairs.
   std::map<std::string, TaskTime> Parts() const;
@@ -77,6 +82,7 @@ class JobCost {
 
   uint64_t pixelsPerFrame_;
   int frames_;
+  int segmentLength_;
   TaskTime traceTime_;   // summed over tasks: the tracing time the job cost the farm
   TaskTime verifyTime_;  // of it, spent on verification (spot checks and reference frames)
   TaskTime repairTime_;  // frames traced again after a worker was distrusted (not in traceTime_)

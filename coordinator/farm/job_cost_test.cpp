@@ -100,6 +100,23 @@ TEST(JobCost, AnExactJobMeasuresItsSegmentPrices) {
   EXPECT_DOUBLE_EQ(stats["cost"]["segment_start_price"].get<double>(), 3.0);
 }
 
+// On a scene where every pixel changes every frame, exact traces its later frames in full
+// as well: they are priced as later frames all the same, by where its segments start.
+TEST(JobCost, AnExactJobPricesLaterFramesTracedInFullAsLaterFrames) {
+  JobCost cost(10, 4, /*segmentLength=*/4);
+  cost.OnPlannerResult(0, Result(3.0, 10, /*horizons=*/true));
+  cost.OnFrameFinished(0, 10);
+  cost.OnPlannerResult(1, Result(1.2, 10, /*horizons=*/true));
+  cost.OnFrameFinished(1, 10);
+  cost.OnPlannerResult(2, Result(1.0, 10));  // none left to find at the segment's end
+  cost.OnFrameFinished(2, 10);
+  cost.OnVerificationResult(Result(1.0, 10), /*reference=*/true);
+  const std::optional<SegmentPrices> prices = cost.MeasuredSegmentPrices();
+  ASSERT_TRUE(prices);
+  EXPECT_DOUBLE_EQ(prices->startPrice, 3.0);
+  EXPECT_DOUBLE_EQ(prices->framePrice, 1.1);
+}
+
 // The measured relative cost counts every part of the job's tracing on workers: its
 // traces, spot checks, the audit's reference frames and repairs; the parts sum to it.
 TEST(JobCost, TheMeasuredCostCountsEveryPartAndThePartsSumToIt) {

@@ -196,7 +196,7 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       written_(kept_.kept),
       writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
       coherence_(store.SpillFolder(record.id), settings.pendingFrameBytes),
-      cost_(PixelsPerFrame(), FrameCountOf(spec_)),
+      cost_(PixelsPerFrame(), FrameCountOf(spec_), resolved_.strategy == Strategy::kExact ? resolved_.binWidth : 0),
       started_(std::chrono::steady_clock::now()),
       records_(record.id, PixelsPerFrame(), kept_.missing, kept_.count) {
   spec_.sceneJson.clear();  // the dispatcher holds it for the workers
