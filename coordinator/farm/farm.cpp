@@ -91,6 +91,30 @@ Farm::Farm(JobStore& store, FarmOptions options, const Clock& clock)
       admission_(MemoryBudget{options_.farmMemoryBytes, options_.pendingFrameBytes, options_.longestMemoryWait},
                  clock) {
   for (const WorkerBan& ban : bans_.List()) dispatcher_.Ban(ban.principal);
+  LoadScenePrices();
+}
+
+void Farm::LoadScenePrices() {
+  try {
+    for (const JobStore::ScenePrices& row : store_.LoadScenePrices(PriceBook::kDefaultCapacity)) {
+      prices_.Record(row.sceneHash, row.deforming, SegmentPrices{row.startPrice, row.framePrice});
+    }
+  } catch (const std::exception& e) {
+    // Prices are a hint: the model starts from its priors.
+    std::fprintf(stderr, "coordinator: the measured segment prices could not be read: %s\n", e.what());
+  }
+}
+
+void Farm::KeepScenePrices(const JobRun& run, const JobSpec& spec) {
+  const std::optional<SegmentPrices> measured = run.MeasuredSegmentPrices();
+  if (!measured) return;
+  const SegmentPrices kept = prices_.Record(spec.sceneHash, spec.deformingMeshes, *measured);
+  try {
+    store_.SaveScenePrices({spec.sceneHash, spec.deformingMeshes, kept.startPrice, kept.framePrice},
+                           PriceBook::kDefaultCapacity);
+  } catch (const std::exception& e) {
+    NoteRefusedWrite(e);  // kept in memory all the same; only a restart forgets them
+  }
 }
 
 
@@ -185,7 +209,7 @@ void Farm::StartJob(const JobRecord& record, uint64_t granted) {
     settings.pendingFrameBytes = options_.pendingFrameBytes;
     settings.jobMemoryBytes = granted;
     settings.referee = referee_;
-    settings.segmentPrices = segmentPrices_;
+    settings.segmentPrices = prices_.Quote(record.spec.sceneHash, record.spec.deformingMeshes);
     auto run = std::make_unique<JobRun>(record, frameStore_, settings);
     const FrameSize size = run->frameSize();
     dispatcher_.AddJob(record.id, record.spec.priority, static_cast<uint32_t>(size.width),
@@ -379,12 +403,8 @@ void Farm::FinishJob(uint64_t jobId) {
     FailJob(jobId, e.what());
     return;
   }
-  // The next auto job's exact segments are cut with what this one measured. Outliers
-  // (a job of a few frames, a noisy machine) are kept within what a segment can cost.
-  if (const std::optional<SegmentPrices> measured = run->second->MeasuredSegmentPrices()) {
-    segmentPrices_.startPrice = std::clamp(measured->startPrice, 1.0, 20.0);
-    segmentPrices_.framePrice = std::clamp(measured->framePrice, 0.001, 5.0);
-  }
+  // Later auto jobs of this scene, or of its kind, are predicted with what this one measured.
+  KeepScenePrices(*run->second, run->second->spec());
   ClosingJob closing;
   closing.stats = run->second->Stats(/*final=*/true);
   CountError(closing.stats["error"]);

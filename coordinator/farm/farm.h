@@ -28,6 +28,7 @@
 #include "coordinator/farm/farm_requests.h"
 #include "coordinator/farm/job_run.h"
 #include "coordinator/farm/memory_admission.h"
+#include "coordinator/farm/price_book.h"
 #include "coordinator/farm/referee.h"
 #include "coordinator/store/frame_finisher.h"
 #include "coordinator/jobs/job_store.h"
@@ -156,7 +157,11 @@ class Farm : public FarmControl, private DispatchSink {
   std::unique_ptr<TracingReferee> ownReferee_;  // unless the options name a referee
   Referee* referee_;  // settles disputes, traces the checks no worker may
   WorkerBans bans_;         // applied to the dispatcher at start
-  SegmentPrices segmentPrices_;  // as the last exact job measured them (auto's model)
+  PriceBook prices_;  // segment prices exact jobs measured, per scene (auto's model)
+  // Prices from the store (a previous coordinator's measurements) into prices_; the
+  // measurement of a finished exact job into both.
+  void LoadScenePrices();
+  void KeepScenePrices(const JobRun& run, const JobSpec& spec);
   FrameFinisher finisher_;       // compresses and previews jobs' frames when no job renders
   // Jobs a previous coordinator left unfinished (FrameFinisher) go back to the finisher.
   void RequeueUnfinishedFrames();

@@ -390,3 +390,42 @@ TEST_F(FarmTest, AJobThatCanNeverFitFailsInsteadOfWaiting) {
 
 }  // namespace
 }  // namespace tcfarm
+
+namespace tcfarm {
+namespace {
+
+// Segment prices a previous coordinator measured (in the store) price auto's exact for the
+// same scene; another scene of the kind gets the kind's, a scene of the other kind the priors.
+TEST_F(FarmTest, AutoPricesExactByTheScenesPricesKeptInTheStore) {
+  const std::string skinned(64, 's');
+  store_->SaveScenePrices({skinned, true, 3.0, 1.2}, PriceBook::kDefaultCapacity);
+  RestartFarm(Options());
+  auto submit = [&](const std::string& hash, bool deforming) {
+    JobSpec spec = BruteSpec(12);
+    spec.strategy = Strategy::kAuto;
+    spec.sceneHash = hash;
+    spec.deformingMeshes = deforming;
+    return store_->Submit(spec);
+  };
+  const uint64_t same = submit(skinned, true), kind = submit(std::string(64, 't'), true),
+                 rigid = submit(std::string(64, 'r'), false);
+  clock_.Advance(Milliseconds(1000));
+  farm_->Step(kTurnPoll);
+  clock_.Advance(Milliseconds(1000));
+  farm_->Step(kTurnPoll);
+  const FarmSnapshot snapshot = farm_->Snapshot();
+  auto exactOf = [&](uint64_t id) {
+    const nlohmann::json& strategy = snapshot.runningStats.at(id)["strategy"];
+    for (const nlohmann::json& candidate : strategy["candidates"]) {
+      if (candidate["strategy"] == "exact") return std::make_pair(strategy["name"], candidate["from"]);
+    }
+    return std::make_pair(nlohmann::json(), nlohmann::json());
+  };
+  EXPECT_EQ(exactOf(same), std::make_pair(nlohmann::json("brute"), nlohmann::json("scene")));
+  EXPECT_EQ(exactOf(kind).second, "farm");
+  EXPECT_EQ(exactOf(kind).first, "brute");  // the kind's prices: dear as well
+  EXPECT_EQ(exactOf(rigid), std::make_pair(nlohmann::json("exact"), nlohmann::json("prior")));
+}
+
+}  // namespace
+}  // namespace tcfarm

@@ -7,14 +7,8 @@
 #include "coordinator/planner/planner.h"
 
 namespace tcfarm {
-namespace {
-
-TaskTime TimeOf(const wire::Result& result) { return {result.traceSeconds, result.traceCpuSeconds.value_or(0)}; }
-
-}  // namespace
-
 void JobCost::OnPlannerResult(int frame, const wire::Result& result, int chain, int step) {
-  const TaskTime time = TimeOf(result);
+  const TaskTime time = TimeOfResult(result);
   frameTraceTime_[frame] += time;
   TaskTime& longest = longestTask_[chain][step];
   longest.wall = std::max(longest.wall, time.wall);
@@ -24,7 +18,7 @@ void JobCost::OnPlannerResult(int frame, const wire::Result& result, int chain, 
 }
 
 void JobCost::OnVerificationResult(const wire::Result& result, bool reference) {
-  const TaskTime time = TimeOf(result);
+  const TaskTime time = TimeOfResult(result);
   verifyTime_ += time;
   if (reference) {
     referenceTime_ += time;
@@ -45,21 +39,26 @@ void JobCost::OnAnyResult(const wire::Result& result, const TaskTime& time) {
 
 void JobCost::OnFrameFinished(int frame, uint64_t tracedCount) {
   const bool full = tracedCount == pixelsPerFrame_, horizons = framesWithHorizons_.count(frame) > 0;
-  if (full && !horizons) {
-    fullFrameTime_ += frameTraceTime_[frame];
-    ++fullFrames_;
+  if (segmentLength_ > 0) {
+    Count(frame % segmentLength_ == 0 ? startFrames_ : laterFrames_,
+          frame % segmentLength_ == 0 ? startFrameTime_ : laterFrameTime_, frame);
+  } else if (full && !horizons) {
+    Count(fullFrames_, fullFrameTime_, frame);
   } else if (full) {
-    startFrameTime_ += frameTraceTime_[frame];
-    ++startFrames_;
+    Count(startFrames_, startFrameTime_, frame);
   } else {
-    laterFrameTime_ += frameTraceTime_[frame];  // copies only: nothing, and counted so
-    ++laterFrames_;
+    Count(laterFrames_, laterFrameTime_, frame);  // copies only: nothing, and counted so
   }
   frameTraceTime_.erase(frame);
   framesWithHorizons_.erase(frame);
 }
 
-void JobCost::AddTo(nlohmann::json& stats, Strategy strategy, int binWidth, const RunningStats& frameToFrame) const {
+void JobCost::Count(int& frames, TaskTime& time, int frame) {
+  ++frames;
+  time += frameTraceTime_[frame];
+}
+
+void JobCost::AddTo(nlohmann::json& stats, const RunningStats& frameToFrame) const {
   stats["trace_seconds"] = traceTime_.wall - verifyTime_.wall;
   stats["verify_trace_seconds"] = verifyTime_.wall;
   if (cpuReported_ && results_ > 0) {
@@ -69,7 +68,7 @@ void JobCost::AddTo(nlohmann::json& stats, Strategy strategy, int binWidth, cons
   stats["tasks"] = results_;
   stats["rays"] = {{"primary", rays_[0]}, {"shadow", rays_[1]}, {"reflection", rays_[2]},
                    {"refraction", rays_[3]}};
-  stats["cost"] = Figures(strategy, binWidth, frameToFrame);
+  stats["cost"] = Figures(frameToFrame);
   if (results_ > 0) stats["parallelism"] = Parallelism();
 }
 
@@ -113,24 +112,20 @@ nlohmann::json JobCost::Parallelism() const {
           {"basis", cpuReported_ ? "trace cpu seconds" : "trace seconds"}};
 }
 
-// Predicted (equation 3, or its exact analogue) beside measured relative cost. Measured
-// is the job's tracing time over brute force's, estimated from its reference frames when
-// it has any (brute force itself), else from the frames it traced plainly in full (bin
-// ends), which cost what brute force pays per frame.
-nlohmann::json JobCost::Figures(Strategy strategy, int binWidth, const RunningStats& frameToFrame) const {
+std::map<std::string, TaskTime> JobCost::Parts() const {
+  return {{"traces", traceTime_ - verifyTime_},
+          {"spot_checks", verifyTime_ - referenceTime_},
+          {"audit", referenceTime_},
+          {"repairs", repairTime_}};
+}
+
+// Measured relative cost: everything the job traced over what brute force would have,
+// estimated from its reference frames when it has any (brute force itself), else from the
+// frames it traced plainly in full (bin ends), which cost what brute force pays per frame.
+// CPU time where every worker reported it: it does not count waiting for shared cores.
+nlohmann::json JobCost::Figures(const RunningStats& frameToFrame) const {
   nlohmann::json cost;
-  if (frameToFrame.count > 0) {
-    const double d = 1 - frameToFrame.Mean();
-    double predicted = 1;
-    if (strategy == Strategy::kExact) {
-      const double segments = std::ceil(double(frames_) / binWidth);
-      predicted = (segments + (frames_ - segments) * d) / frames_;
-    } else if (strategy != Strategy::kBrute && binWidth >= 2) {
-      predicted = Equation3RelativeCost(frames_, binWidth, d);
-    }
-    cost["d"] = d;
-    cost["predicted_relative_cost"] = predicted;
-  }
+  if (frameToFrame.count > 0) cost["d"] = 1 - frameToFrame.Mean();
   std::string from;
   const TaskTime brute = BruteEstimate(&from);
   if (!from.empty()) cost["brute_estimate_from"] = from;
@@ -138,17 +133,27 @@ nlohmann::json JobCost::Figures(Strategy strategy, int binWidth, const RunningSt
     cost["segment_start_price"] = prices->startPrice;
     cost["frame_price"] = prices->framePrice;
   }
-  const TaskTime job = traceTime_ - verifyTime_;
+  TaskTime job;
+  nlohmann::json wallParts, cpuParts;
+  for (const auto& [part, time] : Parts()) {
+    job += time;
+    wallParts[part] = time.wall;
+    cpuParts[part] = time.cpu;
+  }
+  const TaskTime traces = traceTime_ - verifyTime_;
+  cost["seconds_by_part"] = wallParts;
+  if (cpuReported_ && results_ > 0) cost["cpu_seconds_by_part"] = cpuParts;
   if (brute.wall > 0) {
     cost["brute_trace_seconds_estimate"] = brute.wall;
     cost["measured_relative_cost_wall"] = job.wall / brute.wall;
     cost["measured_relative_cost"] = job.wall / brute.wall;
+    cost["measured_trace_relative_cost"] = traces.wall / brute.wall;
     cost["measured_relative_cost_basis"] = "trace seconds";
   }
-  // CPU time where every worker reported it: it does not count waiting for shared cores.
   if (cpuReported_ && brute.cpu > 0) {
     cost["brute_trace_cpu_seconds_estimate"] = brute.cpu;
     cost["measured_relative_cost"] = job.cpu / brute.cpu;
+    cost["measured_trace_relative_cost"] = traces.cpu / brute.cpu;
     cost["measured_relative_cost_basis"] = "trace cpu seconds";
   }
   return cost;

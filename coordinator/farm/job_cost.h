@@ -1,18 +1,19 @@
 // What a job's tracing cost the farm, and what it would have cost brute force: the
-// figures behind `stats.cost` (measured beside predicted relative cost;
-// docs/architecture.md, section 3.6), the trace seconds, task and ray counts.
+// figures behind `stats.cost` (the measured relative cost, beside which the job's plan
+// carries its prediction: `stats.strategy.predicted_relative_cost`; docs/architecture.md,
+// section 3.6), the trace seconds, task and ray counts.
 #pragma once
 
 #include <cstdint>
 #include <map>
 #include <optional>
 #include <set>
+#include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "proto/frame/sequence_analysis.h"
 #include "coordinator/planner/segment_plan.h"
-#include "coordinator/planner/strategy.h"
 #include "proto/wire/wire.h"
 
 namespace tcfarm {
@@ -33,16 +34,22 @@ struct TaskTime {
 
 class JobCost {
  public:
-  JobCost(uint64_t pixelsPerFrame, int frameCount) : pixelsPerFrame_(pixelsPerFrame), frames_(frameCount) {}
+  // segmentLength: an exact job's (its segments start at multiples of it); 0 for others.
+  JobCost(uint64_t pixelsPerFrame, int frameCount, int segmentLength = 0)
+      : pixelsPerFrame_(pixelsPerFrame), frames_(frameCount), segmentLength_(segmentLength) {}
 
   // A planner task's result; `frame` relative to the job; chain and step as the task
   // had them (TraceTask): the job's span follows its dependencies.
   void OnPlannerResult(int frame, const wire::Result& result, int chain = 0, int step = 0);
-  // A verification task's result; reference tasks trace frames brute force.
+  // A verification task's result: a spot check, or a reference frame traced brute force
+  // (the audit of what the job promises).
   void OnVerificationResult(const wire::Result& result, bool reference);
-  // The planner finished `frame` with tracedCount of its pixels traced: one traced plainly
-  // in full (no horizons) shows what brute force pays for a frame; one traced in full
-  // with horizons is an exact segment's start.
+  // A frame traced again in full because a distrusted worker's values reached it.
+  void OnRepairResult(const wire::Result& result) { repairTime_ += TimeOfResult(result); }
+  // The planner finished `frame` with tracedCount of its pixels traced. In an exact job a
+  // frame is its segment's start or a later frame by where it lies (a later frame whose
+  // every pixel changed is traced in full too); in others one traced plainly in full shows
+  // what brute force pays for a frame.
   void OnFrameFinished(int frame, uint64_t tracedCount);
 
   // What an exact job measured of auto's segment prices (planner/segment_plan.h), in
@@ -50,15 +57,24 @@ class JobCost {
   std::optional<SegmentPrices> MeasuredSegmentPrices() const;
 
   // Adds trace_seconds, verify_trace_seconds, their CPU seconds (when every worker
-  // reported them), tasks, rays, cost: predicted for `strategy` at `binWidth` from the
-  // measured frame-to-frame coherence, beside measured, and parallelism: the job's work,
-  // its span (the longest chain of dependent tasks, in seconds of tracing) and work / span,
-  // the most workers it can keep busy.
-  void AddTo(nlohmann::json& stats, Strategy strategy, int binWidth, const RunningStats& frameToFrame) const;
+  // reported them), tasks, rays, cost: measured against brute force, with every part of
+  // the job's tracing (its traces, spot checks, audit and repairs) and the measured
+  // frame-to-frame change rate d, and parallelism: the job's work, its span (the longest
+  // chain of dependent tasks, in seconds of tracing) and work / span, the most workers it
+  // can keep busy.
+  void AddTo(nlohmann::json& stats, const RunningStats& frameToFrame) const;
+
+  static TaskTime TimeOfResult(const wire::Result& result) {
+    return {result.traceSeconds, result.traceCpuSeconds.value_or(0)};
+  }
 
  private:
   void OnAnyResult(const wire::Result& result, const TaskTime& time);
-  nlohmann::json Figures(Strategy strategy, int binWidth, const RunningStats& frameToFrame) const;
+  // The finished frame's tracing time into one kind of frame's tally.
+  void Count(int& frames, TaskTime& time, int frame);
+  nlohmann::json Figures(const RunningStats& frameToFrame) const;
+  // The tracing the job cost, by part: traces, spot_checks, audit (reference frames), repairs.
+  std::map<std::string, TaskTime> Parts() const;
   // Brute force's price of the whole job, from reference frames or frames traced in full.
   TaskTime BruteEstimate(std::string* from = nullptr) const;
   nlohmann::json Parallelism() const;
@@ -66,8 +82,10 @@ class JobCost {
 
   uint64_t pixelsPerFrame_;
   int frames_;
+  int segmentLength_;
   TaskTime traceTime_;   // summed over tasks: the tracing time the job cost the farm
-  TaskTime verifyTime_;  // of it, spent on verification
+  TaskTime verifyTime_;  // of it, spent on verification (spot checks and reference frames)
+  TaskTime repairTime_;  // frames traced again after a worker was distrusted (not in traceTime_)
   bool cpuReported_ = true;  // every task's worker reported its CPU time
   std::map<int, TaskTime> frameTraceTime_;  // per unfinished frame, planner tasks only
   std::set<int> framesWithHorizons_;        // unfinished frames some task traced with horizons

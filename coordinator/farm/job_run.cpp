@@ -90,6 +90,11 @@ nlohmann::json PlanJson(const ResolvedStrategy& resolved) {
                          {"reason", resolved.reason},
                          {"survey", resolved.surveyBinWidth}};
   if (resolved.segments) plan["segments"] = resolved.segments->ToJson();
+  if (resolved.predictedRelativeCost) plan["predicted_relative_cost"] = *resolved.predictedRelativeCost;
+  if (!resolved.candidates.empty()) {
+    plan["candidates"] = nlohmann::json::array();
+    for (const StrategyCandidate& candidate : resolved.candidates) plan["candidates"].push_back(candidate.ToJson());
+  }
   return plan;
 }
 
@@ -104,6 +109,12 @@ std::optional<ResolvedStrategy> PlanFromJson(const nlohmann::json& plan) {
   ResolvedStrategy resolved{*strategy, plan.value("bin_width", 0), plan.value("reason", std::string()),
                             plan.value("survey", false), {}};
   if (plan.contains("segments")) resolved.segments = SegmentPlan::FromJson(plan["segments"]);
+  if (const auto predicted = plan.find("predicted_relative_cost"); predicted != plan.end() && predicted->is_number()) {
+    resolved.predictedRelativeCost = predicted->get<double>();
+  }
+  if (const auto candidates = plan.find("candidates"); candidates != plan.end() && candidates->is_array()) {
+    for (const nlohmann::json& candidate : *candidates) resolved.candidates.push_back(StrategyCandidate::FromJson(candidate));
+  }
   return resolved;
 }
 
@@ -185,7 +196,7 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       written_(kept_.kept),
       writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
       coherence_(store.SpillFolder(record.id), settings.pendingFrameBytes),
-      cost_(PixelsPerFrame(), FrameCountOf(spec_)),
+      cost_(PixelsPerFrame(), FrameCountOf(spec_), resolved_.strategy == Strategy::kExact ? resolved_.binWidth : 0),
       started_(std::chrono::steady_clock::now()),
       records_(record.id, PixelsPerFrame(), kept_.missing, kept_.count) {
   spec_.sceneJson.clear();  // the dispatcher holds it for the workers
@@ -300,6 +311,7 @@ bool JobRun::OnRepairResult(const DispatchTask& task, const wire::Result& result
     writer_.Write(absolute, Image{spec_.frameSize.width, spec_.frameSize.height, result.rgb});
   }
   audit_.OnRepaired(frame, worker, task.pixels, changed);
+  cost_.OnRepairResult(result);
   return true;
 }
 
@@ -393,11 +405,7 @@ bool JobRun::RecordWrittenFrames(JobStore& store) {
   if (writer_.FirstFailure() && writer_.Idle()) records_.DropWriting();
   // Auto's survey chose the bin width: the plan says so before the next frame's record.
   if (autoPlanner_ && !chosenWidthPlanned_ && autoPlanner_->ChosenBinWidth() > 0) {
-    ResolvedStrategy chosen = resolved_;
-    chosen.binWidth = autoPlanner_->ChosenBinWidth();
-    chosen.surveyBinWidth = false;
-    chosen.reason += "; bin width " + std::to_string(chosen.binWidth) + " chosen by the survey";
-    records_.SavePlan(PlanJson(chosen));
+    records_.SavePlan(PlanJson(SurveyedPlan()));
     chosenWidthPlanned_ = true;
   }
   return records_.Flush(store);
@@ -456,6 +464,30 @@ void JobRun::WriteMask(MaskKind kind, int absoluteFrame, std::vector<uint8_t> ma
 
 void JobRun::FinishWriting() { writer_.Finish(); }
 
+ResolvedStrategy JobRun::SurveyedPlan() const {
+  ResolvedStrategy chosen = resolved_;
+  const BinWidthChoice& survey = autoPlanner_->SurveyChoice();
+  chosen.binWidth = autoPlanner_->ChosenBinWidth();
+  chosen.surveyBinWidth = false;
+  chosen.predictedRelativeCost = SurveyPrediction(survey, chosen.binWidth);
+  const std::optional<double> best = SurveyPrediction(survey, survey.binWidth);
+  for (StrategyCandidate& candidate : chosen.candidates) {
+    if (candidate.strategy == Strategy::kGuarded) candidate.predictedRelativeCost = best;
+  }
+  char why[200];
+  if (chosen.binWidth != survey.binWidth) {
+    std::snprintf(why, sizeof why,
+                  "; the survey predicts guarded's best width (%d) to cost %.3f of brute force's CPU (at least "
+                  "%.2f): bins of 2, every pixel traced",
+                  survey.binWidth, best.value_or(1.0), kAutoBruteFromCost);
+  } else {
+    std::snprintf(why, sizeof why, "; bin width %d chosen by the survey (predicted relative CPU cost %.3f)",
+                  chosen.binWidth, chosen.predictedRelativeCost.value_or(1.0));
+  }
+  chosen.reason += why;
+  return chosen;
+}
+
 int JobRun::BinWidth() const {
   return autoPlanner_ ? autoPlanner_->ChosenBinWidth() : resolved_.binWidth;
 }
@@ -468,21 +500,29 @@ std::vector<int> JobRun::TracingFrames() const {
   return {frames.begin(), frames.end()};
 }
 
-nlohmann::json JobRun::Stats(bool final) const {
-  const double wall =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-  nlohmann::json stats;
-  stats["strategy"] = {{"name", std::string(StrategyName(resolved_.strategy))},
-                       {"bin_width", BinWidth()},
-                       {"reason", resolved_.reason}};
-  if (autoPlanner_ && autoPlanner_->ChosenBinWidth() > 0) {
+nlohmann::json JobRun::StrategyStats() const {
+  const bool surveyed = autoPlanner_ && autoPlanner_->ChosenBinWidth() > 0;
+  const ResolvedStrategy plan = surveyed ? SurveyedPlan() : resolved_;
+  nlohmann::json strategy = PlanJson(plan);
+  strategy.erase("survey");
+  strategy.erase("strategy");
+  strategy["name"] = std::string(StrategyName(plan.strategy));
+  strategy["bin_width"] = BinWidth();
+  if (surveyed) {
     nlohmann::json survey = {{"frames", autoPlanner_->SurveyedFrames()}, {"predicted_traced_share", {}}};
     for (const auto& [width, share] : autoPlanner_->Predictions()) {
       survey["predicted_traced_share"][std::to_string(width)] = share;
     }
-    stats["strategy"]["survey"] = survey;
+    strategy["survey"] = survey;
   }
-  if (resolved_.segments) stats["strategy"]["segments"] = resolved_.segments->ToJson();
+  return strategy;
+}
+
+nlohmann::json JobRun::Stats(bool final) const {
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  nlohmann::json stats;
+  stats["strategy"] = StrategyStats();
   stats["frames_done"] = kept_.count + framesDone_;
   // A resumed job: frames it found in the store, and the pixels traced again because they
   // lay in bins (segments) that were in progress when the coordinator stopped.
@@ -503,7 +543,7 @@ nlohmann::json JobRun::Stats(bool final) const {
       static_cast<double>(traced) / static_cast<double>(PixelsPerFrame() * FrameCountOf(spec_));
   stats["wall_seconds"] = wall;
   const SequenceAnalyzer& coherence = coherence_.analysis();
-  cost_.AddTo(stats, resolved_.strategy, BinWidth(), coherence.frameToFrame());
+  cost_.AddTo(stats, coherence.frameToFrame());
   stats["error"] = verification_.Report();
   if (nlohmann::json audit = audit_.Report(); !audit.is_null()) stats["error"]["audit"] = audit;
   const RunningStats& f2f = coherence.frameToFrame();

@@ -75,7 +75,7 @@ struct JobRunSettings {
   // Settles the disputes of a job that promises exactness (ExactnessAudit); none leaves
   // them unsettled.
   Referee* referee = nullptr;
-  SegmentPrices segmentPrices;  // measured by the farm's last exact job (auto's model)
+  SegmentPrices segmentPrices;  // the scene's, or its kind's, as measured (PriceBook): auto's model
 };
 
 class JobRun {
@@ -88,6 +88,8 @@ class JobRun {
   // What the farm gave the job (JobRunSettings::jobMemoryBytes), held until the run ends.
   uint64_t memoryGranted() const { return memoryGranted_; }
   FrameSize frameSize() const { return spec_.frameSize; }
+  // The job's request, without its scene text (the dispatcher holds that).
+  const JobSpec& spec() const { return spec_; }
   int firstFrame() const { return spec_.firstFrame; }
   int lastFrame() const { return spec_.lastFrame; }
   // How the job's previews show its frames (its submission's view).
@@ -189,6 +191,11 @@ class JobRun {
   void WriteMask(MaskKind kind, int absoluteFrame, std::vector<uint8_t> mask);
   // The bin width (segment length) the job runs with; 0 while auto's survey runs.
   int BinWidth() const;
+  // The plan once auto's survey chose guarded's width (or brute force's bins of 2): its
+  // prediction, and the reason saying so.
+  ResolvedStrategy SurveyedPlan() const;
+  // stats.strategy: the plan, its one prediction and what auto weighed.
+  nlohmann::json StrategyStats() const;
   uint64_t PixelsPerFrame() const { return spec_.frameSize.Pixels(); }
 
   // Declared first, so destroyed last: once the job's frames are freed, the pages glibc

@@ -626,6 +626,8 @@ JobSpec ParseSubmission(const std::string& body, const SubmissionAssets& assets)
   spec.sceneHash = wire::Sha256Hex(spec.sceneJson);
   spec.frameSize = FrameSize{scene.render.width, scene.render.height};
   spec.cameraOrLightsChange = scene.CameraMoves() || scene.AnyLightChanges();
+  spec.deformingMeshes = std::any_of(scene.shapes.begin(), scene.shapes.end(),
+                                     [](const Shape& shape) { return shape.Deforms(); });
   // What the job names in the store: the files it was submitted with and the textures its
   // workers fetch. An asset goes with the last job that names it.
   std::set<std::string> named;

@@ -35,7 +35,7 @@ void InsertAssetNames(Database& db, int64_t id, const std::vector<std::string>& 
 const std::string kSelectJobColumns =
     "SELECT id, name, scene_hash, first_frame, last_frame, strategy, bin_width, tolerance, "
     "priority, options, state, error, submitted_ms, started_ms, finished_ms, frames_done, "
-    "traced_pixels, copied_pixels, stats, width, height, camera_or_lights_change, plan FROM jobs ";
+    "traced_pixels, copied_pixels, stats, width, height, camera_or_lights_change, plan, deforming_meshes FROM jobs ";
 
 namespace {
 
@@ -77,6 +77,7 @@ JobRecord ReadRecord(const Statement& row) {
   record.spec.frameSize = FrameSize{row.Int(19), row.Int(20)};
   if (!row.IsNull(21)) record.spec.cameraOrLightsChange = row.Int(21) != 0;
   record.plan = nlohmann::json::parse(row.Text(22));
+  if (!row.IsNull(23)) record.spec.deformingMeshes = row.Int(23) != 0;
   return record;
 }
 

@@ -97,6 +97,19 @@ constexpr std::array<const char*, JobStore::kSchemaVersion> kMigrations = {{
       CREATE INDEX jobs_by_finish ON jobs (finished_ms, id)
         WHERE state IN ('completed', 'failed', 'canceled');
     )sql",
+    // Whether the scene's meshes deform, read at submit (NULL: unknown, for older rows);
+    // and the segment prices exact jobs measured per scene, for auto's model (PriceBook).
+    R"sql(
+      ALTER TABLE jobs ADD COLUMN deforming_meshes INTEGER;
+      CREATE TABLE scene_prices (
+        scene_hash  TEXT    PRIMARY KEY,
+        deforming   INTEGER,
+        start_price REAL    NOT NULL,
+        frame_price REAL    NOT NULL,
+        measured_ms INTEGER NOT NULL
+      );
+      CREATE INDEX scene_prices_by_time ON scene_prices (measured_ms);
+    )sql",
 }};
 
 // use (the files they were submitted with are no longer needed by anyone).

@@ -137,14 +137,15 @@ uint64_t JobStore::Submit(const JobSpec& spec) {
   Statement insert(*db_,
                    "INSERT INTO jobs (name, scene_hash, first_frame, last_frame, strategy, "
                    "bin_width, tolerance, priority, options, state, submitted_ms, width, height, "
-                   "camera_or_lights_change) "
-                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued', ?10, ?11, ?12, ?13)");
+                   "camera_or_lights_change, deforming_meshes) "
+                   "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, 'queued', ?10, ?11, ?12, ?13, ?14)");
   insert.Bind(1, spec.name).Bind(2, spec.sceneHash);
   insert.Bind(3, int64_t{spec.firstFrame}).Bind(4, int64_t{spec.lastFrame});
   insert.Bind(5, StrategyName(spec.strategy)).Bind(6, int64_t{spec.binWidth}).Bind(7, spec.tolerance);
   insert.Bind(8, int64_t{spec.priority}).Bind(9, spec.options.dump()).Bind(10, nowMs_());
   insert.Bind(11, int64_t{spec.frameSize.width}).Bind(12, int64_t{spec.frameSize.height});
   if (spec.cameraOrLightsChange) insert.Bind(13, int64_t{*spec.cameraOrLightsChange ? 1 : 0});
+  if (spec.deformingMeshes) insert.Bind(14, int64_t{*spec.deformingMeshes ? 1 : 0});
   insert.Run();
   const int64_t id = db_->LastInsertRowId();
   Statement scene(*db_, "INSERT INTO job_scenes (job_id, scene_json) VALUES (?1, ?2)");
@@ -572,6 +573,40 @@ void JobStore::SetStoreId(const std::string& id) {
   Statement statement(*db_, "INSERT OR REPLACE INTO store_identity (one_row, store_id) VALUES (1, ?1)");
   statement.Bind(1, id);
   statement.Run();
+}
+
+void JobStore::SaveScenePrices(const ScenePrices& prices, size_t keep) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Transaction transaction(*db_);
+  Statement upsert(*db_,
+                   "INSERT OR REPLACE INTO scene_prices (scene_hash, deforming, start_price, frame_price, "
+                   "measured_ms) VALUES (?1, ?2, ?3, ?4, ?5)");
+  upsert.Bind(1, prices.sceneHash);
+  if (prices.deforming) upsert.Bind(2, int64_t{*prices.deforming ? 1 : 0});
+  upsert.Bind(3, prices.startPrice).Bind(4, prices.framePrice).Bind(5, nowMs_());
+  upsert.Run();
+  Statement trim(*db_,
+                 "DELETE FROM scene_prices WHERE scene_hash NOT IN "
+                 "(SELECT scene_hash FROM scene_prices ORDER BY measured_ms DESC, rowid DESC LIMIT ?1)");
+  trim.Bind(1, static_cast<int64_t>(keep));
+  trim.Run();
+  transaction.Commit();
+}
+
+std::vector<JobStore::ScenePrices> JobStore::LoadScenePrices(size_t limit) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Statement select(*db_,
+                   "SELECT scene_hash, deforming, start_price, frame_price FROM "
+                   "(SELECT *, rowid AS r FROM scene_prices ORDER BY measured_ms DESC, r DESC LIMIT ?1) "
+                   "ORDER BY measured_ms, r");
+  select.Bind(1, static_cast<int64_t>(limit));
+  std::vector<ScenePrices> rows;
+  while (select.Step()) {
+    ScenePrices row{select.Text(0), std::nullopt, select.Double(2), select.Double(3)};
+    if (!select.IsNull(1)) row.deforming = select.Int(1) != 0;
+    rows.push_back(std::move(row));
+  }
+  return rows;
 }
 
 bool JobStore::HasJob(uint64_t id) const {

@@ -78,6 +78,9 @@ struct JobSpec {
   // camera or lights change is not known (nullopt).
   FrameSize frameSize;
   std::optional<bool> cameraOrLightsChange;
+  // Whether any of its meshes deform (skins, morph targets): the kind of scene whose
+  // measured prices auto's model borrows (PriceBook). Unknown for jobs stored before schema 5.
+  std::optional<bool> deformingMeshes;
   // The assets (SHA-256) the submission named or its scene uses (textures): an asset is
   // deleted with the last job that names it (Delete).
   std::vector<std::string> assetHashes;
@@ -197,7 +200,7 @@ class JobStore {
 
   // The newest schema this code knows. A file with a newer one is refused, since an older
   // coordinator cannot know what the newer columns mean.
-  static constexpr int kSchemaVersion = 4;
+  static constexpr int kSchemaVersion = 5;
   // frames_written events gather the frames recorded over this long, or this many frames,
   // whichever comes first: a 10,000-frame job writes a few hundred events, not 10,000,
   // and a watcher still hears of each frame within about a second.
@@ -306,6 +309,17 @@ class JobStore {
   void SetStoreId(const std::string& id);
   bool HasJob(uint64_t id) const;
   size_t JobCount() const;
+
+  // The segment prices an exact job measured on a scene (PriceBook), kept for the next
+  // coordinator: the last per scene, at most `keep` scenes, the longest unmeasured dropped.
+  struct ScenePrices {
+    std::string sceneHash;
+    std::optional<bool> deforming;  // unknown for a job stored before schema 5
+    double startPrice = 0, framePrice = 0;
+  };
+  void SaveScenePrices(const ScenePrices& prices, size_t keep);
+  // Oldest measurement first, at most `limit` (the newest).
+  std::vector<ScenePrices> LoadScenePrices(size_t limit) const;
   // Ids Submit hands out from now on are above `id` (a store's job folders up to it are
   // someone's already).
   void ReserveJobIdsThrough(uint64_t id);

@@ -96,6 +96,7 @@ TEST_F(JobStoreTest, SubmitGetRoundTripsEveryField) {
   spec.options = {{"verify", {{"frames", "sampled"}, {"every", 5}}}};
   spec.frameSize = {640, 360};
   spec.cameraOrLightsChange = true;
+  spec.deformingMeshes = true;
   nowMs_ = 42;
   const uint64_t id = store->Submit(spec);
 
@@ -115,6 +116,7 @@ TEST_F(JobStoreTest, SubmitGetRoundTripsEveryField) {
   EXPECT_EQ(record->spec.frameSize.width, 640);
   EXPECT_EQ(record->spec.frameSize.height, 360);
   EXPECT_EQ(record->spec.cameraOrLightsChange, std::optional<bool>(true));
+  EXPECT_EQ(record->spec.deformingMeshes, std::optional<bool>(true));
   EXPECT_EQ(record->state, JobState::kQueued);
   EXPECT_EQ(record->error, "");
   EXPECT_EQ(record->submittedMs, 42);
@@ -626,6 +628,7 @@ TEST_F(JobStoreTest, SchemaOneFilesGetTheirFrameSizesFromTheirScenes) {
   spec.cameraOrLightsChange = false;
   const uint64_t id = Open()->Submit(spec);
   RawExec(file_,
+          "DROP TABLE scene_prices; ALTER TABLE jobs DROP COLUMN deforming_meshes; "
           "DROP TABLE job_events; DROP TABLE job_assets; DROP TABLE job_deletions; DROP INDEX jobs_by_finish; "
           "ALTER TABLE jobs DROP COLUMN width; ALTER TABLE jobs DROP COLUMN height; "
           "ALTER TABLE jobs DROP COLUMN camera_or_lights_change; ALTER TABLE jobs DROP COLUMN plan; "
@@ -636,6 +639,7 @@ TEST_F(JobStoreTest, SchemaOneFilesGetTheirFrameSizesFromTheirScenes) {
   EXPECT_EQ(record->spec.frameSize.width, 320);
   EXPECT_EQ(record->spec.frameSize.height, 200);
   EXPECT_FALSE(record->spec.cameraOrLightsChange.has_value());
+  EXPECT_FALSE(record->spec.deformingMeshes.has_value());
   EXPECT_EQ(store->List().at(0).spec.frameSize.width, 320);  // lists need no scene for it
 }
 
@@ -979,6 +983,7 @@ TEST_F(JobStoreTest, SchemaThreeFilesNameTheTexturesTheirScenesUse) {
   spec.sceneJson = R"({"materials":{"wood":{"diffuse_texture":{"asset":")" + texture + R"("}}}})";
   const uint64_t id = Open()->Submit(spec);
   RawExec(file_,
+          "DROP TABLE scene_prices; ALTER TABLE jobs DROP COLUMN deforming_meshes; "
           "DROP TABLE job_events; DROP TABLE job_assets; DROP TABLE job_deletions; DROP INDEX jobs_by_finish; "
           "PRAGMA user_version = 3");
   auto store = Open();

@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "coordinator/planner/strategy.h"
+
 namespace tcfarm {
 namespace {
 
@@ -89,8 +91,9 @@ bool AutoGuardedPlanner::OnResult(uint64_t taskId, const float* rgb, size_t floa
 
 void AutoGuardedPlanner::StartGuarded() {
   choice_ = ChooseGuardedBinWidth(survey_, options_.binWidth);
+  runWidth_ = GuardedWidthAfterSurvey(choice_);
   PlannerOptions chosen = options_;
-  chosen.binWidth = choice_.binWidth;
+  chosen.binWidth = runWidth_;
   // The survey is the guarded planner's coarse pass over those frames; the planner
   // takes the samples over.
   guarded_ = std::make_unique<GuardedPlanner>(chosen, std::move(survey_.samples));

@@ -37,9 +37,12 @@ class AutoGuardedPlanner : public Planner {
   size_t LiveFrames() const override;
   void SetWorkers(int workers) override;
 
-  // 0 while the survey runs.
-  int ChosenBinWidth() const { return guarded_ ? choice_.binWidth : 0; }
-  // Each width's predicted traced share of the surveyed frames; empty while surveying.
+  // The width it runs with (2, brute force's, where the survey predicts no width saves
+  // enough: GuardedWidthAfterSurvey); 0 while the survey runs.
+  int ChosenBinWidth() const { return guarded_ ? runWidth_ : 0; }
+  // The survey's choice: each width's predicted traced share of the surveyed frames
+  // (empty while surveying), and the width that traces least.
+  const BinWidthChoice& SurveyChoice() const { return choice_; }
   const std::vector<std::pair<int, double>>& Predictions() const { return choice_.predicted; }
   int SurveyedFrames() const { return surveyedFrames_; }
   // Frames the survey samples for a job of frameCount frames and the widest bin considered.
@@ -61,6 +64,7 @@ class AutoGuardedPlanner : public Planner {
   size_t surveyLeft_ = 0;
   std::vector<TraceTask> readyTasks_;
   BinWidthChoice choice_;
+  int runWidth_ = 0;
   std::unique_ptr<GuardedPlanner> guarded_;
 };
 

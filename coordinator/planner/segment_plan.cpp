@@ -14,12 +14,17 @@ double SpreadOf(double share, uint64_t pixelsPerFrame, int workers) {
   return std::min(double(workers), tasks);
 }
 
+// In brute-force frames: each segment's start, then every later frame.
+double SegmentsWork(int frameCount, int segments, const SegmentPrices& p) {
+  return segments * p.startPrice + (frameCount - segments) * p.framePrice;
+}
+
 SegmentPlan Predict(int segments, int frameCount, int workers, uint64_t pixelsPerFrame, const SegmentPrices& p) {
   SegmentPlan plan;
   plan.length = (frameCount + segments - 1) / segments;
   plan.segments = segments = (frameCount + plan.length - 1) / plan.length;  // the cut's own count
   plan.prices = p;
-  const double work = segments * p.startPrice + (frameCount - segments) * p.framePrice;
+  const double work = SegmentsWork(frameCount, segments, p);
   plan.predictedRelativeCost = work / frameCount;
   // The longest chain: one segment's frames, one after the other, each spread over the
   // workers its segment has (segments share them).
@@ -31,6 +36,24 @@ SegmentPlan Predict(int segments, int frameCount, int workers, uint64_t pixelsPe
 }
 
 }  // namespace
+
+double SegmentsRelativeCost(int frameCount, int length, const SegmentPrices& prices) {
+  frameCount = std::max(1, frameCount);
+  const int segments = (frameCount + std::max(1, length) - 1) / std::max(1, length);
+  return SegmentsWork(frameCount, segments, prices) / frameCount;
+}
+
+const char* PriceSourceName(PriceSource source) {
+  switch (source) {
+    case PriceSource::kScene:
+      return "scene";
+    case PriceSource::kFarm:
+      return "farm";
+    case PriceSource::kPrior:
+      break;
+  }
+  return "prior";
+}
 
 SegmentPlan PlanSegments(int frameCount, int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices) {
   frameCount = std::max(1, frameCount);
@@ -53,7 +76,8 @@ nlohmann::json SegmentPlan::ToJson() const {
           {"predicted_relative_cost", predictedRelativeCost},
           {"predicted_parallelism", predictedParallelism},
           {"segment_start_price", prices.startPrice},
-          {"frame_price", prices.framePrice}};
+          {"frame_price", prices.framePrice},
+          {"prices_from", PriceSourceName(prices.source)}};
 }
 
 SegmentPlan SegmentPlan::FromJson(const nlohmann::json& json) {
@@ -65,6 +89,10 @@ SegmentPlan SegmentPlan::FromJson(const nlohmann::json& json) {
   plan.predictedParallelism = json.value("predicted_parallelism", plan.predictedParallelism);
   plan.prices.startPrice = json.value("segment_start_price", plan.prices.startPrice);
   plan.prices.framePrice = json.value("frame_price", plan.prices.framePrice);
+  const std::string from = json.value("prices_from", std::string());
+  for (PriceSource source : {PriceSource::kScene, PriceSource::kFarm}) {
+    if (from == PriceSourceName(source)) plan.prices.source = source;
+  }
   return plan;
 }
 

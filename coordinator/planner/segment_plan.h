@@ -17,12 +17,19 @@
 
 namespace tcfarm {
 
+// Where a job's segment prices come from: an exact job's measurement of the same scene,
+// the farm's last exact job of the same kind of scene (PriceBook), or these priors.
+enum class PriceSource { kScene, kFarm, kPrior };
+// "scene", "farm" or "prior": as the job record names it.
+const char* PriceSourceName(PriceSource source);
+
 // In brute-force frames. Measured on the paper's scenes (exact jobs report theirs,
-// `stats.cost.segment_start_price` and `frame_price`); the farm feeds its latest
-// measurement to the next job (Farm), these are the priors before any.
+// `stats.cost.segment_start_price` and `frame_price`); the farm feeds what it measured to
+// later jobs (PriceBook), these are the priors before any.
 struct SegmentPrices {
   double startPrice = 3.0;
   double framePrice = 0.3;
+  PriceSource source = PriceSource::kPrior;
 };
 
 // The most extra CPU, against one segment, that more segments may cost.
@@ -41,5 +48,8 @@ struct SegmentPlan {
 
 // frameCount >= 1; workers: live now (at least 1 is assumed); pixelsPerFrame: the frame's.
 SegmentPlan PlanSegments(int frameCount, int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices = {});
+// The model's CPU cost, against brute force, of frameCount frames cut in segments of
+// `length` frames (the last may be shorter): an exact job asked for by name.
+double SegmentsRelativeCost(int frameCount, int length, const SegmentPrices& prices = {});
 
 }  // namespace tcfarm

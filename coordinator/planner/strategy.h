@@ -7,7 +7,11 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
+#include <nlohmann/json.hpp>
+
+#include "coordinator/planner/bin_width_survey.h"
 #include "coordinator/planner/segment_plan.h"
 
 namespace tcfarm {
@@ -45,6 +49,17 @@ std::string_view StrategyName(Strategy strategy);
 // span, and with it the error the guard misses, keeps growing.
 constexpr int kAutoWidestBin = 16;
 
+// A strategy auto weighed, and its predicted CPU cost against brute force's (= 1).
+struct StrategyCandidate {
+  Strategy strategy;
+  std::optional<double> predictedRelativeCost;  // none: guarded's, until its survey ran
+  // What the prediction rests on: "definition" (brute force), "scene", "farm" or "prior"
+  // (exact's segment prices: PriceSource), "survey" (guarded).
+  std::string from;
+  nlohmann::json ToJson() const;
+  static StrategyCandidate FromJson(const nlohmann::json& json);  // throws for an unknown name
+};
+
 // The strategy and bin width (segment length for exact) a job runs with; never kAuto.
 struct ResolvedStrategy {
   Strategy strategy;
@@ -52,19 +67,34 @@ struct ResolvedStrategy {
   std::string reason;
   bool surveyBinWidth = false;  // guarded's width is chosen by a coarse survey (auto)
   std::optional<SegmentPlan> segments;  // auto's exact: the cost model's choice
+  // The job's one prediction of its CPU cost against brute force's: the chosen
+  // candidate's for auto, the model's for a strategy asked by name where there is one
+  // (brute: 1, exact: the segment model); none for search, nor for guarded until its survey.
+  std::optional<double> predictedRelativeCost = std::nullopt;
+  std::vector<StrategyCandidate> candidates = {};  // what auto weighed; empty for a named strategy
 };
 
-// `auto` runs brute force when exact is predicted to cost at least this share of it: the
-// prediction's error is about that size, and brute force pays no search.
+// `auto` runs brute force unless another candidate is predicted to cost less than this
+// share of it: the prediction's error is about that size, and brute force pays no search.
 constexpr double kAutoBruteFromCost = 0.95;
 
-// `auto` runs brute force for one frame (nothing to reuse) and when exact is predicted to
-// cost kAutoBruteFromCost of it or more; it picks exact when nothing but shapes move (every pixel then has a horizon to
-// find), else guarded; exact's segments are cut as the cost model says for `workers`
-// workers, frames of pixelsPerFrame and the segment prices measured so far
-// (planner/segment_plan.h), guarded's width is surveyed up to kAutoWidestBin. `brute` is
-// the search with bins of 2. Any other strategy runs as requested with `binWidth`.
+// `auto` predicts what each candidate would cost against brute force (1) and runs the
+// cheapest, brute force unless another is predicted under kAutoBruteFromCost. Brute force
+// for one frame (nothing to reuse). When nothing but shapes move (every pixel then has a
+// horizon to find) the candidate is exact: its segments cut as the cost model says for
+// `workers` workers, frames of pixelsPerFrame and `prices` (planner/segment_plan.h). When
+// the camera or a light moves it is guarded, whose cost only its coarse survey predicts:
+// its width is surveyed up to kAutoWidestBin, and GuardedWidthAfterSurvey falls back to
+// brute force's bins of 2. `brute` is the search with bins of 2. Any other strategy runs as
+// requested with `binWidth`.
 ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount, bool cameraOrLightsChange,
                                  int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices = {});
+
+// Auto's guarded once its survey ran: the width the survey chose, or 2 (every frame a bin
+// end: brute force) when even that width is predicted to trace kAutoBruteFromCost of the
+// pixels or more, the survey's coarse pass being all it spent.
+int GuardedWidthAfterSurvey(const BinWidthChoice& choice);
+// The survey's predicted traced share at `width` (its relative cost); none if not surveyed.
+std::optional<double> SurveyPrediction(const BinWidthChoice& choice, int width);
 
 }  // namespace tcfarm

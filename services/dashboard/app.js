@@ -262,12 +262,22 @@ function renderSummary(job) {
   ];
   if (stats.trace_cpu_seconds !== undefined) parts.push(["trace CPU", seconds(stats.trace_cpu_seconds)]);
   const cost = stats.cost || {};
+  const strategy = stats.strategy || {};
   if (cost.d !== undefined) parts.push(["d", fixed(cost.d, 4)]);
-  if (cost.predicted_relative_cost !== undefined) parts.push(["predicted cost", fixed(cost.predicted_relative_cost, 3)]);
+  // The job's one prediction is its plan's; the measured cost counts all its tracing.
+  if (typeof strategy.predicted_relative_cost === "number") parts.push(["predicted cost", fixed(strategy.predicted_relative_cost, 3)]);
   if (cost.measured_relative_cost !== undefined) parts.push(["measured cost", fixed(cost.measured_relative_cost, 3)]);
+  if (strategy.candidates) parts.push(["auto weighed", strategy.candidates.map(candidateText).join(", ")]);
+  if (strategy.reason) parts.push(["why", strategy.reason]);
   if (job.error) parts.push(["error", job.error]);
   $("job-summary").replaceChildren(...parts.map(([key, value]) =>
     el("span", { class: "item" }, [el("b", { text: key + " " }), el("span", { text: String(value) })])));
+}
+
+// "exact 1.239 (scene)": a strategy auto weighed, its predicted relative CPU cost and its source.
+function candidateText(candidate) {
+  const figure = typeof candidate.predicted_relative_cost === "number" ? fixed(candidate.predicted_relative_cost, 3) : "unknown yet";
+  return `${candidate.strategy} ${figure} (${candidate.from})`;
 }
 
 // What importing the scene added or left out (a default camera, an extension not
@@ -327,7 +337,8 @@ function renderCostChart(job) {
   const width = stats.strategy ? stats.strategy.bin_width : job.bin_width;
   const predictions = (stats.analysis && stats.analysis.predictions) || [];
   const curve = predictions.map((p) => ({ x: p.bin_width, y: p.relative_cost }));
-  const predicted = cost.predicted_relative_cost !== undefined ? [{ x: width, y: cost.predicted_relative_cost }] : [];
+  const prediction = stats.strategy ? stats.strategy.predicted_relative_cost : undefined;
+  const predicted = typeof prediction === "number" ? [{ x: width, y: prediction }] : [];
   const measured = cost.measured_relative_cost !== undefined ? [{ x: width, y: cost.measured_relative_cost }] : [];
   // auto's guarded jobs: what its survey predicted for each width it weighed.
   const survey = (stats.strategy && stats.strategy.survey) || {};

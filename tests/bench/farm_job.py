@@ -85,7 +85,7 @@ def main():
     wall = other["stats"]["wall_seconds"] / brute["stats"]["wall_seconds"]
     cpu = other["stats"]["trace_cpu_seconds"] / brute["stats"]["trace_cpu_seconds"]
     # What the job also traced to check itself (exact's brute-force reference frame, spot
-    # checks): work the job's wall holds but its trace CPU, as stats.cost prices it, leaves out.
+    # checks): work the job's wall holds but its trace CPU leaves out (stats.cost counts it by part).
     checks = other["stats"].get("verify_trace_cpu_seconds", 0.0) / brute["stats"]["trace_cpu_seconds"]
     print(f"{args.pair} against brute force: job wall {wall:.3f}, trace CPU {cpu:.3f}, wall / CPU {wall / cpu:.2f}; "
           f"with its checks' CPU {cpu + checks:.3f}, wall / that {wall / (cpu + checks):.2f}")

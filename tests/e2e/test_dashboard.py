@@ -123,8 +123,14 @@ def test_dashboard_shows_a_running_and_a_completed_job(farm, scenes_dir, tmp_pat
 def test_cost_chart_shows_what_autos_survey_predicted(farm, scenes_dir, tmp_path):
     flight = small_scene(scenes_dir / "paper_c_terrain_flyover.json", WIDTH, HEIGHT, FRAMES)
     job = farm.run_job(flight, strategy="auto")
-    predicted = job["stats"]["strategy"]["survey"]["predicted_traced_share"]
-    page = Elements(chromium(f"{farm.url}/#job={job['id']}", tmp_path / "profile", "--dump-dom"))
+    strategy = job["stats"]["strategy"]
+    predicted = strategy["survey"]["predicted_traced_share"]
+    dom = chromium(f"{farm.url}/#job={job['id']}", tmp_path / "profile", "--dump-dom")
+    page = Elements(dom)
+    # The summary shows the record's one prediction, the figure its reason gives.
+    figure = f"{strategy['predicted_relative_cost']:.3f}"
+    assert f"<b>predicted cost </b><span>{figure}</span>" in dom
+    assert figure in strategy["reason"]
     by_dataset = [int(n) for n in page.by_id["chart-cost"]["data-points-by-dataset"].split(",")]
     # equation 3's curve, predicted, measured, then one point per width the survey weighed
     assert len(by_dataset) == 4

@@ -324,6 +324,28 @@ def _strategy(job):
     return f"exact L={width}" if name == "exact" else f"{name} n={width}"
 
 
+def _cost_lines(job):
+    """Why the strategy, what auto weighed, and the job's one predicted relative CPU cost
+    beside the measured one (against brute force = 1)."""
+    stats = job.get("stats") or {}
+    strategy, cost = stats.get("strategy") or {}, stats.get("cost") or {}
+    lines = [f"why: {strategy['reason']}"] if strategy.get("reason") else []
+    weighed = [f"{c['strategy']} {_figure(c.get('predicted_relative_cost'))} ({c.get('from', '?')})"
+               for c in strategy.get("candidates") or []]
+    if weighed:
+        lines.append("auto weighed: " + ", ".join(weighed))
+    figures = [f"{name} {value:.3f}" for name, value in
+               (("predicted", strategy.get("predicted_relative_cost")),
+                ("measured", cost.get("measured_relative_cost"))) if value is not None]
+    if figures:
+        lines.append("relative CPU cost: " + ", ".join(figures))
+    return lines
+
+
+def _figure(value):
+    return "unknown yet" if value is None else f"{value:.3f}"
+
+
 def _when(iso):
     """"2024-05-01T12:34:56.789Z" as "2024-05-01 12:34:56"; "-" for none."""
     return iso[:19].replace("T", " ") if iso else "-"
@@ -436,14 +458,10 @@ def cmd_status(client, args):
         print(json.dumps(job))
         return 0
     print(_summary(job))
-    cost = (job.get("stats") or {}).get("cost") or {}
     details = [f"strategy {_strategy(job)}, priority {job['priority']}",
                f"submitted {_when(job['submitted_at'])}, started {_when(job['started_at'])}, "
                f"finished {_when(job['finished_at'])}"]
-    if "measured_relative_cost" in cost:
-        details.append(f"relative cost: measured {cost['measured_relative_cost']:.3f}"
-                       + (f", predicted {cost['predicted_relative_cost']:.3f}"
-                          if "predicted_relative_cost" in cost else ""))
+    details += _cost_lines(job)
     if job.get("view", "standard") != "standard" or job.get("exposure", 0):
         details.append(f"previews: view {job['view']}, exposure {job['exposure']:+g} EV")
     details += _verification_lines(job)
