@@ -14,9 +14,12 @@ double SpreadOf(double share, uint64_t pixelsPerFrame, int workers) {
   return std::min(double(workers), tasks);
 }
 
-// In brute-force frames: each segment's start, then every later frame.
+// In brute-force frames: each segment's start, then every later frame, then the audit's
+// brute-force trace of the last frame (every exact job checks it bit for bit), which the
+// job's measured cost counts too.
 double SegmentsWork(int frameCount, int segments, const SegmentPrices& p) {
-  return segments * p.startPrice + (frameCount - segments) * p.framePrice;
+  constexpr double kAuditFrames = 1;
+  return segments * p.startPrice + (frameCount - segments) * p.framePrice + kAuditFrames;
 }
 
 SegmentPlan Predict(int segments, int frameCount, int workers, uint64_t pixelsPerFrame, const SegmentPrices& p) {

@@ -74,7 +74,8 @@ TEST(AutoStrategy, NamedStrategiesCarryTheirModelsPrediction) {
   const SegmentPrices prices{3.0, 0.5};
   const ResolvedStrategy exact = ResolveStrategy(Strategy::kExact, 12, 24, true, 4, kPixels, prices);
   ASSERT_TRUE(exact.predictedRelativeCost);
-  EXPECT_DOUBLE_EQ(*exact.predictedRelativeCost, (2 * 3.0 + 22 * 0.5) / 24);
+  // Two segment starts, 22 later frames and the audit's one brute-force frame.
+  EXPECT_DOUBLE_EQ(*exact.predictedRelativeCost, (2 * 3.0 + 22 * 0.5 + 1) / 24);
   EXPECT_TRUE(exact.candidates.empty());
   EXPECT_DOUBLE_EQ(*ResolveStrategy(Strategy::kBrute, 10, 24, true, 4, kPixels).predictedRelativeCost, 1.0);
   EXPECT_FALSE(ResolveStrategy(Strategy::kSearch, 10, 24, true, 4, kPixels).predictedRelativeCost);
