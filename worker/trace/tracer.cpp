@@ -41,6 +41,38 @@ size_t PixelsPerChunk(size_t pixelCount, unsigned threads, bool horizons) {
   return std::max(kMinPixelsPerChunk, pixelCount / (size_t{threads} * chunksPerThread));
 }
 
+// The chunk's pixels (positions 0 .. count-1 of `pixels`) in the order packets take them.
+// A sparse set (exact's due pixels, a search's) by 4x4 tile, tiles in rows, pixels in a
+// tile as given: a packet of 16 then holds neighbours, whose rays stay together in the
+// tree, where the set's next 16 in row order scatter across the picture (measured: 90 ns
+// a pixel down to 82 on exact's set at frame 30 of the twelve spheres). A run of
+// consecutive pixels (a full frame's rows) as given: whole rows traced 16 wide ran about
+// 7 % faster than tiles. A stable counting sort, linear in the pixels and the tiles their
+// rows span. Packets change no pixel's bits (each sample is traced to the same bits
+// whatever its lanes).
+constexpr uint32_t kTileSide = 4;
+
+// Leaves `order` empty for a run of consecutive pixels: the order given.
+void TileOrder(const uint32_t* pixels, size_t count, uint32_t width, std::vector<uint32_t>& order,
+               std::vector<uint32_t>& tileStart) {
+  order.clear();
+  if (count == 0 || (pixels[count - 1] - pixels[0] == count - 1 && std::is_sorted(pixels, pixels + count))) return;
+  order.resize(count);
+  const uint32_t tilesAcross = (width + kTileSide - 1) / kTileSide;
+  uint32_t firstRow = UINT32_MAX, lastRow = 0;
+  for (size_t i = 0; i < count; ++i) {
+    firstRow = std::min(firstRow, pixels[i] / width / kTileSide);
+    lastRow = std::max(lastRow, pixels[i] / width / kTileSide);
+  }
+  auto tileOf = [&](uint32_t pixel) {
+    return (pixel / width / kTileSide - firstRow) * tilesAcross + pixel % width / kTileSide;
+  };
+  tileStart.assign(size_t{lastRow - firstRow + 1} * tilesAcross + 1, 0);
+  for (size_t i = 0; i < count; ++i) ++tileStart[tileOf(pixels[i]) + 1];
+  for (size_t t = 1; t < tileStart.size(); ++t) tileStart[t] += tileStart[t - 1];
+  for (size_t i = 0; i < count; ++i) order[tileStart[tileOf(pixels[i])]++] = static_cast<uint32_t>(i);
+}
+
 // A frame holds finite values only. Light beyond float range (a huge intensity at a tiny
 // distance) saturates to the largest float rather than going black; NaN, which no scene
 // should produce, becomes 0.
@@ -583,22 +615,27 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
   threads_.ParallelFor(pixelCount, chunk, [&](size_t begin, size_t end) {
     const uint64_t cpuAtStart = ThreadCpuNanoseconds();
     PixelTracer tracer(context, scene_);
-    // Every (pixel, sample) of the chunk, in order, then packets over them. The
-    // buffers live per thread: allocating them per chunk showed up in profiles. With one
-    // sample a pixel, the items are the pixels themselves, all of sample 0.
+    // Every (pixel, sample) of the chunk, pixels in the order TileOrder gives, then
+    // packets over them. The buffers live per thread: allocating them per chunk showed up
+    // in profiles. With one sample a pixel and the order given, the items are the pixels
+    // themselves, all of sample 0.
+    thread_local std::vector<uint32_t> order, tileStart;
     thread_local std::vector<uint32_t> itemPixel;
     thread_local std::vector<int> itemSample;
     thread_local std::vector<Float3> sampleColor;
+    TileOrder(pixels + begin, end - begin, static_cast<uint32_t>(scene_.render.width), order, tileStart);
+    // The chunk position of the pixel of rank k in that order.
+    auto positionOf = [&](size_t k) { return order.empty() ? k : size_t{order[k]}; };
     const size_t items = (end - begin) * static_cast<size_t>(spp);
     const uint32_t* itemPixels = pixels + begin;
-    if (spp == 1) {
+    if (spp == 1 && order.empty()) {
       itemSample.assign(items, 0);
     } else {
       itemPixel.clear();
       itemSample.clear();
-      for (size_t i = begin; i < end; ++i) {
+      for (size_t k = 0; k < end - begin; ++k) {
         for (int s = 0; s < spp; ++s) {
-          itemPixel.push_back(pixels[i]);
+          itemPixel.push_back(pixels[begin + positionOf(k)]);
           itemSample.push_back(s);
         }
       }
@@ -641,18 +678,19 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       for (SegmentFan& fan : lightFans) SearchFan(*oracle, fan, sampleHorizon.data());
       tracer.FollowBlockedShadowRays(sampleHorizon.data());
     }
-    // A pixel is valid while all its samples are.
-    for (size_t i = begin; oracle && i < end; ++i) {
+    // A pixel is valid while all its samples are. Its samples are items k * spp .. for
+    // its rank k in the tile order.
+    for (size_t k = 0; oracle && k < end - begin; ++k) {
       int32_t horizon = oracle->Unbounded();
-      for (int s = 0; s < spp; ++s) horizon = std::min(horizon, sampleHorizon[(i - begin) * spp + s]);
-      horizons[i] = horizon;
+      for (int s = 0; s < spp; ++s) horizon = std::min(horizon, sampleHorizon[k * spp + s]);
+      horizons[begin + positionOf(k)] = horizon;
     }
     // Average in sample order, so the sum's rounding is the same wherever the pixel goes.
-    for (size_t i = begin; i < end; ++i) {
+    for (size_t k = 0; k < end - begin; ++k) {
       Float3 sum;
-      for (int s = 0; s < spp; ++s) sum += sampleColor[(i - begin) * spp + s];
+      for (int s = 0; s < spp; ++s) sum += sampleColor[k * spp + s];
       Float3 mean = sum * (1.0f / spp);
-      float* out = rgb + 3 * i;
+      float* out = rgb + 3 * (begin + positionOf(k));
       out[0] = StorableChannel(mean.x);
       out[1] = StorableChannel(mean.y);
       out[2] = StorableChannel(mean.z);
