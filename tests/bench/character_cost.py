@@ -19,6 +19,7 @@ import pathlib
 import subprocess
 import sys
 import tempfile
+import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 from farm_harness import COORDINATOR, LocalFarm  # noqa: E402
@@ -58,12 +59,30 @@ def changing_share(frames_dir):
     return (1 + sum(1 - unchanged for unchanged in coherence)) / (1 + len(coherence))
 
 
+class WorkerWatch:
+    """Ends the bench when the farm has had no worker for `grace` seconds: the only worker,
+    dropped for returning wrong values, is banned, and the job would wait for ever."""
+
+    def __init__(self, farm, grace=15.0):
+        self.farm, self.grace, self.since = farm, grace, None
+
+    def __call__(self, job):
+        if self.farm.client.workers()["workers"]:
+            self.since = None
+            return
+        self.since = self.since or time.monotonic()
+        if time.monotonic() - self.since > self.grace:
+            log = (self.farm.directory / "coordinator.log").read_text().splitlines()
+            dropped = "\n".join(dict.fromkeys(line for line in log if "dropped" in line or "banned" in line))
+            sys.exit(f"job {job['id']} ({job['strategy']}) has no worker left:\n{dropped}")
+
+
 def render(farm, scene, options, strategy, repeat):
     """The job of `strategy` with the least trace CPU of `repeat` runs, and their least wall."""
     jobs = []
     for _ in range(repeat):
         job = farm.client.submit(scene, strategy=strategy, **options)
-        job = farm.client.wait(job["id"], poll_seconds=0.05, timeout=3600)
+        job = farm.client.wait(job["id"], poll_seconds=0.05, on_progress=WorkerWatch(farm))
         if job["state"] != "completed":
             sys.exit(f"{strategy}: job {job['id']} {job['state']}: {job.get('error')}")
         jobs.append(job)
