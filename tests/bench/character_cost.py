@@ -8,8 +8,8 @@ the pixels that change at all:
 The shot is a glTF or OBJ file (imported by the farm, as `tcfarm submit FILE --size WxH
 --frames A:B` sends it) or a tcfarm JSON scene. Each strategy renders the same frames; the
 markdown table gives per strategy the traced-pixel ratio, trace CPU (stats.trace_cpu_seconds)
-and job wall over brute force's, what the job ran (auto's choice) and its predicted relative
-cost (stats.cost), the pixels that differ from brute force's frames, and exact's traced ratio
+and job wall over brute force's, what the job ran (auto's choice) and its one prediction of
+its relative cost (stats.strategy.predicted_relative_cost), the pixels that differ from brute force's frames, and exact's traced ratio
 over the share of pixels that change: the first frame plus each later frame's changed
 pixels over all pixels, from `tcfarm-coordinator analyze` of brute force's frames.
 """
@@ -64,9 +64,12 @@ class WorkerWatch:
     dropped for returning wrong values, is banned, and the job would wait for ever."""
 
     def __init__(self, farm, grace=15.0):
-        self.farm, self.grace, self.since = farm, grace, None
+        self.farm, self.grace, self.since, self.asked = farm, grace, None, 0.0
 
     def __call__(self, job):
+        if time.monotonic() - self.asked < 1:  # asked once a second: the job is polled far more often
+            return
+        self.asked = time.monotonic()
         if self.farm.client.workers()["workers"]:
             self.since = None
             return
@@ -96,19 +99,23 @@ def figure(value):
 
 def table(rows, brute, brute_wall, share):
     """The markdown table: one row per strategy, brute force's figures the unit. Predicted:
-    stats.cost's relative cost from the frames' coherence; planned: the CPU cost auto's
-    segment plan predicted (stats.strategy.segments), where it planned one."""
+    the job's one prediction of its CPU cost against brute force's (stats.strategy)."""
     lines = ["| strategy | ran | traced-pixel ratio | traced / changing | trace CPU / brute | wall / brute "
-             "| predicted | planned | differing pixels |", "| --- " * 9 + "|"]
+             "| predicted | differing pixels |", "| --- " * 8 + "|"]
     for strategy, (job, wall, differing) in rows.items():
         stats = job["stats"]
-        predicted = stats.get("cost", {}).get("predicted_relative_cost")
-        planned = stats["strategy"].get("segments", {}).get("predicted_relative_cost")
         lines.append(f"| {strategy} | {stats['strategy']['name']} | {job['traced_pixel_ratio']:.4f} "
                      f"| {job['traced_pixel_ratio'] / share:.2f} "
                      f"| {stats['trace_cpu_seconds'] / brute['stats']['trace_cpu_seconds']:.3f} "
-                     f"| {wall / brute_wall:.3f} | {figure(predicted)} | {figure(planned)} | {differing} |")
+                     f"| {wall / brute_wall:.3f} | {figure(stats['strategy'].get('predicted_relative_cost'))} "
+                     f"| {differing} |")
     return "\n".join(lines)
+
+
+def weighed(job):
+    """What auto weighed: "brute 1.000 (definition), exact 1.021 (scene)"."""
+    return ", ".join(f"{c['strategy']} {figure(c.get('predicted_relative_cost'))} ({c.get('from', '?')})"
+                     for c in job["stats"]["strategy"].get("candidates", []))
 
 
 def main():
@@ -117,7 +124,9 @@ def main():
     parser.add_argument("--size", help="WxH (default: the scene's; 640x480 for a scene file)")
     parser.add_argument("--frames", default=None, help="A:B, both inclusive (default: the scene's)")
     parser.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
-    parser.add_argument("--strategies", default="exact,auto", help="besides brute force, comma-separated")
+    parser.add_argument("--strategies", default="auto,exact",
+                        help="besides brute force, comma-separated, run in this order (auto prices exact by the "
+                             "scene's prices once an exact job has measured them)")
     parser.add_argument("--guarded", action="store_true", help="also guarded")
     parser.add_argument("--repeat", type=int, default=1, help="runs per strategy; the least is kept")
     args = parser.parse_args()
@@ -142,9 +151,9 @@ def main():
           f"brute force: trace CPU {brute['stats']['trace_cpu_seconds']:.2f} s, wall {brute_wall:.2f} s; "
           f"pixels that change: {share:.4f}\n")
     print(table(rows, brute, brute_wall, share))
-    for strategy, (job, _) in jobs.items():
-        if strategy == "auto":
-            print(f"\nauto: {job['stats']['strategy'].get('reason', '')}")
+    if "auto" in jobs:
+        auto = jobs["auto"][0]
+        print(f"\nauto weighed {weighed(auto)}: {auto['stats']['strategy'].get('reason', '')}")
     return 0
 
 
