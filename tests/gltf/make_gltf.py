@@ -145,7 +145,9 @@ class Gltf:
                      **({"NORMAL": self.accessor(t["normals"], "VEC3", target=34962)} if t.get("normals") else {})}
                     for t in p["targets"]]
             if p.get("indices"):
-                primitive["indices"] = self.accessor(p["indices"], "SCALAR", UNSIGNED_SHORT, target=34963)
+                # 16-bit indices where they fit (65,535 is primitive restart), else 32-bit.
+                component = UNSIGNED_SHORT if max(p["indices"]) < 0xFFFF else UNSIGNED_INT
+                primitive["indices"] = self.accessor(p["indices"], "SCALAR", component, target=34963)
             if p.get("mode", TRIANGLES) != TRIANGLES:
                 primitive["mode"] = p["mode"]
             if p.get("material") is not None:

@@ -16,7 +16,9 @@ import jsonschema
 import pytest
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bench"))
 
+import character  # noqa: E402
 import make_gltf  # noqa: E402
 from farm_harness import LocalFarm, compare, render_reference, submit_file_and_compare, tcfarm_cli  # noqa: E402
 
@@ -584,6 +586,33 @@ def test_farm_exact_equals_brute_force_on_deforming_meshes(deforming_farm, files
     # arm's upper half, which its shoulder holds still, counting as still).
     if path.name in DEFORMING:
         assert copied > 0.5, copied
+
+
+@pytest.mark.parametrize("variant", sorted(character.VARIANTS))
+def test_the_cost_benchmarks_shots_are_valid_and_exact_renders_them_as_brute_force(worker_binary, deforming_farm,
+                                                                                   tmp_path, variant):
+    """tests/bench/character.py's shots, small (3,000 triangles, 6 frames): valid, as many
+    triangles as asked on what moves (the character: 22 joints, weights summing to 1,
+    blended at the joints), and exact on the farm bit-identical to `tcfarm-worker render`."""
+    shot = character.VARIANTS[variant](triangles=3000, frames=6)
+    path = shot.write(tmp_path / f"{variant}.glb")
+    if VALIDATOR.exists():
+        assert_valid([path])
+    flags = ("--size", "96x72")
+    scene = printed_scene(worker_binary, path, *flags)
+    moving = [shape for shape in scene["shapes"] if "keyframes" in json.dumps(shape)]  # the room holds still
+    assert [shape["name"] for shape in moving] == {"skinned": ["character"], "rigid": ["part0", "part1", "part2", "part3"],
+                                                   "morphed": ["shape"]}[variant]
+    assert sum(len((scene["meshes"][shape["mesh_ref"]] if "mesh_ref" in shape else shape)["triangles"])
+               for shape in moving) >= 3000
+    if variant == "skinned":
+        assert len(shot.doc["skins"][0]["joints"]) == 22  # the root, which no vertex follows, imported as a parent
+        skin = moving[0]["skin"]
+        assert all(abs(sum(w) - 1) < 1e-6 for w in skin["vertex_weights"])
+        assert any(sum(w > 0 for w in weights) >= 2 for weights in skin["vertex_weights"])
+    job, error = submit_file_and_compare(deforming_farm, path, flags, tmp_path / "reference")
+    assert error["differing_pixels"] == 0 and error["frames"] == 6, error
+    assert job["traced_pixel_ratio"] < 1, job["traced_pixel_ratio"]
 
 
 def weights_under_one(gltf):
