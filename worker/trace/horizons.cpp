@@ -203,7 +203,8 @@ void HorizonOracle::AddRigidShape(const Shape& shape, size_t index, int lastFram
   auto placedAsAtFrame = [&](int f) { return shape.motion.WorldFromObject(f) == atFrame; };
   wholeChange_[index] = FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return !placedAsAtFrame(f); });
   const BoundingSphere rest = KindOf(shape).Bounds(shape);
-  AddMover(shape, lastFrame, [&](int f) { return placedAsAtFrame(f) ? kNoBounds : rest; }, &rest);
+  // Its bounds at frame() itself are what may block a shadow ray there (MoverThatMayBlock).
+  AddMover(shape, lastFrame, [&](int f) { return placedAsAtFrame(f) ? kNoBounds : rest; }, rest);
   sphereOfShape_[index] = sphereOfMover_.back();
 }
 
@@ -215,7 +216,10 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
     const Affine atFrame = shape.motion.WorldFromObject(frame_);
     auto asAtFrame = [&](int f) { return shape.motion.WorldFromObject(f) == atFrame && *mesh.KeyOf(f) == *base; };
     wholeChange_[index] = FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return !asAtFrame(f); });
-    AddMover(shape, lastFrame, [&](int f) { return asAtFrame(f) ? kNoBounds : Union(*mesh.PartBoundsAt(f)); });
+    // Its bounds at frame() itself are what may block a shadow ray there (MoverThatMayBlock).
+    const BoundingSphere bounds = Union(*mesh.PartBoundsAt(frame_));
+    AddMover(shape, lastFrame, [&](int f) { return asAtFrame(f) ? kNoBounds : Union(*mesh.PartBoundsAt(f)); },
+             bounds);
     return;
   }
   const DeformationParts& parts = mesh.Parts();
@@ -249,7 +253,7 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
     // it meet though few pass a part that moves.
     AddMover(shape, lastFrame,
              [&](int f) { return partMoved[size_t(f - frame_)] ? (*mesh.PartBoundsAt(f))[g] : kNoBounds; },
-             &(*atFrame)[g]);
+             (*atFrame)[g]);
   }
 }
 
@@ -265,14 +269,13 @@ int HorizonOracle::SurfaceChange(int shape, uint32_t primitive) const {
 
 void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
                              const std::function<BoundingSphere(int frame)>& objectBounds,
-                             const BoundingSphere* atFrame) {
+                             const BoundingSphere& atFrame) {
   Mover mover;
   mover.swept = EmptyBox();
   {
-    const BoundingSphere object = atFrame ? *atFrame : objectBounds(frame_);
-    const Proxy at = Padded(PlacedBounds(shape, object, frame_));
+    const Proxy at = Padded(PlacedBounds(shape, atFrame, frame_));
     mover.atFrame[0] = at.x, mover.atFrame[1] = at.y, mover.atFrame[2] = at.z;
-    mover.atFrame[3] = object.radius >= 0 ? at.radius : -1.0f;
+    mover.atFrame[3] = atFrame.radius >= 0 ? at.radius : -1.0f;
   }
   for (int f = frame_; f <= lastFrame; ++f) {
     const BoundingSphere object = objectBounds(f);

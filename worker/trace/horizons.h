@@ -188,10 +188,10 @@ class HorizonOracle {
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);
   static uint32_t LaneMask(size_t chunkBegin, size_t from, size_t to);
   // objectBounds(f): the shape's object-space bounds at frame f, a negative radius where
-  // it has nothing that changed by f; atFrame: its bounds at frame(), objectBounds's
-  // by default.
+  // it has nothing that changed by f; atFrame: its bounds at frame() itself, where it may
+  // block a shadow ray (MoverThatMayBlock), though objectBounds(frame()) is nothing.
   void AddMover(const Shape& shape, int lastFrame, const std::function<BoundingSphere(int frame)>& objectBounds,
-                const BoundingSphere* atFrame = nullptr);
+                const BoundingSphere& atFrame);
   // A rigid shape: one mover, met nowhere at the frames it is placed as at frame().
   void AddRigidShape(const Shape& shape, size_t index, int lastFrame);
   // A deforming mesh: as one mover when it is placed as a whole too, else as one mover per

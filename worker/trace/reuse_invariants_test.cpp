@@ -103,6 +103,17 @@ const char* kWall =
 const char* kMirror =
     R"({"type": "quad", "corner": [-6, 0, -3], "edge_u": [12, 0, 0], "edge_v": [0, 6, 0.5], "material": "mirror"})";
 
+// The morphing blob on a node of its own that flies across the floor and rises: placed as a
+// whole and deformed at once.
+std::string FlyingMorphingBlob() {
+  std::string blob = kMorphingBlob;
+  const std::string material = R"("material": "blue",)";
+  blob.insert(blob.find(material) + material.size(),
+              R"( "motion": {"translation": {"keyframes": [{"frame": 0, "value": [0, 0, 0]},
+                  {"frame": 11, "value": [2.5, 0.4, 0]}]}},)");
+  return blob;
+}
+
 // Meshes that deform: a skinned arm bending before a still wall, a morphing blob and its
 // shadow, a skinned arm seen in a mirror.
 std::vector<Variant> DeformingVariants() {
@@ -110,6 +121,7 @@ std::vector<Variant> DeformingVariants() {
   return {
       {"a skinned arm bending in front of a still wall", CoplanarScene(floor + ", " + kWall + ", " + SkinnedArm(-1))},
       {"a morphing blob casting a shadow", CoplanarScene(floor + ", " + kMorphingBlob)},
+      {"a morphing blob casting a shadow as it flies", CoplanarScene(floor + ", " + FlyingMorphingBlob())},
       {"a skinned arm seen in a mirror", CoplanarScene(floor + ", " + kMirror + ", " + SkinnedArm(0.5))},
   };
 }
