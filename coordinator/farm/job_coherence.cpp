@@ -1,20 +1,25 @@
 #include "coordinator/farm/job_coherence.h"
 
 #include <utility>
+#include <variant>
 
 namespace tcfarm {
 
 JobCoherence::JobCoherence(std::filesystem::path spillFolder, size_t pendingFrameBytes)
     : waiting_(std::move(spillFolder), pendingFrameBytes) {}
 
-std::vector<JobCoherence::ChangeMask> JobCoherence::Add(int frame, const Image& image) {
+std::vector<JobCoherence::ChangeMask> JobCoherence::Add(int frame, const Image& image,
+                                                        const std::vector<uint8_t>* traced) {
   std::vector<ChangeMask> masks;
   if (frame != nextFrame_) {
-    waiting_.Put(frame, image);
+    waiting_.Put(frame, ByChanges(frame, traced) ? PendingFrames::Frame(FrameChanges::Gather(image, *traced))
+                                                 : PendingFrames::Frame(image));
     return masks;
   }
-  masks.push_back(TakeInOrder(image));
-  while (std::optional<Image> next = waiting_.Take(nextFrame_)) masks.push_back(TakeInOrder(*next));
+  masks.push_back(ByChanges(frame, traced) ? TakeInOrder(FrameChanges::Gather(image, *traced)) : TakeInOrder(image));
+  while (std::optional<PendingFrames::Frame> next = waiting_.Take(nextFrame_)) {
+    masks.push_back(std::visit([this](const auto& waiting) { return TakeInOrder(waiting); }, *next));
+  }
   return masks;
 }
 
@@ -22,6 +27,12 @@ std::vector<JobCoherence::ChangeMask> JobCoherence::Add(int frame, const Image& 
 JobCoherence::ChangeMask JobCoherence::TakeInOrder(const Image& frame) {
   std::vector<uint8_t> unchanged;
   analyzer_.Add(frame, &unchanged);  // may throw: the frame's turn stays
+  return ChangeMask{nextFrame_++, std::move(unchanged)};
+}
+
+JobCoherence::ChangeMask JobCoherence::TakeInOrder(const FrameChanges& frame) {
+  std::vector<uint8_t> unchanged;
+  analyzer_.AddChanges(frame, &unchanged);  // may throw: the frame's turn stays
   return ChangeMask{nextFrame_++, std::move(unchanged)};
 }
 

@@ -441,8 +441,11 @@ void JobRun::FinishFrame(FinishedFrame frame) {
   Image image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)};
   const bool probation = probationFrames_.erase(frame.frame) > 0;
   verification_.OnFrameFinished(frame.frame, image.rgb, frame.traced, probation);
+  // Every planner gives a pixel it does not trace the previous frame's bits: only the
+  // traced pixels can have changed.
+  std::vector<JobCoherence::ChangeMask> changeMasks = coherence_.Add(frame.frame, image, &frame.traced);
   WriteMask(MaskKind::kTraced, absolute, std::move(frame.traced));
-  for (JobCoherence::ChangeMask& mask : coherence_.Add(frame.frame, image)) {
+  for (JobCoherence::ChangeMask& mask : changeMasks) {
     WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
   }
   writer_.Write(absolute, std::move(image));
