@@ -16,7 +16,7 @@ std::vector<JobCoherence::ChangeMask> JobCoherence::Add(int frame, const Image& 
                                                  : PendingFrames::Frame(image));
     return masks;
   }
-  masks.push_back(ByChanges(frame, traced) ? TakeInOrder(FrameChanges::Gather(image, *traced)) : TakeInOrder(image));
+  masks.push_back(TakeInOrder(image, traced));
   while (std::optional<PendingFrames::Frame> next = waiting_.Take(nextFrame_)) {
     masks.push_back(std::visit([this](const auto& waiting) { return TakeInOrder(waiting); }, *next));
   }
@@ -24,9 +24,14 @@ std::vector<JobCoherence::ChangeMask> JobCoherence::Add(int frame, const Image& 
 }
 
 // The first frame has nothing to change from, so its mask is all white.
-JobCoherence::ChangeMask JobCoherence::TakeInOrder(const Image& frame) {
+JobCoherence::ChangeMask JobCoherence::TakeInOrder(const Image& frame, const std::vector<uint8_t>* traced) {
   std::vector<uint8_t> unchanged;
-  analyzer_.Add(frame, &unchanged);  // may throw: the frame's turn stays
+  // May throw: the frame's turn stays.
+  if (traced) {
+    analyzer_.AddTraced(frame, *traced, &unchanged);
+  } else {
+    analyzer_.Add(frame, &unchanged);
+  }
   return ChangeMask{nextFrame_++, std::move(unchanged)};
 }
 

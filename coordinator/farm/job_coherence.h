@@ -46,7 +46,7 @@ class JobCoherence {
  private:
   // The sequence's first frame has no frame before it: it is taken whole.
   bool ByChanges(int frame, const std::vector<uint8_t>* traced) const { return traced && frame > 0; }
-  ChangeMask TakeInOrder(const Image& frame);
+  ChangeMask TakeInOrder(const Image& frame, const std::vector<uint8_t>* traced = nullptr);
   ChangeMask TakeInOrder(const FrameChanges& frame);
 
   SequenceAnalyzer analyzer_;

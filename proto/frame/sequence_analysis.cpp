@@ -42,6 +42,25 @@ void SummarizeEvents(SequenceAnalysis* analysis) {
   analysis->eventDurationStdDev = std::sqrt(squares / double(count));
 }
 
+// Calls visit(pixel) for each pixel whose byte in mask is non-zero, in order. Most of a
+// traced mask is zero where little changes: it is skipped a word at a time.
+template <typename Visit>
+void ForEachMarked(const std::vector<uint8_t>& mask, Visit visit) {
+  const uint8_t* bytes = mask.data();
+  const size_t count = mask.size();
+  size_t pixel = 0;
+  for (uint64_t word = 0; pixel + sizeof word <= count; pixel += sizeof word) {
+    std::memcpy(&word, bytes + pixel, sizeof word);
+    if (word == 0) continue;
+    for (size_t i = pixel; i < pixel + sizeof word; ++i) {
+      if (bytes[i] != 0) visit(i);
+    }
+  }
+  for (; pixel < count; ++pixel) {
+    if (bytes[pixel] != 0) visit(pixel);
+  }
+}
+
 void Predict(SequenceAnalysis* analysis) {
   int widest = std::min(analysis->frames, kMaxPredictedBinWidth);
   for (int n = 2; n <= widest; ++n) {
@@ -50,30 +69,27 @@ void Predict(SequenceAnalysis* analysis) {
   }
 }
 
-}  // namespace
-
-FrameChanges FrameChanges::Gather(const Image& frame, const std::vector<uint8_t>& mayChange) {
+void CheckMask(const Image& frame, const std::vector<uint8_t>& mayChange) {
   if (mayChange.size() != frame.PixelCount() || frame.rgb.size() != frame.PixelCount() * 3) {
     throw std::invalid_argument("a mask of " + std::to_string(mayChange.size()) + " pixels for a frame of " +
                                 SizeText(frame.width, frame.height));
   }
+}
+
+}  // namespace
+
+FrameChanges FrameChanges::Gather(const Image& frame, const std::vector<uint8_t>& mayChange) {
+  CheckMask(frame, mayChange);
+  size_t marked = 0;
+  ForEachMarked(mayChange, [&](size_t) { ++marked; });
   FrameChanges changes;
-  const uint8_t* mask = mayChange.data();
-  const size_t pixels = mayChange.size();
-  for (size_t pixel = 0; pixel < pixels;) {
-    // Most of a mask is zero where little changes: skip it a word at a time.
-    uint64_t word = 0;
-    if (pixel + sizeof word <= pixels) std::memcpy(&word, mask + pixel, sizeof word);
-    if (pixel + sizeof word <= pixels && word == 0) {
-      pixel += sizeof word;
-      continue;
-    }
-    if (mask[pixel] != 0) {
-      changes.pixels.push_back(static_cast<uint32_t>(pixel));
-      changes.rgb.insert(changes.rgb.end(), frame.rgb.data() + 3 * pixel, frame.rgb.data() + 3 * pixel + 3);
-    }
-    ++pixel;
-  }
+  changes.pixels.reserve(marked);
+  changes.rgb.reserve(3 * marked);
+  const float* rgb = frame.rgb.data();
+  ForEachMarked(mayChange, [&](size_t pixel) {
+    changes.pixels.push_back(static_cast<uint32_t>(pixel));
+    for (size_t c = 3 * pixel; c < 3 * pixel + 3; ++c) changes.rgb.push_back(rgb[c]);
+  });
   return changes;
 }
 
@@ -190,6 +206,19 @@ void SequenceAnalyzer::Add(const Image& frame, std::vector<uint8_t>* unchanged) 
   const float* values = frame.rgb.data();
   size_t changed = 0;
   for (size_t pixel = 0; pixel < eventStart_.size(); ++pixel) changed += AdvancePixel(pixel, values + 3 * pixel, mask);
+  EndFrame(changed);
+}
+
+void SequenceAnalyzer::AddTraced(const Image& frame, const std::vector<uint8_t>& mayChange,
+                                 std::vector<uint8_t>* unchanged) {
+  CheckShape(frame);
+  CheckMask(frame, mayChange);
+  if (frames_ == 0) return Add(frame, unchanged);
+  BeginFrame(unchanged);
+  uint8_t* mask = unchanged ? unchanged->data() : nullptr;
+  const float* values = frame.rgb.data();
+  size_t changed = 0;
+  ForEachMarked(mayChange, [&](size_t pixel) { changed += AdvancePixel(pixel, values + 3 * pixel, mask); });
   EndFrame(changed);
 }
 

@@ -67,6 +67,10 @@ class SequenceAnalyzer {
   // pixels out of range or not ascending, or other than 3 values per pixel; nothing
   // changes then.
   void AddChanges(const FrameChanges& changes, std::vector<uint8_t>* unchanged = nullptr);
+  // The same for a whole frame whose pixels may differ from the previous frame's only
+  // where mayChange (one byte per pixel) is non-zero; the first frame is taken whole.
+  // Throws std::invalid_argument as Add does, and for a mask of another size.
+  void AddTraced(const Image& frame, const std::vector<uint8_t>& mayChange, std::vector<uint8_t>* unchanged = nullptr);
   int FrameCount() const { return frames_; }
   // Running coherence figures, cheap to read while frames arrive.
   const RunningStats& frameToFrame() const { return frameToFrame_; }

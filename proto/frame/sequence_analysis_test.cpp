@@ -241,14 +241,16 @@ TEST(SequenceAnalysisTest, ChangesGiveWhatWholeFramesGive) {
   std::mt19937 random(7);
   std::uniform_int_distribution<int> level(0, 1);
   std::uniform_real_distribution<double> chance(0, 1);
-  SequenceAnalyzer whole, byChanges;
+  SequenceAnalyzer whole, byChanges, byTraced;
   Image frame = Flat(11, 5, 0.0f);
   for (float& v : frame.rgb) v = float(level(random));
   const Image first = frame;
-  std::vector<uint8_t> wholeMask, changesMask;
+  std::vector<uint8_t> wholeMask, changesMask, tracedMask;
   whole.Add(frame, &wholeMask);
   byChanges.Add(frame, &changesMask);
+  byTraced.AddTraced(frame, std::vector<uint8_t>(frame.PixelCount(), 0), &tracedMask);  // the first is whole
   EXPECT_EQ(wholeMask, changesMask);
+  EXPECT_EQ(wholeMask, tracedMask);
   size_t ties = 0, backToFirst = 0;
   for (int f = 1; f < 31; ++f) {
     std::vector<uint8_t> traced(frame.PixelCount(), 0);
@@ -262,13 +264,18 @@ TEST(SequenceAnalysisTest, ChangesGiveWhatWholeFramesGive) {
     }
     whole.Add(frame, &wholeMask);
     byChanges.AddChanges(FrameChanges::Gather(frame, traced), &changesMask);
+    byTraced.AddTraced(frame, traced, &tracedMask);
     ASSERT_EQ(wholeMask, changesMask) << "frame " << f;
+    ASSERT_EQ(wholeMask, tracedMask) << "frame " << f;
   }
   EXPECT_GT(ties, 20u);
   EXPECT_GT(backToFirst, 20u);
-  const SequenceAnalysis expected = whole.Finish(), actual = byChanges.Finish();
-  EXPECT_EQ(actual.ToJson(), expected.ToJson());
-  EXPECT_EQ(actual.changeMask, expected.changeMask);
+  const SequenceAnalysis expected = whole.Finish();
+  for (const SequenceAnalyzer* analyzer : {&byChanges, &byTraced}) {
+    const SequenceAnalysis actual = analyzer->Finish();
+    EXPECT_EQ(actual.ToJson(), expected.ToJson());
+    EXPECT_EQ(actual.changeMask, expected.changeMask);
+  }
 }
 
 TEST(SequenceAnalysisTest, GatherTakesTheMarkedPixelsInOrder) {
@@ -280,6 +287,9 @@ TEST(SequenceAnalysisTest, GatherTakesTheMarkedPixelsInOrder) {
   EXPECT_EQ(changes.pixels, (std::vector<uint32_t>{0, 9, 14}));
   EXPECT_EQ(changes.rgb, (std::vector<float>{0, 1, 2, 27, 28, 29, 42, 43, 44}));
   EXPECT_THROW(FrameChanges::Gather(frame, std::vector<uint8_t>(14, 1)), std::invalid_argument);
+  SequenceAnalyzer analyzer;
+  analyzer.Add(frame);
+  EXPECT_THROW(analyzer.AddTraced(frame, std::vector<uint8_t>(16, 1)), std::invalid_argument);
 }
 
 TEST(SequenceAnalysisTest, RejectsBadChanges) {
