@@ -164,6 +164,16 @@ PlannerOptions WithKeptFrames(PlannerOptions options, const KeptFrames& kept) {
   if (kept.count > 0) options.keptFrames = kept.kept;
   return options;
 }
+
+PlannerOptions WithFrameBuffers(PlannerOptions options, std::shared_ptr<FrameBufferPool> buffers) {
+  options.frameBuffers = std::move(buffers);
+  return options;
+}
+
+FrameWriterOptions RecyclingInto(FrameWriterOptions options, std::shared_ptr<FrameBufferPool> buffers) {
+  options.recycle = std::move(buffers);
+  return options;
+}
 }  // namespace
 
 JobRun::ReturnsFreedMemory::~ReturnsFreedMemory() { malloc_trim(0); }
@@ -175,15 +185,18 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       frameStore_(store),
       kept_(FindKeptFrames(record, store, settings.output)),
       resolved_(ResolveForRun(record, settings.workers, settings.segmentPrices)),
-      plannerOptions_(WithKeptFrames(
-          PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes, settings.pendingFrameBytes), kept_)),
+      frameBuffers_(std::make_shared<FrameBufferPool>(kRecycledFrameBuffers)),
+      plannerOptions_(WithFrameBuffers(
+          WithKeptFrames(PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes, settings.pendingFrameBytes),
+                         kept_),
+          frameBuffers_)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
       audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
       referee_(settings.referee),
       written_(kept_.kept),
-      writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
+      writer_(CreatedDirectory(store.JobFolder(record.id)), RecyclingInto(settings.output, frameBuffers_)),
       coherence_(store.SpillFolder(record.id), settings.pendingFrameBytes),
       cost_(PixelsPerFrame(), FrameCountOf(spec_)),
       started_(std::chrono::steady_clock::now()),
@@ -363,6 +376,7 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
       // In the store already, from before the restart: the same bits, not written again.
       retracedPixels_ += frame.tracedCount;
       ++retracedFrames_;
+      frameBuffers_->Give(std::move(frame.rgb));
       continue;
     }
     unwritten_.push_back(std::move(frame));

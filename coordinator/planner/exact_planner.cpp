@@ -161,7 +161,9 @@ void ExactPlanner::WriteResult(Segment& segment, const PendingTask& task, const 
 void ExactPlanner::FinishFrame(Segment& segment) {
   FinishedFrame frame;
   frame.frame = segment.frame;
-  frame.rgb = segment.rgb;
+  // The segment goes on from these values, so the frame is a copy of them.
+  if (options_.frameBuffers) frame.rgb = options_.frameBuffers->Take(segment.rgb.size());
+  frame.rgb.assign(segment.rgb.begin(), segment.rgb.end());
   frame.traced.assign(pixelCount_, 0);
   segment.tracing.ForEach([&](uint32_t pixel) {
     // Each traced pixel has its value: its next trace lies after this frame.
