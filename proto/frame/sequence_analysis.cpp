@@ -43,15 +43,21 @@ void SummarizeEvents(SequenceAnalysis* analysis) {
 }
 
 // Calls visit(pixel) for each pixel whose byte in mask is non-zero, in order. Most of a
-// traced mask is zero where little changes: it is skipped a word at a time.
+// traced mask is zero where little changes, and all ones where a frame is traced in full:
+// both are passed over a word at a time.
 template <typename Visit>
 void ForEachMarked(const std::vector<uint8_t>& mask, Visit visit) {
+  constexpr uint64_t kAllOnes = 0x0101010101010101;
   const uint8_t* bytes = mask.data();
   const size_t count = mask.size();
   size_t pixel = 0;
   for (uint64_t word = 0; pixel + sizeof word <= count; pixel += sizeof word) {
     std::memcpy(&word, bytes + pixel, sizeof word);
     if (word == 0) continue;
+    if (word == kAllOnes) {
+      for (size_t i = pixel; i < pixel + sizeof word; ++i) visit(i);
+      continue;
+    }
     for (size_t i = pixel; i < pixel + sizeof word; ++i) {
       if (bytes[i] != 0) visit(i);
     }
