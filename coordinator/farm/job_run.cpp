@@ -170,6 +170,10 @@ PlannerOptions WithFrameBuffers(PlannerOptions options, std::shared_ptr<FrameBuf
   return options;
 }
 
+// Only exact's planner copies its finished frames out of working buffers it keeps; the
+// others hand over the frames they built, so buffers given back would only wait.
+bool RecyclesFrameBuffers(Strategy strategy) { return strategy == Strategy::kExact; }
+
 FrameWriterOptions RecyclingInto(FrameWriterOptions options, std::shared_ptr<FrameBufferPool> buffers) {
   options.recycle = std::move(buffers);
   return options;
@@ -185,7 +189,8 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       frameStore_(store),
       kept_(FindKeptFrames(record, store, settings.output)),
       resolved_(ResolveForRun(record, settings.workers, settings.segmentPrices)),
-      frameBuffers_(std::make_shared<FrameBufferPool>(kRecycledFrameBuffers)),
+      frameBuffers_(RecyclesFrameBuffers(resolved_.strategy) ? std::make_shared<FrameBufferPool>(kRecycledFrameBuffers)
+                                                             : nullptr),
       plannerOptions_(WithFrameBuffers(
           WithKeptFrames(PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes, settings.pendingFrameBytes),
                          kept_),
@@ -376,7 +381,7 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
       // In the store already, from before the restart: the same bits, not written again.
       retracedPixels_ += frame.tracedCount;
       ++retracedFrames_;
-      frameBuffers_->Give(std::move(frame.rgb));
+      if (frameBuffers_) frameBuffers_->Give(std::move(frame.rgb));
       continue;
     }
     unwritten_.push_back(std::move(frame));

@@ -209,7 +209,8 @@ class JobRun {
   FrameStore frameStore_;
   KeptFrames kept_;  // from before a restart; nothing for a new job
   ResolvedStrategy resolved_;
-  // Pixel buffers of written frames, for the planner's next finished frames.
+  // Pixel buffers of written frames, for exact's next finished frames; none for the other
+  // strategies.
   std::shared_ptr<FrameBufferPool> frameBuffers_;
   PlannerOptions plannerOptions_;
   AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
