@@ -97,7 +97,8 @@ std::optional<PendingFrames::Frame> PendingFrames::Take(int frame) {
   bool read = false;
   if (what.changes) {
     FrameChanges changes;
-    read = file && ReadAll(file.get(), changes.pixels, what.pixels) && ReadAll(file.get(), changes.rgb, what.pixels * 3);
+    read = file && ReadAll(file.get(), changes.pixels, what.pixels) &&
+           ReadAll(file.get(), changes.rgb, what.pixels * 3);
     waiting = std::move(changes);
   } else {
     Image image{what.width, what.height, {}};

@@ -250,7 +250,8 @@ TEST(ExactPlanner, FinishedFramesFillRecycledBuffers) {
   const Animation animation = RandomFlickers(rng(), options.frameCount, options.width, options.height);
   options.frameBuffers = std::make_shared<FrameBufferPool>(32);
   for (int i = 0; i < 12; ++i) {
-    options.frameBuffers->Give(std::vector<float>(PixelsPerFrame(options) * 3 + 5, std::numeric_limits<float>::quiet_NaN()));
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    options.frameBuffers->Give(std::vector<float>(PixelsPerFrame(options) * 3 + 5, nan));
   }
   const RenderRun run = Render(options, animation);
   ExpectBruteForceValues(run, options, animation);

@@ -72,8 +72,9 @@ TEST(UntracedPixels, HoldThePreviousFramesBitsInEveryStrategy) {
     int binWidth;
     float tolerance;
   };
-  for (const Case& c : {Case{Strategy::kBrute, 2, 0}, Case{Strategy::kSearch, 6, 0}, Case{Strategy::kSearch, 9, 0.15f},
-                        Case{Strategy::kGuarded, 7, 0}, Case{Strategy::kGuarded, 5, 0.15f}, Case{Strategy::kExact, 8, 0},
+  for (const Case& c : {Case{Strategy::kBrute, 2, 0}, Case{Strategy::kSearch, 6, 0},
+                        Case{Strategy::kSearch, 9, 0.15f}, Case{Strategy::kGuarded, 7, 0},
+                        Case{Strategy::kGuarded, 5, 0.15f}, Case{Strategy::kExact, 8, 0},
                         Case{Strategy::kExact, 1, 0}}) {
     PlannerOptions options = Options(8, 6, 23, c.binWidth, /*coarseTile=*/4);
     options.tolerance = c.tolerance;
