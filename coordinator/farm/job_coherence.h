@@ -32,10 +32,11 @@ class JobCoherence {
   // oldest first: none while `frame` is ahead of its turn, several when it was the one
   // the waiting frames needed. Throws FrameIoError when a waiting frame cannot be spilled
   // or read back.
-  // A frame taken in its turn is copied only into the analysis (as the previous frame);
-  // one ahead of it is copied to wait.
-  std::vector<ChangeMask> Add(int frame, const Image& image);
-
+  // traced, when given (one byte per pixel), promises that every pixel where it is 0 is
+  // bitwise the previous frame's (as every planner copies): only the traced pixels are
+  // then compared, and only they wait with a frame ahead of its turn. Without it the
+  // whole frame is compared, and copied to wait.
+  std::vector<ChangeMask> Add(int frame, const Image& image, const std::vector<uint8_t>* traced = nullptr);
   const SequenceAnalyzer& analysis() const { return analyzer_; }
   // The frame whose turn it is: every frame before it is analysed.
   int NextFrame() const { return nextFrame_; }
@@ -43,7 +44,10 @@ class JobCoherence {
   uint64_t FramesWaitedOnDisk() const { return waiting_.TotalSpilled(); }
 
  private:
-  ChangeMask TakeInOrder(const Image& frame);
+  // The sequence's first frame has no frame before it: it is taken whole.
+  bool ByChanges(int frame, const std::vector<uint8_t>* traced) const { return traced && frame > 0; }
+  ChangeMask TakeInOrder(const Image& frame, const std::vector<uint8_t>* traced = nullptr);
+  ChangeMask TakeInOrder(const FrameChanges& frame);
 
   SequenceAnalyzer analyzer_;
   int nextFrame_ = 0;

@@ -175,6 +175,20 @@ PlannerOptions WithKeptFrames(PlannerOptions options, const KeptFrames& kept) {
   if (kept.count > 0) options.keptFrames = kept.kept;
   return options;
 }
+
+PlannerOptions WithFrameBuffers(PlannerOptions options, std::shared_ptr<FrameBufferPool> buffers) {
+  options.frameBuffers = std::move(buffers);
+  return options;
+}
+
+// Only exact's planner copies its finished frames out of working buffers it keeps; the
+// others hand over the frames they built, so buffers given back would only wait.
+bool RecyclesFrameBuffers(Strategy strategy) { return strategy == Strategy::kExact; }
+
+FrameWriterOptions RecyclingInto(FrameWriterOptions options, std::shared_ptr<FrameBufferPool> buffers) {
+  options.recycle = std::move(buffers);
+  return options;
+}
 }  // namespace
 
 JobRun::ReturnsFreedMemory::~ReturnsFreedMemory() { malloc_trim(0); }
@@ -186,15 +200,19 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       frameStore_(store),
       kept_(FindKeptFrames(record, store, settings.output)),
       resolved_(ResolveForRun(record, settings.workers, settings.segmentPrices)),
-      plannerOptions_(WithKeptFrames(
-          PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes, settings.pendingFrameBytes), kept_)),
+      frameBuffers_(RecyclesFrameBuffers(resolved_.strategy) ? std::make_shared<FrameBufferPool>(kRecycledFrameBuffers)
+                                                             : nullptr),
+      plannerOptions_(WithFrameBuffers(
+          WithKeptFrames(PlannerOptionsFor(record.spec, resolved_, settings.jobMemoryBytes, settings.pendingFrameBytes),
+                         kept_),
+          frameBuffers_)),
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
       audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
       referee_(settings.referee),
       written_(kept_.kept),
-      writer_(CreatedDirectory(store.JobFolder(record.id)), settings.output),
+      writer_(CreatedDirectory(store.JobFolder(record.id)), RecyclingInto(settings.output, frameBuffers_)),
       coherence_(store.SpillFolder(record.id), settings.pendingFrameBytes),
       cost_(PixelsPerFrame(), FrameCountOf(spec_), resolved_.strategy == Strategy::kExact ? resolved_.binWidth : 0),
       started_(std::chrono::steady_clock::now()),
@@ -375,6 +393,7 @@ int JobRun::CollectFinishedFrames(JobStore& store) {
       // In the store already, from before the restart: the same bits, not written again.
       retracedPixels_ += frame.tracedCount;
       ++retracedFrames_;
+      if (frameBuffers_) frameBuffers_->Give(std::move(frame.rgb));
       continue;
     }
     unwritten_.push_back(std::move(frame));
@@ -449,8 +468,11 @@ void JobRun::FinishFrame(FinishedFrame frame) {
   Image image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)};
   const bool probation = probationFrames_.erase(frame.frame) > 0;
   verification_.OnFrameFinished(frame.frame, image.rgb, frame.traced, probation);
+  // Every planner gives a pixel it does not trace the previous frame's bits: only the
+  // traced pixels can have changed.
+  std::vector<JobCoherence::ChangeMask> changeMasks = coherence_.Add(frame.frame, image, &frame.traced);
   WriteMask(MaskKind::kTraced, absolute, std::move(frame.traced));
-  for (JobCoherence::ChangeMask& mask : coherence_.Add(frame.frame, image)) {
+  for (JobCoherence::ChangeMask& mask : changeMasks) {
     WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
   }
   writer_.Write(absolute, std::move(image));

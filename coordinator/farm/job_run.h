@@ -166,6 +166,9 @@ class JobRun {
   static_assert(kPlannerTaskIdBits <= 62, "planner task ids must not reach the farm's bits");
   // How long one CollectFinishedFrames call may spend on frames.
   static constexpr std::chrono::milliseconds kFinishingTurn{20};
+  // Buffers of written frames kept for the next ones: a frame is written for each one
+  // finished, so two cover the writer's threads handing them back at once.
+  static constexpr size_t kRecycledFrameBuffers = 2;
 
   bool OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
                        bool onProbation);
@@ -213,6 +216,9 @@ class JobRun {
   FrameStore frameStore_;
   KeptFrames kept_;  // from before a restart; nothing for a new job
   ResolvedStrategy resolved_;
+  // Pixel buffers of written frames, for exact's next finished frames; none for the other
+  // strategies.
+  std::shared_ptr<FrameBufferPool> frameBuffers_;
   PlannerOptions plannerOptions_;
   AutoGuardedPlanner* autoPlanner_ = nullptr;  // planner_, when auto surveys the bin width
   std::unique_ptr<Planner> planner_;

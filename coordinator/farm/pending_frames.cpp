@@ -9,7 +9,22 @@
 namespace tcfarm {
 namespace {
 
-size_t BytesOf(const Image& image) { return image.rgb.size() * sizeof(float); }
+size_t BytesOf(const PendingFrames::Frame& waiting) {
+  if (const Image* image = std::get_if<Image>(&waiting)) return image->rgb.size() * sizeof(float);
+  const FrameChanges& changes = std::get<FrameChanges>(waiting);
+  return changes.pixels.size() * sizeof(uint32_t) + changes.rgb.size() * sizeof(float);
+}
+
+template <typename T>
+bool WriteAll(std::FILE* file, const std::vector<T>& values) {
+  return std::fwrite(values.data(), sizeof(T), values.size(), file) == values.size();
+}
+
+template <typename T>
+bool ReadAll(std::FILE* file, std::vector<T>& values, size_t count) {
+  values.resize(count);
+  return std::fread(values.data(), sizeof(T), count, file) == count;
+}
 
 struct FileCloser {
   void operator()(std::FILE* file) const { std::fclose(file); }
@@ -32,47 +47,70 @@ std::filesystem::path PendingFrames::SpillPath(int frame) const {
   return directory_ / (std::to_string(frame) + ".rgb32f");
 }
 
-void PendingFrames::Put(int frame, Image image) {
-  if (heldBytes_ + BytesOf(image) <= budget_) {
-    heldBytes_ += BytesOf(image);
-    held_[frame] = std::move(image);
+void PendingFrames::Put(int frame, Frame waiting) {
+  const size_t bytes = BytesOf(waiting);
+  if (heldBytes_ + bytes <= budget_) {
+    heldBytes_ += bytes;
+    held_[frame] = std::move(waiting);
     return;
   }
+  Spill(frame, waiting);
+}
+
+void PendingFrames::Spill(int frame, const Frame& waiting) {
   std::error_code error;
   std::filesystem::create_directories(directory_, error);
   const std::filesystem::path path = SpillPath(frame);
   File file(std::fopen(path.c_str(), "wb"));
-  if (!file || std::fwrite(image.rgb.data(), sizeof(float), image.rgb.size(), file.get()) != image.rgb.size() ||
-      std::fflush(file.get()) != 0) {
+  Spilled spilled;
+  bool written = false;
+  if (const Image* image = std::get_if<Image>(&waiting)) {
+    spilled = {false, image->width, image->height, 0};
+    written = file && WriteAll(file.get(), image->rgb);
+  } else {
+    const FrameChanges& changes = std::get<FrameChanges>(waiting);
+    spilled = {true, 0, 0, changes.pixels.size()};
+    written = file && WriteAll(file.get(), changes.pixels) && WriteAll(file.get(), changes.rgb);
+  }
+  if (!written || std::fflush(file.get()) != 0) {
     std::filesystem::remove(path, error);
     throw FrameIoError("cannot spill frame " + std::to_string(frame) + " to " + path.string() +
                        ": disk full or not writable");
   }
-  spilled_[frame] = {image.width, image.height};
+  spilled_[frame] = spilled;
   ++totalSpilled_;
 }
 
-std::optional<Image> PendingFrames::Take(int frame) {
+std::optional<PendingFrames::Frame> PendingFrames::Take(int frame) {
   if (auto held = held_.find(frame); held != held_.end()) {
-    Image image = std::move(held->second);
+    Frame waiting = std::move(held->second);
     held_.erase(held);
-    heldBytes_ -= BytesOf(image);
-    return image;
+    heldBytes_ -= BytesOf(waiting);
+    return waiting;
   }
   auto spilled = spilled_.find(frame);
   if (spilled == spilled_.end()) return std::nullopt;
-  Image image{spilled->second.width, spilled->second.height, {}};
-  image.rgb.resize(image.PixelCount() * 3);
+  const Spilled& what = spilled->second;
   const std::filesystem::path path = SpillPath(frame);
   File file(std::fopen(path.c_str(), "rb"));
-  if (!file || std::fread(image.rgb.data(), sizeof(float), image.rgb.size(), file.get()) != image.rgb.size()) {
-    throw FrameIoError("cannot read back frame " + std::to_string(frame) + " from " + path.string());
+  Frame waiting;
+  bool read = false;
+  if (what.changes) {
+    FrameChanges changes;
+    read = file && ReadAll(file.get(), changes.pixels, what.pixels) &&
+           ReadAll(file.get(), changes.rgb, what.pixels * 3);
+    waiting = std::move(changes);
+  } else {
+    Image image{what.width, what.height, {}};
+    read = file && ReadAll(file.get(), image.rgb, image.PixelCount() * 3);
+    waiting = std::move(image);
   }
+  if (!read) throw FrameIoError("cannot read back frame " + std::to_string(frame) + " from " + path.string());
   file.reset();
   spilled_.erase(spilled);
   std::error_code ignored;
   std::filesystem::remove(path, ignored);
-  return image;
+  return waiting;
 }
 
 }  // namespace tcfarm

@@ -1,6 +1,7 @@
 #include "coordinator/planner/exact_planner.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -113,13 +114,22 @@ void ExactPlanner::CompleteFrame(size_t index) {
 PixelSet ExactPlanner::PixelsToTraceAt(const Segment& segment) const {
   PixelSetBuilder pixels;
   const int32_t* nextTrace = segment.nextTrace.data();
-  for (uint32_t pixel = 0; pixel < pixelCount_; ++pixel) {
-    if (nextTrace[pixel] > segment.frame) continue;
-    if (nextTrace[pixel] < segment.frame) {
-      Check(false, PixelName(pixel, segment.frame) + " was due at frame " + std::to_string(nextTrace[pixel]) +
-                       " and has no value");
+  // Most pixels are due later: a block's earliest due frame (a loop the compiler
+  // vectorizes) rules out the whole block at once.
+  constexpr uint32_t kBlock = 64;
+  for (uint32_t begin = 0; begin < pixelCount_; begin += kBlock) {
+    const uint32_t end = std::min(pixelCount_, begin + kBlock);
+    int32_t earliest = INT32_MAX;
+    for (uint32_t pixel = begin; pixel < end; ++pixel) earliest = std::min(earliest, nextTrace[pixel]);
+    if (earliest > segment.frame) continue;
+    for (uint32_t pixel = begin; pixel < end; ++pixel) {
+      if (nextTrace[pixel] > segment.frame) continue;
+      if (nextTrace[pixel] < segment.frame) {
+        Check(false, PixelName(pixel, segment.frame) + " was due at frame " + std::to_string(nextTrace[pixel]) +
+                         " and has no value");
+      }
+      pixels.Add(pixel);
     }
-    pixels.Add(pixel);
   }
   return pixels.Build();
 }
@@ -145,31 +155,42 @@ void ExactPlanner::WriteResult(Segment& segment, const PendingTask& task, const 
   }
   float* values = segment.rgb.data();
   int32_t* nextTrace = segment.nextTrace.data();
-  size_t i = 0;
-  task.pixels.ForEach([&](uint32_t pixel) {
-    if (nextTrace[pixel] != task.frame) {
-      Check(false, PixelName(pixel, task.frame) + " is traced but was due at frame " +
-                       std::to_string(nextTrace[pixel]));
+  size_t i = 0;  // the result's index of the span's first pixel
+  for (const Span& span : task.pixels.spans()) {
+    for (uint32_t pixel = span.begin; pixel != span.end; ++pixel) {
+      if (nextTrace[pixel] != task.frame) {
+        Check(false, PixelName(pixel, task.frame) + " is traced but was due at frame " +
+                         std::to_string(nextTrace[pixel]));
+      }
     }
-    std::memcpy(values + size_t{pixel} * 3, rgb + i * 3, 3 * sizeof(float));
-    // At the segment's last frame (window 0) there is nothing left to be valid for.
-    nextTrace[pixel] = task.window > 0 ? horizons[i] : task.frame + 1;
-    ++i;
-  });
+    // A span's values lie side by side in the result as in the frame.
+    std::memcpy(values + size_t{span.begin} * 3, rgb + i * 3, size_t{span.size()} * 3 * sizeof(float));
+    if (task.window > 0) {
+      std::memcpy(nextTrace + span.begin, horizons + i, size_t{span.size()} * sizeof(int32_t));
+    } else {
+      // At the segment's last frame there is nothing left to be valid for.
+      std::fill(nextTrace + span.begin, nextTrace + span.end, task.frame + 1);
+    }
+    i += span.size();
+  }
 }
 
 void ExactPlanner::FinishFrame(Segment& segment) {
   FinishedFrame frame;
   frame.frame = segment.frame;
-  frame.rgb = segment.rgb;
+  // The segment goes on from these values, so the frame is a copy of them.
+  if (options_.frameBuffers) frame.rgb = options_.frameBuffers->Take(segment.rgb.size());
+  frame.rgb.assign(segment.rgb.begin(), segment.rgb.end());
   frame.traced.assign(pixelCount_, 0);
-  segment.tracing.ForEach([&](uint32_t pixel) {
-    // Each traced pixel has its value: its next trace lies after this frame.
-    if (segment.nextTrace[pixel] <= segment.frame) {
-      Check(false, PixelName(pixel, segment.frame) + " finishes without its traced value");
+  for (const Span& span : segment.tracing.spans()) {
+    for (uint32_t pixel = span.begin; pixel != span.end; ++pixel) {
+      // Each traced pixel has its value: its next trace lies after this frame.
+      if (segment.nextTrace[pixel] <= segment.frame) {
+        Check(false, PixelName(pixel, segment.frame) + " finishes without its traced value");
+      }
     }
-    frame.traced[pixel] = 1;
-  });
+    std::fill(frame.traced.begin() + span.begin, frame.traced.begin() + span.end, uint8_t{1});
+  }
   frame.tracedCount = segment.tracing.size();
   tracedPixels_ += frame.tracedCount;
   copiedPixels_ += pixelCount_ - frame.tracedCount;

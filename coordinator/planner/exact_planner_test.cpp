@@ -241,6 +241,23 @@ TEST(ExactPlanner, RandomizedIsBruteForceAndTracesOnlyChanges) {
   }
 }
 
+// Finished frames are copied into buffers the pool hands out (written frames' buffers,
+// here larger and full of NaN), and come out brute force's all the same.
+TEST(ExactPlanner, FinishedFramesFillRecycledBuffers) {
+  std::mt19937 rng(11);
+  PlannerOptions options = Options(7, 5, 19, 6);
+  options.maxLiveBins = 2;
+  const Animation animation = RandomFlickers(rng(), options.frameCount, options.width, options.height);
+  options.frameBuffers = std::make_shared<FrameBufferPool>(32);
+  for (int i = 0; i < 12; ++i) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    options.frameBuffers->Give(std::vector<float>(PixelsPerFrame(options) * 3 + 5, nan));
+  }
+  const RenderRun run = Render(options, animation);
+  ExpectBruteForceValues(run, options, animation);
+  EXPECT_EQ(options.frameBuffers->Held(), 0u);  // 19 frames took the 12 buffers
+}
+
 // A resumed job: each segment starts again at its first frame not kept, with a full
 // trace there; kept frames before it are never traced again, and every frame produced is
 // brute force's, as in an uninterrupted run.

@@ -16,6 +16,7 @@
 #include <utility>
 #include <vector>
 
+#include "proto/frame/frame_buffer_pool.h"
 #include "proto/pixel_set/pixel_set.h"
 #include "coordinator/planner/strategy.h"
 
@@ -52,6 +53,9 @@ struct PlannerOptions {
   // caller to drop. An exact segment starts at its first frame not kept (a full trace
   // there), since exact's output does not depend on where segments start.
   std::vector<bool> keptFrames;
+  // exact: where a finished frame's pixel buffer is taken from (buffers of frames already
+  // written, FrameWriterOptions::recycle); none: each is allocated anew.
+  std::shared_ptr<FrameBufferPool> frameBuffers = nullptr;
 };
 
 // Planner task ids fit in this many bits (a planner may use the top one of them, as

@@ -152,6 +152,25 @@ TEST(FrameWriterTest, WritesEveryQueuedFrame) {
   EXPECT_EQ(FrameFileStem(42), "frame_0042");
 }
 
+// A written frame's buffer goes to the pool, as many as it keeps, and the file is the
+// frame as it was given.
+TEST(FrameWriterTest, HandsWrittenFramesBuffersBack) {
+  auto folder = FreshFolder("recycle");
+  auto pool = std::make_shared<FrameBufferPool>(2);
+  {
+    FrameWriterOptions options;
+    options.recycle = pool;
+    FrameWriter writer(folder, options);
+    for (int frame = 0; frame < 3; ++frame) writer.Write(frame, Gradient(8, 8));
+    writer.WriteMask("mask.png", 8, 8, std::vector<uint8_t>(64, 1));  // masks are not frames' buffers
+    writer.Finish();
+  }
+  EXPECT_EQ(pool->Held(), 2u);
+  EXPECT_GE(pool->Take(8 * 8 * 3).capacity(), 8u * 8 * 3);
+  EXPECT_TRUE(pool->Take(8 * 8 * 3 + 1).empty());  // none large enough
+  EXPECT_EQ(ReadImage(folder / (FrameFileStem(2) + ".exr")).rgb, Gradient(8, 8).rgb);
+}
+
 TEST(FrameWriterTest, WritesMasksAsGreyscalePngs) {
   auto folder = FreshFolder("masks");
   std::vector<uint8_t> mask(6 * 4, 0);

@@ -144,6 +144,7 @@ void FrameWriter::Run() {
     } catch (...) {
       error = std::current_exception();
     }
+    if (options_.recycle && item.maskName.empty()) options_.recycle->Give(std::move(item.image.rgb));
     lock.lock();
     if (error) {
       try {

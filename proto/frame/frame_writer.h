@@ -12,6 +12,7 @@
 #include <deque>
 #include <exception>
 #include <filesystem>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -19,6 +20,7 @@
 #include <utility>
 #include <vector>
 
+#include "proto/frame/frame_buffer_pool.h"
 #include "proto/frame/frame_io.h"
 
 namespace tcfarm {
@@ -33,6 +35,9 @@ struct FrameWriterOptions {
   // Frames queued before Write blocks: enough to ride out slow writes.
   size_t maxQueuedFrames = 4;
   ViewTransform view = {};  // how the PNG preview shows the linear values
+  // Where a written frame's pixel buffer goes, for the next finished frame to be copied
+  // into; none: it is freed.
+  std::shared_ptr<FrameBufferPool> recycle = nullptr;
 };
 
 class FrameWriter {

@@ -42,6 +42,31 @@ void SummarizeEvents(SequenceAnalysis* analysis) {
   analysis->eventDurationStdDev = std::sqrt(squares / double(count));
 }
 
+// Calls visit(pixel) for each pixel whose byte in mask is non-zero, in order. Most of a
+// traced mask is zero where little changes, and all ones where a frame is traced in full:
+// both are passed over a word at a time.
+template <typename Visit>
+void ForEachMarked(const std::vector<uint8_t>& mask, Visit visit) {
+  constexpr uint64_t kAllOnes = 0x0101010101010101;
+  const uint8_t* bytes = mask.data();
+  const size_t count = mask.size();
+  size_t pixel = 0;
+  for (uint64_t word = 0; pixel + sizeof word <= count; pixel += sizeof word) {
+    std::memcpy(&word, bytes + pixel, sizeof word);
+    if (word == 0) continue;
+    if (word == kAllOnes) {
+      for (size_t i = pixel; i < pixel + sizeof word; ++i) visit(i);
+      continue;
+    }
+    for (size_t i = pixel; i < pixel + sizeof word; ++i) {
+      if (bytes[i] != 0) visit(i);
+    }
+  }
+  for (; pixel < count; ++pixel) {
+    if (bytes[pixel] != 0) visit(pixel);
+  }
+}
+
 void Predict(SequenceAnalysis* analysis) {
   int widest = std::min(analysis->frames, kMaxPredictedBinWidth);
   for (int n = 2; n <= widest; ++n) {
@@ -50,7 +75,29 @@ void Predict(SequenceAnalysis* analysis) {
   }
 }
 
+void CheckMask(const Image& frame, const std::vector<uint8_t>& mayChange) {
+  if (mayChange.size() != frame.PixelCount() || frame.rgb.size() != frame.PixelCount() * 3) {
+    throw std::invalid_argument("a mask of " + std::to_string(mayChange.size()) + " pixels for a frame of " +
+                                SizeText(frame.width, frame.height));
+  }
+}
+
 }  // namespace
+
+FrameChanges FrameChanges::Gather(const Image& frame, const std::vector<uint8_t>& mayChange) {
+  CheckMask(frame, mayChange);
+  size_t marked = 0;
+  ForEachMarked(mayChange, [&](size_t) { ++marked; });
+  FrameChanges changes;
+  changes.pixels.reserve(marked);
+  changes.rgb.reserve(3 * marked);
+  const float* rgb = frame.rgb.data();
+  ForEachMarked(mayChange, [&](size_t pixel) {
+    changes.pixels.push_back(static_cast<uint32_t>(pixel));
+    for (size_t c = 3 * pixel; c < 3 * pixel + 3; ++c) changes.rgb.push_back(rgb[c]);
+  });
+  return changes;
+}
 
 double SequenceAnalysis::ChangedPixelShare() const {
   if (changeMask.empty()) return 0;
@@ -92,39 +139,64 @@ void SequenceAnalyzer::CheckShape(const Image& frame) const {
   }
 }
 
+void SequenceAnalyzer::CheckChanges(const FrameChanges& changes) const {
+  if (frames_ == 0) throw std::invalid_argument("a sequence's first frame must be given whole, not by its changes");
+  if (changes.rgb.size() != changes.pixels.size() * 3) {
+    throw std::invalid_argument("frame changes of " + std::to_string(changes.pixels.size()) + " pixels hold " +
+                                std::to_string(changes.rgb.size()) + " floats; expected 3 per pixel");
+  }
+  const size_t pixels = eventStart_.size();
+  for (size_t i = 0; i < changes.pixels.size(); ++i) {
+    if (changes.pixels[i] >= pixels || (i > 0 && changes.pixels[i] <= changes.pixels[i - 1])) {
+      throw std::invalid_argument("frame changes list pixel " + std::to_string(changes.pixels[i]) + " at " +
+                                  std::to_string(i) + "; expected ascending pixels below " + std::to_string(pixels));
+    }
+  }
+}
+
 void SequenceAnalyzer::Start(const Image& frame) {
   width_ = frame.width;
   height_ = frame.height;
   first_ = previous_ = frame;
-  runLength_.assign(frame.PixelCount(), 1);
+  eventStart_.assign(frame.PixelCount(), 0);
+  sameAsFirst_.assign(frame.PixelCount(), 1);
+  sameAsFirstCount_ = frame.PixelCount();
   changed_.assign(frame.PixelCount(), 0);
   closedEventsByDuration_.assign(2, 0);
 }
 
-SequenceAnalyzer::Equal SequenceAnalyzer::AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged) {
-  // One pass over the frame: it is compared with the previous frame and the first, and
-  // the previous frame becomes this one pixel by pixel, only where it changed.
-  Equal equal;
-  uint8_t* mask = unchanged ? unchanged->data() : nullptr;
-  float* previous = previous_.rgb.data();
-  const float* current = frame.rgb.data();
-  const float* first = first_.rgb.data();
-  for (size_t pixel = 0; pixel < runLength_.size(); ++pixel) {
-    const size_t at = 3 * pixel;
-    equal.toFirst += SameBits(first + at, current + at);
-    const bool same = SameBits(previous + at, current + at);
-    if (mask) mask[pixel] = same;
-    if (same) {
-      ++runLength_[pixel];
-      ++equal.toPrevious;
-      continue;
-    }
-    std::memcpy(previous + at, current + at, 3 * sizeof(float));
-    ++closedEventsByDuration_[runLength_[pixel]];
-    runLength_[pixel] = 1;
-    changed_[pixel] = 1;
-  }
-  return equal;
+void SequenceAnalyzer::BeginFrame(std::vector<uint8_t>* unchanged) {
+  if (unchanged) unchanged->assign(eventStart_.size(), 1);
+  ++frames_;
+  // A run can now last up to frames_ frames: index frames_ must exist.
+  closedEventsByDuration_.resize(frames_ + 1, 0);
+}
+
+bool SequenceAnalyzer::AdvancePixel(size_t pixel, const float* value, uint8_t* mask) {
+  const size_t at = 3 * pixel;
+  float* previous = previous_.rgb.data() + at;
+  if (SameBits(previous, value)) return false;
+  // The pixel's event ran from its start up to the frame before this one.
+  const uint32_t frame = static_cast<uint32_t>(frames_ - 1);
+  ++closedEventsByDuration_[frame - eventStart_[pixel]];
+  eventStart_[pixel] = frame;
+  changed_[pixel] = 1;
+  std::memcpy(previous, value, 3 * sizeof(float));
+  const uint8_t sameAsFirst = SameBits(first_.rgb.data() + at, value);
+  sameAsFirstCount_ = sameAsFirstCount_ - sameAsFirst_[pixel] + sameAsFirst;
+  sameAsFirst_[pixel] = sameAsFirst;
+  if (mask) mask[pixel] = 0;
+  return true;
+}
+
+void SequenceAnalyzer::EndFrame(size_t changedPixels) {
+  const double pixels = double(eventStart_.size());
+  const double frameToFrame = double(eventStart_.size() - changedPixels) / pixels;
+  const double longTerm = double(sameAsFirstCount_) / pixels;
+  frameToFrame_.Add(frameToFrame);
+  longTerm_.Add(longTerm);
+  frameToFrameByFrame_.push_back(frameToFrame);
+  longTermByFrame_.push_back(longTerm);
 }
 
 void SequenceAnalyzer::Add(const Image& frame, std::vector<uint8_t>* unchanged) {
@@ -135,24 +207,43 @@ void SequenceAnalyzer::Add(const Image& frame, std::vector<uint8_t>* unchanged) 
     frames_ = 1;
     return;
   }
-  if (unchanged) unchanged->resize(frame.PixelCount());  // AdvanceRuns sets every pixel
-  ++frames_;
-  // A run can now last up to frames_ frames: index frames_ must exist.
-  closedEventsByDuration_.resize(frames_ + 1, 0);
-  const Equal equal = AdvanceRuns(frame, unchanged);
-  const double pixels = double(runLength_.size());
-  const double frameToFrame = double(equal.toPrevious) / pixels, longTerm = double(equal.toFirst) / pixels;
-  frameToFrame_.Add(frameToFrame);
-  longTerm_.Add(longTerm);
-  frameToFrameByFrame_.push_back(frameToFrame);
-  longTermByFrame_.push_back(longTerm);
+  BeginFrame(unchanged);
+  uint8_t* mask = unchanged ? unchanged->data() : nullptr;
+  const float* values = frame.rgb.data();
+  size_t changed = 0;
+  for (size_t pixel = 0; pixel < eventStart_.size(); ++pixel) changed += AdvancePixel(pixel, values + 3 * pixel, mask);
+  EndFrame(changed);
+}
+
+void SequenceAnalyzer::AddTraced(const Image& frame, const std::vector<uint8_t>& mayChange,
+                                 std::vector<uint8_t>* unchanged) {
+  CheckShape(frame);
+  CheckMask(frame, mayChange);
+  if (frames_ == 0) return Add(frame, unchanged);
+  BeginFrame(unchanged);
+  uint8_t* mask = unchanged ? unchanged->data() : nullptr;
+  const float* values = frame.rgb.data();
+  size_t changed = 0;
+  ForEachMarked(mayChange, [&](size_t pixel) { changed += AdvancePixel(pixel, values + 3 * pixel, mask); });
+  EndFrame(changed);
+}
+
+void SequenceAnalyzer::AddChanges(const FrameChanges& changes, std::vector<uint8_t>* unchanged) {
+  CheckChanges(changes);
+  BeginFrame(unchanged);
+  uint8_t* mask = unchanged ? unchanged->data() : nullptr;
+  size_t changed = 0;
+  for (size_t i = 0; i < changes.pixels.size(); ++i) {
+    changed += AdvancePixel(changes.pixels[i], changes.rgb.data() + 3 * i, mask);
+  }
+  EndFrame(changed);
 }
 
 std::vector<uint64_t> SequenceAnalyzer::EventsIncludingOpenRuns() const {
   // Every pixel's current run ends with the last frame seen: count it as a finished event.
   std::vector<uint64_t> events = closedEventsByDuration_;
   events.resize(frames_ + 1, 0);
-  for (uint32_t run : runLength_) ++events[run];
+  for (uint32_t start : eventStart_) ++events[static_cast<uint32_t>(frames_) - start];
   return events;
 }
 

@@ -40,8 +40,20 @@ struct SequenceAnalysis {
   nlohmann::json ToJson() const;
 };
 
+// A frame told by the pixels that may differ from the frame before it; every other pixel
+// is, bit for bit, the previous frame's. The farm's planners give a pixel they do not
+// trace at a frame the value it had at the frame before, so a frame's traced pixels are
+// all that can change, and the analysis need not look at the rest.
+struct FrameChanges {
+  std::vector<uint32_t> pixels;  // ascending pixel indices
+  std::vector<float> rgb;        // 3 per pixel, in pixels' order
+  // The pixels of `frame` where mayChange (one byte per pixel) is non-zero.
+  static FrameChanges Gather(const Image& frame, const std::vector<uint8_t>& mayChange);
+};
+
 // Feed frames in order, then Finish. Memory is O(pixels): the first and the previous frame
-// and one run length per pixel, never O(frames * pixels), so sequences of any length fit.
+// and per pixel the frame its current event began at, never O(frames * pixels), so
+// sequences of any length fit.
 class SequenceAnalyzer {
  public:
   // Throws std::invalid_argument for an empty or malformed image, or one whose size differs
@@ -49,6 +61,16 @@ class SequenceAnalyzer {
   // unchanged, when given, is set to the frame's change mask: 1 where the pixel is bitwise
   // the previous frame's (every pixel of the first frame), 0 elsewhere.
   void Add(const Image& frame, std::vector<uint8_t>* unchanged = nullptr);
+  // The next frame by its changes: every figure and mask comes out as Add of the whole
+  // frame would give them, at a cost that grows with the pixels listed, not the frame.
+  // Throws std::invalid_argument before the first frame (it is taken whole), and for
+  // pixels out of range or not ascending, or other than 3 values per pixel; nothing
+  // changes then.
+  void AddChanges(const FrameChanges& changes, std::vector<uint8_t>* unchanged = nullptr);
+  // The same for a whole frame whose pixels may differ from the previous frame's only
+  // where mayChange (one byte per pixel) is non-zero; the first frame is taken whole.
+  // Throws std::invalid_argument as Add does, and for a mask of another size.
+  void AddTraced(const Image& frame, const std::vector<uint8_t>& mayChange, std::vector<uint8_t>* unchanged = nullptr);
   int FrameCount() const { return frames_; }
   // Running coherence figures, cheap to read while frames arrive.
   const RunningStats& frameToFrame() const { return frameToFrame_; }
@@ -59,18 +81,25 @@ class SequenceAnalyzer {
  private:
   void CheckShape(const Image& frame) const;
   void Start(const Image& frame);
-  // Pixels bitwise equal (the farm copies bits, so an event ends at any change of bits).
-  struct Equal {
-    size_t toPrevious = 0, toFirst = 0;
-  };
-  // Compares the frame with the previous and the first; marks the pixels equal to the
-  // previous in `unchanged` when given; the previous frame becomes this one.
-  Equal AdvanceRuns(const Image& frame, std::vector<uint8_t>* unchanged);
+  void CheckChanges(const FrameChanges& changes) const;
+  // A new frame begins: its change mask starts all unchanged.
+  void BeginFrame(std::vector<uint8_t>* unchanged);
+  // Pixel `pixel` of the new frame has `value`; returns whether that ends its event (the
+  // bits differ from the previous frame's), which also clears its mark in `mask`.
+  bool AdvancePixel(size_t pixel, const float* value, uint8_t* mask);
+  // The new frame's figures, from how many of its pixels changed.
+  void EndFrame(size_t changedPixels);
   std::vector<uint64_t> EventsIncludingOpenRuns() const;
 
   int frames_ = 0, width_ = 0, height_ = 0;
   Image first_, previous_;
-  std::vector<uint32_t> runLength_;  // per pixel: frames since its current event began
+  // Per pixel: the frame its current event began at. Pixels that do not change cost
+  // nothing: their runs grow with the frame count.
+  std::vector<uint32_t> eventStart_;
+  // Per pixel: whether it is bitwise the first frame's, and how many are. A pixel that
+  // keeps its value keeps this too, so it changes only where an event ends.
+  std::vector<uint8_t> sameAsFirst_;
+  size_t sameAsFirstCount_ = 0;
   std::vector<uint8_t> changed_;
   std::vector<uint64_t> closedEventsByDuration_;
   RunningStats frameToFrame_, longTerm_;

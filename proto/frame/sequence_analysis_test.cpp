@@ -234,6 +234,77 @@ TEST(SequenceAnalysisTest, IncrementalEqualsNaiveOnARandomSequence) {
   EXPECT_GE(durations, 5);
 }
 
+// A frame traced only where it may change, as the farm's planners do: every changed pixel
+// is traced, and so are some that come out with their old bits (ties) or go back to the
+// first frame's value. Every fifth frame is traced in full, as a bin's end or a segment's
+// start is.
+TEST(SequenceAnalysisTest, ChangesGiveWhatWholeFramesGive) {
+  std::mt19937 random(7);
+  std::uniform_int_distribution<int> level(0, 1);
+  std::uniform_real_distribution<double> chance(0, 1);
+  SequenceAnalyzer whole, byChanges, byTraced;
+  Image frame = Flat(11, 5, 0.0f);
+  for (float& v : frame.rgb) v = float(level(random));
+  const Image first = frame;
+  std::vector<uint8_t> wholeMask, changesMask, tracedMask;
+  whole.Add(frame, &wholeMask);
+  byChanges.Add(frame, &changesMask);
+  byTraced.AddTraced(frame, std::vector<uint8_t>(frame.PixelCount(), 0), &tracedMask);  // the first is whole
+  EXPECT_EQ(wholeMask, changesMask);
+  EXPECT_EQ(wholeMask, tracedMask);
+  size_t ties = 0, backToFirst = 0;
+  for (int f = 1; f < 31; ++f) {
+    std::vector<uint8_t> traced(frame.PixelCount(), 0);
+    for (size_t p = 0; p < frame.PixelCount(); ++p) {
+      if (f % 5 != 0 && chance(random) >= 0.4) continue;  // copied: keeps its bits
+      traced[p] = 1;
+      const float before[3] = {frame.rgb[3 * p], frame.rgb[3 * p + 1], frame.rgb[3 * p + 2]};
+      frame.rgb[3 * p + level(random)] = float(level(random));
+      ties += std::memcmp(before, &frame.rgb[3 * p], sizeof before) == 0;
+      backToFirst += std::memcmp(&first.rgb[3 * p], &frame.rgb[3 * p], sizeof before) == 0;
+    }
+    whole.Add(frame, &wholeMask);
+    byChanges.AddChanges(FrameChanges::Gather(frame, traced), &changesMask);
+    byTraced.AddTraced(frame, traced, &tracedMask);
+    ASSERT_EQ(wholeMask, changesMask) << "frame " << f;
+    ASSERT_EQ(wholeMask, tracedMask) << "frame " << f;
+  }
+  EXPECT_GT(ties, 20u);
+  EXPECT_GT(backToFirst, 20u);
+  const SequenceAnalysis expected = whole.Finish();
+  for (const SequenceAnalyzer* analyzer : {&byChanges, &byTraced}) {
+    const SequenceAnalysis actual = analyzer->Finish();
+    EXPECT_EQ(actual.ToJson(), expected.ToJson());
+    EXPECT_EQ(actual.changeMask, expected.changeMask);
+  }
+}
+
+TEST(SequenceAnalysisTest, GatherTakesTheMarkedPixelsInOrder) {
+  Image frame = Flat(5, 3, 0.0f);
+  for (size_t i = 0; i < frame.rgb.size(); ++i) frame.rgb[i] = float(i);
+  std::vector<uint8_t> mask(15, 0);
+  mask[0] = mask[9] = mask[14] = 1;  // either side of a skipped word, and the tail
+  const FrameChanges changes = FrameChanges::Gather(frame, mask);
+  EXPECT_EQ(changes.pixels, (std::vector<uint32_t>{0, 9, 14}));
+  EXPECT_EQ(changes.rgb, (std::vector<float>{0, 1, 2, 27, 28, 29, 42, 43, 44}));
+  EXPECT_THROW(FrameChanges::Gather(frame, std::vector<uint8_t>(14, 1)), std::invalid_argument);
+  SequenceAnalyzer analyzer;
+  analyzer.Add(frame);
+  EXPECT_THROW(analyzer.AddTraced(frame, std::vector<uint8_t>(16, 1)), std::invalid_argument);
+}
+
+TEST(SequenceAnalysisTest, RejectsBadChanges) {
+  SequenceAnalyzer analyzer;
+  EXPECT_THROW(analyzer.AddChanges(FrameChanges{}), std::invalid_argument);  // no first frame
+  analyzer.Add(Flat(2, 2, 0.0f));
+  EXPECT_THROW(analyzer.AddChanges(FrameChanges{{2, 1}, std::vector<float>(6, 1.0f)}), std::invalid_argument);
+  EXPECT_THROW(analyzer.AddChanges(FrameChanges{{4}, std::vector<float>(3, 1.0f)}), std::invalid_argument);
+  EXPECT_THROW(analyzer.AddChanges(FrameChanges{{1}, std::vector<float>(2, 1.0f)}), std::invalid_argument);
+  EXPECT_EQ(analyzer.FrameCount(), 1);
+  analyzer.AddChanges(FrameChanges{{1}, {1.0f, 1.0f, 1.0f}});
+  EXPECT_EQ(analyzer.Finish().frameToFrameByFrame, (std::vector<double>{0.75}));
+}
+
 TEST(SequenceAnalysisTest, FinishCanBeCalledMidSequence) {
   SequenceAnalyzer analyzer;
   analyzer.Add(Flat(1, 1, 0.0f));
