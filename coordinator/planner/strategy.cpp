@@ -114,7 +114,7 @@ ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCoun
 
 std::optional<double> SurveyPrediction(const BinWidthChoice& choice, int width) {
   for (const auto& [surveyed, share] : choice.predicted) {
-    if (surveyed == width) return share;
+    if (surveyed == width) return std::min(1.0, share * kGuardedCostPerTracedShare);
   }
   return std::nullopt;
 }

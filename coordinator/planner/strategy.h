@@ -90,11 +90,20 @@ constexpr double kAutoBruteFromCost = 0.95;
 ResolvedStrategy ResolveStrategy(Strategy requested, int binWidth, int frameCount, bool cameraOrLightsChange,
                                  int workers, uint64_t pixelsPerFrame, const SegmentPrices& prices = {});
 
+// What a guarded job's CPU costs against brute force's, per share of the pixels it traces:
+// the pixels it traces are the ones that change, dearer than the average pixel, and its
+// coarse pass comes on top. Measured (relative CPU cost over traced share, the widths auto
+// picks): 1.18 on the paper's one sphere, 1.20 on its twelve, 1.38 on its terrain flyover
+// (tests/bench/report/paper_table.md), 1.64 on a textured turntable at 1920x1080.
+constexpr double kGuardedCostPerTracedShare = 1.3;
+
 // Auto's guarded once its survey ran: the width the survey chose, or 2 (every frame a bin
-// end: brute force) when even that width is predicted to trace kAutoBruteFromCost of the
-// pixels or more, the survey's coarse pass being all it spent.
+// end: brute force) when even that width is predicted to cost kAutoBruteFromCost of brute
+// force's CPU or more, the survey's coarse pass being all it spent.
 int GuardedWidthAfterSurvey(const BinWidthChoice& choice);
-// The survey's predicted traced share at `width` (its relative cost); none if not surveyed.
+// The predicted relative CPU cost of guarded at `width`: the survey's traced share priced
+// at kGuardedCostPerTracedShare, at most 1 (every pixel traced costs what brute force
+// does); none if not surveyed.
 std::optional<double> SurveyPrediction(const BinWidthChoice& choice, int width);
 
 }  // namespace tcfarm

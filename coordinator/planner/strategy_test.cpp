@@ -63,9 +63,11 @@ TEST(AutoStrategy, AMovingViewWeighsGuardedByItsSurvey) {
   EXPECT_EQ(guarded->from, "survey");
   BinWidthChoice cheap{4, {{2, 1.0}, {3, 0.6}, {4, 0.5}}};
   EXPECT_EQ(GuardedWidthAfterSurvey(cheap), 4);
-  BinWidthChoice dear{3, {{2, 1.0}, {3, 0.96}, {4, 0.97}}};
-  EXPECT_EQ(GuardedWidthAfterSurvey(dear), 2);  // brute force's bins
-  EXPECT_DOUBLE_EQ(*SurveyPrediction(dear, 4), 0.97);
+  EXPECT_DOUBLE_EQ(*SurveyPrediction(cheap, 4), 0.5 * kGuardedCostPerTracedShare);
+  // 0.75 of the pixels traced, priced: about what brute force costs, so brute force's bins.
+  BinWidthChoice dear{3, {{2, 1.0}, {3, 0.75}, {4, 0.97}}};
+  EXPECT_EQ(GuardedWidthAfterSurvey(dear), 2);
+  EXPECT_DOUBLE_EQ(*SurveyPrediction(dear, 4), 1.0);  // never above brute force's
   EXPECT_FALSE(SurveyPrediction(dear, 9));
 }
 

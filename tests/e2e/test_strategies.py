@@ -136,8 +136,10 @@ def test_auto_picks_exact_for_a_still_camera_and_guarded_for_a_flight(farm, scen
     job = farm.run_job(flight, strategy="auto")
     strategy = job["stats"]["strategy"]
     assert strategy["name"] == "guarded"
-    # Its one prediction is the survey's for the width it runs with.
-    assert strategy["predicted_relative_cost"] == strategy["survey"]["predicted_traced_share"][str(strategy["bin_width"])]
+    # Its one prediction is the survey's for the width it runs with: the traced share priced
+    # at 1.3 (kGuardedCostPerTracedShare), at most brute force's 1.
+    share = strategy["survey"]["predicted_traced_share"][str(strategy["bin_width"])]
+    assert strategy["predicted_relative_cost"] == pytest.approx(min(1.0, share * 1.3))
     assert "predicted_relative_cost" not in job["stats"]["cost"]
 
 
