@@ -207,8 +207,10 @@ def test_a_ban_outlives_the_coordinator_and_an_admin_lifts_it(keys, scene, tmp_p
             assert getattr(unknown.value, "status", None) == 404, unknown.value
         finally:
             liar.stop()
-        # Lifted: the same key is heard again on its next connection.
-        again = Liar(farm.zmq, curve=(liar_secret, keys["public"]))
+        # Lifted: the same key is heard again on its next connection. The farm takes a lift
+        # in at its next turn, so a READY that comes sooner is still refused: the liar
+        # connects anew every second, as a worker refused would, until it is heard.
+        again = Liar(farm.zmq, curve=(liar_secret, keys["public"]), reconnect_s=1)
         again.start()
         try:
             farm.wait_for_workers(1)
