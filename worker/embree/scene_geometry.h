@@ -89,8 +89,6 @@ class SceneGeometry {
 
   // Thread-safe. The last few frames are cached: tasks of one frame arrive together.
   std::shared_ptr<const FrameGeometry> ForFrame(int frame);
-  // How many frames are kept placed: placing one more may evict another.
-  size_t CachedFrames() const { return cachedFrames_; }
   bool HasDeformingMeshes() const;
   // Top-level scenes built for individual frames (0 when nothing moves).
   uint64_t FrameBuilds() const;

@@ -68,7 +68,8 @@ struct HorizonTracker {
   // again at every frame a moving shadow covers it. Not needed when the horizon is the
   // next frame already, nor when no moving shape's bounds come near the ray at the
   // traced frame: what blocks it never moves, so it stays blocked.
-  // A walk goes no further than the oracle's WalkEnd: the horizon is capped there first.
+  // A walk goes no further than the oracle's WalkEnd: the horizon is capped there first,
+  // and where that is the next frame (deforming meshes) the ray is not followed at all.
   // `blocker`: the moving sphere that likely blocks it (-1: not known).
   bool BlockedShadowMayClear(int forLane, const RaySegment& segment, int* blocker) {
     if (horizon[forLane] <= oracle->frame() + 1) return false;
@@ -76,7 +77,7 @@ struct HorizonTracker {
     if (mover < 0) return false;
     *blocker = oracle->SphereOfMover(mover);
     horizon[forLane] = std::min(horizon[forLane], oracle->WalkEnd());
-    return true;
+    return horizon[forLane] > oracle->frame() + 1;  // else no frame is left to follow it over
   }
 };
 

@@ -19,13 +19,13 @@ namespace {
 // grazes a shape always meets its proxy.
 constexpr double kRelativeProxyPad = 1e-4;
 
-// First frame in (frame, frame + window] at which `changed(f)` holds, else frame+window+1.
+// The first frame in (frame, lastFrame] at which `changed(f)` holds, else `none`.
 template <typename Changed>
-int FirstChange(int frame, int window, Changed changed) {
-  for (int f = frame + 1; f <= frame + window; ++f) {
+int FirstChange(int frame, int lastFrame, int none, Changed changed) {
+  for (int f = frame + 1; f <= lastFrame; ++f) {
     if (changed(f)) return f;
   }
-  return frame + window + 1;
+  return none;
 }
 
 // Whether any point of the segment lies within the sphere (center c, radius r).
@@ -90,10 +90,10 @@ HorizonOracle::HorizonOracle(const Scene& scene, int frame, int window, const De
       walkEnd_(walkFrames < 0 ? frame + window + 1 : std::min(frame + window + 1, frame + walkFrames + 1)),
       all_(EmptyBox()) {
   const Camera& camera = scene.camera;
-  cameraCap_ = FirstChange(frame, window, [&](int f) {
+  cameraCap_ = FirstChange(frame, frame + window, Unbounded(), [&](int f) {
     return !(camera.At(frame) == camera.At(f));
   });
-  lightCap_ = FirstChange(frame, window, [&](int f) {
+  lightCap_ = FirstChange(frame, frame + window, Unbounded(), [&](int f) {
     return std::any_of(scene.lights.begin(), scene.lights.end(), [&](const Light& light) {
       return !light.SameAt(frame, f);
     });
@@ -185,15 +185,6 @@ namespace {
 
 constexpr BoundingSphere kNoBounds{{}, -1};
 
-// The first frame in (frame, lastFrame] at which `changed(f)` holds, else `none`.
-template <typename Changed>
-int FirstFrameWhere(int frame, int lastFrame, int none, Changed changed) {
-  for (int f = frame + 1; f <= lastFrame; ++f) {
-    if (changed(f)) return f;
-  }
-  return none;
-}
-
 }  // namespace
 
 void HorizonOracle::AddRigidShape(const Shape& shape, size_t index, int lastFrame) {
@@ -201,7 +192,7 @@ void HorizonOracle::AddRigidShape(const Shape& shape, size_t index, int lastFram
   // the bit: a pause in its motion changes nothing.
   const Affine atFrame = shape.motion.WorldFromObject(frame_);
   auto placedAsAtFrame = [&](int f) { return shape.motion.WorldFromObject(f) == atFrame; };
-  wholeChange_[index] = FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return !placedAsAtFrame(f); });
+  wholeChange_[index] = FirstChange(frame_, lastFrame, Unbounded(), [&](int f) { return !placedAsAtFrame(f); });
   const BoundingSphere rest = KindOf(shape).Bounds(shape);
   // Its bounds at frame() itself are what may block a shadow ray there (MoverThatMayBlock).
   AddMover(shape, lastFrame, [&](int f) { return placedAsAtFrame(f) ? kNoBounds : rest; }, rest);
@@ -215,7 +206,7 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
     // otherwise than at frame().
     const Affine atFrame = shape.motion.WorldFromObject(frame_);
     auto asAtFrame = [&](int f) { return shape.motion.WorldFromObject(f) == atFrame && *mesh.KeyOf(f) == *base; };
-    wholeChange_[index] = FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return !asAtFrame(f); });
+    wholeChange_[index] = FirstChange(frame_, lastFrame, Unbounded(), [&](int f) { return !asAtFrame(f); });
     // Its bounds at frame() itself are what may block a shadow ray there (MoverThatMayBlock).
     const BoundingSphere bounds = Union(*mesh.PartBoundsAt(frame_));
     AddMover(shape, lastFrame, [&](int f) { return asAtFrame(f) ? kNoBounds : Union(*mesh.PartBoundsAt(f)); },
@@ -246,7 +237,7 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
   for (size_t g = 0; g < parts.groups.size(); ++g) {
     const std::vector<uint8_t>& partMoved = moved[g];
     changes.groupChange.push_back(
-        FirstFrameWhere(frame_, lastFrame, Unbounded(), [&](int f) { return partMoved[size_t(f - frame_)] != 0; }));
+        FirstChange(frame_, lastFrame, Unbounded(), [&](int f) { return partMoved[size_t(f - frame_)] != 0; }));
     if (changes.groupChange.back() == Unbounded()) continue;  // holds still: no mover
     // Each part is a mover of its own, bounded by its own vertices: the union of a
     // character's parts is a sphere around the whole body, which most of the rays near
