@@ -105,7 +105,8 @@ void Farm::LoadScenePrices() {
   }
 }
 
-void Farm::KeepScenePrices(const JobRun& run, const JobSpec& spec) {
+void Farm::KeepScenePrices(const JobRun& run) {
+  const JobSpec& spec = run.spec();
   const std::optional<SegmentPrices> measured = run.MeasuredSegmentPrices();
   if (!measured) return;
   const SegmentPrices kept = prices_.Record(spec.sceneHash, spec.deformingMeshes, *measured);
@@ -404,7 +405,7 @@ void Farm::FinishJob(uint64_t jobId) {
     return;
   }
   // Later auto jobs of this scene, or of its kind, are predicted with what this one measured.
-  KeepScenePrices(*run->second, run->second->spec());
+  KeepScenePrices(*run->second);
   ClosingJob closing;
   closing.stats = run->second->Stats(/*final=*/true);
   CountError(closing.stats["error"]);

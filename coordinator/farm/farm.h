@@ -161,7 +161,7 @@ class Farm : public FarmControl, private DispatchSink {
   // Prices from the store (a previous coordinator's measurements) into prices_; the
   // measurement of a finished exact job into both.
   void LoadScenePrices();
-  void KeepScenePrices(const JobRun& run, const JobSpec& spec);
+  void KeepScenePrices(const JobRun& run);
   FrameFinisher finisher_;       // compresses and previews jobs' frames when no job renders
   // Jobs a previous coordinator left unfinished (FrameFinisher) go back to the finisher.
   void RequeueUnfinishedFrames();

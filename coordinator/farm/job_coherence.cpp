@@ -12,8 +12,10 @@ std::vector<JobCoherence::ChangeMask> JobCoherence::Add(int frame, const Image& 
                                                         const std::vector<uint8_t>* traced) {
   std::vector<ChangeMask> masks;
   if (frame != nextFrame_) {
-    waiting_.Put(frame, ByChanges(frame, traced) ? PendingFrames::Frame(FrameChanges::Gather(image, *traced))
-                                                 : PendingFrames::Frame(image));
+    // Ahead of its turn, so never the first frame (which is taken whole): its traced
+    // pixels are all it can have changed.
+    waiting_.Put(frame, traced ? PendingFrames::Frame(FrameChanges::Gather(image, *traced))
+                               : PendingFrames::Frame(image));
     return masks;
   }
   masks.push_back(TakeInOrder(image, traced));

@@ -44,8 +44,6 @@ class JobCoherence {
   uint64_t FramesWaitedOnDisk() const { return waiting_.TotalSpilled(); }
 
  private:
-  // The sequence's first frame has no frame before it: it is taken whole.
-  bool ByChanges(int frame, const std::vector<uint8_t>* traced) const { return traced && frame > 0; }
   ChangeMask TakeInOrder(const Image& frame, const std::vector<uint8_t>* traced = nullptr);
   ChangeMask TakeInOrder(const FrameChanges& frame);
 

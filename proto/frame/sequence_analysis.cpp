@@ -161,7 +161,6 @@ void SequenceAnalyzer::Start(const Image& frame) {
   eventStart_.assign(frame.PixelCount(), 0);
   sameAsFirst_.assign(frame.PixelCount(), 1);
   sameAsFirstCount_ = frame.PixelCount();
-  changed_.assign(frame.PixelCount(), 0);
   closedEventsByDuration_.assign(2, 0);
 }
 
@@ -180,7 +179,6 @@ bool SequenceAnalyzer::AdvancePixel(size_t pixel, const float* value, uint8_t* m
   const uint32_t frame = static_cast<uint32_t>(frames_ - 1);
   ++closedEventsByDuration_[frame - eventStart_[pixel]];
   eventStart_[pixel] = frame;
-  changed_[pixel] = 1;
   std::memcpy(previous, value, 3 * sizeof(float));
   const uint8_t sameAsFirst = SameBits(first_.rgb.data() + at, value);
   sameAsFirstCount_ = sameAsFirstCount_ - sameAsFirst_[pixel] + sameAsFirst;
@@ -261,7 +259,10 @@ SequenceAnalysis SequenceAnalyzer::Finish() const {
   SummarizeEvents(&analysis);
   analysis.d = frameToFrame_.count ? 1.0 - frameToFrame_.Mean() : 0.0;
   Predict(&analysis);
-  analysis.changeMask = changed_;
+  // A pixel has changed once its current event began after the first frame.
+  analysis.changeMask.resize(eventStart_.size());
+  std::transform(eventStart_.begin(), eventStart_.end(), analysis.changeMask.begin(),
+                 [](uint32_t start) { return uint8_t{start != 0}; });
   return analysis;
 }
 

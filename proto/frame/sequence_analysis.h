@@ -93,14 +93,13 @@ class SequenceAnalyzer {
 
   int frames_ = 0, width_ = 0, height_ = 0;
   Image first_, previous_;
-  // Per pixel: the frame its current event began at. Pixels that do not change cost
-  // nothing: their runs grow with the frame count.
+  // Per pixel: the frame its current event began at (0 for a pixel that never changed).
+  // Pixels that do not change cost nothing: their runs grow with the frame count.
   std::vector<uint32_t> eventStart_;
   // Per pixel: whether it is bitwise the first frame's, and how many are. A pixel that
   // keeps its value keeps this too, so it changes only where an event ends.
   std::vector<uint8_t> sameAsFirst_;
   size_t sameAsFirstCount_ = 0;
-  std::vector<uint8_t> changed_;
   std::vector<uint64_t> closedEventsByDuration_;
   RunningStats frameToFrame_, longTerm_;
   std::vector<double> frameToFrameByFrame_, longTermByFrame_;
