@@ -120,18 +120,21 @@ def test_a_worker_killed_mid_exact_segment_leaves_the_output_bit_identical(tmp_p
 
 def test_frames_that_finish_ahead_wait_on_disk_when_memory_is_short(tmp_path, twelve_spheres,
                                                                     farm):
-    # The paper's search finishes bins side by side, so frames reach the coherence
+    # The paper's search releases a frame once it is whole, so frames reach the coherence
     # analysis out of order. With no memory for them, they wait on disk: same record,
     # same change masks, nothing left behind.
+    # Bins of five frames make that certain, not a race between bins: the search traces
+    # the middle frame, then frames 1 and 3 of the bin in separate tasks, and whichever
+    # comes back first is whole while frame 0 is still read by its bin.
     (tmp_path / "short").mkdir()
     with LocalFarm(tmp_path / "short", workers=2,
                    coordinator_args=("--pending-frame-memory", "0")) as short:
         short.wait_for_workers(2)
-        spilled = short.run_job(twelve_spheres, strategy="search", bin_width=4)
+        spilled = short.run_job(twelve_spheres, strategy="search", bin_width=5)
         spilled_masks = {p.name: p.read_bytes()
                          for p in (short.store / str(spilled["id"])).glob("change_*.png")}
         assert not (short.store / str(spilled["id"]) / ".pending").exists()
-    held = farm.run_job(twelve_spheres, strategy="search", bin_width=4)
+    held = farm.run_job(twelve_spheres, strategy="search", bin_width=5)
     assert spilled["stats"]["frames_waited_on_disk"] > 0
     assert held["stats"]["frames_waited_on_disk"] == 0
     assert spilled["stats"]["coherence"] == held["stats"]["coherence"]
