@@ -62,6 +62,36 @@ class DispatcherTest : public ::testing::Test {
       Pump(1);
     } while (!done() && std::chrono::steady_clock::now() < deadline);
   }
+  // Pumps until `count` workers are registered (at most 10 s).
+  void PumpUntilWorkers(size_t count) {
+    PumpUntil([&] { return dispatcher_.registry().workers().size() >= count; });
+  }
+  // Pumps until `worker` has got `count` tasks (at most 10 s), then a few rounds more, so that
+  // a task too many shows too; every task it got. A task sent in a poll's last turn is still
+  // crossing the sockets when that poll returns, so one look at the worker is not enough.
+  std::vector<wire::Task> TasksFor(FakeWorker& worker, size_t count) {
+    std::vector<wire::Task> tasks;
+    const auto take = [&] {
+      for (auto& task : worker.Tasks()) tasks.push_back(std::move(task));
+    };
+    PumpUntil([&] {
+      take();
+      return tasks.size() >= count;
+    });
+    Pump();
+    take();
+    return tasks;
+  }
+  // Pumps until some worker was heard at the fake clock's present (at most 10 s): its
+  // heartbeat was read before the clock moves on.
+  void PumpUntilHeardNow() {
+    PumpUntil([&] {
+      for (const auto& [identity, worker] : dispatcher_.registry().workers()) {
+        if (worker.lastHeard == clock_.Now()) return true;
+      }
+      return false;
+    });
+  }
   // A fresh worker connects, takes the tasks still owed and answers them; how many it got.
   size_t AnotherWorkerFinishesWhatIsOwed() {
     const size_t owedCount = dispatcher_.PendingTasks();
@@ -76,16 +106,19 @@ class DispatcherTest : public ::testing::Test {
     PumpUntil([&] { return sink_.results.size() >= resultsBefore + owed.size(); });
     return owed.size();
   }
-  // `rounds` turns of `worker` answering every task it gets: how many it served of each job.
-  std::map<uint64_t, int> Serve(FakeWorker& worker, int rounds) {
+  // `worker` answers every task it gets until it has answered `count` (for at most 10 s): how
+  // many it served of each job.
+  std::map<uint64_t, int> Serve(FakeWorker& worker, int count) {
     std::map<uint64_t, int> served;
-    for (int i = 0; i < rounds; ++i) {
-      Pump(2);
+    int total = 0;
+    PumpUntil([&] {
       for (const auto& task : worker.Tasks()) {
         ++served[task.jobId];
+        ++total;
         worker.Answer(task);
       }
-    }
+      return total >= count;
+    });
     return served;
   }
   void EnqueueTasks(uint64_t job, int count) {
@@ -105,7 +138,7 @@ class DispatcherTest : public ::testing::Test {
 // back to be traced elsewhere (the referee), never given to the worker it avoids.
 TEST_F(DispatcherTest, ATaskNeverGoesToAWorkerItAvoids) {
   FakeWorker checked(context_, dispatcher_.BoundEndpoint(), 4);
-  Pump();
+  PumpUntilWorkers(1);
   ASSERT_EQ(dispatcher_.registry().workers().size(), 1u);
   const std::string principal = dispatcher_.registry().workers().begin()->second.principal;
   EXPECT_EQ(principal.rfind("name:fake-", 0), 0u) << principal;
@@ -120,51 +153,48 @@ TEST_F(DispatcherTest, ATaskNeverGoesToAWorkerItAvoids) {
   EXPECT_EQ(stranded[0].plannerTaskId, 100u);
   EXPECT_EQ(dispatcher_.PendingTasks(), 1u);
   FakeWorker other(context_, dispatcher_.BoundEndpoint(), 4);
-  Pump();
+  PumpUntilWorkers(2);
   ASSERT_EQ(dispatcher_.registry().workers().size(), 2u);
   for (uint64_t id = 101; id < 104; ++id) dispatcher_.Enqueue({1, id, 0, PixelSet::Full(16), 0, {principal}, true});
   EXPECT_TRUE(dispatcher_.TakeStranded().empty());  // someone else may take them now
-  Pump();
+  EXPECT_EQ(TasksFor(other, 4).size(), 4u);  // the three checks and the waiting planner task
   EXPECT_TRUE(checked.Tasks().empty());
-  EXPECT_EQ(other.Tasks().size(), 4u);  // the three checks and the waiting planner task
 }
 
 TEST_F(DispatcherTest, CreditLimitsTasksInFlight) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 2);
   EnqueueTasks(1, 5);
-  Pump();
-  std::vector<wire::Task> tasks = worker.Tasks();
+  std::vector<wire::Task> tasks = TasksFor(worker, 2);
   ASSERT_EQ(tasks.size(), 2u);
   EXPECT_EQ(dispatcher_.PendingTasks(), 3u);
   EXPECT_EQ(tasks[0].sceneHash, kHash);
   EXPECT_EQ(tasks[0].width, 4u);
   worker.Answer(tasks[0]);
-  Pump();
+  const std::vector<wire::Task> more = TasksFor(worker, 1);
   ASSERT_EQ(sink_.results.size(), 1u);
   EXPECT_EQ(sink_.results[0].plannerTaskId, 100u);
   EXPECT_EQ(sink_.results[0].pixels, 16u);
-  EXPECT_EQ(worker.Tasks().size(), 1u);  // one credit back, one more task
+  EXPECT_EQ(more.size(), 1u);  // one credit back, one more task
 }
 
 TEST_F(DispatcherTest, SilentWorkersTasksGoToAnotherWorker) {
   FakeWorker silent(context_, dispatcher_.BoundEndpoint(), 4);
   EnqueueTasks(1, 3);
-  Pump();
-  ASSERT_EQ(silent.Tasks().size(), 3u);
+  ASSERT_EQ(TasksFor(silent, 3).size(), 3u);
   FakeWorker healthy(context_, dispatcher_.BoundEndpoint(), 4);
+  PumpUntilWorkers(2);
   Pump();
   EXPECT_TRUE(healthy.Tasks().empty());
   clock_.Advance(Milliseconds(3000));
   healthy.Send(wire::Heartbeat{});
-  Pump();
+  PumpUntilHeardNow();
   clock_.Advance(Milliseconds(2500));  // silent: 5.5 s; healthy: 2.5 s
-  Pump();
-  std::vector<wire::Task> moved = healthy.Tasks();
+  std::vector<wire::Task> moved = TasksFor(healthy, 3);
   ASSERT_EQ(moved.size(), 3u);
   EXPECT_EQ(dispatcher_.counters().requeued, 3u);
   EXPECT_EQ(dispatcher_.counters().workersLost, 1u);
   for (const auto& task : moved) healthy.Answer(task);
-  Pump();
+  PumpUntil([&] { return sink_.results.size() >= 3; });
   EXPECT_EQ(sink_.results.size(), 3u);
   EXPECT_EQ(dispatcher_.InFlightTasks(), 0u);
 }
@@ -175,14 +205,16 @@ TEST_F(DispatcherTest, SilentWorkersTasksGoToAnotherWorker) {
 TEST_F(DispatcherTest, ABusyCoordinatorReadsBeforeItBlamesItsWorkers) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 4);
   EnqueueTasks(1, 2);
-  Pump();
-  ASSERT_EQ(worker.Tasks().size(), 2u);
+  ASSERT_EQ(TasksFor(worker, 2).size(), 2u);
   worker.Send(wire::Heartbeat{});
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   clock_.Advance(Milliseconds(6000));  // busy: nothing read
   dispatcher_.Flush();                 // liveness is checked before reading
   EXPECT_EQ(dispatcher_.counters().workersLost, 0u);
-  Pump();                              // reads the heartbeat sent at the start
+  // Reads the heartbeat sent at the start, waiting for it if it is still on its way (a
+  // poll that found nothing would take the worker for silent).
+  dispatcher_.Receive(Milliseconds(10000), sink_);
+  Pump();
   EXPECT_EQ(dispatcher_.counters().workersLost, 0u);
   EXPECT_EQ(dispatcher_.InFlightTasks(), 2u);
   clock_.Advance(Milliseconds(6000));  // now it is silent while the coordinator listens
@@ -194,20 +226,25 @@ TEST_F(DispatcherTest, ABusyCoordinatorReadsBeforeItBlamesItsWorkers) {
 TEST_F(DispatcherTest, ALateDuplicateResultIsIgnored) {
   FakeWorker first(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 1);
-  Pump();
-  std::vector<wire::Task> tasks = first.Tasks();
+  std::vector<wire::Task> tasks = TasksFor(first, 1);
   ASSERT_EQ(tasks.size(), 1u);
   first.Answer(tasks[0]);
   first.Answer(tasks[0]);
-  Pump();
+  PumpUntil([&] { return dispatcher_.counters().duplicateResults >= 1; });
   EXPECT_EQ(sink_.results.size(), 1u);
   EXPECT_EQ(dispatcher_.counters().duplicateResults, 1u);
 }
 
+// Whether the worker is told DISCONNECT; called once the dispatcher has sent it, this waits
+// (at most 10 s) for it to cross the sockets.
 bool SaidDisconnect(FakeWorker& worker) {
-  for (const wire::Message& message : worker.Drain()) {
-    if (std::holds_alternative<wire::Disconnect>(message)) return true;
-  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  do {
+    for (const wire::Message& message : worker.Drain()) {
+      if (std::holds_alternative<wire::Disconnect>(message)) return true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  } while (std::chrono::steady_clock::now() < deadline);
   return false;
 }
 
@@ -216,8 +253,7 @@ bool SaidDisconnect(FakeWorker& worker) {
 TEST_F(DispatcherTest, AResultOfTheWrongSizeDropsTheWorker) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 2);
   EnqueueTasks(1, 2);
-  Pump();
-  std::vector<wire::Task> tasks = worker.Tasks();
+  std::vector<wire::Task> tasks = TasksFor(worker, 2);
   ASSERT_EQ(tasks.size(), 2u);
   wire::Result result;
   result.taskId = tasks[0].taskId;
@@ -225,7 +261,7 @@ TEST_F(DispatcherTest, AResultOfTheWrongSizeDropsTheWorker) {
   result.frame = tasks[0].frame;
   result.rgb.assign(3, 0.0f);  // one pixel instead of 16
   worker.Send(result);
-  Pump();
+  PumpUntil([&] { return dispatcher_.counters().workersDropped >= 1; });
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.counters().workersDropped, 1u);
   EXPECT_TRUE(dispatcher_.registry().workers().empty());
@@ -240,8 +276,7 @@ TEST_F(DispatcherTest, AResultOfTheWrongSizeDropsTheWorker) {
 TEST_F(DispatcherTest, ADistrustedWorkerIsNeverHeardAgain) {
   FakeWorker liar(context_, dispatcher_.BoundEndpoint(), 2, "liar");
   EnqueueTasks(1, 2);
-  Pump();
-  const std::vector<wire::Task> held = liar.Tasks();
+  const std::vector<wire::Task> held = TasksFor(liar, 2);
   ASSERT_EQ(held.size(), 2u);
   const std::string principal = dispatcher_.registry().workers().begin()->second.principal;
   EXPECT_TRUE(dispatcher_.Distrust(principal, "its values are not the referee's"));
@@ -252,7 +287,9 @@ TEST_F(DispatcherTest, ADistrustedWorkerIsNeverHeardAgain) {
   liar.Answer(held[0]);         // too late: not its task any more
   liar.Send(wire::Ready{2, 1, "liar"});  // and it may not come back
   FakeWorker reconnected(context_, dispatcher_.BoundEndpoint(), 2, "liar");  // nor on a new connection
-  Pump();
+  PumpUntil([&] {
+    return dispatcher_.counters().distrustedMessages >= 2 && dispatcher_.counters().bannedReconnects >= 1;
+  });
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_TRUE(dispatcher_.registry().workers().empty());
   EXPECT_GE(dispatcher_.counters().distrustedMessages, 2u);
@@ -266,11 +303,13 @@ TEST_F(DispatcherTest, ADistrustedWorkerIsNeverHeardAgain) {
 TEST_F(DispatcherTest, ALiftedBanLetsTheWorkerBackIn) {
   dispatcher_.Ban("name:liar@127.0.0.1");
   FakeWorker banned(context_, dispatcher_.BoundEndpoint(), 2, "liar");
-  Pump();
+  PumpUntil([&] { return dispatcher_.counters().bannedReconnects >= 1; });
+  EXPECT_EQ(dispatcher_.counters().bannedReconnects, 1u);
   EXPECT_TRUE(dispatcher_.registry().workers().empty());
   EXPECT_TRUE(dispatcher_.Unban("name:liar@127.0.0.1"));
   EXPECT_FALSE(dispatcher_.Unban("name:liar@127.0.0.1"));
   FakeWorker back(context_, dispatcher_.BoundEndpoint(), 2, "liar");
+  PumpUntilWorkers(1);
   Pump();
   EXPECT_EQ(dispatcher_.registry().workers().size(), 1u);
 }
@@ -279,8 +318,7 @@ TEST_F(DispatcherTest, ALiftedBanLetsTheWorkerBackIn) {
 TEST_F(DispatcherTest, HorizonsOutsideTheWindowDropTheWorker) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
   dispatcher_.Enqueue({1, 100, 10, PixelSet::Full(16), 4, {}});  // horizons 11 .. 15 are valid
-  Pump();
-  wire::Task task = worker.Tasks().at(0);
+  wire::Task task = TasksFor(worker, 1).at(0);
   wire::Result result;
   result.taskId = task.taskId;
   result.jobId = task.jobId;
@@ -289,7 +327,7 @@ TEST_F(DispatcherTest, HorizonsOutsideTheWindowDropTheWorker) {
   result.horizons.assign(16, 15);
   result.horizons[7] = 16;  // one frame beyond the window
   worker.Send(result);
-  Pump();
+  PumpUntil([&] { return dispatcher_.counters().workersDropped >= 1; });
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.counters().workersDropped, 1u);
   EXPECT_TRUE(SaidDisconnect(worker));
@@ -300,21 +338,20 @@ TEST_F(DispatcherTest, HorizonsOutsideTheWindowDropTheWorker) {
 TEST_F(DispatcherTest, RepliesFromAnotherWorkerAreDroppedAndCounted) {
   FakeWorker honest(context_, dispatcher_.BoundEndpoint(), 2);
   EnqueueTasks(1, 2);
-  Pump();
-  std::vector<wire::Task> tasks = honest.Tasks();
+  std::vector<wire::Task> tasks = TasksFor(honest, 2);
   ASSERT_EQ(tasks.size(), 2u);
   FakeWorker rogue(context_, dispatcher_.BoundEndpoint(), 4);
-  Pump();
+  PumpUntilWorkers(2);
   rogue.Answer(tasks[0], 0.25f);
   rogue.Send(wire::Error{tasks[1].taskId, kHash, "guessed", ""});
-  Pump();
+  PumpUntil([&] { return dispatcher_.counters().foreignReplies >= 2; });
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_TRUE(sink_.failures.empty());
   EXPECT_EQ(dispatcher_.counters().foreignReplies, 2u);
   EXPECT_EQ(dispatcher_.InFlightTasks(), 2u);
   EXPECT_EQ(dispatcher_.counters().workersDropped, 0u);  // not its task: nothing to judge it by
   for (const auto& task : tasks) honest.Answer(task);
-  Pump();
+  PumpUntil([&] { return sink_.results.size() >= 2; });
   EXPECT_EQ(sink_.results.size(), 2u);
   EXPECT_TRUE(rogue.Tasks().empty());
 }
@@ -324,24 +361,22 @@ TEST_F(DispatcherTest, RepliesFromAnotherWorkerAreDroppedAndCounted) {
 TEST_F(DispatcherTest, ALateResultFromAnExpiredWorkerIsIgnored) {
   FakeWorker slow(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 1);
-  Pump();
-  wire::Task task = slow.Tasks().at(0);
+  wire::Task task = TasksFor(slow, 1).at(0);
   FakeWorker other(context_, dispatcher_.BoundEndpoint(), 1);
-  Pump();
+  PumpUntilWorkers(2);
   clock_.Advance(Milliseconds(3000));
   other.Send(wire::Heartbeat{});
-  Pump();
+  PumpUntilHeardNow();
   clock_.Advance(Milliseconds(2500));  // slow: 5.5 s of silence
-  Pump();
-  std::vector<wire::Task> moved = other.Tasks();
+  std::vector<wire::Task> moved = TasksFor(other, 1);
   ASSERT_EQ(moved.size(), 1u);
   slow.Answer(task);
-  Pump();
+  PumpUntil([&] { return dispatcher_.counters().foreignReplies >= 1; });
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.counters().foreignReplies, 1u);
   EXPECT_TRUE(SaidDisconnect(slow));  // it is unknown now: told to start afresh
   other.Answer(moved[0]);
-  Pump();
+  PumpUntil([&] { return !sink_.results.empty(); });
   EXPECT_EQ(sink_.results.size(), 1u);
 }
 
@@ -361,15 +396,13 @@ TEST_F(DispatcherTest, MalformedMessagesFromAStrangerAreDroppedAndCounted) {
   EXPECT_EQ(dispatcher_.counters().malformed, 3u);
   EXPECT_EQ(dispatcher_.counters().workersDropped, 0u);
   EnqueueTasks(1, 1);
-  Pump();
-  EXPECT_EQ(worker.Tasks().size(), 1u);  // the worker is still served
+  EXPECT_EQ(TasksFor(worker, 1).size(), 1u);  // the worker is still served
 }
 
 TEST_F(DispatcherTest, AWorkerThatSendsAMalformedResultLosesItsTasksToAnother) {
   FakeWorker broken(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 1);
-  Pump();
-  const wire::Task task = broken.Tasks().at(0);
+  const wire::Task task = TasksFor(broken, 1).at(0);
   // Its answer, with the header cut short: refused before its task id can be read.
   wire::Result answer;
   answer.taskId = task.taskId, answer.jobId = task.jobId, answer.frame = task.frame;
@@ -389,7 +422,7 @@ TEST_F(DispatcherTest, AWorkerThatSendsAMalformedResultLosesItsTasksToAnother) {
   ASSERT_EQ(moved.size(), 1u);
   EXPECT_EQ(moved[0].taskId, task.taskId);
   other.Answer(moved[0]);
-  Pump();
+  PumpUntil([&] { return !sink_.results.empty(); });
   EXPECT_EQ(sink_.results.size(), 1u);
 }
 
@@ -397,8 +430,17 @@ TEST_F(DispatcherTest, ScenesAreSentOnRequest) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
   worker.Send(wire::SceneGet{kHash});
   worker.Send(wire::SceneGet{std::string(64, 'b')});
+  std::vector<wire::Message> replies;
+  PumpUntil([&] {
+    for (auto& m : worker.Drain()) replies.push_back(std::move(m));
+    size_t answers = 0;  // not counting the dispatcher's heartbeats
+    for (auto& m : replies) {
+      answers += std::holds_alternative<wire::SceneData>(m) || std::holds_alternative<wire::Error>(m);
+    }
+    return answers >= 2;
+  });
   Pump();
-  std::vector<wire::Message> replies = worker.Drain();
+  for (auto& m : worker.Drain()) replies.push_back(std::move(m));
   int scenes = 0, errors = 0;
   for (auto& m : replies) {
     if (auto* s = std::get_if<wire::SceneData>(&m)) {
@@ -414,27 +456,26 @@ TEST_F(DispatcherTest, ScenesAreSentOnRequest) {
 TEST_F(DispatcherTest, OneWorkersErrorSendsTheTaskToAnotherAndASecondFailsIt) {
   FakeWorker first(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 2);
-  Pump();
-  wire::Task task = first.Tasks().at(0);
+  wire::Task task = TasksFor(first, 1).at(0);
   first.Send(wire::Error{task.taskId, kHash, "disk full", ""});
-  Pump();
+  // The only worker gets the job's other task, never the one it failed.
+  std::vector<wire::Task> next = TasksFor(first, 1);
   EXPECT_TRUE(sink_.failures.empty());
   EXPECT_EQ(dispatcher_.counters().taskErrorsRetried, 1u);
-  // The only worker gets the job's other task, never the one it failed.
-  std::vector<wire::Task> next = first.Tasks();
   ASSERT_EQ(next.size(), 1u);
   EXPECT_NE(next[0].taskId, task.taskId);
   first.Answer(next[0]);
+  PumpUntil([&] { return !sink_.results.empty(); });
   Pump();
+  EXPECT_EQ(sink_.results.size(), 1u);
   EXPECT_TRUE(first.Tasks().empty());
   EXPECT_EQ(dispatcher_.PendingTasks(), 1u);  // waits for a different worker
   FakeWorker second(context_, dispatcher_.BoundEndpoint(), 1);
-  Pump();
-  std::vector<wire::Task> retried = second.Tasks();
+  std::vector<wire::Task> retried = TasksFor(second, 1);
   ASSERT_EQ(retried.size(), 1u);
   EXPECT_EQ(retried[0].taskId, task.taskId);
   second.Send(wire::Error{task.taskId, kHash, "scene would not build", ""});
-  Pump();
+  PumpUntil([&] { return !sink_.failures.empty(); });
   ASSERT_EQ(sink_.failures.size(), 1u);
   EXPECT_EQ(sink_.failures[0].plannerTaskId, 100u);
   EXPECT_EQ(sink_.failures[0].why, "disk full; on another worker: scene would not build");
@@ -445,11 +486,11 @@ TEST_F(DispatcherTest, ATaskRetriedElsewhereCompletesThere) {
   FakeWorker failing(context_, dispatcher_.BoundEndpoint(), 1);
   FakeWorker honest(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 6);
-  for (int round = 0; round < 20 && sink_.results.size() < 6; ++round) {
-    Pump(2);
+  PumpUntil([&] {
     for (const auto& task : failing.Tasks()) failing.Send(wire::Error{task.taskId, kHash, "broken", ""});
     for (const auto& task : honest.Tasks()) honest.Answer(task);
-  }
+    return sink_.results.size() >= 6;
+  });
   EXPECT_EQ(sink_.results.size(), 6u);
   EXPECT_TRUE(sink_.failures.empty());
   EXPECT_GE(dispatcher_.counters().taskErrorsRetried, 1u);
@@ -500,17 +541,16 @@ TEST_F(DispatcherTest, ALostWorkersTasksAreCountedByJob) {
   dispatcher_.AddJob(2, 0, 4, 4, kHash, "{}");
   // One that leaves holding nothing is not news.
   FakeWorker idle(context_, dispatcher_.BoundEndpoint(), 1);
-  Pump();
+  PumpUntilWorkers(1);
   ASSERT_EQ(dispatcher_.registry().workers().size(), 1u);
   idle.Send(wire::Disconnect{});
-  Pump();
+  PumpUntil([&] { return dispatcher_.registry().workers().empty(); });
   ASSERT_TRUE(dispatcher_.registry().workers().empty());
   EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
   FakeWorker silent(context_, dispatcher_.BoundEndpoint(), 5);
   EnqueueTasks(1, 3);
   EnqueueTasks(2, 2);
-  Pump();
-  ASSERT_EQ(silent.Tasks().size(), 5u);
+  ASSERT_EQ(TasksFor(silent, 5).size(), 5u);
   EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
   clock_.Advance(Milliseconds(6000));
   Pump();
@@ -521,10 +561,9 @@ TEST_F(DispatcherTest, ALostWorkersTasksAreCountedByJob) {
   EXPECT_TRUE(dispatcher_.TakeWorkerLosses().empty());
   // One that says goodbye with tasks in hand is lost too.
   FakeWorker leaving(context_, dispatcher_.BoundEndpoint(), 5);
-  Pump();
-  ASSERT_EQ(leaving.Tasks().size(), 5u);
+  ASSERT_EQ(TasksFor(leaving, 5).size(), 5u);
   leaving.Send(wire::Disconnect{});
-  Pump();
+  PumpUntil([&] { return dispatcher_.registry().workers().empty(); });
   const std::vector<WorkerLoss> left = dispatcher_.TakeWorkerLosses();
   ASSERT_EQ(left.size(), 1u);
   EXPECT_EQ(left[0].why, "left");
@@ -534,12 +573,11 @@ TEST_F(DispatcherTest, ALostWorkersTasksAreCountedByJob) {
 TEST_F(DispatcherTest, RemovedJobsTasksAreForgottenAndCreditReturns) {
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 2);
-  Pump();
-  wire::Task task = worker.Tasks().at(0);
+  wire::Task task = TasksFor(worker, 1).at(0);
   dispatcher_.RemoveJob(1);
   EXPECT_EQ(dispatcher_.PendingTasks(), 0u);
   worker.Answer(task);
-  Pump();
+  PumpUntil([&] { return dispatcher_.counters().duplicateResults >= 1; });  // its job is gone
   EXPECT_TRUE(sink_.results.empty());
   EXPECT_EQ(dispatcher_.registry().workers().begin()->second.FreeCredit(), 1u);
 }
@@ -556,13 +594,17 @@ std::vector<wire::Error> SceneErrors(FakeWorker& worker) {
 TEST_F(DispatcherTest, WorkersHoldingARemovedJobsTasksAreToldItsSceneIsNoLongerUsed) {
   FakeWorker holder(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 1);
-  Pump();
-  ASSERT_EQ(holder.Tasks().size(), 1u);
+  ASSERT_EQ(TasksFor(holder, 1).size(), 1u);
   FakeWorker idle(context_, dispatcher_.BoundEndpoint(), 1);
-  Pump();
+  PumpUntilWorkers(2);
   dispatcher_.RemoveJob(1);
+  std::vector<wire::Error> errors;
+  PumpUntil([&] {
+    for (auto& error : SceneErrors(holder)) errors.push_back(std::move(error));
+    return !errors.empty();
+  });
   Pump();
-  const std::vector<wire::Error> errors = SceneErrors(holder);
+  for (auto& error : SceneErrors(holder)) errors.push_back(std::move(error));
   ASSERT_EQ(errors.size(), 1u);
   EXPECT_EQ(errors[0].sceneHash, kHash);
   EXPECT_EQ(errors[0].taskId, 0u);
@@ -573,8 +615,7 @@ TEST_F(DispatcherTest, ASceneAnotherJobStillUsesIsNotReportedGone) {
   dispatcher_.AddJob(2, 0, 4, 4, kHash, "{\"scene\": 1}");
   FakeWorker worker(context_, dispatcher_.BoundEndpoint(), 1);
   EnqueueTasks(1, 1);
-  Pump();
-  ASSERT_EQ(worker.Tasks().size(), 1u);
+  ASSERT_EQ(TasksFor(worker, 1).size(), 1u);
   dispatcher_.RemoveJob(1);
   Pump();
   EXPECT_TRUE(SceneErrors(worker).empty());
