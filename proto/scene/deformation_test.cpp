@@ -2,8 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "proto/scene/scene.h"
 
@@ -85,6 +87,61 @@ TEST(DeformationTest, RebasingMovesSkinnedVerticesWithTheWorld) {
       EXPECT_NEAR(b.positions[v].y, a.positions[v].y - 3, 1e-12);
       EXPECT_NEAR(b.positions[v].z, a.positions[v].z + 2, 1e-12);
     }
+  }
+}
+
+// A square tube along x from 0 to 4 (41 rings, 320 triangles), every vertex on one
+// joint, which slides it down y from frame 1 on.
+std::string LongTube() {
+  std::string vertices, joints, weights, triangles;
+  auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
+  for (int ring = 0; ring <= 40; ++ring) {
+    for (int corner = 0; corner < 4; ++corner) {
+      add(vertices, "[" + std::to_string(0.1 * ring) + ", " + (corner < 2 ? "-0.1" : "0.1") + ", " +
+                        ((corner == 0 || corner == 3) ? "-0.1" : "0.1") + "]");
+      add(joints, "[0, 0, 0, 0]");
+      add(weights, "[1, 0, 0, 0]");
+    }
+  }
+  for (int ring = 0; ring < 40; ++ring) {
+    for (int corner = 0; corner < 4; ++corner) {
+      const int a = 4 * ring + corner, b = 4 * ring + (corner + 1) % 4;
+      add(triangles, "[" + std::to_string(a) + ", " + std::to_string(b) + ", " + std::to_string(b + 4) + "], [" +
+                         std::to_string(a) + ", " + std::to_string(b + 4) + ", " + std::to_string(a + 4) + "]");
+    }
+  }
+  return R"({"camera": {"position": [2, 0, 6], "look_at": [2, 0, 0]},
+    "shapes": [{"type": "mesh", "vertices": [)" + vertices + R"(], "triangles": [)" + triangles + R"(],
+      "skin": {"joints": [{"translation": {"keyframes": [{"frame": 0, "value": [0, 0, 0]}, {"frame": 1, "value": [0, 0, 0]},
+                                                          {"frame": 9, "value": [0, -0.4, 0]}]}}],
+               "inverse_bind_matrices": [[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]],
+               "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}}],
+    "render": {"width": 32, "height": 24, "frames": {"start": 0, "count": 10}}})";
+}
+
+// A part is cut across its length into pieces, and every triangle it moves lies within
+// one piece: the pieces' bounds hold the part with a tube's thickness around it, where
+// the part's own sphere reaches half its length.
+TEST(DeformationTest, APartIsCutIntoPiecesThatEachHoldWholeTriangles) {
+  const Scene scene = ParseScene(LongTube());
+  const TriangleMesh& mesh = scene.shapes[0].Mesh();
+  const DeformationParts parts = SplitIntoParts(mesh, *scene.shapes[0].deformation);
+  ASSERT_EQ(parts.groups.size(), 1u);
+  const DeformationParts::Group& tube = parts.groups[0];
+  EXPECT_EQ(tube.reach.size(), mesh.vertices.size());
+  ASSERT_EQ(tube.pieces.size(), 4u);
+  for (const std::vector<uint32_t>& piece : tube.pieces) {
+    ASSERT_TRUE(std::is_sorted(piece.begin(), piece.end()));
+    double lo = INFINITY, hi = -INFINITY;
+    for (uint32_t v : piece) lo = std::min(lo, mesh.vertices[v].x), hi = std::max(hi, mesh.vertices[v].x);
+    EXPECT_LE(hi - lo, 1.0 + 1e-9) << "a piece from x " << lo << " to " << hi;
+  }
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const bool held = std::any_of(tube.pieces.begin(), tube.pieces.end(), [&](const std::vector<uint32_t>& piece) {
+      return std::all_of(mesh.triangles[t].begin(), mesh.triangles[t].end(),
+                         [&](uint32_t v) { return std::binary_search(piece.begin(), piece.end(), v); });
+    });
+    EXPECT_TRUE(held) << "triangle " << t << " is in no piece whole";
   }
 }
 

@@ -93,16 +93,21 @@ std::shared_ptr<const Value> DeformingMesh::Memo(std::map<int, std::shared_ptr<c
   return memo.emplace(frame, std::move(value)).first->second;
 }
 
-std::shared_ptr<const std::vector<BoundingSphere>> DeformingMesh::PartBoundsAt(int frame) {
+std::shared_ptr<const DeformingMesh::PartBounds> DeformingMesh::PartBoundsAt(int frame) {
   const std::shared_ptr<const PoseKey> key = KeyOf(frame);
   return Memo(partBounds_, frame, [&] {
     const std::vector<Vec3> positions = Deform(shape_.Mesh(), *shape_.deformation, *key, false).positions;
-    std::vector<BoundingSphere> bounds;
     std::vector<Vec3> points;
-    for (const DeformationParts::Group& group : parts_.groups) {
+    auto boundsOf = [&](const std::vector<uint32_t>& vertices) {
       points.clear();
-      for (uint32_t v : group.reach) points.push_back(positions[v]);
-      bounds.push_back(BoundsOf(points));
+      for (uint32_t v : vertices) points.push_back(positions[v]);
+      return BoundsOf(points);
+    };
+    PartBounds bounds;
+    for (const DeformationParts::Group& group : parts_.groups) {
+      bounds.groups.push_back(boundsOf(group.reach));
+      std::vector<BoundingSphere>& pieces = bounds.pieces.emplace_back();
+      for (const std::vector<uint32_t>& piece : group.pieces) pieces.push_back(boundsOf(piece));
     }
     return bounds;
   });

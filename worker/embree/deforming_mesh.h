@@ -45,9 +45,13 @@ class DeformingMesh {
   std::shared_ptr<const Pose> AtFrame(int frame);
 
   // For the horizons of `exact`, thread-safe, each computed once per frame: the bounds of
-  // each part's reach (DeformationParts) at a frame, in the mesh's object space (the
-  // world's for a skin); what the frame's pose is made of.
-  std::shared_ptr<const std::vector<BoundingSphere>> PartBoundsAt(int frame);
+  // each part's reach (DeformationParts) at a frame, and of each of its pieces, in the
+  // mesh's object space (the world's for a skin); what the frame's pose is made of.
+  struct PartBounds {
+    std::vector<BoundingSphere> groups;               // by group
+    std::vector<std::vector<BoundingSphere>> pieces;  // by group, by piece
+  };
+  std::shared_ptr<const PartBounds> PartBoundsAt(int frame);
   std::shared_ptr<const PoseKey> KeyOf(int frame);
   const DeformationParts& Parts() const { return parts_; }
 
@@ -70,7 +74,7 @@ class DeformingMesh {
   mutable std::mutex mutex_;
   std::vector<std::shared_ptr<Pose>> poses_;  // every pose made; a use count of 1 means free
   DeformationParts parts_;
-  std::map<int, std::shared_ptr<const std::vector<BoundingSphere>>> partBounds_;  // by frame
+  std::map<int, std::shared_ptr<const PartBounds>> partBounds_;  // by frame
   std::map<int, std::shared_ptr<const PoseKey>> keys_;
   uint64_t posesComputed_ = 0, posesShared_ = 0, verticesDeformed_ = 0;
 };

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <map>
+#include <stdexcept>
 
 #include "worker/shapes/shape_kind.h"
 #include "worker/trace/lights.h"
@@ -208,9 +209,17 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
     auto asAtFrame = [&](int f) { return shape.motion.WorldFromObject(f) == atFrame && *mesh.KeyOf(f) == *base; };
     wholeChange_[index] = FirstChange(frame_, lastFrame, Unbounded(), [&](int f) { return !asAtFrame(f); });
     // Its bounds at frame() itself are what may block a shadow ray there (MoverThatMayBlock).
-    const BoundingSphere bounds = Union(*mesh.PartBoundsAt(frame_));
-    AddMover(shape, lastFrame, [&](int f) { return asAtFrame(f) ? kNoBounds : Union(*mesh.PartBoundsAt(f)); },
-             bounds);
+    const BoundingSphere bounds = Union(mesh.PartBoundsAt(frame_)->groups);
+    std::vector<BoundingSphere> pieces;  // every part's, read by AddMover before the next frame's
+    AddMover(
+        shape, lastFrame, [&](int f) { return asAtFrame(f) ? kNoBounds : Union(mesh.PartBoundsAt(f)->groups); },
+        bounds, [&](int f) -> const std::vector<BoundingSphere>& {
+          pieces.clear();
+          for (const std::vector<BoundingSphere>& ofPart : mesh.PartBoundsAt(f)->pieces) {
+            pieces.insert(pieces.end(), ofPart.begin(), ofPart.end());
+          }
+          return pieces;
+        });
     return;
   }
   const DeformationParts& parts = mesh.Parts();
@@ -233,7 +242,7 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
   PartChanges& changes = partChanges_[index];
   changes.parts = &parts;
   changes.mesh = &shape.Mesh();
-  const std::shared_ptr<const std::vector<BoundingSphere>> atFrame = mesh.PartBoundsAt(frame_);
+  const std::shared_ptr<const DeformingMesh::PartBounds> atFrame = mesh.PartBoundsAt(frame_);
   for (size_t g = 0; g < parts.groups.size(); ++g) {
     const std::vector<uint8_t>& partMoved = moved[g];
     changes.groupChange.push_back(
@@ -242,9 +251,10 @@ void HorizonOracle::AddDeformingMesh(const Shape& shape, size_t index, int lastF
     // Each part is a mover of its own, bounded by its own vertices: the union of a
     // character's parts is a sphere around the whole body, which most of the rays near
     // it meet though few pass a part that moves.
-    AddMover(shape, lastFrame,
-             [&](int f) { return partMoved[size_t(f - frame_)] ? (*mesh.PartBoundsAt(f))[g] : kNoBounds; },
-             (*atFrame)[g]);
+    // The memo keeps every frame's bounds, so the pieces outlive the call.
+    AddMover(
+        shape, lastFrame, [&](int f) { return partMoved[size_t(f - frame_)] ? mesh.PartBoundsAt(f)->groups[g] : kNoBounds; },
+        atFrame->groups[g], [&](int f) -> const std::vector<BoundingSphere>& { return mesh.PartBoundsAt(f)->pieces[g]; });
   }
 }
 
@@ -258,9 +268,24 @@ int HorizonOracle::SurfaceChange(int shape, uint32_t primitive) const {
   return change;
 }
 
+// Spheres' proxies at a frame appended as four arrays of `lanes` floats (x, y, z,
+// radius), a negative radius for none and for the padding.
+static void AppendProxies(const Shape& shape, const std::vector<BoundingSphere>* objects, int frame, size_t lanes,
+                          std::vector<float>& out) {
+  const size_t at = out.size();
+  out.resize(at + 4 * lanes, 0.0f);
+  std::fill(out.begin() + static_cast<std::ptrdiff_t>(at + 3 * lanes), out.end(), -1.0f);
+  for (size_t i = 0; objects && i < objects->size(); ++i) {
+    if ((*objects)[i].radius < 0) continue;
+    const Proxy proxy = Padded(PlacedBounds(shape, (*objects)[i], frame));
+    out[at + i] = proxy.x, out[at + lanes + i] = proxy.y, out[at + 2 * lanes + i] = proxy.z;
+    out[at + 3 * lanes + i] = proxy.radius;
+  }
+}
+
 void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
                              const std::function<BoundingSphere(int frame)>& objectBounds,
-                             const BoundingSphere& atFrame) {
+                             const BoundingSphere& atFrame, const PiecesAt& objectPieces) {
   Mover mover;
   mover.swept = EmptyBox();
   {
@@ -268,13 +293,26 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
     mover.atFrame[0] = at.x, mover.atFrame[1] = at.y, mover.atFrame[2] = at.z;
     mover.atFrame[3] = atFrame.radius >= 0 ? at.radius : -1.0f;
   }
+  size_t pieceCount = 0;
+  if (objectPieces) {
+    const std::vector<BoundingSphere>& pieces = objectPieces(frame_);
+    pieceCount = pieces.size();
+    mover.pieceLanes = (pieceCount + kBoxLanes - 1) / kBoxLanes * kBoxLanes;
+    AppendProxies(shape, &pieces, frame_, mover.pieceLanes, mover.atFramePieces);
+  }
   for (int f = frame_; f <= lastFrame; ++f) {
     const BoundingSphere object = objectBounds(f);
     size_t chunk = (f - frame_) / kFramesPerChunk;
     if (mover.chunks.size() <= chunk) mover.chunks.push_back(EmptyBox());
     if (object.radius < 0) {  // nothing of it changed by f: meets nothing
       mover.x.push_back(0), mover.y.push_back(0), mover.z.push_back(0), mover.radius.push_back(-1);
+      if (mover.pieceLanes > 0) AppendProxies(shape, nullptr, f, mover.pieceLanes, mover.pieces);
       continue;
+    }
+    if (mover.pieceLanes > 0) {
+      const std::vector<BoundingSphere>& pieces = objectPieces(f);
+      if (pieces.size() != pieceCount) throw std::logic_error("a mover's pieces changed in number");
+      AppendProxies(shape, &pieces, f, mover.pieceLanes, mover.pieces);
     }
     const Proxy proxy = Padded(PlacedBounds(shape, object, f));
     mover.x.push_back(proxy.x);
@@ -479,6 +517,33 @@ uint32_t HorizonOracle::ChunkSpheresMet(const RaySegment& s, const Mover& mover,
   return bits;
 }
 
+// SegmentMeetsSphere for `lanes` spheres laid out as four arrays (AppendProxies),
+// branch-free so that it vectorizes.
+static bool AnyPieceMet(const RaySegment& s, const float* pieces, size_t lanes) {
+  const float* x = pieces;
+  const float* y = pieces + lanes;
+  const float* z = pieces + 2 * lanes;
+  const float* r = pieces + 3 * lanes;
+  int met = 0;
+  for (size_t i = 0; i < lanes; ++i) {
+    const float tx = x[i] - s.origin.x, ty = y[i] - s.origin.y, tz = z[i] - s.origin.z;
+    const float along = std::min(std::max(tx * s.direction.x + ty * s.direction.y + tz * s.direction.z, 0.0f),
+                                 s.length);
+    const float gx = tx - s.direction.x * along, gy = ty - s.direction.y * along, gz = tz - s.direction.z * along;
+    met |= (gx * gx + gy * gy + gz * gz <= r[i] * r[i]) & (r[i] >= 0);
+  }
+  return met != 0;
+}
+
+bool HorizonOracle::PiecesMet(const RaySegment& segment, const Mover& mover, size_t offset) {
+  if (mover.pieceLanes == 0) return true;
+  return AnyPieceMet(segment, mover.pieces.data() + offset * 4 * mover.pieceLanes, mover.pieceLanes);
+}
+
+bool HorizonOracle::PiecesMetAtFrame(const RaySegment& segment, const Mover& mover) {
+  return mover.pieceLanes == 0 || AnyPieceMet(segment, mover.atFramePieces.data(), mover.pieceLanes);
+}
+
 // Bits of a chunk starting at frame offset `chunkBegin` for the offsets [from, to).
 uint32_t HorizonOracle::LaneMask(size_t chunkBegin, size_t from, size_t to) {
   to = std::min(to, chunkBegin + kFramesPerChunk);  // a shift past the mask's width is undefined
@@ -518,11 +583,15 @@ int HorizonOracle::FirstMeeting(const RaySegment& segment, int before, int excep
       if (!chunkMet[chunk]) continue;
       const size_t begin = chunk * kFramesPerChunk;
       const size_t end = std::min({earliest, mover.frames, begin + kFramesPerChunk});
-      const uint32_t met = ChunkSpheresMet(segment, mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
-      if (met != 0) {
-        earliest = begin + static_cast<size_t>(__builtin_ctz(met));
-        break;
+      uint32_t met = ChunkSpheresMet(segment, mover, begin) & LaneMask(begin, std::max<size_t>(begin, 1), end);
+      for (; met != 0; met &= met - 1) {  // frames whose proxy it meets, the first one first
+        const size_t offset = begin + static_cast<size_t>(__builtin_ctz(met));
+        if (PiecesMet(segment, mover, offset)) {
+          earliest = offset;
+          break;
+        }
       }
+      if (earliest < end) break;
     }
   }
   return std::min(before, frame_ + static_cast<int>(earliest));
@@ -580,7 +649,8 @@ void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon, co
         fan.ForEachIn(face, conesOn[face][m * frames + offset], [&](const SegmentFan::Entry& entry) {
           int32_t& h = horizon[entry.sample];
           if (h > frame && SegmentMeetsSphere(entry.segment, sphere) &&
-              !(exceptMover && exceptMover[entry.sample] == static_cast<int32_t>(m))) {
+              !(exceptMover && exceptMover[entry.sample] == static_cast<int32_t>(m)) &&
+              PiecesMet(entry.segment, mover, offset)) {
             h = frame;
           }
         });
@@ -592,7 +662,9 @@ void HorizonOracle::FanFirstMeetings(const SegmentFan& fan, int32_t* horizon, co
 int HorizonOracle::MoverThatMayBlock(const RaySegment& segment, int exceptMover) const {
   for (size_t m = 0; m < movers_.size(); ++m) {
     if (static_cast<int>(m) == exceptMover || movers_[m].atFrame[3] < 0) continue;
-    if (SegmentMeetsSphere(segment, movers_[m].atFrame)) return static_cast<int>(m);
+    if (SegmentMeetsSphere(segment, movers_[m].atFrame) && PiecesMetAtFrame(segment, movers_[m])) {
+      return static_cast<int>(m);
+    }
   }
   return -1;
 }

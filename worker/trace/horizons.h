@@ -170,6 +170,13 @@ class HorizonOracle {
     // padded to whole chunks, so that a chunk's frames are tested in one SIMD loop.
     std::vector<float> x, y, z, radius;
     size_t frames = 0;            // proxies before the padding
+    // Where the mover comes in pieces (a deforming mesh's part): per frame offset, its
+    // pieces' proxies as four arrays of pieceLanes floats (x, y, z, radius; a negative
+    // radius where a proxy is none, and in the padding), tested in one SIMD loop; and the
+    // same at frame(). A segment meets the mover only where it meets its proxy and one of
+    // its pieces: together they hold it as the proxy does, with less space around it.
+    size_t pieceLanes = 0;
+    std::vector<float> pieces, atFramePieces;
   };
   // A moving sphere as the tracer places it: per frame a .. a+W, its centre.
   struct MovingSphere {
@@ -186,12 +193,19 @@ class HorizonOracle {
   bool LightUnseen(const ShadingLight& light, const Vec3& p, const Vec3& outward, double slack, const Vec3& start,
                    int blocker, int frame) const;
   static uint32_t ChunkSpheresMet(const RaySegment& segment, const Mover& mover, size_t begin);
+  // Whether the segment meets one of the mover's pieces at a frame offset (at frame()
+  // itself for atFrame), where it has pieces; true where it has none.
+  static bool PiecesMet(const RaySegment& segment, const Mover& mover, size_t offset);
+  static bool PiecesMetAtFrame(const RaySegment& segment, const Mover& mover);
   static uint32_t LaneMask(size_t chunkBegin, size_t from, size_t to);
   // objectBounds(f): the shape's object-space bounds at frame f, a negative radius where
   // it has nothing that changed by f; atFrame: its bounds at frame() itself, where it may
   // block a shadow ray (MoverThatMayBlock), though objectBounds(frame()) is nothing.
+  // objectPieces(f), where given: pieces of the same bounds (Mover::pieces), as many at
+  // every frame, read at frame() and wherever objectBounds(f) is some.
+  using PiecesAt = std::function<const std::vector<BoundingSphere>&(int frame)>;
   void AddMover(const Shape& shape, int lastFrame, const std::function<BoundingSphere(int frame)>& objectBounds,
-                const BoundingSphere& atFrame);
+                const BoundingSphere& atFrame, const PiecesAt& objectPieces = {});
   // A rigid shape: one mover, met nowhere at the frames it is placed as at frame().
   void AddRigidShape(const Shape& shape, size_t index, int lastFrame);
   // A deforming mesh: as one mover when it is placed as a whole too, else as one mover per
