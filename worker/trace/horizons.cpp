@@ -496,6 +496,15 @@ int HorizonOracle::FirstNotSurelyBlocked(const RaySegment& segment, int from, in
   return before;
 }
 
+// SegmentMeetsSphere without branches, 1 or 0, for loops the compiler turns into SIMD;
+// a negative radius meets nothing.
+static inline int32_t SphereMet(const RaySegment& s, float x, float y, float z, float r) {
+  const float tx = x - s.origin.x, ty = y - s.origin.y, tz = z - s.origin.z;
+  const float along = std::min(std::max(tx * s.direction.x + ty * s.direction.y + tz * s.direction.z, 0.0f), s.length);
+  const float gx = tx - s.direction.x * along, gy = ty - s.direction.y * along, gz = tz - s.direction.z * along;
+  return (gx * gx + gy * gy + gz * gz <= r * r) & (r >= 0);
+}
+
 // SegmentMeetsSphere for the kFramesPerChunk proxies of a mover's chunk from `begin`,
 // branch-free so that it vectorizes: bit i set when the proxy of frame offset begin + i
 // meets the segment.
@@ -505,33 +514,20 @@ uint32_t HorizonOracle::ChunkSpheresMet(const RaySegment& s, const Mover& mover,
   const float* z = mover.z.data() + begin;
   const float* r = mover.radius.data() + begin;
   int32_t met[kFramesPerChunk];
-  for (size_t i = 0; i < kFramesPerChunk; ++i) {
-    const float tx = x[i] - s.origin.x, ty = y[i] - s.origin.y, tz = z[i] - s.origin.z;
-    const float along = std::min(std::max(tx * s.direction.x + ty * s.direction.y + tz * s.direction.z, 0.0f),
-                                 s.length);
-    const float gx = tx - s.direction.x * along, gy = ty - s.direction.y * along, gz = tz - s.direction.z * along;
-    met[i] = (gx * gx + gy * gy + gz * gz <= r[i] * r[i]) && r[i] >= 0 ? 1 : 0;
-  }
+  for (size_t i = 0; i < kFramesPerChunk; ++i) met[i] = SphereMet(s, x[i], y[i], z[i], r[i]);
   uint32_t bits = 0;
   for (size_t i = 0; i < kFramesPerChunk; ++i) bits |= static_cast<uint32_t>(met[i]) << i;
   return bits;
 }
 
-// SegmentMeetsSphere for `lanes` spheres laid out as four arrays (AppendProxies),
-// branch-free so that it vectorizes.
+// SphereMet for `lanes` spheres laid out as four arrays (AppendProxies).
 static bool AnyPieceMet(const RaySegment& s, const float* pieces, size_t lanes) {
   const float* x = pieces;
   const float* y = pieces + lanes;
   const float* z = pieces + 2 * lanes;
   const float* r = pieces + 3 * lanes;
-  int met = 0;
-  for (size_t i = 0; i < lanes; ++i) {
-    const float tx = x[i] - s.origin.x, ty = y[i] - s.origin.y, tz = z[i] - s.origin.z;
-    const float along = std::min(std::max(tx * s.direction.x + ty * s.direction.y + tz * s.direction.z, 0.0f),
-                                 s.length);
-    const float gx = tx - s.direction.x * along, gy = ty - s.direction.y * along, gz = tz - s.direction.z * along;
-    met |= (gx * gx + gy * gy + gz * gz <= r[i] * r[i]) & (r[i] >= 0);
-  }
+  int32_t met = 0;
+  for (size_t i = 0; i < lanes; ++i) met |= SphereMet(s, x[i], y[i], z[i], r[i]);
   return met != 0;
 }
 
