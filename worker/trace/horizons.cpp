@@ -294,7 +294,8 @@ void HorizonOracle::AddMover(const Shape& shape, int lastFrame,
     mover.atFrame[3] = atFrame.radius >= 0 ? at.radius : -1.0f;
   }
   size_t pieceCount = 0;
-  if (objectPieces) {
+  // One piece is the whole again: nothing to ask beyond the proxy.
+  if (objectPieces && objectPieces(frame_).size() > 1) {
     const std::vector<BoundingSphere>& pieces = objectPieces(frame_);
     pieceCount = pieces.size();
     mover.pieceLanes = (pieceCount + kBoxLanes - 1) / kBoxLanes * kBoxLanes;
