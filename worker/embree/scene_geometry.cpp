@@ -18,20 +18,27 @@ namespace {
 constexpr size_t kCachedFrames = 64;
 // With deforming meshes each placed frame holds a pose, and a pose is made once by a full
 // build of the rest pose and from then on refit: few frames kept means few builds (the
-// first ones) and refits after, and the memory of a few copies of the mesh.
+// first ones) and refits after, and the memory of a few copies of the mesh. `exact`'s
+// tasks ask for more (HoldFrames), up to what the pose budget holds: they follow blocked
+// shadow rays over the frames ahead, and each task would place those frames again.
 constexpr size_t kDeformingCachedFrames = 12;
 constexpr size_t kMinCachedFrames = 4;
 constexpr double kPoseBudgetBytes = 512.0 * 1024 * 1024;
 constexpr double kPoseBytesPerTriangle = 120;  // Embree's tree (~100) and the vertices
 
-size_t FramesToCache(const Scene& scene) {
+// How many placed frames the budget holds, at most kCachedFrames.
+bool HasDeformingShapes(const Scene& scene) {
+  return std::any_of(scene.shapes.begin(), scene.shapes.end(), [](const Shape& shape) { return shape.Deforms(); });
+}
+
+size_t FramesTheBudgetHolds(const Scene& scene) {
   double deformingTriangles = 0;
   for (const Shape& shape : scene.shapes) {
     if (shape.Deforms()) deformingTriangles += static_cast<double>(shape.Mesh().triangles.size());
   }
   if (deformingTriangles == 0) return kCachedFrames;
   const double fits = kPoseBudgetBytes / (deformingTriangles * kPoseBytesPerTriangle);
-  return static_cast<size_t>(std::clamp(fits, double(kMinCachedFrames), double(kDeformingCachedFrames)));
+  return static_cast<size_t>(std::clamp(fits, double(kMinCachedFrames), double(kCachedFrames)));
 }
 
 // Attaches the shape to `scene` and returns its geometry id. Only a scene whose surfaces may
@@ -111,7 +118,8 @@ SceneGeometry::SceneGeometry(const EmbreeDevice& device, const Scene& scene, Bui
         ThrowIfStopRequested(stop);
         return SurfaceNormals{KindOf(shape).FaceNormals(shape), KindOf(shape).VertexNormals(shape)};
       })),
-      cachedFrames_(FramesToCache(scene)) {
+      mostCachedFrames_(FramesTheBudgetHolds(scene)),
+      cachedFrames_(HasDeformingShapes(scene) ? std::min(kDeformingCachedFrames, mostCachedFrames_) : kCachedFrames) {
   for (size_t i = 0; i < scene.shapes.size(); ++i) {
     filters_.push_back(std::make_unique<SurfaceFilter>(SurfaceFilter{i < rules.size() ? rules[i] : nullptr, settlesTies_}));
   }
@@ -222,6 +230,12 @@ std::shared_ptr<const FrameGeometry> SceneGeometry::ForFrame(int frame) {
 }
 
 bool SceneGeometry::HasDeformingMeshes() const { return !deformingOfShape_.empty(); }
+
+size_t SceneGeometry::HoldFrames(size_t frames) {
+  std::lock_guard<std::mutex> lock(cacheMutex_);
+  cachedFrames_ = std::max(cachedFrames_, std::min(frames, mostCachedFrames_));
+  return cachedFrames_;
+}
 
 DeformingMesh* SceneGeometry::Deforming(size_t shape) const {
   return shape < deformingOfShape_.size() ? deformingOfShape_[shape] : nullptr;

@@ -94,6 +94,7 @@ class Tracer::PixelTracer {
   // Follows the blocked shadow rays of the samples traced so far, frame by frame ahead,
   // while they stay blocked and below their sample's horizon: a blocked light adds
   // nothing, whoever blocks it. The horizon becomes the first frame one clears at.
+  template <int Width>
   void FollowBlockedShadowRays(int32_t* sampleHorizon);
 
   using ShapeShading = Tracer::ShapeShading;

@@ -3,6 +3,7 @@
 #include "worker/trace/pixel_tracer.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <ctime>
 #include <limits>
@@ -429,27 +430,67 @@ void Tracer::PixelTracer::ShadowHorizons(size_t light, const typename RayPacket<
   }
 }
 
+// The walks go a packet at a time, frame by frame: each lane first skips the frames a
+// moving sphere surely blocks it at, then the lanes at the earliest frame left ask Embree
+// there together (neighbouring shadow rays toward one light, as coherent as the packets
+// that found them blocked). A lane stops at the first frame it clears at, which becomes
+// its sample's horizon, or at that horizon, which other rays may lower meanwhile.
+template <int Width>
 void Tracer::PixelTracer::FollowBlockedShadowRays(int32_t* sampleHorizon) {
-  for (const BlockedShadowRay& walk : walks_) {
-    int32_t& horizon = sampleHorizon[walk.sample];
-    const RaySegment segment{{walk.ray.org_x, walk.ray.org_y, walk.ray.org_z},
-                             {walk.ray.dir_x, walk.ray.dir_y, walk.ray.dir_z},
-                             walk.ray.tfar};
-    int blocker = walk.blocker;
-    for (int frame = frame_.frame + 1; frame < horizon; ++frame) {
-      frame = horizons_->oracle->FirstNotSurelyBlocked(segment, frame, horizon, &blocker);
-      if (frame >= horizon) break;
-      if (horizons_->oracle->OnlyTranslatingSpheresMove()) {
-        horizon = frame;
-        break;
+  const HorizonOracle& oracle = *horizons_->oracle;
+  for (size_t first = 0; first < walks_.size(); first += Width) {
+    const int lanes = static_cast<int>(std::min<size_t>(Width, walks_.size() - first));
+    const BlockedShadowRay* walk = walks_.data() + first;
+    int next[Width], blocker[Width];
+    bool walking[Width];
+    for (int lane = 0; lane < lanes; ++lane) {
+      next[lane] = frame_.frame + 1, blocker[lane] = walk[lane].blocker, walking[lane] = true;
+    }
+    for (;;) {
+      int earliest = INT_MAX;
+      for (int lane = 0; lane < lanes; ++lane) {
+        if (!walking[lane]) continue;
+        int32_t& horizon = sampleHorizon[walk[lane].sample];
+        const RTCRay& ray = walk[lane].ray;
+        const RaySegment segment{{ray.org_x, ray.org_y, ray.org_z}, {ray.dir_x, ray.dir_y, ray.dir_z}, ray.tfar};
+        if (next[lane] < horizon) next[lane] = oracle.FirstNotSurelyBlocked(segment, next[lane], horizon, &blocker[lane]);
+        if (next[lane] >= horizon) {
+          walking[lane] = false;
+        } else if (oracle.OnlyTranslatingSpheresMove()) {
+          horizon = next[lane], walking[lane] = false;
+        } else {
+          earliest = std::min(earliest, next[lane]);
+        }
       }
-      RTCRay ray = walk.ray;
-      rtcOccluded1(SceneAhead(frame), &context_.embree, &ray);
-      if (ray.tfar >= 0) horizon = frame;  // clear: the light reaches the pixel again
+      if (earliest == INT_MAX) break;
+      typename RayPacket<Width>::Ray packet{};
+      int valid[Width] = {};
+      for (int lane = 0; lane < lanes; ++lane) {
+        if (!walking[lane] || next[lane] != earliest) continue;
+        const RTCRay& ray = walk[lane].ray;
+        valid[lane] = -1;
+        packet.org_x[lane] = ray.org_x, packet.org_y[lane] = ray.org_y, packet.org_z[lane] = ray.org_z;
+        packet.dir_x[lane] = ray.dir_x, packet.dir_y[lane] = ray.dir_y, packet.dir_z[lane] = ray.dir_z;
+        packet.tnear[lane] = ray.tnear, packet.tfar[lane] = ray.tfar, packet.mask[lane] = ray.mask;
+        packet.time[lane] = ray.time, packet.id[lane] = ray.id, packet.flags[lane] = ray.flags;
+      }
+      RayPacket<Width>::Occluded(valid, SceneAhead(earliest), &context_.embree, &packet);
+      for (int lane = 0; lane < lanes; ++lane) {
+        if (!valid[lane]) continue;
+        if (packet.tfar[lane] >= 0) {  // clear: the light reaches the pixel again
+          sampleHorizon[walk[lane].sample] = std::min(sampleHorizon[walk[lane].sample], earliest);
+          walking[lane] = false;
+        } else {
+          ++next[lane];
+        }
+      }
     }
   }
   walks_.clear();
 }
+
+template void Tracer::PixelTracer::FollowBlockedShadowRays<8>(int32_t*);
+template void Tracer::PixelTracer::FollowBlockedShadowRays<16>(int32_t*);
 
 void Tracer::PixelTracer::SettleUnlitMovingSphere(int lane, const SurfaceHit& hit, const RaySegment& eye) {
   const HorizonOracle& oracle = *horizons_->oracle;
@@ -565,13 +606,14 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
                          int window, int32_t* horizons) {
   std::unique_ptr<HorizonOracle> oracle;
   if (window > 0 && horizons) {
-    // Blocked shadow rays are not followed where a mesh deforms: a frame ahead is dear to
-    // place (the mesh posed and refit), and the ray's Embree query there, with the surface
-    // filters over the posed mesh, costs more than tracing its pixel again. On a skinned
-    // chain of 20 joints (640x480, 48 frames), following them over the frames kept placed
-    // traced 0.071 of the pixels for 0.33 of brute force's CPU; not following them, 0.089
-    // for 0.26 (tracer_bench --exact-scene=FILE, TraceExactSequence).
-    const int walkFrames = geometry_.HasDeformingMeshes() ? 0 : -1;
+    // Where a mesh deforms, a frame ahead is dear to place (the mesh posed and refit):
+    // blocked shadow rays are followed only over the frames the geometry keeps placed,
+    // which it is asked to keep for the whole window as far as its budget allows, so that
+    // the next task finds them placed.
+    int walkFrames = -1;
+    if (geometry_.HasDeformingMeshes()) {
+      walkFrames = std::max(0, static_cast<int>(geometry_.HoldFrames(static_cast<size_t>(window) + 2)) - 2);
+    }
     oracle = std::make_unique<HorizonOracle>(
         scene_, frame, window, [this](size_t shape) { return geometry_.Deforming(shape); }, walkFrames);
     // A moving camera changes every pixel next frame: no ray tree can say otherwise.
@@ -676,7 +718,9 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
     if (oracle) {
       SearchFan(*oracle, eyeFan, sampleHorizon.data(), eyeExcept.data());
       for (SegmentFan& fan : lightFans) SearchFan(*oracle, fan, sampleHorizon.data());
-      tracer.FollowBlockedShadowRays(sampleHorizon.data());
+      WithPacketWidth(packetWidth_, [&](auto packetWidth) {
+        tracer.FollowBlockedShadowRays<decltype(packetWidth)::value>(sampleHorizon.data());
+      });
     }
     // A pixel is valid while all its samples are. Its samples are items k * spp .. for
     // its rank k in the tile order.
