@@ -90,9 +90,8 @@ class SceneGeometry {
   // Thread-safe. The last few frames are cached: tasks of one frame arrive together.
   std::shared_ptr<const FrameGeometry> ForFrame(int frame);
   bool HasDeformingMeshes() const;
-  // Thread-safe. Keeps at least `frames` placed frames from now on, as far as the pose
-  // budget allows; returns how many it keeps.
-  size_t HoldFrames(size_t frames);
+  // How many placed frames ForFrame keeps, the last ones asked for.
+  size_t CachedFrames() const;
   // Top-level scenes built for individual frames (0 when nothing moves).
   uint64_t FrameBuilds() const;
   // Deforming meshes' work: poses computed and vertices deformed (0 without deformation),
@@ -132,8 +131,7 @@ class SceneGeometry {
   // Per shape, its normals as the scene gives them; shapes placing one shared mesh share
   // them. A deforming mesh's are replaced per frame by its pose's.
   std::vector<std::shared_ptr<const SurfaceNormals>> normals_;
-  size_t mostCachedFrames_;  // what the pose budget holds
-  size_t cachedFrames_;      // guarded by cacheMutex_
+  size_t cachedFrames_;
 
   mutable std::mutex cacheMutex_;
   std::list<std::pair<int, std::shared_ptr<FrameGeometry>>> recentFrames_;

@@ -607,13 +607,11 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
   std::unique_ptr<HorizonOracle> oracle;
   if (window > 0 && horizons) {
     // Where a mesh deforms, a frame ahead is dear to place (the mesh posed and refit):
-    // blocked shadow rays are followed only over the frames the geometry keeps placed,
-    // which it is asked to keep for the whole window as far as its budget allows, so that
-    // the next task finds them placed.
-    int walkFrames = -1;
-    if (geometry_.HasDeformingMeshes()) {
-      walkFrames = std::max(0, static_cast<int>(geometry_.HoldFrames(static_cast<size_t>(window) + 2)) - 2);
-    }
+    // blocked shadow rays are followed only over the frames the geometry keeps placed
+    // anyway (less the traced frame and the one before it, which tasks in flight hold),
+    // so that each frame is placed once for all the tasks that walk over it.
+    const int walkFrames =
+        geometry_.HasDeformingMeshes() ? std::max(0, static_cast<int>(geometry_.CachedFrames()) - 2) : -1;
     oracle = std::make_unique<HorizonOracle>(
         scene_, frame, window, [this](size_t shape) { return geometry_.Deforming(shape); }, walkFrames);
     // A moving camera changes every pixel next frame: no ray tree can say otherwise.
@@ -622,8 +620,13 @@ void Tracer::TracePixels(int frame, const uint32_t* pixels, size_t pixelCount, f
       oracle.reset();
     }
   }
+  // Placing the frame (posing its deforming meshes) counts in the tracing CPU, as placing
+  // the frames ahead that blocked shadow rays are followed over does.
+  const uint64_t placingStart = ThreadCpuNanoseconds();
+  std::shared_ptr<const FrameGeometry> placed = geometry_.ForFrame(frame);
+  cpuNanoseconds_ += ThreadCpuNanoseconds() - placingStart;
   FrameContext context{frame,
-                       geometry_.ForFrame(frame),
+                       std::move(placed),
                        &geometry_,
                        MakeCamera(scene_, frame),
                        MakeLights(scene_, frame),
