@@ -10,6 +10,7 @@
 #include <atomic>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -106,6 +107,13 @@ class Tracer {
   // Per shape, its tangents (glTF's TANGENT), where a material's normal map reads them.
   using ShapeTangents = std::vector<std::array<float, 4>>;
   std::vector<std::shared_ptr<const ShapeTangents>> tangents_;
+
+  // Records the frame of a trace with horizons; true while the last few such traces went
+  // forward frame after frame: one segment in flight.
+  bool OneSegmentInFlight(int frame);
+  std::mutex recentMutex_;
+  std::array<int, 8> recentTracedFrames_{};
+  size_t recentTraces_ = 0;
 
   TracingThreads& threads_;
   int packetWidth_;
