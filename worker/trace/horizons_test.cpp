@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <numeric>
 #include <random>
+#include <set>
 #include <string>
 
 #include "worker/embree/scene_geometry.h"
@@ -496,11 +497,8 @@ TEST(HorizonsTest, APartIsMetWhereItsPiecesAreNotWhereverItsSphereReaches) {
 }
 
 // A long skinned slab sliding along its length under a light, and a camera that sees only
-// the floor in its shadow: the shadow rays stay blocked, by the slab's later triangles,
-// and are followed frame by frame over the frames the geometry keeps placed, so nothing
-// is due before the slab's end comes near. When a deforming mesh's blocked shadow rays
-// were not followed, every pixel was due at every frame.
-TEST(HorizonsTest, BlockedShadowRaysUnderADeformingMeshAreFollowed) {
+// the floor in its shadow: the shadow rays stay blocked, by the slab's later triangles.
+Scene SlabOverItsShadow() {
   std::string vertices, joints, weights, triangles;
   auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
   for (int ring = 0; ring <= 40; ++ring) {
@@ -528,6 +526,14 @@ TEST(HorizonsTest, BlockedShadowRaysUnderADeformingMeshAreFollowed) {
                "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}}],
     "render": {"width": 32, "height": 24, "frames": {"start": 0, "count": 10}}})");
   PrepareForTracing(scene);
+  return scene;
+}
+
+// The slab's shadow rays are followed frame by frame over the frames the geometry keeps
+// placed, so nothing is due before the slab's end comes near. When a deforming mesh's
+// blocked shadow rays were not followed, every pixel was due at every frame.
+TEST(HorizonsTest, BlockedShadowRaysUnderADeformingMeshAreFollowed) {
+  const Scene scene = SlabOverItsShadow();
   for (int a : {0, 4}) {
     const HorizonCheck check = Check(scene, a);
     EXPECT_EQ(check.broken, 0u) << "frame " << a;
@@ -535,6 +541,28 @@ TEST(HorizonsTest, BlockedShadowRaysUnderADeformingMeshAreFollowed) {
     EXPECT_EQ(check.needless, 0u) << "frame " << a;
     EXPECT_EQ(check.unbounded, check.pixels) << "frame " << a;
   }
+}
+
+// Walks place the frames ahead of a deforming mesh, and the geometry keeps only a few:
+// while traces jump between frames (segments side by side), the walks would push out the
+// frames the other segments trace, so they stop, and the shadow is due at the next frame.
+TEST(HorizonsTest, ShadowWalksOverDeformingMeshesStopWhileTracesJumpBetweenFrames) {
+  const Scene scene = SlabOverItsShadow();
+  EmbreeDevice device;
+  TracingThreads pool;
+  Tracer tracer(device, scene, pool);
+  const size_t count = static_cast<size_t>(scene.render.width) * scene.render.height;
+  std::vector<uint32_t> pixels(count);
+  std::iota(pixels.begin(), pixels.end(), 0u);
+  std::vector<float> rgb(count * 3);
+  std::vector<int32_t> horizons(count);
+  auto dueAt = [&](int frame) {
+    tracer.TracePixels(frame, pixels.data(), count, rgb.data(), 9 - frame, horizons.data());
+    return std::set<int32_t>(horizons.begin(), horizons.end());
+  };
+  EXPECT_EQ(dueAt(0), std::set<int32_t>{10});  // walked to the end of the window
+  EXPECT_EQ(dueAt(5), std::set<int32_t>{6});   // a jump of 5 frames: not walked
+  EXPECT_EQ(dueAt(0), std::set<int32_t>{1});   // and back: not walked
 }
 
 // A ball that stops, waits and moves on: at the frames it rests where it was at the traced
