@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "proto/scene/scene.h"
+#include "tests/support/cpp/skinned_tube.h"
 
 namespace tcfarm {
 namespace {
@@ -93,29 +94,13 @@ TEST(DeformationTest, RebasingMovesSkinnedVerticesWithTheWorld) {
 // A square tube along x from 0 to 4 (41 rings, 320 triangles), every vertex on one
 // joint, which slides it down y from frame 1 on.
 std::string LongTube() {
-  std::string vertices, joints, weights, triangles;
-  auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
-  for (int ring = 0; ring <= 40; ++ring) {
-    for (int corner = 0; corner < 4; ++corner) {
-      add(vertices, "[" + std::to_string(0.1 * ring) + ", " + (corner < 2 ? "-0.1" : "0.1") + ", " +
-                        ((corner == 0 || corner == 3) ? "-0.1" : "0.1") + "]");
-      add(joints, "[0, 0, 0, 0]");
-      add(weights, "[1, 0, 0, 0]");
-    }
-  }
-  for (int ring = 0; ring < 40; ++ring) {
-    for (int corner = 0; corner < 4; ++corner) {
-      const int a = 4 * ring + corner, b = 4 * ring + (corner + 1) % 4;
-      add(triangles, "[" + std::to_string(a) + ", " + std::to_string(b) + ", " + std::to_string(b + 4) + "], [" +
-                         std::to_string(a) + ", " + std::to_string(b + 4) + ", " + std::to_string(a + 4) + "]");
-    }
-  }
+  const test::TubeJson tube = test::SquareTube(40, 0, 0.1, -0.1, 0.1, -0.1, 0.1, test::OnJointZero);
   return R"({"camera": {"position": [2, 0, 6], "look_at": [2, 0, 0]},
-    "shapes": [{"type": "mesh", "vertices": [)" + vertices + R"(], "triangles": [)" + triangles + R"(],
+    "shapes": [{"type": "mesh", "vertices": [)" + tube.vertices + R"(], "triangles": [)" + tube.triangles + R"(],
       "skin": {"joints": [{"translation": {"keyframes": [{"frame": 0, "value": [0, 0, 0]}, {"frame": 1, "value": [0, 0, 0]},
                                                           {"frame": 9, "value": [0, -0.4, 0]}]}}],
                "inverse_bind_matrices": [[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]],
-               "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}}],
+               "vertex_joints": [)" + tube.joints + R"(], "vertex_weights": [)" + tube.weights + R"(]}}],
     "render": {"width": 32, "height": 24, "frames": {"start": 0, "count": 10}}})";
 }
 

@@ -13,6 +13,7 @@
 #include "worker/embree/scene_geometry.h"
 #include "worker/trace/horizons.h"
 #include "tests/support/cpp/scaled_scene.h"
+#include "tests/support/cpp/skinned_tube.h"
 #include "worker/trace/tracer.h"
 
 namespace tcfarm {
@@ -373,31 +374,18 @@ namespace {
 // A bar bound to two joints: triangles 0..7 (its first ring segment) weigh only on joint
 // 0, which never moves; triangles 24..31 only on joint 1, which turns from frame 3 on.
 Scene TwoJointBar() {
-  std::string vertices, joints, weights, triangles;
-  auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
-  for (int ring = 0; ring < 5; ++ring) {
+  const test::TubeJson tube = test::SquareTube(4, 0, 0.5, 0, 0.4, -0.2, 0.2, [](int ring) {
     const double second = ring < 2 ? 0 : (ring == 2 ? 0.5 : 1);
-    for (int corner = 0; corner < 4; ++corner) {
-      add(vertices, "[" + std::to_string(0.5 * ring) + ", " + (corner < 2 ? "0" : "0.4") + ", " +
-                        ((corner == 0 || corner == 3) ? "-0.2" : "0.2") + "]");
-      add(joints, "[0, 1, 0, 0]");
-      add(weights, "[" + std::to_string(1 - second) + ", " + std::to_string(second) + ", 0, 0]");
-    }
-  }
-  for (int ring = 0; ring < 4; ++ring) {
-    for (int corner = 0; corner < 4; ++corner) {
-      const int a = 4 * ring + corner, b = 4 * ring + (corner + 1) % 4;
-      add(triangles, "[" + std::to_string(a) + ", " + std::to_string(b) + ", " + std::to_string(b + 4) + "], [" +
-                         std::to_string(a) + ", " + std::to_string(b + 4) + ", " + std::to_string(a + 4) + "]");
-    }
-  }
+    return std::make_pair(std::string("[0, 1, 0, 0]"),
+                          "[" + std::to_string(1 - second) + ", " + std::to_string(second) + ", 0, 0]");
+  });
   Scene scene = ParseScene(R"({"camera": {"position": [1, 0.2, 6], "look_at": [1, 0.2, 0]},
-    "shapes": [{"type": "mesh", "vertices": [)" + vertices + R"(], "triangles": [)" + triangles + R"(],
+    "shapes": [{"type": "mesh", "vertices": [)" + tube.vertices + R"(], "triangles": [)" + tube.triangles + R"(],
       "skin": {"joints": [[0, 0, 0], {"translation": [1, 0, 0], "rotation": {"keyframes": [
                  {"frame": 0, "value": [0, 0, 0, 1]}, {"frame": 2, "value": [0, 0, 0, 1]},
                  {"frame": 9, "value": [0, 0, 0.5, 0.8660254]}]}}],
                "inverse_bind_matrices": [[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0], [1, 0, 0, -1, 0, 1, 0, 0, 0, 0, 1, 0]],
-               "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}}],
+               "vertex_joints": [)" + tube.joints + R"(], "vertex_weights": [)" + tube.weights + R"(]}}],
     "render": {"width": 32, "height": 24, "frames": {"start": 0, "count": 10}}})");
   PrepareForTracing(scene);
   return scene;
@@ -445,31 +433,15 @@ TEST(HorizonsTest, EachPartOfASkinIsBoundedByItsOwnVertices) {
 // A square tube along x from 0 to 4 (320 triangles) on one joint, sliding down from frame
 // 1 on, over a floor, under a light: its one part comes in four pieces a unit long.
 Scene SlidingTube() {
-  std::string vertices, joints, weights, triangles;
-  auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
-  for (int ring = 0; ring <= 40; ++ring) {
-    for (int corner = 0; corner < 4; ++corner) {
-      add(vertices, "[" + std::to_string(0.1 * ring) + ", " + (corner < 2 ? "0.9" : "1.1") + ", " +
-                        ((corner == 0 || corner == 3) ? "-0.1" : "0.1") + "]");
-      add(joints, "[0, 0, 0, 0]");
-      add(weights, "[1, 0, 0, 0]");
-    }
-  }
-  for (int ring = 0; ring < 40; ++ring) {
-    for (int corner = 0; corner < 4; ++corner) {
-      const int a = 4 * ring + corner, b = 4 * ring + (corner + 1) % 4;
-      add(triangles, "[" + std::to_string(a) + ", " + std::to_string(b) + ", " + std::to_string(b + 4) + "], [" +
-                         std::to_string(a) + ", " + std::to_string(b + 4) + ", " + std::to_string(a + 4) + "]");
-    }
-  }
+  const test::TubeJson tube = test::SquareTube(40, 0, 0.1, 0.9, 1.1, -0.1, 0.1, test::OnJointZero);
   Scene scene = Small(std::string(R"({"camera": {"position": [2, 1.5, 6], "look_at": [2, 0.5, 0]},)") +
                       kBackdropAndLight + R"(
     "shapes": [{"type": "quad", "corner": [-4, 0, -3], "edge_u": [12, 0, 0], "edge_v": [0, 0, 6], "material": "wall"},
-      {"type": "mesh", "material": "ball", "vertices": [)" + vertices + R"(], "triangles": [)" + triangles + R"(],
+      {"type": "mesh", "material": "ball", "vertices": [)" + tube.vertices + R"(], "triangles": [)" + tube.triangles + R"(],
       "skin": {"joints": [{"translation": {"keyframes": [{"frame": 0, "value": [0, 0, 0]}, {"frame": 1, "value": [0, 0, 0]},
                                                           {"frame": 9, "value": [0, -0.4, 0]}]}}],
                "inverse_bind_matrices": [[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]],
-               "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}}],
+               "vertex_joints": [)" + tube.joints + R"(], "vertex_weights": [)" + tube.weights + R"(]}}],
     "render": {"width": 64, "height": 48, "frames": {"start": 0, "count": 10}}})");
   PrepareForTracing(scene);
   return scene;
@@ -499,31 +471,15 @@ TEST(HorizonsTest, APartIsMetWhereItsPiecesAreNotWhereverItsSphereReaches) {
 // A long skinned slab sliding along its length under a light, and a camera that sees only
 // the floor in its shadow: the shadow rays stay blocked, by the slab's later triangles.
 Scene SlabOverItsShadow() {
-  std::string vertices, joints, weights, triangles;
-  auto add = [](std::string& list, const std::string& item) { list += (list.empty() ? "" : ", ") + item; };
-  for (int ring = 0; ring <= 40; ++ring) {
-    for (int corner = 0; corner < 4; ++corner) {
-      add(vertices, "[" + std::to_string(-4 + 0.2 * ring) + ", " + (corner < 2 ? "1.9" : "2.1") + ", " +
-                        ((corner == 0 || corner == 3) ? "-0.6" : "0.6") + "]");
-      add(joints, "[0, 0, 0, 0]");
-      add(weights, "[1, 0, 0, 0]");
-    }
-  }
-  for (int ring = 0; ring < 40; ++ring) {
-    for (int corner = 0; corner < 4; ++corner) {
-      const int a = 4 * ring + corner, b = 4 * ring + (corner + 1) % 4;
-      add(triangles, "[" + std::to_string(a) + ", " + std::to_string(b) + ", " + std::to_string(b + 4) + "], [" +
-                         std::to_string(a) + ", " + std::to_string(b + 4) + ", " + std::to_string(a + 4) + "]");
-    }
-  }
+  const test::TubeJson tube = test::SquareTube(40, -4, 0.2, 1.9, 2.1, -0.6, 0.6, test::OnJointZero);
   Scene scene = Small(R"({"camera": {"position": [0, 1, 1], "look_at": [0, 0, 0.2], "fov_degrees": 10},
     "lights": [{"type": "point", "position": [0, 10, 0], "intensity": [120, 120, 120]}],
     "materials": {"floor": {"diffuse": [0.7, 0.7, 0.65]}},
     "shapes": [{"type": "quad", "corner": [-8, 0, -8], "edge_u": [16, 0, 0], "edge_v": [0, 0, 16], "material": "floor"},
-      {"type": "mesh", "vertices": [)" + vertices + R"(], "triangles": [)" + triangles + R"(],
+      {"type": "mesh", "vertices": [)" + tube.vertices + R"(], "triangles": [)" + tube.triangles + R"(],
       "skin": {"joints": [{"translation": {"keyframes": [{"frame": 0, "value": [0, 0, 0]}, {"frame": 9, "value": [0.9, 0, 0]}]}}],
                "inverse_bind_matrices": [[1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]],
-               "vertex_joints": [)" + joints + R"(], "vertex_weights": [)" + weights + R"(]}}],
+               "vertex_joints": [)" + tube.joints + R"(], "vertex_weights": [)" + tube.weights + R"(]}}],
     "render": {"width": 32, "height": 24, "frames": {"start": 0, "count": 10}}})");
   PrepareForTracing(scene);
   return scene;
