@@ -17,7 +17,13 @@ void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<Sce
     if (!scene_) scene_ = scene();
     const uint64_t id = nextDispute_++;
     referee_->Ask({jobId_, id, scene_->hash, scene_->json, firstFrame_ + dispute.frame, dispute.pixels});
-    openDisputes_[id] = std::move(dispute);
+    OpenDispute open{std::move(dispute), {}};
+    for (uint32_t pixel : open.dispute.pixels) {
+      if (std::optional<TracerLedger::Source> source = ledger_.SourceOf(open.dispute.frame, pixel)) {
+        open.sources.emplace(pixel, std::move(*source));
+      }
+    }
+    openDisputes_[id] = std::move(open);
   }
 }
 
@@ -33,7 +39,8 @@ std::vector<ExactnessAudit::Verdict> ExactnessAudit::HearReferee() {
   return verdicts;
 }
 
-void ExactnessAudit::Rule(const Dispute& dispute, const Referee::Answer& answer, std::vector<Verdict>& verdicts) {
+void ExactnessAudit::Rule(const OpenDispute& open, const Referee::Answer& answer, std::vector<Verdict>& verdicts) {
+  const Dispute& dispute = open.dispute;
   const int frame = firstFrame_ + dispute.frame;
   if (!answer.error.empty()) {
     unsettled_.push_back("frame " + std::to_string(frame) + ": the referee could not trace it: " + answer.error);
@@ -50,18 +57,18 @@ void ExactnessAudit::Rule(const Dispute& dispute, const Referee::Answer& answer,
   ++jobWrong_;
   owedRepairs_.insert(dispute.frame);  // it shows wrong values, whoever caused them
   for (uint32_t pixel : ruling.jobWrong) {
-    const std::optional<TracerLedger::Source> source = ledger_.SourceOf(dispute.frame, pixel);
-    if (!source) continue;  // traced before a restart: the frame is repaired all the same
-    Distrust(source->worker,
-             "pixel " + std::to_string(pixel) + " of frame " + std::to_string(firstFrame_ + source->frame) +
+    const auto source = open.sources.find(pixel);
+    if (source == open.sources.end()) continue;  // traced before a restart: repaired all the same
+    Distrust(source->second.worker,
+             "pixel " + std::to_string(pixel) + " of frame " + std::to_string(firstFrame_ + source->second.frame) +
                  " as it traced it is not the referee's value" +
-                 (source->frame == dispute.frame ? "" : " (frame " + std::to_string(frame) + " shows a copy)"),
+                 (source->second.frame == dispute.frame ? "" : " (frame " + std::to_string(frame) + " shows a copy)"),
              verdicts);
   }
 }
 
 void ExactnessAudit::ForgetBefore(int frame) {
-  for (const auto& [id, dispute] : openDisputes_) frame = std::min(frame, dispute.frame);
+  for (const auto& [id, open] : openDisputes_) frame = std::min(frame, open.dispute.frame);
   ledger_.ForgetPixelsBefore(frame);
 }
 

@@ -82,7 +82,14 @@ class ExactnessAudit {
 
  private:
   void Distrust(const std::string& worker, const std::string& why, std::vector<Verdict>& verdicts);
-  void Rule(const Dispute& dispute, const Referee::Answer& answer, std::vector<Verdict>& verdicts);
+  // A dispute at the referee, with who traced each disputed pixel's value in the job as
+  // the dispute was raised: a repair may rewrite the frame before the referee answers,
+  // and the values disputed are still the ones traced before it.
+  struct OpenDispute {
+    Dispute dispute;
+    std::map<uint32_t, TracerLedger::Source> sources;  // by pixel; none where unknown
+  };
+  void Rule(const OpenDispute& open, const Referee::Answer& answer, std::vector<Verdict>& verdicts);
 
   uint64_t jobId_;
   int firstFrame_, frameCount_;
@@ -90,7 +97,7 @@ class ExactnessAudit {
   TracerLedger ledger_;
   std::optional<SceneRef> scene_;  // asked for with the first dispute
   uint64_t nextDispute_ = 1;
-  std::map<uint64_t, Dispute> openDisputes_;
+  std::map<uint64_t, OpenDispute> openDisputes_;
   std::set<std::string> distrusted_;     // found wrong by this job's disputes, or told
   std::vector<std::string> distrustedNames_;
   std::set<int> owedRepairs_, repairing_, repaired_;

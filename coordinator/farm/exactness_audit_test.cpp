@@ -133,6 +133,20 @@ TEST(ExactnessAuditTest, AnOpenDisputeKeepsItsSourcesPixels) {
   EXPECT_EQ(audit.PixelSetsHeld(), 0u);
 }
 
+// A repair rewrites the disputed frame while the referee is still tracing: the values
+// disputed are the liar's, traced before the repair, so the liar is named, never the
+// worker that repaired the frame meanwhile (which the farm once banned for them).
+TEST(ExactnessAuditTest, ARepairWhileADisputeIsOpenIsNotBlamedForTheValuesDisputed) {
+  TableReferee referee;
+  ExactnessAudit audit(7, 0, kFrames, &referee);
+  audit.OnTraced(1, "liar", PixelSet::FromSortedIndices({34}), 1);
+  audit.Open({DisputeOver(1, {34}, 0.5f, 1.0f)}, Scene);
+  audit.OnRepaired(1, "honest", PixelSet::Full(64), 1);
+  const std::vector<ExactnessAudit::Verdict> verdicts = audit.HearReferee();
+  ASSERT_EQ(verdicts.size(), 1u);
+  EXPECT_EQ(verdicts[0].worker, "liar");
+}
+
 // The job shows a copy of a value the liar traced two frames before: the liar is named,
 // and once the farm distrusts it, the frames its values reached are repaired.
 TEST(ExactnessAuditTest, AWrongCopyIsTracedBackToItsWorker) {
