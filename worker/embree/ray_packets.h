@@ -35,6 +35,25 @@ struct RayPacket<8> : EmbreePacket<RTCRayHit8, RTCRay8, rtcIntersect8, rtcOcclud
 template <>
 struct RayPacket<16> : EmbreePacket<RTCRayHit16, RTCRay16, rtcIntersect16, rtcOccluded16> {};
 
+// One lane of a packet's rays as a single ray, and back: a shadow ray found blocked in a
+// packet is kept alone, and asked again with others in a packet of its own.
+template <typename PacketRay>
+RTCRay RayOfLane(const PacketRay& packet, int lane) {
+  RTCRay ray{};
+  ray.org_x = packet.org_x[lane], ray.org_y = packet.org_y[lane], ray.org_z = packet.org_z[lane];
+  ray.dir_x = packet.dir_x[lane], ray.dir_y = packet.dir_y[lane], ray.dir_z = packet.dir_z[lane];
+  ray.tnear = packet.tnear[lane], ray.tfar = packet.tfar[lane], ray.mask = packet.mask[lane];
+  ray.time = packet.time[lane], ray.id = packet.id[lane], ray.flags = packet.flags[lane];
+  return ray;
+}
+template <typename PacketRay>
+void SetLane(PacketRay& packet, int lane, const RTCRay& ray) {
+  packet.org_x[lane] = ray.org_x, packet.org_y[lane] = ray.org_y, packet.org_z[lane] = ray.org_z;
+  packet.dir_x[lane] = ray.dir_x, packet.dir_y[lane] = ray.dir_y, packet.dir_z[lane] = ray.dir_z;
+  packet.tnear[lane] = ray.tnear, packet.tfar[lane] = ray.tfar, packet.mask[lane] = ray.mask;
+  packet.time[lane] = ray.time, packet.id[lane] = ray.id, packet.flags[lane] = ray.flags;
+}
+
 // 16 where the device runs 16-wide packets natively, 8 elsewhere.
 inline int NativePacketWidth(RTCDevice device) {
   return rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_NATIVE_RAY16_SUPPORTED) ? 16 : 8;

@@ -421,11 +421,7 @@ void Tracer::PixelTracer::ShadowHorizons(size_t light, const typename RayPacket<
     if (!blocked[lane]) {
       horizons_->LightSegment(lane, light, segment.origin, segment.direction, segment.length);
     } else if (int blocker; horizons_->BlockedShadowMayClear(lane, segment, &blocker)) {
-      RTCRay ray{};
-      ray.org_x = query.org_x[lane], ray.org_y = query.org_y[lane], ray.org_z = query.org_z[lane];
-      ray.dir_x = query.dir_x[lane], ray.dir_y = query.dir_y[lane], ray.dir_z = query.dir_z[lane];
-      ray.tnear = query.tnear[lane], ray.tfar = query.tfar[lane], ray.mask = query.mask[lane];
-      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), blocker, ray});
+      walks_.push_back({horizons_->sample + static_cast<uint32_t>(lane), blocker, RayOfLane(query, lane)});
     }
   }
 }
@@ -446,33 +442,27 @@ void Tracer::PixelTracer::FollowBlockedShadowRays(int32_t* sampleHorizon) {
     for (int lane = 0; lane < lanes; ++lane) {
       next[lane] = frame_.frame + 1, blocker[lane] = walk[lane].blocker, walking[lane] = true;
     }
+    // Past the frames a moving sphere surely blocks the lane at: the next frame to ask
+    // Embree, or none (the lane ends, at its horizon or where it clears).
+    auto advance = [&](int lane) {
+      int32_t& horizon = sampleHorizon[walk[lane].sample];
+      const RTCRay& ray = walk[lane].ray;
+      const RaySegment segment{{ray.org_x, ray.org_y, ray.org_z}, {ray.dir_x, ray.dir_y, ray.dir_z}, ray.tfar};
+      if (next[lane] < horizon) next[lane] = oracle.FirstNotSurelyBlocked(segment, next[lane], horizon, &blocker[lane]);
+      if (next[lane] < horizon && oracle.OnlyTranslatingSpheresMove()) horizon = next[lane];
+      walking[lane] = next[lane] < horizon;
+    };
     for (;;) {
       int earliest = INT_MAX;
       for (int lane = 0; lane < lanes; ++lane) {
-        if (!walking[lane]) continue;
-        int32_t& horizon = sampleHorizon[walk[lane].sample];
-        const RTCRay& ray = walk[lane].ray;
-        const RaySegment segment{{ray.org_x, ray.org_y, ray.org_z}, {ray.dir_x, ray.dir_y, ray.dir_z}, ray.tfar};
-        if (next[lane] < horizon) next[lane] = oracle.FirstNotSurelyBlocked(segment, next[lane], horizon, &blocker[lane]);
-        if (next[lane] >= horizon) {
-          walking[lane] = false;
-        } else if (oracle.OnlyTranslatingSpheresMove()) {
-          horizon = next[lane], walking[lane] = false;
-        } else {
-          earliest = std::min(earliest, next[lane]);
-        }
+        if (walking[lane]) advance(lane);
+        if (walking[lane]) earliest = std::min(earliest, next[lane]);
       }
       if (earliest == INT_MAX) break;
       typename RayPacket<Width>::Ray packet{};
       int valid[Width] = {};
       for (int lane = 0; lane < lanes; ++lane) {
-        if (!walking[lane] || next[lane] != earliest) continue;
-        const RTCRay& ray = walk[lane].ray;
-        valid[lane] = -1;
-        packet.org_x[lane] = ray.org_x, packet.org_y[lane] = ray.org_y, packet.org_z[lane] = ray.org_z;
-        packet.dir_x[lane] = ray.dir_x, packet.dir_y[lane] = ray.dir_y, packet.dir_z[lane] = ray.dir_z;
-        packet.tnear[lane] = ray.tnear, packet.tfar[lane] = ray.tfar, packet.mask[lane] = ray.mask;
-        packet.time[lane] = ray.time, packet.id[lane] = ray.id, packet.flags[lane] = ray.flags;
+        if (walking[lane] && next[lane] == earliest) valid[lane] = -1, SetLane(packet, lane, walk[lane].ray);
       }
       RayPacket<Width>::Occluded(valid, SceneAhead(earliest), &context_.embree, &packet);
       for (int lane = 0; lane < lanes; ++lane) {
