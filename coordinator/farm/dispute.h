@@ -24,6 +24,12 @@ struct Dispute {
 // referee traces every one.
 constexpr size_t kMaxDisputedPixels = 64;
 
+// A worker found to return values that are not the truth, and the evidence, in words.
+struct Verdict {
+  std::string worker;  // its principal
+  std::string why;
+};
+
 struct Ruling {
   bool checkerWrong = false;        // some checked value is not the truth
   std::vector<uint32_t> jobWrong;   // pixels whose value in the job is not the truth

@@ -5,8 +5,13 @@
 
 namespace tcfarm {
 
-ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee)
-    : jobId_(jobId), firstFrame_(firstFrame), frameCount_(frameCount), referee_(referee) {}
+ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee,
+                               std::vector<bool> keptFrames)
+    : jobId_(jobId),
+      firstFrame_(firstFrame),
+      frameCount_(frameCount),
+      referee_(referee),
+      keptFrames_(std::move(keptFrames)) {}
 
 void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<SceneRef()>& scene) {
   for (Dispute& dispute : disputes) {
@@ -18,9 +23,12 @@ void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<Sce
     const uint64_t id = nextDispute_++;
     referee_->Ask({jobId_, id, scene_->hash, scene_->json, firstFrame_ + dispute.frame, dispute.pixels});
     OpenDispute open{std::move(dispute), {}};
+    const bool keptFromBefore = open.dispute.frame < static_cast<int>(keptFrames_.size()) &&
+                                keptFrames_[static_cast<size_t>(open.dispute.frame)];
     for (uint32_t pixel : open.dispute.pixels) {
-      if (std::optional<TracerLedger::Source> source = ledger_.SourceOf(open.dispute.frame, pixel)) {
-        open.sources.emplace(pixel, std::move(*source));
+      if (keptFromBefore) break;  // it shows values traced before the restart: nobody here sent them
+      if (std::optional<std::string> tracer = ledger_.TracerAt(open.dispute.frame, pixel)) {
+        open.senders.emplace(pixel, std::move(*tracer));
       }
     }
     openDisputes_[id] = std::move(open);
@@ -56,13 +64,16 @@ void ExactnessAudit::Rule(const OpenDispute& open, const Referee::Answer& answer
   if (ruling.jobWrong.empty()) return;
   ++jobWrong_;
   owedRepairs_.insert(dispute.frame);  // it shows wrong values, whoever caused them
+  // Evidence against a worker is a value it sent for that pixel of that frame. A copy is
+  // no such value: search's and guarded's copies are approximations, and a copy that
+  // exact got wrong may be a wrong horizon as well as a wrong trace. The frame is
+  // repaired all the same; the referee's unseen sample judges the workers.
   for (uint32_t pixel : ruling.jobWrong) {
-    const auto source = open.sources.find(pixel);
-    if (source == open.sources.end()) continue;  // traced before a restart: repaired all the same
-    Distrust(source->second.worker,
-             "pixel " + std::to_string(pixel) + " of frame " + std::to_string(firstFrame_ + source->second.frame) +
-                 " as it traced it is not the referee's value" +
-                 (source->second.frame == dispute.frame ? "" : " (frame " + std::to_string(frame) + " shows a copy)"),
+    const auto sender = open.senders.find(pixel);
+    if (sender == open.senders.end()) continue;
+    Distrust(sender->second,
+             "pixel " + std::to_string(pixel) + " of frame " + std::to_string(frame) +
+                 " as it traced it is not the referee's value",
              verdicts);
   }
 }

@@ -2,9 +2,11 @@
 //
 // 1. The disagreement becomes a dispute (farm/dispute.h), which the coordinator's
 //    referee settles by tracing the disputed pixels itself (farm/referee.h).
-// 2. Whoever returned bits that are not the truth is distrusted: the checker, and the
-//    workers that traced the wrong values the job shows (found through the ledger, even
-//    when the job shows a copy). The farm then drops them and gives them no more tasks.
+// 2. Whoever sent bits that are not the truth is distrusted: the checker, and the worker
+//    that traced a wrong value the job shows where the frame's own task traced it (the
+//    ledger). A copy is never evidence against anyone: the frame is repaired, and the
+//    referee's unseen sample (farm/referee_sample.h) judges the workers. The farm then
+//    drops them and gives them no more tasks.
 // 3. Every frame a distrusted worker's values can have reached (TracerLedger) is traced
 //    again in full by another worker and rewritten where it differs. A job keeps its
 //    promise even when a worker lied, as long as one honest worker remains.
@@ -36,7 +38,10 @@ class ExactnessAudit {
   // parts around it. firstFrame: the job's first frame in the scene's numbering. Every
   // job disputes wrong traces (Verification's trace checks), so every job keeps which
   // pixels each worker traced, for as long as a dispute can need them (ForgetBefore).
-  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee);
+  // keptFrames: by frame (the job's), those kept from before a restart: their values were
+  // sent to an earlier run, so a dispute there names nobody (its frame is repaired).
+  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee,
+                 std::vector<bool> keptFrames = {});
 
   // The job's values: which worker traced which pixels; reach: the frames after `frame`
   // into which the job may copy them.
@@ -57,10 +62,7 @@ class ExactnessAudit {
   // Sends disputes to the referee; scene() is called once, the first time one is sent.
   void Open(std::vector<Dispute> disputes, const std::function<SceneRef()>& scene);
 
-  struct Verdict {
-    std::string worker;
-    std::string why;
-  };
+  using Verdict = tcfarm::Verdict;
   // The referee's answers so far: the workers they show returned wrong values, each
   // named once per job.
   std::vector<Verdict> HearReferee();
@@ -82,18 +84,19 @@ class ExactnessAudit {
 
  private:
   void Distrust(const std::string& worker, const std::string& why, std::vector<Verdict>& verdicts);
-  // A dispute at the referee, with who traced each disputed pixel's value in the job as
-  // the dispute was raised: a repair may rewrite the frame before the referee answers,
-  // and the values disputed are still the ones traced before it.
+  // A dispute at the referee, with who sent each disputed pixel's value in the job as the
+  // dispute was raised: a repair may rewrite the frame before the referee answers, and the
+  // values disputed are still the ones sent before it.
   struct OpenDispute {
     Dispute dispute;
-    std::map<uint32_t, TracerLedger::Source> sources;  // by pixel; none where unknown
+    std::map<uint32_t, std::string> senders;  // by pixel; none for a copy or where unknown
   };
   void Rule(const OpenDispute& open, const Referee::Answer& answer, std::vector<Verdict>& verdicts);
 
   uint64_t jobId_;
   int firstFrame_, frameCount_;
   Referee* referee_;
+  std::vector<bool> keptFrames_;
   TracerLedger ledger_;
   std::optional<SceneRef> scene_;  // asked for with the first dispute
   uint64_t nextDispute_ = 1;

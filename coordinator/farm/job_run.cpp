@@ -209,7 +209,8 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
-      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
+      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee, kept_.kept),
+      sample_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
       referee_(settings.referee),
       written_(kept_.kept),
       writer_(CreatedDirectory(store.JobFolder(record.id)), RecyclingInto(settings.output, frameBuffers_)),
@@ -226,10 +227,10 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
 std::vector<DispatchTask> JobRun::TakeTasks(int workers) {
   std::vector<DispatchTask> tasks;
   planner_->SetWorkers(workers);
-  // While the writer is behind, the planner's tasks wait: tracing more would only pile up
-  // frames in memory.
-  const bool writerBehind = unwritten_.size() >= kMaxUnwrittenFrames;
-  for (TraceTask& t : writerBehind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
+  // While the writer or the referee is behind, the planner's tasks wait: tracing more would
+  // only pile up frames, or sampled values, in memory.
+  const bool behind = unwritten_.size() >= kMaxUnwrittenFrames || sample_.Behind();
+  for (TraceTask& t : behind ? std::vector<TraceTask>{} : planner_->TakeReadyTasks()) {
     taskChains_[t.id] = {t.chain, t.step};
     ++tasksOut_[spec_.firstFrame + t.frame];
     tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}, false});
@@ -305,6 +306,18 @@ int JobRun::CopyReach(int window) const {
 
 bool JobRun::OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
                       bool onProbation) {
+  if (!Accept(task, result, worker, onProbation)) return false;
+  // Every value a worker sent, whatever it was for, may be drawn for the referee.
+  if (result.rgb.size() == 3 * task.pixels.size()) {
+    const bool horizons = task.window > 0 && result.horizons.size() == task.pixels.size();
+    sample_.OnValues(task.frame - spec_.firstFrame, worker, task.pixels, result.rgb.data(),
+                     horizons ? result.horizons.data() : nullptr);
+  }
+  return true;
+}
+
+bool JobRun::Accept(const DispatchTask& task, const wire::Result& result, const std::string& worker,
+                    bool onProbation) {
   if (task.plannerTaskId & kVerificationTask) {
     return OnVerificationResult(task.plannerTaskId & ~kVerificationTask, result, worker);
   }
@@ -356,6 +369,8 @@ std::vector<ExactnessAudit::Verdict> JobRun::TakeVerdicts() {
 
 void JobRun::Audit(const JobStore& store) {
   HearRefereeChecks();
+  sample_.Ask(spec_.sceneHash, [&]() -> const std::string& { return SceneJson(store); });
+  for (Verdict& verdict : sample_.HearReferee()) verdicts_.push_back(std::move(verdict));
   audit_.Open(verification_.TakeDisputes(),
               [&] { return ExactnessAudit::SceneRef{spec_.sceneHash, SceneJson(store)}; });
   for (ExactnessAudit::Verdict& verdict : audit_.HearReferee()) verdicts_.push_back(std::move(verdict));
@@ -452,9 +467,10 @@ void JobRun::FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds) {
                          std::to_string(image.width) + "x" + std::to_string(image.height) + ", expected " +
                          std::to_string(spec_.frameSize.width) + "x" + std::to_string(spec_.frameSize.height));
     }
-    // Its reference, when one is asked for, is traced and compared like any frame's; its
-    // traced pixels are not known here, so it gets no spot checks.
-    verification_.OnFrameFinished(frame, image.rgb, std::vector<uint8_t>(PixelsPerFrame(), 1));
+    // Its reference, when one is asked for, is traced and compared like any frame's. It
+    // gets no sampled checks: which pixels were traced, and by whom, went with the run
+    // that traced them, and a copy taken for a trace would be disputed as a wrong one.
+    verification_.OnKeptFrame(frame, image.rgb);
     for (JobCoherence::ChangeMask& mask : coherence_.Add(frame, image)) {
       WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
     }
@@ -568,6 +584,7 @@ nlohmann::json JobRun::Stats(bool final) const {
   cost_.AddTo(stats, coherence.frameToFrame());
   stats["error"] = verification_.Report();
   if (nlohmann::json audit = audit_.Report(); !audit.is_null()) stats["error"]["audit"] = audit;
+  stats["error"]["referee_sample"] = sample_.Report();
   const RunningStats& f2f = coherence.frameToFrame();
   const RunningStats& longTerm = coherence.longTerm();
   if (f2f.count > 0) {

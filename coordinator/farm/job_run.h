@@ -24,6 +24,7 @@
 #include "coordinator/farm/exactness_audit.h"
 #include "coordinator/farm/frame_records.h"
 #include "coordinator/farm/job_coherence.h"
+#include "coordinator/farm/referee_sample.h"
 #include "coordinator/farm/job_cost.h"
 #include "coordinator/farm/verification.h"
 #include "proto/frame/frame_writer.h"
@@ -114,6 +115,7 @@ class JobRun {
   // and rewritten where they differ. name: how the job record names it.
   void OnWorkerDistrusted(const std::string& worker, const std::string& name) {
     audit_.OnWorkerDistrusted(worker, name);
+    sample_.OnWorkerDistrusted(worker);
   }
   // Hands finished frames to the writer and the verification, and records in the job
   // store the frames the writer has put in place (a frame is recorded only once its files
@@ -123,7 +125,8 @@ class JobRun {
   // the first frame that could not be written, once what was written is recorded.
   int CollectFinishedFrames(JobStore& store);
   bool Done() const {
-    return planner_->Done() && !verification_.Pending() && !audit_.Pending() && refereeChecks_.empty() &&
+    return planner_->Done() && !verification_.Pending() && !audit_.Pending() && !sample_.Pending() &&
+           refereeChecks_.empty() &&
            unwritten_.empty() && writer_.Idle() && !records_.AnyWriting() && !RecordsOwed();
   }
   // Records what the writer has put in place since the last call, and what is owed from
@@ -170,6 +173,8 @@ class JobRun {
   // finished, so two cover the writer's threads handing them back at once.
   static constexpr size_t kRecycledFrameBuffers = 2;
 
+  // OnResult's work before the sample: to the planner, the verification or a repair.
+  bool Accept(const DispatchTask& task, const wire::Result& result, const std::string& worker, bool onProbation);
   bool OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
                        bool onProbation);
   // The referee's answers to checks it traced, fed back as results. Throws
@@ -183,7 +188,7 @@ class JobRun {
   // A frame traced again in full: rewritten where it differs from what was written.
   bool OnRepairResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
   uint64_t PixelsDifferingFromWritten(int absoluteFrame, const std::vector<float>& rgb) const;
-  // Disputes to the referee, its verdicts back.
+  // Disputes and the unseen sample to the referee, its verdicts back.
   void Audit(const JobStore& store);
   // Checks the frame, writes it and its masks, and feeds it to the coherence.
   void FinishFrame(FinishedFrame frame);
@@ -225,6 +230,7 @@ class JobRun {
   PixelTally reported_;
   Verification verification_;
   ExactnessAudit audit_;
+  RefereeSample sample_;  // the referee's unseen check of every worker's values
   Referee* referee_;
   std::map<uint64_t, DispatchTask> refereeChecks_;  // out with the referee, by question id
   uint64_t nextRefereeCheck_ = 1;

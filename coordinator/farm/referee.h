@@ -30,7 +30,7 @@ namespace tcfarm {
 class Referee {
  public:
   // Why a question is asked; each asker takes only the answers to its own.
-  enum class Purpose { kDispute, kCheck };
+  enum class Purpose { kDispute, kCheck, kSample };
   struct Question {
     uint64_t jobId = 0;
     uint64_t id = 0;  // the asker's, returned with the answer

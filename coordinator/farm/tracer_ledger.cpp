@@ -31,17 +31,18 @@ std::set<std::string> TracerLedger::WorkersReaching(int frame) const {
   return workers;
 }
 
-std::optional<TracerLedger::Source> TracerLedger::SourceOf(int frame, uint32_t pixel) const {
-  // Latest frame first: the value shown is the one traced last.
-  for (auto it = frames_.upper_bound(frame); it != frames_.begin();) {
-    --it;
-    for (const auto& [worker, traced] : it->second) {
-      for (const PixelSet& task : traced.tasks) {
-        if (task.Contains(pixel)) return Source{it->first, worker};
-      }
-    }
+std::optional<std::string> TracerLedger::TracerAt(int frame, uint32_t pixel) const {
+  auto found = frames_.find(frame);
+  if (found == frames_.end()) return std::nullopt;
+  std::optional<std::string> tracer;
+  for (const auto& [worker, traced] : found->second) {
+    const bool covered =
+        std::any_of(traced.tasks.begin(), traced.tasks.end(), [&](const PixelSet& task) { return task.Contains(pixel); });
+    if (!covered) continue;
+    if (tracer) return std::nullopt;  // two workers' values: which one the frame shows is not known
+    tracer = worker;
   }
-  return std::nullopt;
+  return tracer;
 }
 
 void TracerLedger::ForgetPixelsBefore(int frame) {

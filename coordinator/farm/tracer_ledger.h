@@ -1,8 +1,8 @@
 // Who traced which pixels of each frame of a job that promises exactness. When a worker
 // is found to return wrong values, the ledger names the frames its values can have
 // reached: those it traced and, as far as its horizons could carry copies of them, the
-// window that followed each. A copied pixel's value is traced-then-copied, so the ledger
-// also finds which worker traced the value a frame shows at a pixel.
+// window that followed each. It also names the worker whose value a frame shows at a pixel
+// that the frame's own tasks traced; a copy names nobody (farm/exactness_audit.h).
 #pragma once
 
 #include <map>
@@ -28,14 +28,12 @@ class TracerLedger {
   // frame whose window reaches it.
   std::set<std::string> WorkersReaching(int frame) const;
 
-  struct Source {
-    int frame = 0;
-    std::string worker;
-  };
-  // Where the value `frame` shows at `pixel` was traced: the latest frame at or before
-  // `frame` whose tasks traced it. nullopt when no recorded task did (a frame kept from
-  // before a restart, or a bug that copied a pixel never traced).
-  std::optional<Source> SourceOf(int frame, uint32_t pixel) const;
+  // Who sent the value `frame` shows at `pixel`, where the frame's own tasks traced it:
+  // the one worker whose task there covered it. nullopt where no task of the frame traced
+  // it (a copy, or a frame kept from before a restart) or where tasks of two workers did
+  // (a task requeued while its first worker still answered): then no single worker is
+  // known to have sent the value shown, and nobody can be held to it.
+  std::optional<std::string> TracerAt(int frame, uint32_t pixel) const;
 
   // Frames (below frameCount) the worker's values can have reached: each frame it traced
   // part of, and the frames of the window after it, into which horizons may copy.

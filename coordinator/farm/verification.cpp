@@ -79,6 +79,10 @@ void Verification::OnFrameFinished(int frame, const std::vector<float>& rgb,
   if (copied < pixels && traceShare > 0) ScheduleSampleCheck(frame, rgb, traced, traceShare, /*ofTraced=*/true);
 }
 
+void Verification::OnKeptFrame(int frame, const std::vector<float>& rgb) {
+  if (wantsReference_[frame]) ScheduleReference(frame, rgb);
+}
+
 void Verification::ScheduleSampleCheck(int frame, const std::vector<float>& rgb,
                                        const std::vector<uint8_t>& traced, double share, bool ofTraced) {
   size_t pixels = traced.size();

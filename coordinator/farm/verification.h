@@ -67,6 +67,8 @@ class Verification {
   // asked, its reference. probation: a worker on probation traced part of it.
   void OnFrameFinished(int frame, const std::vector<float>& rgb,
                        const std::vector<uint8_t>& traced, bool probation = false);
+  // A frame kept from before a restart: only its reference, when one is asked for.
+  void OnKeptFrame(int frame, const std::vector<float>& rgb);
   std::vector<Request> TakeRequests();
   // Returns false for an id this verification did not issue (or already answered).
   // checker: the worker that traced it, named in the dispute a disagreement raises.

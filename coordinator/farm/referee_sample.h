@@ -1,0 +1,130 @@
+// The referee's unseen sample: the one check of a job that no worker can see, and so the
+// one that still holds when any number of workers with valid keys collude.
+//
+// Every result a worker sends a job (the planner's tasks, checks and repairs alike) gives
+// up a secret random share of its pixels once it is back: the values the worker sent for
+// them are kept, and the coordinator's referee (farm/referee.h) traces those pixels of
+// that frame itself. A value that differs is evidence against the worker that sent it,
+// and against nobody else: it sent that value for that pixel of that frame, and two honest
+// traces of one pixel give the same bits. Copies a strategy made are never sampled.
+//
+// A horizon is a value sent too. A worker that answers an `exact` task with horizon h for
+// a pixel says the pixel keeps the value it sent through frame h - 1, and exact copies it
+// there on that word alone. So a drawn pixel whose horizon reaches past its frame is also
+// traced by the referee at the last frame the horizon vouches for (within the job): a
+// different value there is evidence against the worker just as a wrong trace is. An honest
+// worker's horizons are conservative (exact is bit-identical to brute force), so no honest
+// worker fails this.
+//
+// Nothing a worker sees depends on the sample. It is drawn after the result is back, by a
+// generator seeded per job from the operating system's random source, and traced on the
+// coordinator: a worker cannot tell a watched task from another, so it cannot behave well
+// only while watched, and no number of colluding workers can vouch for each other.
+//
+// Sizing: each pixel a worker sends is drawn with probability s, independently. A worker
+// that alters k of the pixels it sends in each of F frames goes unseen with probability
+// (1 - s)^(kF). A job's s is the least that catches k = 16 over the job's frames with
+// probability 1 - 1e-6, within [kMinShare, kMaxShare]; the report states the probability
+// the job actually gets, and what it cost (pixels and the referee's CPU seconds).
+//
+// Owned by the job's run; not thread-safe.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "coordinator/farm/dispute.h"
+#include "coordinator/farm/referee.h"
+#include "proto/pixel_set/pixel_set.h"
+
+namespace tcfarm {
+
+class RefereeSample {
+ public:
+  // The least share the sample takes, whatever the job's length: a long job catches a
+  // worker altering one pixel a frame all the same (1 - 0.99^F).
+  static constexpr double kMinShare = 0.01;
+  // The most: a one-frame job pays a tenth of its pixels and states its lower probability.
+  static constexpr double kMaxShare = 0.10;
+  // The pixels altered a frame the sizing aims to catch, and how surely, per job.
+  static constexpr int kSizedForAlteredPixels = 16;
+  static constexpr double kSizedForMissProbability = 1e-6;
+  // Sampled values the referee may owe a job before the job waits for it to catch up:
+  // bounds the coordinator's memory when the referee falls behind the workers.
+  static constexpr uint64_t kMaxOutstandingPixels = uint64_t{1} << 20;
+
+  // The share a job of `frames` frames samples.
+  static double ShareFor(int frames);
+  // The probability that a worker altering `alteredPerFrame` of the pixels it sends in
+  // each of `frames` frames is caught by a sample of `share`.
+  static double CatchProbability(double share, int alteredPerFrame, int frames);
+
+  // referee: null turns the sample off (unit tests of the parts around it). seed: 0 draws
+  // it from the operating system's random source, as the farm does; tests pass their own.
+  RefereeSample(uint64_t jobId, int firstFrame, int frameCount, Referee* referee, uint64_t seed = 0);
+
+  double share() const { return share_; }
+  // `worker` sent `rgb` (3 floats a pixel, in pixels' order) for `pixels` of `frame` (the
+  // job's numbering), and with them, for an exact task, `horizons` (one a pixel, the
+  // scene's numbering, as on the wire). The referee's own values and distrusted workers'
+  // are not sampled.
+  void OnValues(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
+                const int32_t* horizons = nullptr);
+  // A worker found wrong: its values are retraced in full by others, so no more of them
+  // are sampled.
+  void OnWorkerDistrusted(const std::string& worker) { distrusted_.insert(worker); }
+
+  // Sends what was drawn since the last call to the referee, one question a frame.
+  // sceneJson() is called once, the first time a question is sent.
+  void Ask(const std::string& sceneHash, const std::function<const std::string&()>& sceneJson);
+  // The referee's answers so far: each worker whose values differ from its own, once.
+  std::vector<Verdict> HearReferee();
+
+  // Drawn values not yet answered: the job is not done while any remain.
+  bool Pending() const { return outstandingPixels_ > 0; }
+  // The referee owes this job so much that its workers should wait for it.
+  bool Behind() const { return outstandingPixels_ >= kMaxOutstandingPixels; }
+  nlohmann::json Report() const;
+
+ private:
+  struct Drawn {
+    uint32_t pixel;
+    std::string worker;
+    float rgb[3];
+    int sentFor;  // the frame the value was sent for: earlier than the question's for a horizon
+  };
+  // Draws pixels, skipping ahead geometrically between draws; each drawn pixel is asked
+  // at its frame and, where its horizon vouches for later frames, at the last of them.
+  void Draw(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
+            const int32_t* horizons);
+  void Add(int askedAt, Drawn drawn);
+  void Rule(const std::vector<Drawn>& drawn, int frame, const Referee::Answer& answer,
+            std::vector<Verdict>& verdicts);
+
+  uint64_t jobId_;
+  int firstFrame_, frameCount_;
+  Referee* referee_;
+  double share_;
+  std::mt19937_64 random_;
+  std::geometric_distribution<uint64_t> gap_;  // pixels passed over before the next draw
+  uint64_t untilNextDraw_;
+  std::map<int, std::vector<Drawn>> toAsk_;           // by frame (the job's)
+  std::map<uint64_t, std::pair<int, std::vector<Drawn>>> asked_;  // by question id
+  uint64_t nextQuestion_ = 1;
+  uint64_t outstandingPixels_ = 0;
+  std::set<std::string> distrusted_;
+  std::set<std::string> caught_;  // by this sample
+  std::vector<std::string> unsettled_;
+  // Figures
+  uint64_t pixelsSent_ = 0, pixelsDrawn_ = 0, horizonChecks_ = 0, tracesAnswered_ = 0, pixelsWrong_ = 0;
+  double refereeCpuSeconds_ = 0;
+};
+
+}  // namespace tcfarm
