@@ -14,8 +14,9 @@ constexpr Milliseconds kClaimInterval{100};
 constexpr Milliseconds kSnapshotInterval{200};
 // Poll timeout of the loop when idle; bounds the latency of cancellation and stop.
 constexpr Milliseconds kIdlePoll{50};
-// A worker on probation has done at most this many tasks since it joined: its frames are
-// checked more (Verification's probation share). One that reconnects starts over.
+// A worker on probation has done at most this many tasks since it joined: the referee
+// samples more of its values (RefereeSample::kProbationFactor), unseen. One that
+// reconnects starts over.
 constexpr uint64_t kProbationTasks = 16;
 
 double SecondsBetween(SteadyTime earlier, SteadyTime later) {

@@ -235,14 +235,21 @@ std::vector<DispatchTask> JobRun::TakeTasks(int workers) {
     ++tasksOut_[spec_.firstFrame + t.frame];
     tasks.push_back({id_, t.id, spec_.firstFrame + t.frame, std::move(t.pixels), t.window, {}, false});
   }
-  // Checks go to a worker other than the ones whose values they check, so that a worker
-  // that returns wrong values never checks itself; where no such worker is connected, the
-  // referee traces them (the dispatcher hands them back: TakeStranded).
+  // Spot checks are the referee's: a worker never sees one, so none can be told apart from
+  // work (farm/referee_sample.h). A reference frame, traced in full on request, goes to a
+  // worker other than the ones whose values it checks, so that a worker that returns wrong
+  // values never checks itself; where no such worker is connected, the referee traces it
+  // (the dispatcher hands it back: TakeStranded).
   for (Verification::Request& r : verification_.TakeRequests()) {
-    std::set<std::string> avoid = audit_.WorkersReaching(r.frame);
-    avoid.insert(audit_.Distrusted().begin(), audit_.Distrusted().end());
-    tasks.push_back({id_, r.id | kVerificationTask, spec_.firstFrame + r.frame, std::move(r.pixels), 0,
-                     std::move(avoid), /*refereeMayTrace=*/true});
+    DispatchTask check{id_, r.id | kVerificationTask, spec_.firstFrame + r.frame, std::move(r.pixels), 0, {},
+                       /*refereeMayTrace=*/true};
+    if (!verification_.IsReference(r.id)) {
+      forReferee_.push_back(std::move(check));
+      continue;
+    }
+    check.avoid = audit_.WorkersReaching(r.frame);
+    check.avoid.insert(audit_.Distrusted().begin(), audit_.Distrusted().end());
+    tasks.push_back(std::move(check));
   }
   for (int frame : audit_.TakeFramesToRepair([this](int f) { return written_[static_cast<size_t>(f)]; })) {
     tasks.push_back({id_, kRepairTask | static_cast<uint64_t>(frame), spec_.firstFrame + frame,
@@ -306,23 +313,22 @@ int JobRun::CopyReach(int window) const {
 
 bool JobRun::OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
                       bool onProbation) {
-  if (!Accept(task, result, worker, onProbation)) return false;
+  if (!Accept(task, result, worker)) return false;
   // Every value a worker sent, whatever it was for, may be drawn for the referee.
   if (result.rgb.size() == 3 * task.pixels.size()) {
     const bool horizons = task.window > 0 && result.horizons.size() == task.pixels.size();
     sample_.OnValues(task.frame - spec_.firstFrame, worker, task.pixels, result.rgb.data(),
-                     horizons ? result.horizons.data() : nullptr);
+                     horizons ? result.horizons.data() : nullptr, onProbation);
   }
   return true;
 }
 
-bool JobRun::Accept(const DispatchTask& task, const wire::Result& result, const std::string& worker,
-                    bool onProbation) {
+bool JobRun::Accept(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
   if (task.plannerTaskId & kVerificationTask) {
     return OnVerificationResult(task.plannerTaskId & ~kVerificationTask, result, worker);
   }
   if (task.plannerTaskId & kRepairTask) return OnRepairResult(task, result, worker);
-  return OnPlannerResult(task, result, worker, onProbation);
+  return OnPlannerResult(task, result, worker);
 }
 
 bool JobRun::OnVerificationResult(uint64_t taskId, const wire::Result& result, const std::string& worker) {
@@ -368,6 +374,8 @@ std::vector<ExactnessAudit::Verdict> JobRun::TakeVerdicts() {
 }
 
 void JobRun::Audit(const JobStore& store) {
+  for (DispatchTask& check : forReferee_) TraceByReferee(std::move(check), store);
+  forReferee_.clear();
   HearRefereeChecks();
   sample_.Ask(spec_.sceneHash, [&]() -> const std::string& { return SceneJson(store); });
   for (Verdict& verdict : sample_.HearReferee()) verdicts_.push_back(std::move(verdict));
@@ -379,8 +387,7 @@ void JobRun::Audit(const JobStore& store) {
   audit_.ForgetBefore(verification_.LowestPendingFrame(coherence_.NextFrame()));
 }
 
-bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
-                             bool onProbation) {
+bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
   const uint64_t taskId = task.plannerTaskId;
   // Workers speak absolute frames; the planner counts from the job's first frame.
   std::vector<int32_t> horizons(result.horizons);
@@ -398,7 +405,6 @@ bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& resul
     cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
   }
   audit_.OnTraced(result.frame - spec_.firstFrame, worker, task.pixels, CopyReach(task.window));
-  if (onProbation) probationFrames_.insert(result.frame - spec_.firstFrame);
   return true;
 }
 
@@ -482,8 +488,7 @@ void JobRun::FinishFrame(FinishedFrame frame) {
   records_.Writing(absolute, frame.tracedCount);
   cost_.OnFrameFinished(frame.frame, frame.tracedCount);
   Image image{spec_.frameSize.width, spec_.frameSize.height, std::move(frame.rgb)};
-  const bool probation = probationFrames_.erase(frame.frame) > 0;
-  verification_.OnFrameFinished(frame.frame, image.rgb, frame.traced, probation);
+  verification_.OnFrameFinished(frame.frame, image.rgb, frame.traced);
   // Every planner gives a pixel it does not trace the previous frame's bits: only the
   // traced pixels can have changed.
   std::vector<JobCoherence::ChangeMask> changeMasks = coherence_.Add(frame.frame, image, &frame.traced);

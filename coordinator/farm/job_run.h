@@ -101,7 +101,8 @@ class JobRun {
   // Feeds a result to the planner, the verification or a repair. False when it had it
   // already. worker: who traced it (a principal, or Referee::kName); checks of a frame
   // then go to someone else, and a worker found returning wrong values is traced back
-  // through it. onProbation: the worker joined lately, so the frame is checked more.
+  // through it. onProbation: the worker joined lately, so the referee samples more of its
+  // values.
   bool OnResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
                 bool onProbation = false);
   // A check or repair of this job that no connected worker may trace (the dispatcher's
@@ -126,7 +127,7 @@ class JobRun {
   int CollectFinishedFrames(JobStore& store);
   bool Done() const {
     return planner_->Done() && !verification_.Pending() && !audit_.Pending() && !sample_.Pending() &&
-           refereeChecks_.empty() &&
+           refereeChecks_.empty() && forReferee_.empty() &&
            unwritten_.empty() && writer_.Idle() && !records_.AnyWriting() && !RecordsOwed();
   }
   // Records what the writer has put in place since the last call, and what is owed from
@@ -174,9 +175,8 @@ class JobRun {
   static constexpr size_t kRecycledFrameBuffers = 2;
 
   // OnResult's work before the sample: to the planner, the verification or a repair.
-  bool Accept(const DispatchTask& task, const wire::Result& result, const std::string& worker, bool onProbation);
-  bool OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker,
-                       bool onProbation);
+  bool Accept(const DispatchTask& task, const wire::Result& result, const std::string& worker);
+  bool OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
   // The referee's answers to checks it traced, fed back as results. Throws
   // std::runtime_error for a check it could not trace: the job cannot keep its promise.
   void HearRefereeChecks();
@@ -234,7 +234,7 @@ class JobRun {
   Referee* referee_;
   std::map<uint64_t, DispatchTask> refereeChecks_;  // out with the referee, by question id
   uint64_t nextRefereeCheck_ = 1;
-  std::set<int> probationFrames_;  // frames (the job's) a worker on probation traced part of
+  std::vector<DispatchTask> forReferee_;  // spot checks, for the referee at the next Audit
   std::string sceneJson_;          // read once, when the referee first needs it
   std::vector<ExactnessAudit::Verdict> verdicts_;
   // Planner tasks in flight: their chain and step (TraceTask), for the job's span.

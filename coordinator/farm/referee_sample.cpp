@@ -34,25 +34,32 @@ RefereeSample::RefereeSample(uint64_t jobId, int firstFrame, int frameCount, Ref
       frameCount_(frameCount),
       referee_(referee),
       share_(ShareFor(frameCount)),
+      probationShare_(std::min(kProbationFactor * share_, 0.5)),
       random_(seed != 0 ? seed : SecretSeed()),
       gap_(share_),
-      untilNextDraw_(gap_(random_)) {}
+      probationGap_(probationShare_),
+      untilNextDraw_(gap_(random_)),
+      untilNextProbationDraw_(probationGap_(random_)) {}
 
 void RefereeSample::OnValues(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
-                             const int32_t* horizons) {
+                             const int32_t* horizons, bool onProbation) {
   if (!referee_ || worker == Referee::kName || distrusted_.count(worker)) return;
   pixelsSent_ += pixels.size();
-  Draw(frame, worker, pixels, rgb, horizons);
+  if (onProbation) {
+    Draw(frame, worker, pixels, rgb, horizons, probationGap_, untilNextProbationDraw_);
+  } else {
+    Draw(frame, worker, pixels, rgb, horizons, gap_, untilNextDraw_);
+  }
 }
 
 void RefereeSample::Draw(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
-                         const int32_t* horizons) {
+                         const int32_t* horizons, std::geometric_distribution<uint64_t>& gap, uint64_t& untilNext) {
   uint64_t position = 0;  // of the span's first pixel in rgb
   for (const Span& span : pixels.spans()) {
     const uint64_t length = span.size();
     uint64_t at = 0;
-    while (untilNextDraw_ < length - at) {
-      at += untilNextDraw_;
+    while (untilNext < length - at) {
+      at += untilNext;
       const uint64_t i = position + at;
       const Drawn drawn{static_cast<uint32_t>(span.begin + at), worker, {rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]},
                         frame};
@@ -67,9 +74,9 @@ void RefereeSample::Draw(int frame, const std::string& worker, const PixelSet& p
       }
       ++pixelsDrawn_;
       ++at;
-      untilNextDraw_ = gap_(random_);
+      untilNext = gap(random_);
     }
-    untilNextDraw_ -= length - at;
+    untilNext -= length - at;
     position += length;
   }
 }
@@ -136,6 +143,7 @@ void RefereeSample::Rule(const std::vector<Drawn>& drawn, int frame, const Refer
 nlohmann::json RefereeSample::Report() const {
   const int frames = frameCount_;
   return {{"share", share_},
+          {"share_on_probation", probationShare_},
           {"pixels_sent", pixelsSent_},
           {"pixels_sampled", pixelsDrawn_},
           {"horizon_checks", horizonChecks_},  // drawn pixels also traced where their horizon vouches

@@ -53,6 +53,8 @@ class RefereeSample {
   static constexpr double kMinShare = 0.01;
   // The most: a one-frame job pays a tenth of its pixels and states its lower probability.
   static constexpr double kMaxShare = 0.10;
+  // How much more of a worker's values on probation (its first tasks) are drawn.
+  static constexpr double kProbationFactor = 4;
   // The pixels altered a frame the sizing aims to catch, and how surely, per job.
   static constexpr int kSizedForAlteredPixels = 16;
   static constexpr double kSizedForMissProbability = 1e-6;
@@ -75,8 +77,10 @@ class RefereeSample {
   // job's numbering), and with them, for an exact task, `horizons` (one a pixel, the
   // scene's numbering, as on the wire). The referee's own values and distrusted workers'
   // are not sampled.
+  // onProbation: the worker joined lately; its values are drawn kProbationFactor times as
+  // often, and it cannot tell (nothing it sees changes).
   void OnValues(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
-                const int32_t* horizons = nullptr);
+                const int32_t* horizons = nullptr, bool onProbation = false);
   // A worker found wrong: its values are retraced in full by others, so no more of them
   // are sampled.
   void OnWorkerDistrusted(const std::string& worker) { distrusted_.insert(worker); }
@@ -102,8 +106,9 @@ class RefereeSample {
   };
   // Draws pixels, skipping ahead geometrically between draws; each drawn pixel is asked
   // at its frame and, where its horizon vouches for later frames, at the last of them.
-  void Draw(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
-            const int32_t* horizons);
+  // Draws pixels with `gap` between draws, `untilNext` to the next.
+  void Draw(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb, const int32_t* horizons,
+            std::geometric_distribution<uint64_t>& gap, uint64_t& untilNext);
   void Add(int askedAt, Drawn drawn);
   void Rule(const std::vector<Drawn>& drawn, int frame, const Referee::Answer& answer,
             std::vector<Verdict>& verdicts);
@@ -111,10 +116,12 @@ class RefereeSample {
   uint64_t jobId_;
   int firstFrame_, frameCount_;
   Referee* referee_;
-  double share_;
+  double share_, probationShare_;
   std::mt19937_64 random_;
-  std::geometric_distribution<uint64_t> gap_;  // pixels passed over before the next draw
-  uint64_t untilNextDraw_;
+  // Pixels passed over before the next draw, and how many are left to pass: one sequence
+  // for workers on probation, one for the others.
+  std::geometric_distribution<uint64_t> gap_, probationGap_;
+  uint64_t untilNextDraw_, untilNextProbationDraw_;
   std::map<int, std::vector<Drawn>> toAsk_;           // by frame (the job's)
   std::map<uint64_t, std::pair<int, std::vector<Drawn>>> asked_;  // by question id
   uint64_t nextQuestion_ = 1;

@@ -61,8 +61,7 @@ uint64_t Verification::Issue(int frame, PixelSet pixels) {
   return id;
 }
 
-void Verification::OnFrameFinished(int frame, const std::vector<float>& rgb,
-                                   const std::vector<uint8_t>& traced, bool probation) {
+void Verification::OnFrameFinished(int frame, const std::vector<float>& rgb, const std::vector<uint8_t>& traced) {
   size_t pixels = traced.size();
   size_t copied = pixels - std::count(traced.begin(), traced.end(), uint8_t{1});
   copiedPixels_ += copied;
@@ -71,33 +70,28 @@ void Verification::OnFrameFinished(int frame, const std::vector<float>& rgb,
     ScheduleReference(frame, rgb);  // checks every pixel: no sample needed
     return;
   }
-  if (copied > 0 && options_.spotCheckShare > 0) {
-    ScheduleSampleCheck(frame, rgb, traced, options_.spotCheckShare, /*ofTraced=*/false);
-  }
-  const double traceShare = probation ? std::max(options_.traceCheckShare, options_.probationCheckShare)
-                                      : options_.traceCheckShare;
-  if (copied < pixels && traceShare > 0) ScheduleSampleCheck(frame, rgb, traced, traceShare, /*ofTraced=*/true);
+  if (copied > 0 && options_.spotCheckShare > 0) ScheduleSpotCheck(frame, rgb, traced, options_.spotCheckShare);
 }
 
 void Verification::OnKeptFrame(int frame, const std::vector<float>& rgb) {
   if (wantsReference_[frame]) ScheduleReference(frame, rgb);
 }
 
-void Verification::ScheduleSampleCheck(int frame, const std::vector<float>& rgb,
-                                       const std::vector<uint8_t>& traced, double share, bool ofTraced) {
+void Verification::ScheduleSpotCheck(int frame, const std::vector<float>& rgb, const std::vector<uint8_t>& traced,
+                                     double share) {
   size_t pixels = traced.size();
   auto wanted = static_cast<size_t>(std::ceil(share * pixels));
-  // Sample uniformly: draw indices, keep those of the kind wanted, bounded attempts.
+  // Sample uniformly: draw indices, keep the copied ones, bounded attempts.
   std::vector<uint32_t> chosen;
   std::uniform_int_distribution<uint32_t> pick(0, static_cast<uint32_t>(pixels - 1));
   for (size_t attempt = 0; attempt < 8 * wanted && chosen.size() < wanted; ++attempt) {
     uint32_t p = pick(random_);
-    if ((traced[p] != 0) == ofTraced) chosen.push_back(p);
+    if (traced[p] == 0) chosen.push_back(p);
   }
   if (chosen.empty()) return;
   std::sort(chosen.begin(), chosen.end());
   chosen.erase(std::unique(chosen.begin(), chosen.end()), chosen.end());
-  SpotCheck check{frame, chosen, {}, ofTraced};
+  SpotCheck check{frame, chosen, {}};
   for (uint32_t p : chosen) check.values.insert(check.values.end(), &rgb[3 * p], &rgb[3 * p + 3]);
   uint64_t id = Issue(frame, PixelSet::FromSortedIndices(chosen));
   spotChecks_[id] = std::move(check);
@@ -150,14 +144,9 @@ bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount, co
     auto [mismatched, dispute] = Disagreements(
         spot.frame, floatCount / 3, spot.values.data(), rgb, [&](size_t i) { return spot.pixels[i]; }, checker);
     CountChecker(checker, floatCount / 3);
-    if (spot.ofTraced) {
-      traceChecked_ += floatCount / 3;
-      traceDisagreements_ += mismatched;
-    } else {
-      checkedPixels_ += floatCount / 3;
-      mismatchedPixels_ += mismatched;
-    }
-    if (mismatched > 0) NoteDisagreement(spot.frame, mismatched, std::move(dispute), spot.ofTraced);
+    checkedPixels_ += floatCount / 3;
+    mismatchedPixels_ += mismatched;
+    if (mismatched > 0) NoteDisagreement(spot.frame, mismatched, std::move(dispute));
     spotChecks_.erase(check);
     return true;
   }
@@ -170,7 +159,7 @@ bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount, co
     auto [differing, dispute] = Disagreements(
         frame, floatCount / 3, job->second.rgb.data(), rgb, [](size_t i) { return static_cast<uint32_t>(i); },
         checker);
-    NoteDisagreement(frame, differing, std::move(dispute), /*wrongTrace=*/false);
+    NoteDisagreement(frame, differing, std::move(dispute));
   }
   reference_ += frameError;
   ssimSum_ += Ssim(reference, job->second);
@@ -183,14 +172,10 @@ void Verification::CountChecker(const std::string& checker, uint64_t pixels) {
   (checker == Referee::kName ? checkedByReferee_ : checkedByWorkers_) += pixels;
 }
 
-void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute, bool wrongTrace) {
+void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute) {
   const bool first = suspectFrames_.empty();
   suspectFrames_[frame] += pixels;
-  if (wrongTrace && !options_.promisesExact) {
-    disputes_.push_back(std::move(dispute));  // a wrong trace, whatever the strategy promises
-    return;
-  }
-  if (!options_.promisesExact) return;
+  if (!options_.promisesExact) return;  // the strategy's approximation, measured
   disputes_.push_back(std::move(dispute));
   if (!first) return;
   std::fprintf(stderr, "coordinator: a check found %llu pixels of frame %d that disagree with the job's, which "
@@ -234,8 +219,6 @@ nlohmann::json Verification::Report() const {
         {"psnr_db", std::isinf(psnr) ? nlohmann::json(nullptr) : nlohmann::json(psnr)},
         {"ssim", referenceFramesDone_ ? ssimSum_ / referenceFramesDone_ : 1.0}};
   }
-  // Traced pixels traced again by someone else: any disagreement is a wrong trace.
-  report["trace_checks"] = {{"pixels_checked", traceChecked_}, {"disagreements", traceDisagreements_}};
   // Who traced the checks, references included: never the worker whose values they check.
   report["checked_by"] = {{"referee_pixels", checkedByReferee_}, {"worker_pixels", checkedByWorkers_}};
   report["extra_pixels_traced"] = extraPixels_;

@@ -1,15 +1,11 @@
 // What a job's speed cost in error, measured while it renders.
 //
 // Spot checks (always on): a random sample of each finished frame's copied pixels is
-// traced again and compared bitwise; the mismatch rate, scaled by the copied share, is
-// an estimate of the job's share of wrong pixels, with a Wilson 95 % interval. The
-// sample costs at most kMaxSpotCheckShare extra rays.
-//
-// Trace checks (always on, every strategy): a smaller sample of each frame's traced
-// pixels is traced again by someone else. Two traces of one pixel give the same bits,
-// so any disagreement is a wrong trace (a bug or a lying worker), never the strategy's
-// approximation: it always becomes a dispute, whatever the strategy promises. Frames a
-// newly joined worker traced part of are sampled more (probation).
+// traced again, by the coordinator's referee, and compared bitwise; the mismatch rate,
+// scaled by the copied share, is an estimate of the job's share of wrong pixels, with a
+// Wilson 95 % interval. The sample costs at most kMaxSpotCheckShare extra rays. (Traced
+// pixels need no such check here: the referee's unseen sample, farm/referee_sample.h,
+// traces a share of every value a worker sends.)
 //
 // Verification (on request): selected frames are also rendered in full, brute force,
 // and compared with the job's frames: pixels differing, max abs error, PSNR, SSIM. A
@@ -41,10 +37,6 @@ struct VerificationOptions {
   // The strategy promises 0 wrong pixels (exact, brute): then any disagreement a check
   // finds is a bug or a worker that returns wrong values, and the job is marked suspect.
   bool promisesExact = false;
-  // Share of each frame's traced pixels traced again (trace checks); 0 turns them off.
-  double traceCheckShare = 0.005;
-  // The same for a frame that a worker on probation traced part of.
-  double probationCheckShare = 0.02;
 };
 
 // The share of a frame's pixels spot checks may trace again (the promise of <= 2 %).
@@ -63,10 +55,9 @@ class Verification {
 
   Verification(int width, int height, int frameCount, VerificationOptions options);
 
-  // A frame of the job is finished: schedule its spot checks and trace checks and, when
-  // asked, its reference. probation: a worker on probation traced part of it.
-  void OnFrameFinished(int frame, const std::vector<float>& rgb,
-                       const std::vector<uint8_t>& traced, bool probation = false);
+  // A frame of the job is finished: schedule its spot checks and, when asked, its
+  // reference.
+  void OnFrameFinished(int frame, const std::vector<float>& rgb, const std::vector<uint8_t>& traced);
   // A frame kept from before a restart: only its reference, when one is asked for.
   void OnKeptFrame(int frame, const std::vector<float>& rgb);
   std::vector<Request> TakeRequests();
@@ -91,19 +82,17 @@ class Verification {
     int frame;
     std::vector<uint32_t> pixels;
     std::vector<float> values;  // the job's values, in pixels' order
-    bool ofTraced = false;      // a trace check (of traced pixels), not a spot check of copies
   };
-  // Samples `share` of the frame's pixels whose traced flag is `ofTraced`.
-  void ScheduleSampleCheck(int frame, const std::vector<float>& rgb, const std::vector<uint8_t>& traced,
-                           double share, bool ofTraced);
+  // Samples `share` of the frame's copied pixels.
+  void ScheduleSpotCheck(int frame, const std::vector<float>& rgb, const std::vector<uint8_t>& traced,
+                         double share);
   // Tallies a check's answer by who traced it.
   void CountChecker(const std::string& checker, uint64_t pixels);
   void ScheduleReference(int frame, const std::vector<float>& rgb);
   uint64_t Issue(int frame, PixelSet pixels);
   // A check of `frame` found `pixels` that disagree with the job's values; `dispute`
   // holds a sample of them.
-  // wrongTrace: the disagreement cannot be the strategy's approximation.
-  void NoteDisagreement(int frame, uint64_t pixels, Dispute dispute, bool wrongTrace);
+  void NoteDisagreement(int frame, uint64_t pixels, Dispute dispute);
 
   int width_, height_, frameCount_;
   VerificationOptions options_;
@@ -118,7 +107,6 @@ class Verification {
   uint64_t extraPixels_ = 0;
   uint64_t checkedPixels_ = 0, mismatchedPixels_ = 0;
   uint64_t copiedPixels_ = 0, totalPixels_ = 0;
-  uint64_t traceChecked_ = 0, traceDisagreements_ = 0;
   uint64_t checkedByReferee_ = 0, checkedByWorkers_ = 0;  // pixels, every kind of check
   FrameError reference_;
   double ssimSum_ = 0;

@@ -46,7 +46,6 @@ TEST(VerificationTest, FramesToVerifySpreadEvenly) {
 
 TEST(VerificationTest, SpotChecksStayWithinTwoPercentAndFindNothingWhenCopiesAreRight) {
   VerificationOptions options{{}, 0.5 /* clamped to 2 % */, 1};
-  options.traceCheckShare = 0;  // the copies' budget alone
   Verification verification(kWidth, kHeight, 4, options);
   for (int frame = 0; frame < 4; ++frame) {
     auto [rgb, traced] = Frame();
@@ -118,56 +117,38 @@ TEST(VerificationTest, ADisagreementMarksAJobThatPromisesExactnessSuspect) {
     EXPECT_EQ(report.contains("suspect"), promisesExact) << report.dump();
     if (!promisesExact) continue;
     EXPECT_EQ(report["suspect"]["frames"]["1"], kPixels);  // the reference differs everywhere
-    EXPECT_EQ(report["suspect"]["frames"]["0"], report["spot_checks"]["mismatches"].get<uint64_t>() +
-                                                    report["trace_checks"]["disagreements"].get<uint64_t>());
+    EXPECT_EQ(report["suspect"]["frames"]["0"], report["spot_checks"]["mismatches"].get<uint64_t>());
   }
 }
 
-// Two traces of one pixel give the same bits: a trace check that disagrees is a wrong
-// trace whatever the strategy promises, so it is disputed even for search; a copy that
-// disagrees is search's approximation, measured and not disputed.
-TEST(VerificationTest, ATraceCheckThatDisagreesIsDisputedForEveryStrategy) {
+// Spot checks sample copies alone (traced values are the referee sample's): a copy that
+// disagrees is disputed where the strategy promises exactness, and is only measured where
+// it is the strategy's approximation. The report says who traced the checks.
+TEST(VerificationTest, SpotChecksSampleCopiesAndDisputeThemOnlyWhereExactnessIsPromised) {
   for (const bool promisesExact : {true, false}) {
     VerificationOptions options;
     options.promisesExact = promisesExact;
     Verification verification(kWidth, kHeight, 1, options);
-    auto [rgb, traced] = Frame();
+    const auto frame = Frame();
+    const std::vector<float>& rgb = frame.first;
+    const std::vector<uint8_t>& traced = frame.second;
     verification.OnFrameFinished(0, rgb, traced);
-    std::set<uint32_t> copiesWrong, tracesWrong;
-    for (uint32_t p = 0; p < kPixels; ++p) (traced[p] ? tracesWrong : copiesWrong).insert(p);
-    Answer(verification, copiesWrong);
-    EXPECT_EQ(verification.TakeDisputes().size(), promisesExact ? 1u : 0u);
-    const nlohmann::json checks = verification.Report()["trace_checks"];
-    EXPECT_GT(checks["pixels_checked"].get<uint64_t>(), 0u);
-    EXPECT_EQ(checks["disagreements"], 0);
-
-    Verification again(kWidth, kHeight, 1, options);
-    again.OnFrameFinished(0, rgb, traced);
-    Answer(again, tracesWrong);
-    const std::vector<Dispute> disputes = again.TakeDisputes();
-    ASSERT_EQ(disputes.size(), 1u);
-    for (uint32_t p : disputes[0].pixels) EXPECT_TRUE(traced[p]) << p;
-    EXPECT_GT(again.Report()["trace_checks"]["disagreements"].get<uint64_t>(), 0u);
+    const std::vector<Verification::Request> requests = verification.TakeRequests();
+    ASSERT_FALSE(requests.empty());
+    for (const Verification::Request& request : requests) {
+      request.pixels.ForEach([&](uint32_t p) { EXPECT_FALSE(traced[p]) << p; });
+      std::vector<float> values;
+      request.pixels.ForEach([&](uint32_t p) { values.insert(values.end(), 3, rgb[3 * p] + 1.0f); });
+      EXPECT_TRUE(verification.OnResult(request.id, values.data(), values.size(), Referee::kName));
+    }
+    const std::vector<Dispute> disputes = verification.TakeDisputes();
+    EXPECT_EQ(disputes.size(), promisesExact ? 1u : 0u);
+    const nlohmann::json report = verification.Report();
+    EXPECT_GT(report["spot_checks"]["mismatches"].get<uint64_t>(), 0u);
+    EXPECT_FALSE(report.contains("trace_checks")) << report.dump();
+    EXPECT_EQ(report["checked_by"]["referee_pixels"], verification.ExtraPixels());
+    EXPECT_EQ(report["checked_by"]["worker_pixels"], 0);
   }
-}
-
-// Frames a worker on probation traced are sampled more; the report says who checked.
-TEST(VerificationTest, ProbationSamplesMoreAndTheReportNamesTheChecker) {
-  VerificationOptions options;
-  options.spotCheckShare = 0;
-  Verification usual(kWidth, kHeight, 1, options), probation(kWidth, kHeight, 1, options);
-  auto [rgb, traced] = Frame();
-  usual.OnFrameFinished(0, rgb, traced);
-  probation.OnFrameFinished(0, rgb, traced, /*probation=*/true);
-  EXPECT_GT(probation.ExtraPixels(), 2 * usual.ExtraPixels());
-  for (const auto& request : probation.TakeRequests()) {
-    std::vector<float> values;
-    request.pixels.ForEach([&](uint32_t p) { values.insert(values.end(), &rgb[3 * p], &rgb[3 * p + 3]); });
-    EXPECT_TRUE(probation.OnResult(request.id, values.data(), values.size(), Referee::kName));
-  }
-  const nlohmann::json checkedBy = probation.Report()["checked_by"];
-  EXPECT_EQ(checkedBy["referee_pixels"], probation.ExtraPixels());
-  EXPECT_EQ(checkedBy["worker_pixels"], 0);
 }
 
 TEST(VerificationTest, AJobWhoseChecksAgreeIsNotSuspect) {

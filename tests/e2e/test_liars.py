@@ -3,10 +3,9 @@ with a large capacity, so that it takes every task it can, and answers each at o
 grey pixels: well-formed results with wrong values. It may hold a CURVE key that the
 coordinator allows, and it may reconnect on a new socket (a new identity) again and again.
 
-What must hold, whatever the liar does (the farm's rules: proto/wire.md, section 10):
-- a check is never traced by the worker whose values it checks: alone on the farm, the
-  liar's values are checked by the coordinator's referee, and its job is repaired, never
-  reported verified with wrong pixels;
+What must hold, whatever the liar does (the farm's rules: proto/wire.md, section 11):
+- the coordinator's referee traces a secret share of every value a worker sends: the liar
+  is caught by it, and its job is repaired, never reported verified with wrong pixels;
 - a liar is banned by its key, so a new connection does not make it someone else; the ban
   outlives the coordinator and an admin can lift it;
 - `exact` and `brute` end with 0 pixels differing from `tcfarm-worker render`; `search`
@@ -138,7 +137,7 @@ def test_a_liar_alone_is_caught_by_the_referee_and_its_job_repaired(strategy, sc
               f"audit {error['audit']}")
         assert job["state"] == "completed", job
         assert liar.answered > 0, "the liar was given no task"
-        assert error["checked_by"]["referee_pixels"] > 0, error
+        assert error["referee_sample"]["pixels_wrong"] > 0, error
         assert error["audit"]["workers_distrusted"] == ["liar"], error
         assert error["audit"]["repairs_owed"] == 0, error
         assert differing(farm, reference, job) == 0
@@ -230,10 +229,10 @@ def test_search_repairs_what_a_liar_traced(scene, reference, tmp_path):
         finally:
             liar.stop()
         error = job["stats"]["error"]
-        print(f"search: liar answered {liar.answered} tasks; trace checks {error['trace_checks']}; "
+        print(f"search: liar answered {liar.answered} tasks; referee sample {error['referee_sample']}; "
               f"audit {error.get('audit')}")
         assert liar.answered > 0
-        assert error["trace_checks"]["disagreements"] > 0, error
+        assert error["referee_sample"]["pixels_wrong"] > 0, error
         assert error["audit"]["workers_distrusted"] == ["liar"], error
         assert error["audit"]["repairs_owed"] == 0, error
         # Repaired frames are traced in full: never more wrong than search on an honest farm.
