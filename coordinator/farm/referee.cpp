@@ -75,13 +75,29 @@ void TracingReferee::Serve() {
       std::unique_lock<std::mutex> lock(mutex_);
       wake_.wait(lock, [this] { return stopping_ || !questions_.empty(); });
       if (stopping_) return;
-      question = std::move(questions_.front());
-      questions_.pop_front();
+      question = TakeNextQuestion();
     }
     Answer answer = Trace(question);
     std::lock_guard<std::mutex> lock(mutex_);
     answers_[{question.jobId, question.purpose}].push_back(std::move(answer));
   }
+}
+
+Referee::Question TracingReferee::TakeNextQuestion() {
+  // Jobs of different scenes ask at once (every job has its unseen sample), and a build
+  // can take seconds: questions on the scene built last go first, up to kSameSceneRun in a
+  // row, so that no job's questions wait for ever behind another's.
+  auto next = questions_.begin();
+  if (sameSceneRun_ < kSameSceneRun) {
+    next = std::find_if(questions_.begin(), questions_.end(),
+                        [&](const Question& q) { return q.sceneHash == lastSceneHash_; });
+    if (next == questions_.end()) next = questions_.begin();
+  }
+  sameSceneRun_ = next->sceneHash == lastSceneHash_ ? sameSceneRun_ + 1 : 0;
+  lastSceneHash_ = next->sceneHash;
+  Question question = std::move(*next);
+  questions_.erase(next);
+  return question;
 }
 
 Referee::Answer TracingReferee::Trace(const Question& question) {

@@ -5,9 +5,10 @@
 // texture bytes the workers were sent, so its values are the bits an honest worker
 // returns.
 //
-// Disputes are rare and small (kMaxDisputedPixels), and checks a small share of a job's
-// pixels, so the referee builds a scene only when one arrives, keeps the last one it
-// built, and traces on its own threads: a scene build never stalls the farm loop.
+// Disputes are small (kMaxDisputedPixels), and checks and the unseen sample a small share
+// of a job's pixels (farm/referee_sample.h), so the referee builds a scene only when a
+// question on it arrives, keeps the last one it built (taking questions on it first), and
+// traces on its own threads: a scene build never stalls the farm loop.
 #pragma once
 
 #include <condition_variable>
@@ -29,7 +30,8 @@ namespace tcfarm {
 // the worker whose values it checks): on a one-worker farm, every check of a job.
 class Referee {
  public:
-  // Why a question is asked; each asker takes only the answers to its own.
+  // Why a question is asked (a dispute, a check no worker may trace, the unseen sample);
+  // each asker takes only the answers to its own.
   enum class Purpose { kDispute, kCheck, kSample };
   struct Question {
     uint64_t jobId = 0;
@@ -72,6 +74,9 @@ class TracingReferee : public Referee {
  private:
   class Tracing;  // Embree and the scene it last built; lives on the referee's thread
   void Serve();
+  // The question to trace next (under mutex_, questions_ not empty).
+  Question TakeNextQuestion();
+  static constexpr int kSameSceneRun = 64;
   Answer Trace(const Question& question);
 
   std::filesystem::path assetRoot_;
@@ -79,6 +84,8 @@ class TracingReferee : public Referee {
   std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<Question> questions_;
+  std::string lastSceneHash_;  // of the question traced last
+  int sameSceneRun_ = 0;       // questions on it traced in a row
   std::map<std::pair<uint64_t, Purpose>, std::vector<Answer>> answers_;  // by job and purpose
   bool stopping_ = false;
   std::thread thread_;
