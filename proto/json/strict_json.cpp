@@ -11,6 +11,9 @@ using json = nlohmann::json;
 // Follows the parser through the document, so errors can name where they happened.
 class DocumentPosition {
  public:
+  // refuseDuplicateKeys false: only the nesting is checked (CheckJsonNesting).
+  explicit DocumentPosition(bool refuseDuplicateKeys = true) : refuseDuplicateKeys_(refuseDuplicateKeys) {}
+
   bool OnEvent(json::parse_event_t event, const json& parsed) {
     switch (event) {
       case json::parse_event_t::object_start:
@@ -61,7 +64,7 @@ class DocumentPosition {
 
   void OnKey(const std::string& key) {
     Level& level = levels_.back();
-    if (!level.keys.insert(key).second) {
+    if (refuseDuplicateKeys_ && !level.keys.insert(key).second) {
       throw JsonInputError(EnclosingPointer() + "/" + EscapePointerToken(key),
                            "duplicate field \"" + key + "\"", "each field at most once per object");
     }
@@ -78,6 +81,7 @@ class DocumentPosition {
     return pointer;
   }
 
+  bool refuseDuplicateKeys_;
   std::vector<Level> levels_;
 };
 
@@ -120,7 +124,84 @@ class PositionedDomBuilder {
   DocumentPosition& position_;
 };
 
+// Follows a document's nesting without building it; stops quietly at a syntax error, which
+// the parser that reads the document next reports in its own words.
+class NestingCheck {
+ public:
+  bool null() { return Value(); }
+  bool boolean(bool) { return Value(); }
+  bool number_integer(json::number_integer_t) { return Value(); }
+  bool number_unsigned(json::number_unsigned_t) { return Value(); }
+  bool number_float(json::number_float_t, const json::string_t&) { return Value(); }
+  bool string(json::string_t&) { return Value(); }
+  bool binary(json::binary_t&) { return Value(); }
+  bool start_object(std::size_t) { return position_.OnEvent(json::parse_event_t::object_start, nullptr); }
+  bool key(json::string_t& key) { return position_.OnEvent(json::parse_event_t::key, key); }
+  bool end_object() { return position_.OnEvent(json::parse_event_t::object_end, nullptr); }
+  bool start_array(std::size_t) { return position_.OnEvent(json::parse_event_t::array_start, nullptr); }
+  bool end_array() { return position_.OnEvent(json::parse_event_t::array_end, nullptr); }
+  template <typename Exception>
+  bool parse_error(std::size_t, const std::string&, const Exception&) {
+    return false;
+  }
+
+ private:
+  bool Value() { return position_.OnEvent(json::parse_event_t::value, nullptr); }
+  DocumentPosition position_{false};
+};
+
+// What nlohmann's DOM spends (64-bit libstdc++, with malloc's 16 bytes a block): an array
+// element 16 bytes, and up to 16 more while its vector grows by doubling; an object member
+// a tree node of 96 bytes holding its key (inline up to 15 bytes) and value; an object or
+// array a block of 64; a string a block of 48 plus, past the 15 characters held inline, a
+// block of its characters (up to 24 bytes more than they: malloc's header and alignment).
+// A key's long characters count alike.
+constexpr uint64_t kValueBytes = 16, kArraySlackBytes = 16, kMemberNodeBytes = 96, kContainerBytes = 64;
+constexpr uint64_t kStringBytes = 48, kInlineStringBytes = 15, kBlockOverheadBytes = 24;
+
 }  // namespace
+
+void CheckJsonNesting(std::string_view text) {
+  NestingCheck check;
+  json::sax_parse(text.begin(), text.end(), &check, json::input_format_t::json, true);
+}
+
+uint64_t JsonDomBytes(std::string_view text) {
+  // Every '{' and '[' outside strings opens a container and its first entry, every ','
+  // starts another entry of the innermost one; a string's length is bounded by its bytes.
+  // An empty container counts an entry it lacks: an estimate from above.
+  uint64_t bytes = kValueBytes;
+  std::vector<bool> inObject;  // per open container, innermost last
+  const auto entry = [&] {
+    return !inObject.empty() && inObject.back() ? kMemberNodeBytes : kValueBytes + kArraySlackBytes;
+  };
+  for (size_t at = 0; at < text.size(); ++at) {
+    switch (text[at]) {
+      case '"': {
+        const size_t begin = at + 1;
+        while (++at < text.size() && text[at] != '"') at += text[at] == '\\';
+        const uint64_t length = at - begin;  // escapes only make the text longer than the string
+        bytes += kStringBytes + (length > kInlineStringBytes ? length + kBlockOverheadBytes : 0);
+        break;
+      }
+      case '{':
+      case '[':
+        inObject.push_back(text[at] == '{');
+        bytes += kContainerBytes + entry();
+        break;
+      case '}':
+      case ']':
+        if (!inObject.empty()) inObject.pop_back();
+        break;
+      case ',':
+        bytes += entry();
+        break;
+      default:
+        break;
+    }
+  }
+  return bytes;
+}
 
 std::string EscapePointerToken(const std::string& token) {
   std::string escaped;

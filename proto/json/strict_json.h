@@ -4,8 +4,10 @@
 // HTTP API, so a client sees one style of message everywhere.
 #pragma once
 
+#include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include <nlohmann/json.hpp>
 
@@ -34,6 +36,16 @@ constexpr size_t kMaxJsonDepth = 128;
 // (pointer of the second occurrence), or nesting deeper than kMaxJsonDepth (pointer of
 // the container that goes too deep).
 nlohmann::json ParseStrictJson(const std::string& text);
+
+// ParseStrictJson's nesting limit, for a document another parser reads (a glTF file's
+// JSON, which tinygltf parses): throws JsonInputError with the pointer of the container
+// that goes deeper than kMaxJsonDepth. Builds nothing, so a deep document costs no memory;
+// a syntax error ends the check quietly, for the parser that follows to report.
+void CheckJsonNesting(std::string_view text);
+
+// At least the bytes nlohmann's DOM of `text` takes, without parsing it: what reading a
+// document will cost, known before it is read (ImportBudget). One pass over the bytes.
+uint64_t JsonDomBytes(std::string_view text);
 
 // "~" -> "~0", "/" -> "~1" (RFC 6901).
 std::string EscapePointerToken(const std::string& token);
