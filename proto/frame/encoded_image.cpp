@@ -31,12 +31,13 @@ std::optional<std::string> SizeProblem(const OIIO::ImageSpec& spec) {
   return std::nullopt;
 }
 
+constexpr int kRowsAtOnce = 64;
+
 std::optional<std::string> DecodeProblem(const std::string& bytes) {
   MemoryImageInput opened = OpenImageInMemory(bytes);
   if (!opened.input) return "it is not an image OpenImageIO can read (" + OneLine(opened.error) + ")";
   const OIIO::ImageSpec& spec = opened.input->spec();
   if (auto problem = SizeProblem(spec)) return problem;
-  constexpr int kRowsAtOnce = 64;
   std::vector<unsigned char> rows(static_cast<size_t>(spec.width) * spec.nchannels * kRowsAtOnce);
   for (int y = spec.y; y < spec.y + spec.height; y += kRowsAtOnce) {
     const int end = std::min(y + kRowsAtOnce, spec.y + spec.height);
@@ -72,6 +73,18 @@ std::optional<std::string> EncodedImageProblem(const std::string& bytes) {
     return DecodeProblem(bytes);
   } catch (const std::exception& error) {  // a reader that throws on hostile bytes
     return "it is not an image OpenImageIO can read (" + OneLine(error.what()) + ")";
+  }
+}
+
+uint64_t EncodedImageDecodeBytes(const std::string& bytes) {
+  try {
+    MemoryImageInput opened = OpenImageInMemory(bytes);
+    if (!opened.input || SizeProblem(opened.input->spec())) return 0;
+    const OIIO::ImageSpec& spec = opened.input->spec();
+    const uint64_t channels = static_cast<uint64_t>(spec.width) * static_cast<uint64_t>(spec.nchannels);
+    return 2 * channels * static_cast<uint64_t>(spec.height) + channels * kRowsAtOnce;
+  } catch (const std::exception&) {  // EncodedImageProblem says why
+    return 0;
   }
 }
 

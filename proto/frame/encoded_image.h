@@ -2,6 +2,7 @@
 // or WebP embedded in a glTF file), opened by OpenImageIO straight from memory.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -28,5 +29,12 @@ MemoryImageInput OpenImageInMemory(const std::string& bytes);
 // header is broken, the pixel data ends early...), or nullopt when they are. Decodes the
 // whole image a few rows at a time, so memory stays small whatever its size.
 std::optional<std::string> EncodedImageProblem(const std::string& bytes);
+
+// The most memory EncodedImageProblem may hold while it decodes `bytes`, known from the
+// header alone: a reader may hold the whole image (WebP decodes it at once, a progressive
+// JPEG keeps every coefficient), 2 bytes a channel, besides the rows it reads. 0 when no
+// reader opens the bytes or they claim more texels than a texture may have (then
+// EncodedImageProblem refuses them before decoding anything).
+uint64_t EncodedImageDecodeBytes(const std::string& bytes);
 
 }  // namespace tcfarm

@@ -14,6 +14,8 @@
 #include <string>
 #include <system_error>
 
+#include "proto/json/strict_json.h"
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/parse/json_values.h"
 #include "proto/scene/parse/scene_reader.h"
 #include "proto/scene/scene.h"
@@ -22,6 +24,9 @@ namespace tcfarm {
 
 Scene ParseScene(const std::string& jsonText, const std::optional<std::filesystem::path>& baseDirectory,
                  const Checkpoint& checkpoint) {
+  // The document, and the scene read from it (its numbers as doubles, smaller than the
+  // document's values), alive together.
+  if (ChargingImportMemory()) ChargeImportMemory(2 * JsonDomBytes(jsonText));
   const nlohmann::json document = scene_parse::ParseJson(jsonText);
   return scene_parse::SceneReader(baseDirectory, checkpoint).Read(document);
 }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <string>
 
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/import/scene_import.h"
 #include "tests/support/cpp/skinned_compressed_gltf.h"
 
@@ -201,6 +202,27 @@ TEST(GltfCompressedTest, DecodedBytesCountAgainstTheValueBudget) {
                       {"mode", "ATTRIBUTES"}}}}}}}}};
   ExpectRefused(gltf, "/bufferViews/0/extensions/EXT_meshopt_compression",
                 "decoding it brings the values read and decoded from the file to 48000000 bytes");
+}
+
+// Within the coordinator's import budget (import_budget.h) an import charges what it is
+// about to decode to its thread's reservation first: a budget too small for it refuses the
+// file, however far inside its per-file limits.
+TEST(GltfCompressedTest, DecodingIsChargedToTheImportBudgetBeforehand) {
+  const auto sphere = MakeSphere(100, 100);
+  const uint64_t vertices = sphere.Vertices();
+  for (const json& gltf : {MeshoptGltf(sphere), DracoGltf(sphere)}) {
+    ImportBudget budget(uint64_t{1} << 30);
+    const uint64_t held = WithinImportBudget(&budget, 0, [&] {
+      Import(gltf);
+      return budget.Stats().reservedBytes;
+    });
+    // At least the positions', normals' and texture coordinates' values, and the mesh's.
+    EXPECT_GE(held, 2 * 8 * sizeof(double) * vertices);
+    EXPECT_EQ(budget.Stats().reservedBytes, 0u);
+    ImportBudget small(held / 2);
+    EXPECT_THROW(WithinImportBudget(&small, 0, [&] { Import(gltf); }), ImportTooLargeError);
+    EXPECT_EQ(small.Stats().reservedBytes, 0u);
+  }
 }
 
 // KHR_mesh_quantization: SHORT positions as they are, normalized BYTE normals and

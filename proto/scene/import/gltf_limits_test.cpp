@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "tests/support/cpp/scene_test_support.h"
+#include "proto/json/strict_json.h"
 #include "proto/scene/import/scene_import.h"
 
 namespace tcfarm {
@@ -176,6 +177,32 @@ TEST(GltfLimitsTest, DataUrisAreDecodedAsBase64) {
   EXPECT_NE(ImportError(gltf).find("that is not base64"), std::string::npos);
   gltf["buffers"][0]["uri"] = "tcfarm-embedded-data:0";
   EXPECT_NE(ImportError(gltf).find("in the form this importer reserves for itself"), std::string::npos);
+}
+
+// The probe file with `levels` arrays nested in its "extras": the document is `levels` + 1 deep.
+std::string NestedExtras(size_t levels) {
+  const std::string probe = AnimatedNode().dump();
+  return probe.substr(0, probe.size() - 1) + R"(,"extras":)" + std::string(levels, '[') + std::string(levels, ']') +
+         "}";
+}
+
+// A glTF file's JSON is nested no deeper than any JSON the farm reads (kMaxJsonDepth, an HTTP
+// body's limit), checked before a parser builds it: a file nested a million levels deep was
+// read whole, by two parsers, and imported.
+TEST(GltfLimitsTest, JsonNestedDeeperThanAnyJsonTheFarmReadsIsRefusedWhereItGoesTooDeep) {
+  EXPECT_EQ(ImportSceneBytes(NestedExtras(kMaxJsonDepth - 1), "gltf").render.frameCount, 2 * 24 + 1);
+  // The container past the limit: the root, extras, then arrays at index 0.
+  std::string tooDeep = "/extras";
+  for (size_t level = 3; level <= kMaxJsonDepth + 1; ++level) tooDeep += "/0";
+  const std::string refused = "scene" + tooDeep +
+                              ": the gltf scene: objects and arrays nested deeper than 128 levels; expected at most "
+                              "128 levels";
+  EXPECT_EQ(ErrorOf([] { ImportSceneBytes(NestedExtras(kMaxJsonDepth), "gltf"); }), refused);
+  EXPECT_EQ(ErrorOf([] { ImportSceneBytes(NestedExtras(1'000'000), "gltf"); }), refused);
+  // A scene check of the file alone, before the files it names are uploaded, refuses it alike.
+  EXPECT_EQ(ErrorOf([] { CheckSceneFileAlone(NestedExtras(1'000'000), "deep.gltf"); }),
+            "scene" + tooDeep +
+                ": deep.gltf: objects and arrays nested deeper than 128 levels; expected at most 128 levels");
 }
 
 }  // namespace

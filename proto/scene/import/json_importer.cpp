@@ -4,6 +4,7 @@
 
 #include "proto/json/strict_json.h"
 #include "proto/scene/import/file_sniff.h"
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/import/messages.h"
 #include "proto/scene/import/importers.h"
 
@@ -26,6 +27,7 @@ class JsonImporter : public SceneImporter {
   // Its syntax: mesh files and textures are what it names.
   void CheckAlone(const ImportInput& input) const override {
     RequireJsonSceneStart(input.bytes, input.displayName);
+    if (ChargingImportMemory()) ChargeImportMemory(JsonDomBytes(input.bytes));
     try {
       ParseStrictJson(input.bytes);
     } catch (const JsonInputError& error) {

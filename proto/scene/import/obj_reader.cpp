@@ -14,6 +14,7 @@
 
 #include <tiny_obj_loader.h>
 
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/import/messages.h"
 #include "proto/scene/scene_limits.h"
 
@@ -25,6 +26,12 @@ using scene_limits::kMaxMagnitude;
 // face is fanned instead (it may then cover area outside its outline). Real models'
 // concave faces have a handful of corners.
 constexpr size_t kMaxEarClippedCorners = 256;
+
+// What reading an OBJ holds at most per byte of its text (ImportBudget): the text twice more
+// (the line check's copy, tinyobjloader's stream) and, for "v 0 0 0\n" (8 bytes), three
+// doubles in tinyobjloader, three read exactly and the mesh's vertex, each in a vector that
+// may have grown to twice its size (144 bytes); a face line costs less.
+constexpr uint64_t kObjBytesPerTextByte = 20;
 // The name under which the line check hands tinyobjloader every material library at once
 // (see ObjLineCheck::Run).
 const char* const kAllLibraries = "all-material-libraries";
@@ -433,6 +440,7 @@ std::vector<std::array<size_t, 3>> TriangulatePolygon(const std::vector<Vec3>& c
 }
 
 ObjModel ReadObj(const std::string& text, const ObjReadOptions& options) {
+  ChargeImportMemory(kObjBytesPerTextByte * text.size());
   ObjLineCheck check(options);
   std::string cleaned = check.Run(text);
   Libraries libraries;

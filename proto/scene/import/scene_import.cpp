@@ -7,6 +7,7 @@
 #include <memory>
 #include <system_error>
 
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/import/importers.h"
 #include "proto/scene/import/messages.h"
 #include "proto/scene/scene_limits.h"
@@ -136,6 +137,7 @@ Scene ImportScene(const std::filesystem::path& path, const ImportOptions& option
   // hold a large scene file twice.
   const std::uintmax_t size = std::filesystem::file_size(path, error);
   if (error) FailInput("", "read error in scene file " + path.string(), "a readable scene file");
+  ChargeImportMemory(size);
   std::string bytes(static_cast<size_t>(size), '\0');
   in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   if (in.gcount() != static_cast<std::streamsize>(bytes.size())) {
@@ -148,6 +150,7 @@ Scene ImportScene(const std::filesystem::path& path, const ImportOptions& option
 }
 
 void CheckSceneFileAlone(const std::string& bytes, const std::string& fileName) {
+  ChargeImportMemory(bytes.size());  // the importer's copy
   RequireImporterForFile(fileName, bytes).CheckAlone(ImportInput{bytes, fileName, std::nullopt, {}});
 }
 
@@ -170,6 +173,7 @@ Scene ImportSceneBytes(const std::string& bytes, const std::string& type,
     importer = FindImporterByType(type);
     if (importer == nullptr) FailInput("", "unknown scene type " + QuoteInput(type), "one of " + KnownTypes());
   }
+  ChargeImportMemory(bytes.size());  // the importer's copy
   return ApplyOptions(importer->Import(ImportInput{bytes, "the " + importer->Type() + " scene", baseDirectory, options}),
                       options);
 }

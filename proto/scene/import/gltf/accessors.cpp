@@ -1,6 +1,8 @@
 // Accessors: their elements as doubles, every read checked against its buffer view and buffer.
 #include "proto/scene/import/gltf/gltf_reader.h"
 
+#include "proto/scene/import/import_budget.h"
+
 namespace tcfarm::gltf {
 
 GltfReader::AccessorData GltfReader::ReadAccessor(int index, const std::string& referencedAt, const std::vector<int>& types,
@@ -44,6 +46,9 @@ GltfReader::AccessorData GltfReader::ReadAccessor(int index, const std::string& 
 void GltfReader::ChargeValues(uint64_t values, const std::string& pointer) const {
   ChargeValueBytes(values * sizeof(double), kValueBytesPerBufferByte, BufferBytes(),
                    "reading it brings the values read from the file's accessors", pointer);
+  // What the scene makes of them (vertices, indices, keys: never larger) lives beside them
+  // until they are dropped.
+  ChargeImportMemory(values * sizeof(double));
 }
 
 void GltfReader::ChargeDecodedBytes(uint64_t bytes, const std::string& pointer) const {
@@ -61,6 +66,8 @@ void GltfReader::ChargeValueBytes(uint64_t bytes, uint64_t perBufferByte, size_t
          "at most " + std::to_string(perBufferByte) + " bytes of values per byte of the file's buffers (" +
              std::to_string(bufferBytes) + ") + 16 MiB: accessors that are not read over and over");
   }
+  // Within this file's own limit; now within what every import running at once shares.
+  ChargeImportMemory(bytes);
 }
 
 size_t GltfReader::BufferBytes() const {

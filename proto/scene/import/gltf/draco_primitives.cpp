@@ -3,6 +3,7 @@
 // read (the accessors keep their count, type and component type, as the extension says).
 #include "proto/draco/draco_codec.h"
 #include "proto/scene/import/gltf/gltf_reader.h"
+#include "proto/scene/import/import_budget.h"
 
 namespace tcfarm::gltf {
 namespace {
@@ -20,6 +21,29 @@ bool DracoComponent(int componentType, draco_codec::Component* component) {
     case TINYGLTF_COMPONENT_TYPE_FLOAT: *component = draco_codec::Component::kFloat; return true;
     default: return false;
   }
+}
+
+// What libdraco holds while it decodes, per element the accessors declare: an attribute
+// component as its integer prediction and its value (4 bytes each), a triangle corner as
+// its point index and the corner table's links (4 ints).
+constexpr uint64_t kDracoBytesPerComponent = 8;
+constexpr uint64_t kDracoBytesPerCorner = 16;
+
+uint64_t DeclaredElements(const tinygltf::Model& model, int accessor, bool perComponent) {
+  if (accessor < 0 || static_cast<size_t>(accessor) >= model.accessors.size()) return 0;  // refused later
+  const tinygltf::Accessor& declared = model.accessors[static_cast<size_t>(accessor)];
+  const int components = perComponent ? tinygltf::GetNumComponentsInType(static_cast<uint32_t>(declared.type)) : 1;
+  return std::min<uint64_t>(declared.count, kMaxAccessorCount) * static_cast<uint64_t>(std::max(components, 1));
+}
+
+// The memory decoding a primitive's Draco mesh takes, by the counts its accessors declare;
+// the decoded counts are held to them afterwards (DracoAccessor).
+uint64_t DeclaredDracoBytes(const tinygltf::Model& model, const tinygltf::Primitive& primitive) {
+  uint64_t bytes = kDracoBytesPerCorner * DeclaredElements(model, primitive.indices, false);
+  for (const auto& [name, accessor] : primitive.attributes) {
+    bytes += kDracoBytesPerComponent * DeclaredElements(model, accessor, true);
+  }
+  return bytes;
 }
 
 }  // namespace
@@ -77,6 +101,7 @@ void GltfReader::DecodeDracoPrimitive(tinygltf::Primitive& primitive, const std:
   }
   const size_t length = model_.bufferViews[viewIndex].byteLength;
   const ViewElements view = InView(static_cast<int>(viewIndex), 0, length, 1, false, at);
+  const ImportReservation decoding = ReserveImportMemory(DeclaredDracoBytes(model_, primitive));
   const draco_codec::DecodedMesh mesh(view.base, length);
   if (!mesh.Error().empty()) {
     Fail(at, "its " + std::to_string(length) + " bytes do not decode as a Draco mesh: " + mesh.Error(),

@@ -111,6 +111,11 @@ class GltfReader {
   // Returns the JSON text.
   std::string_view CheckContainer() const;
 
+  // The JSON with its data URIs decoded (embedded_), its nesting checked as an HTTP body's
+  // is (kMaxJsonDepth), and the memory reading it takes charged to the import budget:
+  // `copiesOfTheFile` times the file's size, and the documents parsed from the JSON.
+  void ExtractDocument(uint64_t copiesOfTheFile);
+
   // What tinygltf reports without saying where: extensions this importer lacks, and
   // files that are missing. Syntax and type errors are left to tinygltf.
   void PreCheck(const std::string& jsonText) const;

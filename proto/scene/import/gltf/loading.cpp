@@ -6,13 +6,16 @@
 #include "proto/json/strict_json.h"
 #include "proto/scene/import/file_sniff.h"
 #include "proto/scene/import/gltf/file_access.h"
+#include "proto/scene/import/import_budget.h"
 
 namespace tcfarm::gltf {
 
 GltfReader::GltfReader(const ImportInput& input) : input_(input), options_(input.options) {}
 
 Scene GltfReader::Read() {
-  embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+  // Held until the scene is made: the JSON with its data URIs decoded, the GLB tinygltf
+  // reads when that changed, and tinygltf's buffers.
+  ExtractDocument(3);
   StandInForFallbackBuffers();
   StandInForDracoIndexViews();
   PreCheck(embedded_.json);
@@ -96,6 +99,20 @@ std::string_view GltfReader::CheckContainer() const {
   return std::string_view(bytes).substr(20, jsonLength);
 }
 
+void GltfReader::ExtractDocument(uint64_t copiesOfTheFile) {
+  ChargeImportMemory(copiesOfTheFile * input_.bytes.size());
+  embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+  // Before any parser builds the document: one nested a million levels deep would cost
+  // hundreds of megabytes to refuse, and more to destroy.
+  try {
+    CheckJsonNesting(embedded_.json);
+  } catch (const JsonInputError& error) {
+    Fail(error.pointer(), error.problem(), error.expected());
+  }
+  // This reader's document and tinygltf's, alive together while tinygltf builds its model.
+  if (ChargingImportMemory()) ChargeImportMemory(2 * JsonDomBytes(embedded_.json));
+}
+
 namespace {
 
 std::string SupportedExtensionList() {
@@ -107,7 +124,7 @@ std::string SupportedExtensionList() {
 }  // namespace
 
 void GltfReader::CheckAlone() {
-  embedded_ = gltf::ExtractDataUris(CheckContainer(), input_.displayName);
+  ExtractDocument(1);
   const nlohmann::json document = nlohmann::json::parse(embedded_.json, nullptr, false);
   CheckDocument(document);
   embedded_ = {};

@@ -15,6 +15,9 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
                                         anyComponent, "a VEC3 accessor of positions");
   CheckFinite(positions, position->second, "position");
   TriangleMesh mesh;
+  // Reserved, not grown: a vector grown by doubling may hold twice the vertices, and both
+  // copies while it moves, beyond what the import budget was charged (ChargeValues).
+  mesh.vertices.reserve(positions.count);
   for (size_t v = 0; v < positions.count; ++v)
     mesh.vertices.push_back({positions.At(v, 0), positions.At(v, 1), positions.At(v, 2)});
   if (auto normal = primitive.attributes.find("NORMAL"); normal != primitive.attributes.end()) {
@@ -29,6 +32,7 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
            std::to_string(normals.count) + " normals for " + std::to_string(positions.count) + " positions",
            "one normal per position");
     }
+    mesh.normals.reserve(normals.count);
     for (size_t v = 0; v < normals.count; ++v)
       mesh.normals.push_back({normals.At(v, 0), normals.At(v, 1), normals.At(v, 2)});
   }
@@ -46,6 +50,7 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
                                      {TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE, TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT,
                                       TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT},
                                      "a SCALAR accessor of unsigned indices");
+    indices.reserve(data.count);
     for (size_t i = 0; i < data.count; ++i) {
       double index = data.values[i];
       if (!(index < static_cast<double>(positions.count))) {
@@ -57,6 +62,7 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
       indices.push_back(static_cast<uint32_t>(index));
     }
   } else {
+    indices.reserve(positions.count);
     for (size_t v = 0; v < positions.count; ++v) indices.push_back(static_cast<uint32_t>(v));
   }
   int mode = primitive.mode < 0 ? TINYGLTF_MODE_TRIANGLES : primitive.mode;
@@ -72,6 +78,7 @@ TriangleMesh GltfReader::PrimitiveMesh(const tinygltf::Primitive& primitive, con
 std::vector<std::array<uint32_t, 3>> GltfReader::Triangles(const std::vector<uint32_t>& indices, int mode) {
   std::vector<std::array<uint32_t, 3>> triangles;
   const size_t n = indices.size();
+  triangles.reserve(mode == TINYGLTF_MODE_TRIANGLES ? n / 3 : n);
   if (mode == TINYGLTF_MODE_TRIANGLES) {
     for (size_t i = 0; i + 2 < n; i += 3) triangles.push_back({indices[i], indices[i + 1], indices[i + 2]});
   } else if (mode == TINYGLTF_MODE_TRIANGLE_STRIP) {
