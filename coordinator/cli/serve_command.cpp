@@ -3,6 +3,7 @@
 #include <malloc.h>
 #include <stdlib.h>
 
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -25,6 +26,7 @@
 #include "coordinator/jobs/job_store.h"
 #include "coordinator/store/store_identity.h"
 #include "coordinator/store/store_janitor.h"
+#include "proto/scene/import/import_budget.h"
 
 namespace tcfarm {
 namespace {
@@ -40,6 +42,7 @@ struct ServeOptions {
   std::filesystem::path dashboard;  // static files served at /; empty: none
   uint64_t assetMaxFileBytes = ApiOptions{}.assetMaxFileBytes;
   uint64_t assetMaxJobBytes = ApiOptions{}.assetMaxJobBytes;
+  uint64_t importBudgetBytes = 0;  // every scene import at once (--import-budget-mib)
   std::shared_ptr<const http::ApiTokens> tokens;  // null: no authentication
   bool insecureNoAuth = false;  // beyond loopback without tokens or keys, on purpose
   std::filesystem::path tlsCertFile;
@@ -93,6 +96,13 @@ uint64_t HalfTheUsableMemory() {
   return UsableMemoryBytes().value_or(uint64_t{16} << 30) / 2;  // unknown: assume 16 GiB
 }
 
+// The default import budget: a quarter of the memory this process may use, beside the
+// running jobs' half, and at most 2 GiB. A scene that needs more even alone is refused with
+// 413 import_too_large naming --import-budget-mib.
+uint64_t DefaultImportBudget() {
+  return std::min(UsableMemoryBytes().value_or(uint64_t{16} << 30) / 4, uint64_t{2048} << 20);
+}
+
 // The flags as given, checked for range by the parser; Resolve turns them into options.
 struct ServeFlags {
   std::string http = "127.0.0.1:8080";
@@ -111,6 +121,7 @@ struct ServeFlags {
   size_t pendingFrameMib = JobRunSettings::kDefaultPendingFrameBytes >> 20;
   uint64_t assetMaxFileMib = ApiOptions{}.assetMaxFileBytes >> 20;
   uint64_t assetMaxJobMib = ApiOptions{}.assetMaxJobBytes >> 20;
+  uint64_t importBudgetMib = 0;
   double assetOrphanGraceSeconds = RetentionPolicy::kDefaultOrphanAssetGraceMs / 1000.0;
   std::string apiTokens;
   bool insecureNoAuth = false;
@@ -125,6 +136,7 @@ struct ServeFlags {
   CLI::Option* dashboardOption = nullptr;
   CLI::Option* workerTimeoutOption = nullptr;
   CLI::Option* farmMemoryOption = nullptr;
+  CLI::Option* importBudgetOption = nullptr;
   CLI::Option* keepDaysOption = nullptr;
 };
 
@@ -193,6 +205,13 @@ void AddServeFlags(CLI::App& serve, ServeFlags& flags) {
       ->type_name("MIB")
       ->check(IntegerFrom(0, 1 << 20))
       ->capture_default_str();
+  flags.importBudgetOption =
+      serve.add_option("--import-budget-mib", flags.importBudgetMib,
+                       "Scene checks and submits together, while they import and decode scenes (glTF, OBJ, meshopt "
+                       "and Draco geometry, textures); past it a request waits up to 2 s, then is answered 503 "
+                       "with Retry-After (default: a quarter of the memory this process may use, at most 2048)")
+          ->type_name("MIB")
+          ->check(IntegerFrom(1, 1 << 30));
   serve.add_option("--asset-max-file-mib", flags.assetMaxFileMib,
                    "Largest asset one upload may store (PUT /api/v1/assets); larger is refused")
       ->type_name("MIB")
@@ -346,6 +365,8 @@ ServeOptions Resolve(const ServeFlags& flags) {
     options.farm.heartbeat.SetTimeout(Milliseconds(flags.workerTimeoutMs));
   }
   if (flags.farmMemoryOption->count()) options.farm.farmMemoryBytes = flags.farmMemoryMib << 20;
+  options.importBudgetBytes =
+      flags.importBudgetOption->count() ? flags.importBudgetMib << 20 : DefaultImportBudget();
   options.farm.pendingFrameBytes = flags.pendingFrameMib << 20;
   options.assetMaxFileBytes = flags.assetMaxFileMib << 20;
   options.assetMaxJobBytes = flags.assetMaxJobMib << 20;
@@ -487,9 +508,13 @@ int RunServe(const ServeOptions& options) {
         std::make_unique<LocalWorkerKeys>(curve::PublicKeyOf(farmOptions.curve->secretKey), options.localWorkers);
     for (const std::string& key : localWorkerKeys->PublicKeys()) farmOptions.curve->alsoAllowed.insert(key);
   }
+  // One budget for every scene the coordinator imports at once; the API's checks and
+  // submits hold it while they import.
+  const auto importBudget = std::make_shared<ImportBudget>(options.importBudgetBytes);
   Farm farm(store, farmOptions, clock);
 
   ApiOptions api;
+  api.importBudget = importBudget;
   api.host = options.httpHost;
   api.port = options.httpPort;
   api.storeRoot = options.farm.storeRoot;

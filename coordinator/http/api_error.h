@@ -7,6 +7,7 @@
 // body) is there only when the bad value has one.
 #pragma once
 
+#include <chrono>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -38,10 +39,12 @@ inline constexpr const char* kJobActive = "job_active";                // 409, d
 inline constexpr const char* kJobNotRetryable = "job_not_retryable";  // 409, retry a job neither failed nor canceled
 inline constexpr const char* kPayloadTooLarge = "payload_too_large";   // 413
 inline constexpr const char* kJobTooLarge = "job_too_large";           // 413, frames beyond memory
+inline constexpr const char* kImportTooLarge = "import_too_large";     // 413, beyond the whole import budget
 inline constexpr const char* kInternal = "internal";                   // 500
 inline constexpr const char* kNotImplemented = "not_implemented";      // 501, a method no route takes
 inline constexpr const char* kTooManyStreams = "too_many_streams";    // 503, event streams at their limit
 inline constexpr const char* kShuttingDown = "shutting_down";          // 503, the coordinator is stopping
+inline constexpr const char* kImportBusy = "import_busy";              // 503, the import budget is in use
 inline constexpr const char* kInsufficientStorage = "insufficient_storage";  // 507, the disk refused
 }  // namespace error_code
 
@@ -55,6 +58,12 @@ class ApiError : public std::runtime_error {
   int status() const { return status_; }
   const std::string& code() const { return code_; }
   const std::optional<std::string>& pointer() const { return pointer_; }
+  // A refusal the same request may get past later (503): the answer's Retry-After header.
+  ApiError& RetryAfter(std::chrono::seconds wait) {
+    retryAfter_ = wait;
+    return *this;
+  }
+  const std::optional<std::chrono::seconds>& retryAfter() const { return retryAfter_; }
 
   nlohmann::json Body() const;
 
@@ -62,6 +71,7 @@ class ApiError : public std::runtime_error {
   int status_;
   std::string code_;
   std::optional<std::string> pointer_;
+  std::optional<std::chrono::seconds> retryAfter_;
 };
 
 // Serializes for a response body. Replaces invalid UTF-8 instead of throwing: error

@@ -36,6 +36,7 @@ void WriteJson(httplib::Response& response, const nlohmann::json& body, int stat
 }
 
 void WriteError(httplib::Response& response, const ApiError& error) {
+  if (error.retryAfter()) response.set_header("Retry-After", std::to_string(error.retryAfter()->count()));
   WriteJson(response, error.Body(), error.status());
 }
 

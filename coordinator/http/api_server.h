@@ -49,6 +49,7 @@
 #include "coordinator/store/asset_store.h"
 #include "coordinator/store/store_janitor.h"
 #include "proto/net/http_listener.h"
+#include "proto/scene/import/import_budget.h"
 
 namespace httplib {
 class Server;
@@ -81,6 +82,10 @@ struct ApiOptions {
   uint64_t assetMaxFileBytes = uint64_t{512} << 20;
   // All the assets one submission names together (--asset-max-job-mib); 0: no limit.
   uint64_t assetMaxJobBytes = uint64_t{2048} << 20;
+  // The memory scene checks and submits import and decode scenes in, all of them at once
+  // (--import-budget-mib; proto/scene/import/import_budget.h). Null: each import is bounded
+  // only by the importers' per-file limits.
+  std::shared_ptr<ImportBudget> importBudget;
   // Who may do what (--api-tokens). Null: every request is allowed, for a coordinator on
   // loopback or one started with --insecure-no-auth.
   std::shared_ptr<const http::ApiTokens> tokens;

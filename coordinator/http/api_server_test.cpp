@@ -6,6 +6,7 @@
 #include <httplib.h>
 #include <prometheus/counter.h>
 #include <prometheus/registry.h>
+#include <prometheus/text_serializer.h>
 
 #include <algorithm>
 #include <atomic>
@@ -15,6 +16,7 @@
 #include <functional>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <regex>
 #include <sstream>
@@ -1730,6 +1732,104 @@ TEST_F(ApiServerTest, ResponsesMatchTheOpenApiSchemas) {
   add("Deleted", client_->Delete(failedPath.c_str()));
 
   ExpectMatchesSchemas(python, folder_, checks);
+}
+
+// --- the import budget -------------------------------------------------------------------
+
+// A second server whose scene checks and submits import within a budget the test holds.
+class ApiServerWithImportBudgetTest : public ApiServerTest {
+ protected:
+  static constexpr uint64_t kBudgetBytes = uint64_t{4} << 20;
+
+  void StartServer(std::chrono::milliseconds wait) {
+    budget_ = std::make_shared<ImportBudget>(kBudgetBytes, wait);
+    ApiOptions options = SecondServerOptions();
+    options.importBudget = budget_;
+    budgetRegistry_ = std::make_shared<prometheus::Registry>();
+    budgetServer_ = std::make_unique<ApiServer>(*store_, farm_, budgetRegistry_, options);
+    budgetClient_ = std::make_unique<httplib::Client>("127.0.0.1", budgetServer_->Start());
+  }
+  void TearDown() override {
+    budgetClient_.reset();
+    budgetServer_.reset();
+    ApiServerTest::TearDown();
+  }
+  httplib::Result Check(const json& body) {
+    return budgetClient_->Post("/api/v1/scenes/check", body.dump(), "application/json");
+  }
+
+  std::shared_ptr<ImportBudget> budget_;
+  std::shared_ptr<prometheus::Registry> budgetRegistry_;
+  std::unique_ptr<ApiServer> budgetServer_;
+  std::unique_ptr<httplib::Client> budgetClient_;
+};
+
+TEST_F(ApiServerWithImportBudgetTest, ABudgetInUseAnswers503WithRetryAfterAndNothingStored) {
+  StartServer(std::chrono::milliseconds(100));
+  std::optional<ImportReservation> othersImports = budget_->Reserve(kBudgetBytes);
+  const json error = ExpectError(Check(Submission()), 503, "import_busy");
+  EXPECT_FALSE(error.contains("pointer"));
+  EXPECT_NE(error.value("message", "").find("imports running now hold 4.0 MiB of its 4.0 MiB"), std::string::npos)
+      << error.dump();
+  httplib::Result submitted = budgetClient_->Post("/api/v1/jobs", Submission().dump(), "application/json");
+  ExpectError(submitted, 503, "import_busy");
+  ASSERT_TRUE(submitted);
+  EXPECT_EQ(submitted->get_header_value("Retry-After"), "1");
+  EXPECT_EQ(store_->Query(JobQuery{}).total, 0u);
+  EXPECT_EQ(budget_->Stats().refusals, 2u);
+  const std::string python = PythonWith("yaml, openapi_schema_validator");
+  if (!python.empty()) ExpectMatchesSchemas(python, folder_, json::array({{"Error", json{{"error", error}}}}));
+
+  othersImports.reset();
+  httplib::Result checked = Check(Submission());
+  ASSERT_TRUE(checked);
+  EXPECT_EQ(checked->status, 200) << checked->body;
+  EXPECT_FALSE(checked->has_header("Retry-After"));
+  EXPECT_EQ(budget_->Stats().reservedBytes, 0u);
+}
+
+TEST_F(ApiServerWithImportBudgetTest, ACheckWaitsForAnotherImportToEnd) {
+  StartServer(std::chrono::milliseconds(5000));
+  auto othersImports = std::make_unique<ImportReservation>(budget_->Reserve(kBudgetBytes));
+  std::thread ending([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    othersImports.reset();
+  });
+  httplib::Result checked = Check(Submission());
+  ending.join();
+  ASSERT_TRUE(checked);
+  EXPECT_EQ(checked->status, 200) << checked->body;
+  EXPECT_EQ(budget_->Stats().waits, 1u);
+  EXPECT_EQ(budget_->Stats().refusals, 0u);
+}
+
+TEST_F(ApiServerWithImportBudgetTest, AnImportLargerThanTheWholeBudgetIs413AtOnce) {
+  StartServer(std::chrono::milliseconds(5000));
+  // Inline meshes of 100,000 vertices: their document alone takes more than 4 MiB.
+  json scene = SmallScene();
+  json vertices = json::array(), triangles = json::array();
+  for (int v = 0; v < 100000; ++v) vertices.push_back({v % 7, v % 11, v % 13});
+  for (int t = 0; t + 2 < 100000; t += 3) triangles.push_back({t, t + 1, t + 2});
+  scene["shapes"].push_back({{"type", "mesh"}, {"vertices", vertices}, {"triangles", triangles}});
+  const auto start = std::chrono::steady_clock::now();
+  const json error = ExpectError(Check(Submission(scene)), 413, "import_too_large");
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(4));  // no wait for room that cannot come
+  EXPECT_NE(error.value("message", "").find("more than the import budget of 4.0 MiB holds for all imports together "
+                                            "(--import-budget-mib 4); expected a smaller scene"),
+            std::string::npos)
+      << error.dump();
+  EXPECT_EQ(budget_->Stats().reservedBytes, 0u);
+}
+
+TEST_F(ApiServerWithImportBudgetTest, MetricsShowTheBudgetAndWhatImportsHold) {
+  StartServer(std::chrono::milliseconds(10));
+  const ImportReservation held = budget_->Reserve(1 << 20);
+  ExpectError(Check(json{{"scene", 1}}), 400, "invalid_scene");
+  const std::string text = prometheus::TextSerializer().Serialize(budgetRegistry_->Collect());
+  EXPECT_NE(text.find("tcfarm_import_budget_bytes 4194304"), std::string::npos) << text;
+  EXPECT_NE(text.find("tcfarm_import_reserved_bytes 1048576"), std::string::npos) << text;
+  EXPECT_NE(text.find("tcfarm_import_refusals_total 0"), std::string::npos) << text;
+  EXPECT_NE(text.find("tcfarm_import_reserved_peak_bytes"), std::string::npos) << text;
 }
 
 // --- API tokens ------------------------------------------------------------------------

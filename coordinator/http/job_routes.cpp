@@ -12,6 +12,7 @@
 #include "coordinator/http/query_params.h"
 #include "coordinator/http/submit_request.h"
 #include "coordinator/planner/job_memory.h"
+#include "proto/json/strict_json.h"
 #include "proto/metrics/metric_builders.h"
 
 namespace tcfarm::http {
@@ -36,6 +37,47 @@ JobRoutes::JobRoutes(JobStore& store, FarmControl& farm, StoreJanitor& janitor, 
   importWarnings_ = &NewCounterFamily(*metrics, "tcfarm_import_warnings_total",
                                       "Warnings importing submitted scenes gave (a default added, a feature left "
                                       "out), by code.");
+  if (limits_.importBudget != nullptr) WatchImportBudget(*metrics);
+}
+
+JobRoutes::~JobRoutes() {
+  if (limits_.importBudget != nullptr) limits_.importBudget->SetObserver(nullptr);
+}
+
+void JobRoutes::WatchImportBudget(prometheus::Registry& metrics) {
+  NewGauge(metrics, "tcfarm_import_budget_bytes", "Memory that scene imports and decoding may hold at once "
+                                                  "(--import-budget-mib).")
+      .Set(static_cast<double>(limits_.importBudget->capacityBytes()));
+  prometheus::Gauge& reserved = NewGauge(metrics, "tcfarm_import_reserved_bytes",
+                                         "Memory the scene imports running now hold of the import budget.");
+  prometheus::Gauge& peak = NewGauge(metrics, "tcfarm_import_reserved_peak_bytes",
+                                     "The most memory scene imports have held of the import budget at once.");
+  importRefusals_ = &NewCounter(metrics, "tcfarm_import_refusals_total",
+                                "Scene checks and submits answered 503 import_busy: the import budget stayed in "
+                                "use by other imports.");
+  limits_.importBudget->SetObserver([&reserved, &peak](const ImportBudgetStats& stats) {
+    reserved.Set(static_cast<double>(stats.reservedBytes));
+    peak.Set(static_cast<double>(stats.peakReservedBytes));
+  });
+}
+
+void JobRoutes::Importing(const std::string& body, const std::function<void()>& import) {
+  try {
+    // The body's document, and as much again for what it carries: a scene file's bytes
+    // decoded from base64, an inline scene written out for the scene parser.
+    WithinImportBudget(limits_.importBudget, JsonDomBytes(body) + body.size(), import);
+  } catch (const ImportBudgetBusyError& error) {
+    if (importRefusals_ != nullptr) importRefusals_->Increment();
+    throw ApiError(503, error_code::kImportBusy,
+                   std::string(error.what()) + "; expected the same request again in " +
+                       std::to_string(error.retryAfter().count()) + " s (Retry-After), once they have ended")
+        .RetryAfter(error.retryAfter());
+  } catch (const ImportTooLargeError& error) {
+    throw ApiError(413, error_code::kImportTooLarge,
+                   std::string(error.what()) + " (--import-budget-mib " +
+                       std::to_string(limits_.importBudget->capacityBytes() >> 20) +
+                       "); expected a smaller scene, or a coordinator with a larger --import-budget-mib");
+  }
 }
 
 std::vector<Route> JobRoutes::Routes() {
@@ -74,7 +116,7 @@ void JobRoutes::SubmitJob(const httplib::Request& request, const std::string& bo
   // From checking the assets to storing the job that names them, no deletion removes them.
   uint64_t id = 0;
   JobSpec spec;
-  {
+  Importing(body, [&] {
     const auto holdAssets = janitor_.HoldAssets();
     spec = ParseSubmission(body, SubmissionAssets{&assets_, limits_.assetMaxJobBytes, "--asset-max-job-mib"});
     CheckJobFitsInMemory(spec);
@@ -82,7 +124,7 @@ void JobRoutes::SubmitJob(const httplib::Request& request, const std::string& bo
     // only its own jobs.
     if (const std::optional<Caller> caller = auth_.CallerOf(request)) spec.options["submitted_by"] = caller->tokenId;
     id = store_.Submit(spec);
-  }
+  });
   CountImportWarnings(spec);
   ranges_.Remember(id, FrameRanges::Range{spec.firstFrame, spec.lastFrame, JobPreviewView(spec)});
   response.set_header("Location", JobPath(id));
@@ -100,11 +142,11 @@ void JobRoutes::CountImportWarnings(const JobSpec& spec) {
 // with the same 400, nothing stored and no job made.
 void JobRoutes::CheckScene(const httplib::Request&, const std::string& body, httplib::Response& response) {
   SceneCheck check;
-  {
+  Importing(body, [&] {
     // The assets it names stay while they are laid out, as a submission's do.
     const auto holdAssets = janitor_.HoldAssets();
     check = CheckSubmission(body, SubmissionAssets{&assets_, limits_.assetMaxJobBytes, "--asset-max-job-mib"});
-  }
+  });
   json answer{{"ok", true}, {"complete", check.complete}, {"warnings", check.warnings}};
   if (check.complete) {
     answer["frames"] = {{"start", check.firstFrame}, {"end", check.lastFrame}};

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -22,9 +23,11 @@
 #include "coordinator/jobs/job_store.h"
 #include "coordinator/store/asset_store.h"
 #include "coordinator/store/store_janitor.h"
+#include "proto/scene/import/import_budget.h"
 
 namespace prometheus {
 class Counter;
+class Gauge;
 class Registry;
 template <typename T>
 class Family;
@@ -37,6 +40,7 @@ struct JobLimits {
   uint64_t farmMemoryBytes = 0;    // 0: no limit
   uint64_t pendingFrameBytes = 0;
   uint64_t assetMaxJobBytes = 0;   // 0: no limit
+  ImportBudget* importBudget = nullptr;  // none: no farm-wide bound on imports
 };
 
 class JobRoutes {
@@ -45,6 +49,9 @@ class JobRoutes {
   // assets: where a submission's assets must be. ranges: filled at submit, emptied at delete.
   JobRoutes(JobStore& store, FarmControl& farm, StoreJanitor& janitor, AssetStore& assets,
             FrameRanges& ranges, const ApiAuth& auth, JobLimits limits, prometheus::Registry* metrics);
+  ~JobRoutes();  // the import budget's gauges are no longer set
+  JobRoutes(const JobRoutes&) = delete;
+  JobRoutes& operator=(const JobRoutes&) = delete;
 
   std::vector<Route> Routes();
 
@@ -54,6 +61,12 @@ class JobRoutes {
   // Counts a stored submission's import warnings by code (tcfarm_import_warnings_total).
   void CountImportWarnings(const JobSpec& spec);
   void CheckScene(const httplib::Request& request, const std::string& body, httplib::Response& response);
+  // Runs `import` (the whole reading of a check's or a submit's body) within the import
+  // budget, holding first what reading the body takes (its document, the scene file it
+  // carries). The budget's refusals are answered 503 import_busy with Retry-After, or 413
+  // import_too_large when the scene could never fit.
+  void Importing(const std::string& body, const std::function<void()>& import);
+  void WatchImportBudget(prometheus::Registry& metrics);
   void ListJobs(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void GetJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
   void CancelJob(const httplib::Request& request, const std::string& body, httplib::Response& response);
@@ -71,6 +84,7 @@ class JobRoutes {
   JobStore& store_;
   FarmControl& farm_;
   prometheus::Family<prometheus::Counter>* importWarnings_ = nullptr;  // with a metrics registry only
+  prometheus::Counter* importRefusals_ = nullptr;                      // with a registry and a budget
   StoreJanitor& janitor_;
   AssetStore& assets_;
   FrameRanges& ranges_;

@@ -20,6 +20,7 @@
 #include "coordinator/http/job_json.h"
 #include "proto/json/strict_json.h"
 #include "proto/scene/import/gltf_data_uris.h"
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/import/import_options.h"
 #include "proto/scene/import/scene_import.h"
 #include "proto/scene/scene.h"
@@ -370,6 +371,8 @@ void BindTextureToAsset(const Material& material, Texture& texture, const std::s
   } catch (const std::runtime_error& error) {
     throw ApiError(507, error_code::kInsufficientStorage, std::string("the store could not read a texture: ") + error.what());
   }
+  // Its pixels, held only while they are decoded: a scene's textures are checked one by one.
+  const ImportReservation decoding = ReserveImportMemory(EncodedImageDecodeBytes(bytes));
   if (const auto problem = EncodedImageProblem(bytes)) {
     throw ApiError(400, error_code::kInvalidScene,
                    pointer.substr(1) + ": texture image " + ShowValue(texture.Describe()) + " cannot be used: " +
