@@ -17,7 +17,7 @@ HELP_CASES = [
     (COORDINATOR, ["serve"], ["--http", "127.0.0.1:8080", "--zmq", "tcp://127.0.0.1:5555", "--store",
                               "--db", "--local-workers", "--worker-threads", "--worker-timeout",
                               "--exr-compression", "--dashboard", "--farm-memory",
-                              "--pending-frame-memory", "--asset-max-file-mib", "MIB=512",
+                              "--pending-frame-memory", "--import-budget-mib", "--asset-max-file-mib", "MIB=512",
                               "--asset-max-job-mib", "MIB=2048", "--curve-secret", "TCFARM_CURVE_SECRET",
                               "--worker-keys", "TCFARM_WORKER_KEYS", "--insecure-no-auth"]),
     (COORDINATOR, ["keygen"], ["--out", "--name", "--force"]),
