@@ -379,6 +379,7 @@ void JobRun::Audit(const JobStore& store) {
   HearRefereeChecks();
   sample_.Ask(spec_.sceneHash, [&]() -> const std::string& { return SceneJson(store); });
   for (Verdict& verdict : sample_.HearReferee()) verdicts_.push_back(std::move(verdict));
+  for (const auto& [frame, pixels] : sample_.TakeWrongPixels()) verification_.OnWrongValues(frame, pixels);
   audit_.Open(verification_.TakeDisputes(),
               [&] { return ExactnessAudit::SceneRef{spec_.sceneHash, SceneJson(store)}; });
   for (ExactnessAudit::Verdict& verdict : audit_.HearReferee()) verdicts_.push_back(std::move(verdict));

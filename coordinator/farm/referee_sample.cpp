@@ -45,14 +45,23 @@ void RefereeSample::OnValues(int frame, const std::string& worker, const PixelSe
                              const int32_t* horizons, bool onProbation) {
   if (!referee_ || worker == Referee::kName || distrusted_.count(worker)) return;
   pixelsSent_ += pixels.size();
+  const uint32_t index = WorkerIndex(worker);
   if (onProbation) {
-    Draw(frame, worker, pixels, rgb, horizons, probationGap_, untilNextProbationDraw_);
+    Draw(frame, index, pixels, rgb, horizons, probationGap_, untilNextProbationDraw_);
   } else {
-    Draw(frame, worker, pixels, rgb, horizons, gap_, untilNextDraw_);
+    Draw(frame, index, pixels, rgb, horizons, gap_, untilNextDraw_);
   }
 }
 
-void RefereeSample::Draw(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
+uint32_t RefereeSample::WorkerIndex(const std::string& worker) {
+  // A job has few workers: a linear search beats a map here.
+  const auto found = std::find(workers_.begin(), workers_.end(), worker);
+  if (found != workers_.end()) return static_cast<uint32_t>(found - workers_.begin());
+  workers_.push_back(worker);
+  return static_cast<uint32_t>(workers_.size() - 1);
+}
+
+void RefereeSample::Draw(int frame, uint32_t worker, const PixelSet& pixels, const float* rgb,
                          const int32_t* horizons, std::geometric_distribution<uint64_t>& gap, uint64_t& untilNext) {
   uint64_t position = 0;  // of the span's first pixel in rgb
   for (const Span& span : pixels.spans()) {
@@ -127,17 +136,25 @@ void RefereeSample::Rule(const std::vector<Drawn>& drawn, int frame, const Refer
   for (size_t i = 0; i < drawn.size(); ++i) {
     if (SameBits(drawn[i].rgb, &answer.rgb[3 * i])) continue;
     ++pixelsWrong_;
+    ++wrongByFrame_[frame];
     const Drawn& wrong = drawn[i];
-    if (!caught_.insert(wrong.worker).second) continue;
+    const std::string& worker = workers_[wrong.worker];
+    if (!caught_.insert(worker).second) continue;
     const std::string pixel = "pixel " + std::to_string(wrong.pixel);
     verdicts.push_back(
-        {wrong.worker, wrong.sentFor == frame
+        {worker, wrong.sentFor == frame
                            ? pixel + " of frame " + std::to_string(absolute) +
                                  " as it sent it is not the referee's value (the referee's unseen sample)"
                            : pixel + " as it sent it for frame " + std::to_string(firstFrame_ + wrong.sentFor) +
                                  ", with a horizon vouching for it through frame " + std::to_string(absolute) +
                                  ", is not the referee's value there (the referee's unseen sample)"});
   }
+}
+
+std::map<int, uint64_t> RefereeSample::TakeWrongPixels() {
+  std::map<int, uint64_t> wrong;
+  wrong.swap(wrongByFrame_);
+  return wrong;
 }
 
 nlohmann::json RefereeSample::Report() const {

@@ -91,6 +91,10 @@ class RefereeSample {
   // The referee's answers so far: each worker whose values differ from its own, once.
   std::vector<Verdict> HearReferee();
 
+  // Drawn pixels the referee's answers since the last call found wrong, by frame (the
+  // job's): the job was sent wrong values there, and a person should look.
+  std::map<int, uint64_t> TakeWrongPixels();
+
   // Drawn values not yet answered: the job is not done while any remain.
   bool Pending() const { return outstandingPixels_ > 0; }
   // The referee owes this job so much that its workers should wait for it.
@@ -98,16 +102,18 @@ class RefereeSample {
   nlohmann::json Report() const;
 
  private:
+  // 20 bytes a drawn value: at kMaxOutstandingPixels, 20 MiB.
   struct Drawn {
     uint32_t pixel;
-    std::string worker;
+    uint32_t worker;  // in workers_
     float rgb[3];
     int sentFor;  // the frame the value was sent for: earlier than the question's for a horizon
   };
+  uint32_t WorkerIndex(const std::string& worker);
   // Draws pixels, skipping ahead geometrically between draws; each drawn pixel is asked
   // at its frame and, where its horizon vouches for later frames, at the last of them.
   // Draws pixels with `gap` between draws, `untilNext` to the next.
-  void Draw(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb, const int32_t* horizons,
+  void Draw(int frame, uint32_t worker, const PixelSet& pixels, const float* rgb, const int32_t* horizons,
             std::geometric_distribution<uint64_t>& gap, uint64_t& untilNext);
   void Add(int askedAt, Drawn drawn);
   void Rule(const std::vector<Drawn>& drawn, int frame, const Referee::Answer& answer,
@@ -126,8 +132,10 @@ class RefereeSample {
   std::map<uint64_t, std::pair<int, std::vector<Drawn>>> asked_;  // by question id
   uint64_t nextQuestion_ = 1;
   uint64_t outstandingPixels_ = 0;
+  std::vector<std::string> workers_;  // principals, as Drawn names them
   std::set<std::string> distrusted_;
   std::set<std::string> caught_;  // by this sample
+  std::map<int, uint64_t> wrongByFrame_;  // since the last TakeWrongPixels
   std::vector<std::string> unsettled_;
   // Figures
   uint64_t pixelsSent_ = 0, pixelsDrawn_ = 0, horizonChecks_ = 0, tracesAnswered_ = 0, pixelsWrong_ = 0;

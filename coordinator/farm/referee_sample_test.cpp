@@ -120,7 +120,16 @@ TEST(RefereeSampleTest, NamesTheWorkerThatSentAWrongValueAndNobodyElse) {
   ASSERT_EQ(verdicts.size(), 1u);
   EXPECT_EQ(verdicts[0].worker, "liar");
   EXPECT_NE(verdicts[0].why.find("unseen sample"), std::string::npos) << verdicts[0].why;
-  EXPECT_GT(sample.Report()["pixels_wrong"].get<int>(), 0);
+  const std::map<int, uint64_t> wrong = sample.TakeWrongPixels();
+  uint64_t wrongPixels = 0;
+  for (const auto& [frame, pixels] : wrong) {
+    EXPECT_GE(frame, 0);
+    EXPECT_LT(frame, 40);
+    wrongPixels += pixels;
+  }
+  EXPECT_EQ(sample.Report()["pixels_wrong"], wrongPixels);
+  EXPECT_GT(wrongPixels, 0u);
+  EXPECT_TRUE(sample.TakeWrongPixels().empty());  // each told once
   // Once distrusted, its values are retraced in full by others: none is drawn.
   sample.OnWorkerDistrusted("liar");
   sample.OnValues(0, "liar", PixelSet::Full(kPixels), Values(PixelSet::Full(kPixels), {5}).data());

@@ -184,6 +184,10 @@ void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute)
                static_cast<unsigned long long>(pixels), frame);
 }
 
+void Verification::OnWrongValues(int frame, uint64_t pixels) {
+  if (pixels > 0) suspectFrames_[frame] += pixels;
+}
+
 int Verification::LowestPendingFrame(int none) const {
   int lowest = none;
   for (const auto& [id, frame] : outstanding_) lowest = std::min(lowest, frame);
@@ -231,8 +235,8 @@ nlohmann::json Verification::Report() const {
     }
     report["suspect"] = {{"pixels_disagreeing", pixels},
                          {"frames", frames},
-                         {"why", "the strategy promises 0 wrong pixels, yet traced-again pixels disagree with the "
-                                 "job's: a bug or a worker returning wrong values"}};
+                         {"why", "the strategy promises 0 wrong pixels, yet pixels traced again disagree with "
+                                 "what the job was sent: a bug or a worker returning wrong values"}};
   }
   return report;
 }

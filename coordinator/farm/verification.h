@@ -64,6 +64,9 @@ class Verification {
   // Returns false for an id this verification did not issue (or already answered).
   // checker: the worker that traced it, named in the dispute a disagreement raises.
   bool OnResult(uint64_t id, const float* rgb, size_t floatCount, const std::string& checker = "");
+  // The referee's unseen sample found `pixels` of `frame` sent wrong: for a job that
+  // promises exactness, the frame is suspect like one a check disagreed on.
+  void OnWrongValues(int frame, uint64_t pixels);
   // Disagreements found since the last call, for a job that promises exactness.
   std::vector<Dispute> TakeDisputes();
   // Whether an outstanding request traces part of a reference frame (not a spot check).

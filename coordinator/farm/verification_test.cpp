@@ -151,6 +151,23 @@ TEST(VerificationTest, SpotChecksSampleCopiesAndDisputeThemOnlyWhereExactnessIsP
   }
 }
 
+// Values the referee's unseen sample found wrong make a job that promises exactness
+// suspect, as a check that disagreed would; for search they are only repaired.
+TEST(VerificationTest, WrongValuesTheSampleFoundMakeAnExactJobSuspect) {
+  for (const bool promisesExact : {true, false}) {
+    VerificationOptions options;
+    options.promisesExact = promisesExact;
+    Verification verification(kWidth, kHeight, 3, options);
+    verification.OnWrongValues(2, 5);
+    verification.OnWrongValues(1, 0);
+    EXPECT_EQ(verification.Suspect(), promisesExact);
+    if (!promisesExact) continue;
+    const nlohmann::json suspect = verification.Report()["suspect"];
+    EXPECT_EQ(suspect["pixels_disagreeing"], 5);
+    EXPECT_EQ(suspect["frames"], nlohmann::json({{"2", 5}}));
+  }
+}
+
 TEST(VerificationTest, AJobWhoseChecksAgreeIsNotSuspect) {
   VerificationOptions options;
   options.referenceFrames = {0};

@@ -94,7 +94,8 @@ def test_exact_marks_a_job_suspect_when_a_worker_lies_and_repairs_what_it_wrote(
         assert suspect and suspect["pixels_disagreeing"] > 0, error
         assert suspect["frames"], suspect
         assert audit["workers_distrusted"] == ["liar"], audit
-        assert audit["job_values_wrong"] + audit["checks_wrong"] >= 1, audit
+        # The evidence: the referee's unseen sample, a check that disagreed, or both.
+        assert audit["job_values_wrong"] + audit["checks_wrong"] + error["referee_sample"]["pixels_wrong"] >= 1, error
         assert audit["frames_rewritten"] >= 1 and audit["pixels_rewritten"] > 0, audit
         assert audit["repairs_owed"] == 0 and audit["disputes_open"] == 0, audit
         # The promise kept after all: every frame as brute force traces it.
