@@ -509,8 +509,9 @@ int RunServe(const ServeOptions& options) {
     for (const std::string& key : localWorkerKeys->PublicKeys()) farmOptions.curve->alsoAllowed.insert(key);
   }
   // One budget for every scene the coordinator imports at once; the API's checks and
-  // submits hold it while they import.
+  // submits hold it while they import, the referee while it keeps a scene built.
   const auto importBudget = std::make_shared<ImportBudget>(options.importBudgetBytes);
+  farmOptions.importBudget = importBudget;  // the referee's scenes too
   Farm farm(store, farmOptions, clock);
 
   ApiOptions api;

@@ -63,6 +63,9 @@ struct FarmOptions {
   // Who settles disputes and traces the checks no worker may; none: the farm's own
   // TracingReferee. Tests whose workers trace nothing give one that knows their values.
   Referee* referee = nullptr;
+  // The coordinator's one budget for importing scenes, which the farm's own referee shares
+  // with the API's scene checks and submits; none: the referee's scenes are not counted.
+  std::shared_ptr<ImportBudget> importBudget;
 };
 
 class Farm : public FarmControl, private DispatchSink {

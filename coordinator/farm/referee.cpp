@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "worker/tracing.h"
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/scene.h"
 
 namespace tcfarm {
@@ -13,10 +14,20 @@ namespace tcfarm {
 // Built on first use: a coordinator whose workers never disagree never starts Embree.
 class TracingReferee::Tracing {
  public:
-  Tracer& TracerFor(const std::string& hash, const std::string& sceneJson, const std::filesystem::path& assetRoot) {
+  // Throws ImportBudgetBusyError while the farm's import budget has no room for the scene.
+  Tracer& TracerFor(const std::string& hash, const std::string& sceneJson, const std::filesystem::path& assetRoot,
+                    ImportBudget* budget) {
     if (tracer_ && hash == hash_) return *tracer_;
     tracer_.reset();
-    scene_ = std::make_unique<Scene>(ParseScene(sceneJson));
+    scene_.reset();
+    reservation_ = ImportReservation();
+    // The scene is held for as long as it is the last one built: so is its memory, from the
+    // budget every import on the coordinator shares.
+    if (budget) reservation_ = budget->Reserve(sceneJson.size());
+    {
+      const ImportMemoryScope scope(reservation_);
+      scene_ = std::make_unique<Scene>(ParseScene(sceneJson));
+    }
     // Textures are named by hash at submit; the store holds every one a job's scene names.
     for (Material& material : scene_->materials) {
       material.ForEachTexture([&](Texture& texture, const std::string&) {
@@ -35,12 +46,13 @@ class TracingReferee::Tracing {
   // loop's own work is short and waits on its socket most of the time.
   TracingThreads threads_{std::max(1u, std::thread::hardware_concurrency())};
   std::string hash_;
+  ImportReservation reservation_;  // declared before the scene: given back after it is freed
   std::unique_ptr<Scene> scene_;
   std::unique_ptr<Tracer> tracer_;  // refers to scene_
 };
 
-TracingReferee::TracingReferee(std::filesystem::path assetRoot)
-    : assetRoot_(std::move(assetRoot)), thread_([this] { Serve(); }) {}
+TracingReferee::TracingReferee(std::filesystem::path assetRoot, std::shared_ptr<ImportBudget> importBudget)
+    : assetRoot_(std::move(assetRoot)), importBudget_(std::move(importBudget)), thread_([this] { Serve(); }) {}
 
 TracingReferee::~TracingReferee() {
   {
@@ -77,9 +89,16 @@ void TracingReferee::Serve() {
       if (stopping_) return;
       question = TakeNextQuestion();
     }
-    Answer answer = Trace(question);
-    std::lock_guard<std::mutex> lock(mutex_);
-    answers_[{question.jobId, question.purpose}].push_back(std::move(answer));
+    std::optional<Answer> answer = Trace(question);
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (!answer) {
+      // No room in the import budget for its scene: asked again after the others, and
+      // after a pause, so that the imports holding the room can finish.
+      questions_.push_back(std::move(question));
+      wake_.wait_for(lock, kBusyPause, [this] { return stopping_; });
+      continue;
+    }
+    answers_[{question.jobId, question.purpose}].push_back(std::move(*answer));
   }
 }
 
@@ -100,18 +119,21 @@ Referee::Question TracingReferee::TakeNextQuestion() {
   return question;
 }
 
-Referee::Answer TracingReferee::Trace(const Question& question) {
+std::optional<Referee::Answer> TracingReferee::Trace(const Question& question) {
   Answer answer;
   answer.id = question.id;
   try {
     if (!tracing_) tracing_ = std::make_unique<Tracing>();
-    Tracer& tracer = tracing_->TracerFor(question.sceneHash, question.sceneJson, assetRoot_);
+    Tracer& tracer = tracing_->TracerFor(question.sceneHash, question.sceneJson, assetRoot_, importBudget_.get());
     answer.rgb.resize(3 * question.pixels.size());
     const double cpuBefore = tracer.CpuSeconds();
     const auto started = std::chrono::steady_clock::now();
     tracer.TracePixels(question.frame, question.pixels.data(), question.pixels.size(), answer.rgb.data());
     answer.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
     answer.cpuSeconds = tracer.CpuSeconds() - cpuBefore;
+  } catch (const ImportBudgetBusyError&) {
+    tracing_.reset();
+    return std::nullopt;
   } catch (const std::exception& e) {
     answer.rgb.clear();
     answer.error = e.what();

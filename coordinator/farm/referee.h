@@ -13,16 +13,20 @@
 
 #include <condition_variable>
 #include <cstdint>
+#include <chrono>
 #include <deque>
 #include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
 namespace tcfarm {
+
+class ImportBudget;
 
 // Settles disputes: the pixels' true values. The farm's is a TracingReferee.
 //
@@ -63,7 +67,9 @@ class Referee {
 class TracingReferee : public Referee {
  public:
   // assetRoot: the store's assets (STORE/assets), where the scene's textures are by hash.
-  explicit TracingReferee(std::filesystem::path assetRoot);
+  // importBudget: the coordinator's one budget for importing scenes (none: unbounded); the
+  // scene the referee keeps built holds its share of it.
+  explicit TracingReferee(std::filesystem::path assetRoot, std::shared_ptr<ImportBudget> importBudget = nullptr);
   ~TracingReferee() override;
   TracingReferee(const TracingReferee&) = delete;
   TracingReferee& operator=(const TracingReferee&) = delete;
@@ -77,9 +83,12 @@ class TracingReferee : public Referee {
   // The question to trace next (under mutex_, questions_ not empty).
   Question TakeNextQuestion();
   static constexpr int kSameSceneRun = 64;
-  Answer Trace(const Question& question);
+  // nullopt while the import budget has no room for the question's scene.
+  std::optional<Answer> Trace(const Question& question);
+  static constexpr std::chrono::milliseconds kBusyPause{250};
 
   std::filesystem::path assetRoot_;
+  std::shared_ptr<ImportBudget> importBudget_;
   std::unique_ptr<Tracing> tracing_;
   std::mutex mutex_;
   std::condition_variable wake_;

@@ -7,9 +7,12 @@
 
 #include <chrono>
 #include <filesystem>
+#include <memory>
+#include <optional>
 #include <thread>
 
 #include "worker/tracing.h"
+#include "proto/scene/import/import_budget.h"
 #include "proto/scene/scene.h"
 #include "tests/support/cpp/checker_png_for_tests.h"
 
@@ -93,6 +96,36 @@ TEST_F(RefereeTest, ASceneItCannotBuildIsAnAnswerThatSaysWhy) {
   EXPECT_NE(answers[1].error, "");
   EXPECT_EQ(answers[2].error, "");
   EXPECT_EQ(answers[2].rgb.size(), 3u);
+}
+
+// The referee's scene shares the coordinator's import budget: while other imports fill it,
+// the question waits (it is not failed), and is answered once they give the room back;
+// the scene it keeps built holds its share.
+TEST_F(RefereeTest, ItsSceneWaitsForRoomInTheImportBudget) {
+  const std::string json = TexturedScene();
+  constexpr uint64_t kBudget = 1 << 20;  // room for the scene, parsed, many times over
+  const auto budget = std::make_shared<ImportBudget>(kBudget, std::chrono::milliseconds(20));
+  TracingReferee referee(assets_, budget);
+  std::optional<ImportReservation> other = budget->Reserve(kBudget);  // a scene check, say
+  referee.Ask({4, 1, "hash-a", json, 3, {0, 5}});
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_TRUE(referee.TakeAnswers(4).empty());  // postponed, not failed
+  other.reset();
+  const std::vector<Referee::Answer> answers = WaitForAnswers(referee, 4, 1);
+  ASSERT_EQ(answers.size(), 1u);
+  EXPECT_EQ(answers[0].error, "");
+  EXPECT_EQ(answers[0].rgb.size(), 6u);
+  EXPECT_GE(budget->Stats().reservedBytes, json.size());  // the scene kept built
+}
+
+// A scene larger than the whole budget can never be built: an answer that says so.
+TEST_F(RefereeTest, ASceneLargerThanTheImportBudgetIsAnAnswerThatSaysWhy) {
+  TracingReferee referee(assets_, std::make_shared<ImportBudget>(16));
+  referee.Ask({5, 1, "hash-a", TexturedScene(), 0, {0}});
+  const std::vector<Referee::Answer> answers = WaitForAnswers(referee, 5, 1);
+  ASSERT_EQ(answers.size(), 1u);
+  EXPECT_NE(answers[0].error, "");
+  EXPECT_TRUE(answers[0].rgb.empty());
 }
 
 }  // namespace
