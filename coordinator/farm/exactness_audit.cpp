@@ -5,13 +5,8 @@
 
 namespace tcfarm {
 
-ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee,
-                               std::vector<bool> keptFrames)
-    : jobId_(jobId),
-      firstFrame_(firstFrame),
-      frameCount_(frameCount),
-      referee_(referee),
-      keptFrames_(std::move(keptFrames)) {}
+ExactnessAudit::ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee)
+    : jobId_(jobId), firstFrame_(firstFrame), frameCount_(frameCount), referee_(referee) {}
 
 void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<SceneRef()>& scene) {
   for (Dispute& dispute : disputes) {
@@ -22,16 +17,7 @@ void ExactnessAudit::Open(std::vector<Dispute> disputes, const std::function<Sce
     if (!scene_) scene_ = scene();
     const uint64_t id = nextDispute_++;
     referee_->Ask({jobId_, id, scene_->hash, scene_->json, firstFrame_ + dispute.frame, dispute.pixels});
-    OpenDispute open{std::move(dispute), {}};
-    const bool keptFromBefore = open.dispute.frame < static_cast<int>(keptFrames_.size()) &&
-                                keptFrames_[static_cast<size_t>(open.dispute.frame)];
-    for (uint32_t pixel : open.dispute.pixels) {
-      if (keptFromBefore) break;  // it shows values traced before the restart: nobody here sent them
-      if (std::optional<std::string> tracer = ledger_.TracerAt(open.dispute.frame, pixel)) {
-        open.senders.emplace(pixel, std::move(*tracer));
-      }
-    }
-    openDisputes_[id] = std::move(open);
+    openDisputes_[id] = std::move(dispute);
   }
 }
 
@@ -47,8 +33,7 @@ std::vector<ExactnessAudit::Verdict> ExactnessAudit::HearReferee() {
   return verdicts;
 }
 
-void ExactnessAudit::Rule(const OpenDispute& open, const Referee::Answer& answer, std::vector<Verdict>& verdicts) {
-  const Dispute& dispute = open.dispute;
+void ExactnessAudit::Rule(const Dispute& dispute, const Referee::Answer& answer, std::vector<Verdict>& verdicts) {
   const int frame = firstFrame_ + dispute.frame;
   if (!answer.error.empty()) {
     unsettled_.push_back("frame " + std::to_string(frame) + ": the referee could not trace it: " + answer.error);
@@ -63,24 +48,16 @@ void ExactnessAudit::Rule(const OpenDispute& open, const Referee::Answer& answer
   }
   if (ruling.jobWrong.empty()) return;
   ++jobWrong_;
-  owedRepairs_.insert(dispute.frame);  // it shows wrong values, whoever caused them
-  // Evidence against a worker is a value it sent for that pixel of that frame. A copy is
-  // no such value: search's and guarded's copies are approximations, and a copy that
-  // exact got wrong may be a wrong horizon as well as a wrong trace. The frame is
-  // repaired all the same; the referee's unseen sample judges the workers.
-  for (uint32_t pixel : ruling.jobWrong) {
-    const auto sender = open.senders.find(pixel);
-    if (sender == open.senders.end()) continue;
-    Distrust(sender->second,
-             "pixel " + std::to_string(pixel) + " of frame " + std::to_string(frame) +
-                 " as it traced it is not the referee's value",
-             verdicts);
-  }
+  // The frame shows wrong values, whoever sent them: it is repaired, and whoever may have
+  // sent them is watched more closely from now on.
+  owedRepairs_.insert(dispute.frame);
+  for (const std::string& worker : ledger_.WorkersReaching(dispute.frame)) suspects_.insert(worker);
 }
 
-void ExactnessAudit::ForgetBefore(int frame) {
-  for (const auto& [id, open] : openDisputes_) frame = std::min(frame, open.dispute.frame);
-  ledger_.ForgetPixelsBefore(frame);
+std::set<std::string> ExactnessAudit::TakeSuspects() {
+  std::set<std::string> suspects;
+  suspects.swap(suspects_);
+  return suspects;
 }
 
 void ExactnessAudit::Distrust(const std::string& worker, const std::string& why, std::vector<Verdict>& verdicts) {
@@ -113,12 +90,12 @@ std::vector<int> ExactnessAudit::TakeFramesToRepair(const std::function<bool(int
   return frames;
 }
 
-void ExactnessAudit::OnRepaired(int frame, const std::string& worker, const PixelSet& pixels, uint64_t changed) {
+void ExactnessAudit::OnRepaired(int frame, const std::string& worker, uint64_t changed) {
   repairing_.erase(frame);
   repaired_.insert(frame);
   // The frame now shows the repairer's values: if it is found wrong in turn, this frame
   // is repaired again.
-  ledger_.Record(frame, worker, pixels, 0);
+  ledger_.Record(frame, worker, 0);
   if (distrusted_.count(worker)) owedRepairs_.insert(frame);
   if (changed == 0) return;
   ++framesRewritten_;

@@ -2,11 +2,13 @@
 //
 // 1. The disagreement becomes a dispute (farm/dispute.h), which the coordinator's
 //    referee settles by tracing the disputed pixels itself (farm/referee.h).
-// 2. Whoever sent bits that are not the truth is distrusted: the checker, and the worker
-//    that traced a wrong value the job shows where the frame's own task traced it (the
-//    ledger). A copy is never evidence against anyone: the frame is repaired, and the
-//    referee's unseen sample (farm/referee_sample.h) judges the workers. The farm then
-//    drops them and gives them no more tasks.
+// 2. A checker that sent bits that are not the truth is distrusted: they are values it
+//    sent for those pixels of that frame. The job's side names nobody: its values may be
+//    copies (an approximation, or a horizon gone wrong), may have been traced before a
+//    restart, or rewritten by a repair since they were captured. The frame is repaired,
+//    and the workers whose values it may show are suspects: the referee's unseen sample
+//    (farm/referee_sample.h) draws more of their values, and its evidence judges them.
+//    The farm drops a distrusted worker and gives it no more tasks.
 // 3. Every frame a distrusted worker's values can have reached (TracerLedger) is traced
 //    again in full by another worker and rewritten where it differs. A job keeps its
 //    promise even when a worker lied, as long as one honest worker remains.
@@ -35,25 +37,14 @@ namespace tcfarm {
 class ExactnessAudit {
  public:
   // referee: null leaves disputes unsettled (reported as such), as in unit tests of the
-  // parts around it. firstFrame: the job's first frame in the scene's numbering. Every
-  // job disputes wrong traces (Verification's trace checks), so every job keeps which
-  // pixels each worker traced, for as long as a dispute can need them (ForgetBefore).
-  // keptFrames: by frame (the job's), those kept from before a restart: their values were
-  // sent to an earlier run, so a dispute there names nobody (its frame is repaired).
-  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee,
-                 std::vector<bool> keptFrames = {});
+  // parts around it. firstFrame: the job's first frame in the scene's numbering.
+  ExactnessAudit(uint64_t jobId, int firstFrame, int frameCount, Referee* referee);
 
-  // The job's values: which worker traced which pixels; reach: the frames after `frame`
-  // into which the job may copy them.
-  void OnTraced(int frame, const std::string& worker, const PixelSet& pixels, int reach) {
-    ledger_.Record(frame, worker, pixels, reach);
-  }
+  // The job's values: `worker` traced part of `frame`; reach: the frames after it into
+  // which the job may copy them.
+  void OnTraced(int frame, const std::string& worker, int reach) { ledger_.Record(frame, worker, reach); }
   // Workers whose values frame may show, traced there or copied: its checks avoid them.
   std::set<std::string> WorkersReaching(int frame) const { return ledger_.WorkersReaching(frame); }
-  // No check below `frame` is outstanding any more (the job's numbering): what only a
-  // dispute there could need is forgotten, as far as open disputes allow.
-  void ForgetBefore(int frame);
-  uint64_t PixelSetsHeld() const { return ledger_.PixelSetsHeld(); }
 
   struct SceneRef {
     std::string hash;
@@ -63,9 +54,11 @@ class ExactnessAudit {
   void Open(std::vector<Dispute> disputes, const std::function<SceneRef()>& scene);
 
   using Verdict = tcfarm::Verdict;
-  // The referee's answers so far: the workers they show returned wrong values, each
-  // named once per job.
+  // The referee's answers so far: the checkers they show sent wrong values, each named
+  // once per job.
   std::vector<Verdict> HearReferee();
+  // Workers whose values a frame the referee found wrong may show, since the last call.
+  std::set<std::string> TakeSuspects();
 
   // A worker found wrong, by this job or another: the frames its values reached are owed
   // a repair. `name`: how the job record names it.
@@ -74,7 +67,7 @@ class ExactnessAudit {
   std::vector<int> TakeFramesToRepair(const std::function<bool(int frame)>& written);
   // A repair of `frame` by `worker` came back; `changed` of its pixels differed from
   // what was written (and are now rewritten).
-  void OnRepaired(int frame, const std::string& worker, const PixelSet& pixels, uint64_t changed);
+  void OnRepaired(int frame, const std::string& worker, uint64_t changed);
 
   // Disputes at the referee or repairs owed: the job is not done.
   bool Pending() const { return !openDisputes_.empty() || !owedRepairs_.empty() || !repairing_.empty(); }
@@ -84,23 +77,16 @@ class ExactnessAudit {
 
  private:
   void Distrust(const std::string& worker, const std::string& why, std::vector<Verdict>& verdicts);
-  // A dispute at the referee, with who sent each disputed pixel's value in the job as the
-  // dispute was raised: a repair may rewrite the frame before the referee answers, and the
-  // values disputed are still the ones sent before it.
-  struct OpenDispute {
-    Dispute dispute;
-    std::map<uint32_t, std::string> senders;  // by pixel; none for a copy or where unknown
-  };
-  void Rule(const OpenDispute& open, const Referee::Answer& answer, std::vector<Verdict>& verdicts);
+  void Rule(const Dispute& dispute, const Referee::Answer& answer, std::vector<Verdict>& verdicts);
 
   uint64_t jobId_;
   int firstFrame_, frameCount_;
   Referee* referee_;
-  std::vector<bool> keptFrames_;
   TracerLedger ledger_;
   std::optional<SceneRef> scene_;  // asked for with the first dispute
   uint64_t nextDispute_ = 1;
-  std::map<uint64_t, OpenDispute> openDisputes_;
+  std::map<uint64_t, Dispute> openDisputes_;  // at the referee, by question id
+  std::set<std::string> suspects_;             // since the last TakeSuspects
   std::set<std::string> distrusted_;     // found wrong by this job's disputes, or told
   std::vector<std::string> distrustedNames_;
   std::set<int> owedRepairs_, repairing_, repaired_;

@@ -209,7 +209,7 @@ JobRun::JobRun(const JobRecord& record, const FrameStore& store, const JobRunSet
       planner_(MakeJobPlanner(resolved_, plannerOptions_, &autoPlanner_)),
       verification_(spec_.frameSize.width, spec_.frameSize.height, FrameCountOf(spec_),
                     VerificationFor(spec_, record.id, resolved_.strategy)),
-      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee, kept_.kept),
+      audit_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
       sample_(record.id, spec_.firstFrame, FrameCountOf(spec_), settings.referee),
       referee_(settings.referee),
       written_(kept_.kept),
@@ -346,8 +346,9 @@ bool JobRun::OnRepairResult(const DispatchTask& task, const wire::Result& result
     std::fprintf(stderr, "coordinator: job %llu: frame %d traced again: %llu pixels differed; rewritten\n",
                  static_cast<unsigned long long>(id_), absolute, static_cast<unsigned long long>(changed));
     writer_.Write(absolute, Image{spec_.frameSize.width, spec_.frameSize.height, result.rgb});
+    verification_.Reverify(frame, result.rgb);  // its reference, if asked, compares with what it shows now
   }
-  audit_.OnRepaired(frame, worker, task.pixels, changed);
+  audit_.OnRepaired(frame, worker, changed);
   cost_.OnRepairResult(result);
   return true;
 }
@@ -373,7 +374,34 @@ std::vector<ExactnessAudit::Verdict> JobRun::TakeVerdicts() {
   return verdicts;
 }
 
+void JobRun::OnWorkerDistrusted(const std::string& worker, const std::string& name) {
+  audit_.OnWorkerDistrusted(worker, name);
+  sample_.OnWorkerDistrusted(worker);
+  for (int frame : verification_.ForgetReferencesBy(worker)) toReverify_.insert(frame);
+}
+
+void JobRun::ReverifyWrittenFrames() {
+  for (auto it = toReverify_.begin(); it != toReverify_.end();) {
+    const int frame = *it;
+    if (!written_[static_cast<size_t>(frame)]) {
+      ++it;
+      continue;
+    }
+    const int absolute = spec_.firstFrame + frame;
+    try {
+      verification_.Reverify(frame, ReadImage(frameStore_.FramePath(id_, absolute, "exr")).rgb);
+    } catch (const std::exception& e) {
+      // No lossless copy to compare with (a farm that writes PNG only): the frame stays
+      // uncompared, and the report says fewer frames were compared than asked.
+      std::fprintf(stderr, "coordinator: job %llu: frame %d cannot be read back to verify again (%s)\n",
+                   static_cast<unsigned long long>(id_), absolute, e.what());
+    }
+    it = toReverify_.erase(it);
+  }
+}
+
 void JobRun::Audit(const JobStore& store) {
+  ReverifyWrittenFrames();
   for (DispatchTask& check : forReferee_) TraceByReferee(std::move(check), store);
   forReferee_.clear();
   HearRefereeChecks();
@@ -383,9 +411,7 @@ void JobRun::Audit(const JobStore& store) {
   audit_.Open(verification_.TakeDisputes(),
               [&] { return ExactnessAudit::SceneRef{spec_.sceneHash, SceneJson(store)}; });
   for (ExactnessAudit::Verdict& verdict : audit_.HearReferee()) verdicts_.push_back(std::move(verdict));
-  // Frames below the coherence's next are finished and handed on; their checks are
-  // scheduled as they finish, so below both nothing can be disputed any more.
-  audit_.ForgetBefore(verification_.LowestPendingFrame(coherence_.NextFrame()));
+  for (const std::string& suspect : audit_.TakeSuspects()) sample_.Suspect(suspect);
 }
 
 bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& result, const std::string& worker) {
@@ -405,7 +431,7 @@ bool JobRun::OnPlannerResult(const DispatchTask& task, const wire::Result& resul
   } else {
     cost_.OnPlannerResult(result.frame - spec_.firstFrame, result);
   }
-  audit_.OnTraced(result.frame - spec_.firstFrame, worker, task.pixels, CopyReach(task.window));
+  audit_.OnTraced(result.frame - spec_.firstFrame, worker, CopyReach(task.window));
   return true;
 }
 

@@ -109,15 +109,13 @@ class JobRun {
   // TakeStranded): the referee traces it, and its answer comes back as a result by
   // Referee::kName. Throws std::runtime_error when the job has no referee.
   void TraceByReferee(DispatchTask task, const JobStore& store);
-  // Workers this job's disputes showed returning wrong values, since the last call. The
-  // farm distrusts them and tells every job (OnWorkerDistrusted).
+  // Workers this job's disputes and unseen sample showed returning wrong values, since the
+  // last call. The farm distrusts them and tells every job (OnWorkerDistrusted); a job is
+  // not done while it holds any.
   std::vector<ExactnessAudit::Verdict> TakeVerdicts();
   // A worker found returning wrong values: frames its values reached are traced again
   // and rewritten where they differ. name: how the job record names it.
-  void OnWorkerDistrusted(const std::string& worker, const std::string& name) {
-    audit_.OnWorkerDistrusted(worker, name);
-    sample_.OnWorkerDistrusted(worker);
-  }
+  void OnWorkerDistrusted(const std::string& worker, const std::string& name);
   // Hands finished frames to the writer and the verification, and records in the job
   // store the frames the writer has put in place (a frame is recorded only once its files
   // are there); returns how many frames it handed on. Never waits for the writer: frames
@@ -127,7 +125,7 @@ class JobRun {
   int CollectFinishedFrames(JobStore& store);
   bool Done() const {
     return planner_->Done() && !verification_.Pending() && !audit_.Pending() && !sample_.Pending() &&
-           refereeChecks_.empty() && forReferee_.empty() &&
+           refereeChecks_.empty() && forReferee_.empty() && verdicts_.empty() && toReverify_.empty() &&
            unwritten_.empty() && writer_.Idle() && !records_.AnyWriting() && !RecordsOwed();
   }
   // Records what the writer has put in place since the last call, and what is owed from
@@ -188,6 +186,9 @@ class JobRun {
   // A frame traced again in full: rewritten where it differs from what was written.
   bool OnRepairResult(const DispatchTask& task, const wire::Result& result, const std::string& worker);
   uint64_t PixelsDifferingFromWritten(int absoluteFrame, const std::vector<float>& rgb) const;
+  // Frames whose reference a distrusted worker traced, read back once written and compared
+  // with a reference traced again.
+  void ReverifyWrittenFrames();
   // Disputes and the unseen sample to the referee, its verdicts back.
   void Audit(const JobStore& store);
   // Checks the frame, writes it and its masks, and feeds it to the coherence.
@@ -235,6 +236,7 @@ class JobRun {
   std::map<uint64_t, DispatchTask> refereeChecks_;  // out with the referee, by question id
   uint64_t nextRefereeCheck_ = 1;
   std::vector<DispatchTask> forReferee_;  // spot checks, for the referee at the next Audit
+  std::set<int> toReverify_;  // frames whose reference a distrusted worker traced, once written
   std::string sceneJson_;          // read once, when the referee first needs it
   std::vector<ExactnessAudit::Verdict> verdicts_;
   // Planner tasks in flight: their chain and step (TraceTask), for the job's span.

@@ -46,7 +46,7 @@ void RefereeSample::OnValues(int frame, const std::string& worker, const PixelSe
   if (!referee_ || worker == Referee::kName || distrusted_.count(worker)) return;
   pixelsSent_ += pixels.size();
   const uint32_t index = WorkerIndex(worker);
-  if (onProbation) {
+  if (onProbation || suspects_.count(worker)) {
     Draw(frame, index, pixels, rgb, horizons, probationGap_, untilNextProbationDraw_);
   } else {
     Draw(frame, index, pixels, rgb, horizons, gap_, untilNextDraw_);

@@ -81,6 +81,9 @@ class RefereeSample {
   // often, and it cannot tell (nothing it sees changes).
   void OnValues(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
                 const int32_t* horizons = nullptr, bool onProbation = false);
+  // A frame a check found wrong may show the worker's values: from now on its values are
+  // drawn as a worker's on probation are. Nothing it sees changes.
+  void Suspect(const std::string& worker) { suspects_.insert(worker); }
   // A worker found wrong: its values are retraced in full by others, so no more of them
   // are sampled.
   void OnWorkerDistrusted(const std::string& worker) { distrusted_.insert(worker); }
@@ -134,6 +137,7 @@ class RefereeSample {
   uint64_t outstandingPixels_ = 0;
   std::vector<std::string> workers_;  // principals, as Drawn names them
   std::set<std::string> distrusted_;
+  std::set<std::string> suspects_;
   std::set<std::string> caught_;  // by this sample
   std::map<int, uint64_t> wrongByFrame_;  // since the last TakeWrongPixels
   std::vector<std::string> unsettled_;

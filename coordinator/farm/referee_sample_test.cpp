@@ -177,6 +177,30 @@ TEST(RefereeSampleTest, AHorizonIsCheckedAtTheLastFrameItVouchesFor) {
   EXPECT_GT(sample.Report()["horizon_checks"].get<int>(), 0);
 }
 
+// A suspect (its values may show in a frame a check found wrong) and a worker on probation
+// have more of their values drawn; nothing they are sent changes.
+TEST(RefereeSampleTest, SuspectsAndNewWorkersAreDrawnMoreOften) {
+  TableReferee referee;
+  RefereeSample sample(7, 0, 40, &referee, 11);
+  const PixelSet all = PixelSet::Full(kPixels);
+  const std::vector<float> rgb = Values(all);
+  auto drawnFrom = [&](const std::string& worker, bool probation) {
+    for (int frame = 0; frame < 10; ++frame) sample.OnValues(frame, worker, all, rgb.data(), nullptr, probation);
+    sample.Ask("h", SceneJson);
+    size_t drawn = 0;
+    for (const Referee::Question& q : referee.questions) drawn += q.pixels.size();
+    sample.HearReferee();
+    return drawn;
+  };
+  const size_t usual = drawnFrom("a", false);
+  const size_t probation = drawnFrom("b", true);
+  sample.Suspect("a");
+  const size_t suspect = drawnFrom("a", false);
+  EXPECT_GT(probation, 3 * usual);
+  EXPECT_GT(suspect, 3 * usual);
+  EXPECT_NEAR(sample.Report()["share_on_probation"].get<double>(), 4 * sample.share(), 1e-12);
+}
+
 TEST(RefereeSampleTest, AJobWaitsWhileTheRefereeOwesItTooMuch) {
   TableReferee referee;
   RefereeSample sample(7, 0, 1, &referee, 5);

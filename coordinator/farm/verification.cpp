@@ -77,6 +77,32 @@ void Verification::OnKeptFrame(int frame, const std::vector<float>& rgb) {
   if (wantsReference_[frame]) ScheduleReference(frame, rgb);
 }
 
+void Verification::Reverify(int frame, const std::vector<float>& rgb) {
+  if (!wantsReference_[static_cast<size_t>(frame)]) return;
+  for (auto& [id, image] : jobFramesAwaitingReference_) {
+    // Its reference is being traced: it will be compared with what the frame shows now.
+    if (outstanding_.count(id) && outstanding_.at(id) == frame) {
+      image.rgb = rgb;
+      return;
+    }
+  }
+  references_.erase(frame);
+  ScheduleReference(frame, rgb);
+}
+
+std::vector<int> Verification::ForgetReferencesBy(const std::string& checker) {
+  std::vector<int> frames;
+  for (auto it = references_.begin(); it != references_.end();) {
+    if (it->second.checker != checker) {
+      ++it;
+      continue;
+    }
+    frames.push_back(it->first);
+    it = references_.erase(it);
+  }
+  return frames;
+}
+
 void Verification::ScheduleSpotCheck(int frame, const std::vector<float>& rgb, const std::vector<uint8_t>& traced,
                                      double share) {
   size_t pixels = traced.size();
@@ -161,9 +187,7 @@ bool Verification::OnResult(uint64_t id, const float* rgb, size_t floatCount, co
         checker);
     NoteDisagreement(frame, differing, std::move(dispute));
   }
-  reference_ += frameError;
-  ssimSum_ += Ssim(reference, job->second);
-  ++referenceFramesDone_;
+  references_[frame] = {frameError, Ssim(reference, job->second), checker};
   jobFramesAwaitingReference_.erase(job);
   return true;
 }
@@ -188,13 +212,6 @@ void Verification::OnWrongValues(int frame, uint64_t pixels) {
   if (pixels > 0) suspectFrames_[frame] += pixels;
 }
 
-int Verification::LowestPendingFrame(int none) const {
-  int lowest = none;
-  for (const auto& [id, frame] : outstanding_) lowest = std::min(lowest, frame);
-  for (const Request& request : ready_) lowest = std::min(lowest, request.frame);
-  return lowest;
-}
-
 std::vector<Dispute> Verification::TakeDisputes() {
   std::vector<Dispute> disputes;
   disputes.swap(disputes_);
@@ -213,15 +230,22 @@ nlohmann::json Verification::Report() const {
        checkedPixels_ ? 100 * copiedShare * mismatchedPixels_ / double(checkedPixels_) : 0.0},
       {"ci95_percent", {100 * copiedShare * low, 100 * copiedShare * high}}};
   if (!options_.referenceFrames.empty()) {
-    double psnr = reference_.Psnr();
+    FrameError compared;
+    double ssimSum = 0;
+    for (const auto& [frame, result] : references_) {
+      compared += result.error;
+      ssimSum += result.ssim;
+    }
+    const int framesCompared = static_cast<int>(references_.size());
+    const double psnr = compared.Psnr();
     report["reference"] = {
         {"frames_requested", options_.referenceFrames.size()},
-        {"frames_compared", referenceFramesDone_},
-        {"pixels_differing", reference_.differingPixels},
-        {"percent_differing", 100 * reference_.DifferingShare()},
-        {"max_abs_error", reference_.maxAbsError},
+        {"frames_compared", framesCompared},
+        {"pixels_differing", compared.differingPixels},
+        {"percent_differing", 100 * compared.DifferingShare()},
+        {"max_abs_error", compared.maxAbsError},
         {"psnr_db", std::isinf(psnr) ? nlohmann::json(nullptr) : nlohmann::json(psnr)},
-        {"ssim", referenceFramesDone_ ? ssimSum_ / referenceFramesDone_ : 1.0}};
+        {"ssim", framesCompared ? ssimSum / framesCompared : 1.0}};
   }
   // Who traced the checks, references included: never the worker whose values they check.
   report["checked_by"] = {{"referee_pixels", checkedByReferee_}, {"worker_pixels", checkedByWorkers_}};

@@ -60,6 +60,13 @@ class Verification {
   void OnFrameFinished(int frame, const std::vector<float>& rgb, const std::vector<uint8_t>& traced);
   // A frame kept from before a restart: only its reference, when one is asked for.
   void OnKeptFrame(int frame, const std::vector<float>& rgb);
+  // The frame now shows `rgb` (a repair rewrote it): a reference asked for it compares
+  // with these values, traced again where it was compared already.
+  void Reverify(int frame, const std::vector<float>& rgb);
+  bool WantsReference(int frame) const { return wantsReference_[static_cast<size_t>(frame)]; }
+  // A worker found to return wrong values: the references it traced say nothing. Returns
+  // their frames, which the caller reverifies (Reverify) with the values they show.
+  std::vector<int> ForgetReferencesBy(const std::string& checker);
   std::vector<Request> TakeRequests();
   // Returns false for an id this verification did not issue (or already answered).
   // checker: the worker that traced it, named in the dispute a disagreement raises.
@@ -72,8 +79,6 @@ class Verification {
   // Whether an outstanding request traces part of a reference frame (not a spot check).
   bool IsReference(uint64_t id) const { return outstanding_.count(id) > 0 && spotChecks_.count(id) == 0; }
   bool Pending() const { return !outstanding_.empty() || !ready_.empty(); }
-  // The lowest frame a check is still owed or out for; `none` when there is none.
-  int LowestPendingFrame(int none) const;
   // A job that promises exactness and whose checks found a disagreement.
   bool Suspect() const { return options_.promisesExact && !suspectFrames_.empty(); }
   uint64_t ExtraPixels() const { return extraPixels_; }
@@ -106,14 +111,20 @@ class Verification {
   std::map<uint64_t, SpotCheck> spotChecks_;
   std::map<uint64_t, Image> jobFramesAwaitingReference_;
   std::vector<bool> wantsReference_;
+  // Each compared frame's reference, and who traced it: a reference by a worker found
+  // wrong is forgotten and traced again (ForgetReferencesBy), and so is one of a frame
+  // rewritten since (Reverify).
+  struct ReferenceResult {
+    FrameError error;
+    double ssim = 1;
+    std::string checker;
+  };
+  std::map<int, ReferenceResult> references_;
   // Figures
   uint64_t extraPixels_ = 0;
   uint64_t checkedPixels_ = 0, mismatchedPixels_ = 0;
   uint64_t copiedPixels_ = 0, totalPixels_ = 0;
   uint64_t checkedByReferee_ = 0, checkedByWorkers_ = 0;  // pixels, every kind of check
-  FrameError reference_;
-  double ssimSum_ = 0;
-  int referenceFramesDone_ = 0;
   std::map<int, uint64_t> suspectFrames_;  // frame -> pixels a check disagreed on
   std::vector<Dispute> disputes_;
 };

@@ -168,6 +168,42 @@ TEST(VerificationTest, WrongValuesTheSampleFoundMakeAnExactJobSuspect) {
   }
 }
 
+// A reference traced by a worker later found wrong says nothing: it is forgotten, and the
+// frame is compared again with a reference traced anew. A frame rewritten by a repair is
+// compared as it shows now.
+TEST(VerificationTest, AReferenceByAWorkerFoundWrongIsTracedAgain) {
+  VerificationOptions options;
+  options.spotCheckShare = 0;
+  options.referenceFrames = {0};
+  Verification verification(kWidth, kHeight, 1, options);
+  const auto frame = Frame();
+  verification.OnFrameFinished(0, frame.first, frame.second);
+  std::vector<Verification::Request> requests = verification.TakeRequests();
+  ASSERT_EQ(requests.size(), 1u);
+  const std::vector<float> grey(3 * kPixels, 7.0f);  // no pixel of Frame() is 7
+  ASSERT_TRUE(verification.OnResult(requests[0].id, grey.data(), grey.size(), "liar"));
+  EXPECT_GT(verification.Report()["reference"]["pixels_differing"].get<uint64_t>(), 0u);
+  EXPECT_TRUE(verification.ForgetReferencesBy("honest").empty());
+  EXPECT_EQ(verification.ForgetReferencesBy("liar"), std::vector<int>{0});
+  EXPECT_EQ(verification.Report()["reference"]["frames_compared"], 0);
+  verification.Reverify(0, frame.first);
+  requests = verification.TakeRequests();
+  ASSERT_EQ(requests.size(), 1u);
+  ASSERT_TRUE(verification.OnResult(requests[0].id, frame.first.data(), frame.first.size(), "honest"));
+  EXPECT_EQ(verification.Report()["reference"]["frames_compared"], 1);
+  EXPECT_EQ(verification.Report()["reference"]["pixels_differing"], 0);
+  // A repair rewrote the frame with other values: it is compared again, as it shows now.
+  verification.Reverify(0, grey);
+  requests = verification.TakeRequests();
+  ASSERT_EQ(requests.size(), 1u);
+  ASSERT_TRUE(verification.OnResult(requests[0].id, frame.first.data(), frame.first.size(), "honest"));
+  EXPECT_EQ(verification.Report()["reference"]["pixels_differing"], kPixels);
+  // A frame with no reference asked for is left alone.
+  Verification none(kWidth, kHeight, 2, VerificationOptions{});
+  none.Reverify(1, grey);
+  EXPECT_TRUE(none.TakeRequests().empty());
+}
+
 TEST(VerificationTest, AJobWhoseChecksAgreeIsNotSuspect) {
   VerificationOptions options;
   options.referenceFrames = {0};
