@@ -388,10 +388,12 @@ function errorNotes(job) {
 // The referee's unseen sample: what it traced, what it found, and what that buys: the
 // chance that a worker altering 16 of the pixels it sends each frame is caught.
 function refereeSampleNote(sample) {
+  const share = `${fixed(100 * sample.share, 2)} % of every worker's pixels`;
+  if (!sample.referee_traces) return `referee's unseen sample: none traced yet (it traces ${share})`;
   const catchAll = sample.catch_probability ? sample.catch_probability.altering_16_pixels_every_frame : 0;
   const missed = 1 - catchAll;
   const odds = missed > 0 ? `1 in ${Math.round(1 / missed).toLocaleString("en")} missed` : "none missed";
-  return `referee's unseen sample: ${fixed(100 * sample.share, 2)} % of every worker's pixels ` +
+  return `referee's unseen sample: ${share} ` +
          `(${sample.pixels_sampled} px drawn, ${sample.referee_traces} traced with their horizons, ` +
          `${sample.pixels_wrong} wrong, ` +
          `${fixed(sample.referee_cpu_seconds, 2)} s referee CPU); a worker altering 16 px a frame: ${odds}`;

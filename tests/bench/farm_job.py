@@ -57,6 +57,15 @@ def run(farm, scene, strategy, bin_width):
           f"trace CPU {stats.get('trace_cpu_seconds', float('nan')):.2f} s; "
           f"coordinator process CPU {coordinator_after - coordinator_before:.2f} s, "
           f"worker processes CPU {workers_after - workers_before:.2f} s")
+    # What trust cost: the referee's unseen sample, beside the workers' tracing.
+    sample = stats["error"]["referee_sample"]
+    trace_cpu = stats.get("trace_cpu_seconds") or float("nan")
+    catch = sample["catch_probability"]
+    print(f"{strategy}: referee's unseen sample {100 * sample['share']:.2f} % of {sample['pixels_sent']} px sent "
+          f"({sample['referee_traces']} referee traces, {sample['horizon_checks']} of them for horizons): "
+          f"referee CPU {sample['referee_cpu_seconds']:.2f} s = {100 * sample['referee_cpu_seconds'] / trace_cpu:.1f} % "
+          f"of the trace CPU; a worker altering 16 px of every frame is caught with probability "
+          f"{catch['altering_16_pixels_every_frame']:.7f}, 1 px of every frame {catch['altering_1_pixel_every_frame']:.3f}")
     return job
 
 

@@ -72,6 +72,7 @@ def test_the_error_panel_says_not_measured_yet_until_a_measurement_exists(tmp_pa
             page.wait_for("document.getElementById('error-note').textContent !== ''")
             note = page.text("#error-note")
             assert "spot checks: not measured yet" in note, note
+            assert "referee's unseen sample: none traced yet" in note, note
             for not_a_result in ("CI", "0/0", "PSNR", "SSIM", "51"):
                 assert not_a_result not in note, note
             assert page.evaluate("document.getElementById('chart-error').dataset.pointsByDataset") == "0,0,0"
@@ -82,6 +83,11 @@ def test_the_error_panel_says_not_measured_yet_until_a_measurement_exists(tmp_pa
             page.wait_for("document.getElementById('error-note').textContent.includes('PSNR')", timeout=60)
             note = page.text("#error-note")
             assert "against brute force (4/4 frames)" in note and "not measured yet" not in note, note
+            # The referee's unseen sample: what it traced of the worker's values, and found.
+            page.wait_for("document.getElementById('error-note').textContent.includes(' wrong, ')", timeout=60)
+            note = page.text("#error-note")
+            assert "referee's unseen sample: 10.00 % of every worker's pixels" in note, note
+            assert " 0 wrong, " in note and "a worker altering 16 px a frame: 1 in " in note, note
             no_page_errors(page)
 
 
