@@ -154,6 +154,31 @@ def compare(reference_dir, test_dir):
     return json.loads(result.stdout)
 
 
+def memory_bytes(pid, field):
+    """VmHWM (peak resident) or VmRSS of a process, in bytes."""
+    with open(f"/proc/{pid}/status") as status:
+        for line in status:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) * 1024
+    raise AssertionError(f"/proc/{pid}/status has no {field}")
+
+
+def reset_peak(pid):
+    """Starts VmHWM afresh from VmRSS (Linux 4.0+), so a peak measured after is the caller's;
+    returns that VmRSS."""
+    with open(f"/proc/{pid}/clear_refs", "w") as clear_refs:
+        clear_refs.write("5")
+    return memory_bytes(pid, "VmRSS")
+
+
+def differing_pixels(farm, reference, job, frames):
+    """Pixels of the job's frames that differ from the reference renderer's; insists every
+    one of its `frames` frames is there."""
+    result = compare(reference, farm.store / str(job["id"]))
+    assert result["frames"] == frames, result
+    return result["differing_pixels"]
+
+
 def tcfarm_cli(farm, *args, env=None):
     """The tcfarm command line against this farm, as a user runs it (with the farm's admin
     token in TCFARM_TOKEN when it has tokens, unless env says otherwise)."""

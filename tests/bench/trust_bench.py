@@ -29,7 +29,7 @@ HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 sys.path.insert(0, str(HERE.parent / "e2e"))
 from farm_harness import COORDINATOR, WORKER, LocalFarm, compare, render_reference, small_scene  # noqa: E402
-from liar_proxy import Collusion, LiarProxy  # noqa: E402
+from liar_proxy import start_colluding_liars  # noqa: E402
 from tcfarm.client import FINAL_STATES, trace_cost_seconds  # noqa: E402
 from test_worker_auth import coordinator_keys, keygen, read_key, worker_keys  # noqa: E402
 
@@ -68,14 +68,7 @@ def make_keys(directory):
 
 
 def start_liars(farm, keys, directory, count, policy):
-    collusion, liars = Collusion(), []
-    for index in range(count):
-        name = f"liar-{index + 1}"
-        secret, public = keygen(WORKER, directory / name, name)
-        shutil.copy(public, keys["allowed"] / f"{name}.pub")
-        liars.append(LiarProxy(farm.zmq, policy, name, directory, curve=(secret, keys["public"]),
-                               collusion=collusion).start())
-    return liars
+    return start_colluding_liars(farm.zmq, keys, directory, count, policy)
 
 
 def wait_final(farm, job_id, timeout=WAIT_S, still_s=None):

@@ -28,6 +28,7 @@ Every loop is bounded by a stop flag and a poll timeout; `stop` ends the worker 
 closes the sockets and terms the context."""
 import array
 import pathlib
+import shutil
 import signal
 import subprocess
 import sys
@@ -322,3 +323,18 @@ class LiarProxy:
             self.log = None
         if self.failure:
             raise RuntimeError(f"the proxy of {self.name} failed") from self.failure
+
+
+def start_colluding_liars(endpoint, keys, directory, count, policy):
+    """`count` liars of one Collusion, each with a key of its own added to the farm's
+    allow-list (keys: test_worker_auth's `keys`), started and connected to `endpoint`."""
+    from test_worker_auth import keygen  # the test files' key maker
+    collusion, liars = Collusion(), []
+    for index in range(count):
+        name = f"liar-{index + 1}"
+        secret, public = keygen(WORKER, directory / name, name)
+        shutil.copy(public, keys["allowed"] / f"{name}.pub")
+        liar = LiarProxy(endpoint, policy, name, directory, curve=(secret, keys["public"]), collusion=collusion)
+        assert liar.principal == "key:" + read_key(public)
+        liars.append(liar.start())
+    return liars

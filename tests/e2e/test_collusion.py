@@ -16,15 +16,14 @@ TCFARM_TRUST_REPEATS (default 1) runs each case that many times. Timeouts are ge
 limits, never assertions."""
 import json
 import os
-import shutil
 import time
 
 import pytest
 
-from farm_harness import WORKER, LocalFarm, compare, render_reference, small_scene
-from liar_proxy import HONEST_TASKS, Collusion, LiarProxy
+from farm_harness import LocalFarm, differing_pixels, render_reference, small_scene
+from liar_proxy import HONEST_TASKS, start_colluding_liars
 from tcfarm.client import FINAL_STATES, trace_cost_seconds
-from test_worker_auth import coordinator_keys, keygen, keys, read_key, wait_for, worker_keys  # noqa: F401
+from test_worker_auth import coordinator_keys, keys, read_key, wait_for, worker_keys  # noqa: F401
 
 WAIT_S = 300
 FRAMES = 10
@@ -46,9 +45,7 @@ def reference(scene, tmp_path_factory):
 
 
 def differing(farm, reference, job):
-    result = compare(reference, farm.store / str(job["id"]))
-    assert result["frames"] == FRAMES, result
-    return result["differing_pixels"]
+    return differing_pixels(farm, reference, job, FRAMES)
 
 
 def honest_principal(keys):
@@ -56,16 +53,7 @@ def honest_principal(keys):
 
 
 def start_liars(farm, keys, directory, count, policy):
-    """`count` colluding liars, each with a key of its own on the allow-list."""
-    collusion, liars = Collusion(), []
-    for index in range(count):
-        name = f"liar-{index + 1}"
-        secret, public = keygen(WORKER, directory / name, name)
-        shutil.copy(public, keys["allowed"] / f"{name}.pub")
-        liar = LiarProxy(farm.zmq, policy, name, directory, curve=(secret, keys["public"]), collusion=collusion)
-        assert liar.principal == "key:" + read_key(public)
-        liars.append(liar.start())
-    return liars
+    return start_colluding_liars(farm.zmq, keys, directory, count, policy)
 
 
 def stop_all(liars):

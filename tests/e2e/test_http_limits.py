@@ -9,7 +9,7 @@ import urllib.parse
 
 import pytest
 
-from farm_harness import LocalFarm
+from farm_harness import LocalFarm, memory_bytes, reset_peak
 
 ADMIN = "limits-admin-0123456789abcdef"
 BODY_BYTES = 600 << 20  # what each client offers; the coordinator must not take it all
@@ -34,20 +34,8 @@ def address(farm):
     return parsed.hostname, parsed.port
 
 
-def memory_bytes(pid, field):
-    """VmHWM (peak resident) or VmRSS of a process, in bytes."""
-    with open(f"/proc/{pid}/status") as status:
-        for line in status:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) * 1024
-    raise AssertionError(f"/proc/{pid}/status has no {field}")
 
 
-def reset_peak(pid):
-    """Starts VmHWM afresh from VmRSS (Linux 4.0+), so a peak measured after is this test's."""
-    with open(f"/proc/{pid}/clear_refs", "w") as clear_refs:
-        clear_refs.write("5")
-    return memory_bytes(pid, "VmRSS")
 
 
 def offer_body(farm, head, chunked=False):

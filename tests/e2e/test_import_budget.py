@@ -13,7 +13,7 @@ import urllib.request
 
 import pytest
 
-from farm_harness import LocalFarm
+from farm_harness import LocalFarm, memory_bytes, reset_peak
 
 MIB = 1 << 20
 BUDGET_MIB = 512
@@ -31,20 +31,8 @@ def farm(tmp_path_factory):
         yield farm
 
 
-def status_field(pid, field):
-    """VmHWM (peak resident) or VmRSS of a process, in bytes."""
-    with open(f"/proc/{pid}/status") as status:
-        for line in status:
-            if line.startswith(field + ":"):
-                return int(line.split()[1]) * 1024
-    raise AssertionError(f"/proc/{pid}/status has no {field}")
 
 
-def reset_peak(pid):
-    """Starts VmHWM afresh from VmRSS (Linux 4.0+); returns that VmRSS."""
-    with open(f"/proc/{pid}/clear_refs", "w") as clear_refs:
-        clear_refs.write("5")
-    return status_field(pid, "VmRSS")
 
 
 def meshopt_zeros(count, stride):
@@ -127,7 +115,7 @@ def test_eight_bombs_at_once_stay_within_the_budget_and_are_never_a_500(farm):
     before = reset_peak(pid)
     with concurrent.futures.ThreadPoolExecutor(BOMBS) as pool:
         answers = list(pool.map(lambda i: check(farm, f"bomb{i}.glb", bomb), range(BOMBS)))
-    peak = status_field(pid, "VmHWM")
+    peak = memory_bytes(pid, "VmHWM")
     print(f"{BOMBS} meshopt bombs at once, --import-budget-mib {BUDGET_MIB}: VmRSS before {before / MIB:.0f} MiB, "
           f"VmHWM {peak / MIB:.0f} MiB; statuses {sorted(status for status, _, _ in answers)}")
     for status, headers, answer in answers:
@@ -158,7 +146,7 @@ def test_a_gltf_nested_a_million_levels_deep_is_refused_where_it_goes_too_deep(f
     pointer = "/extras" + "/0" * 127  # the 129th container: the root, extras, then arrays at index 0
     pid = farm.coordinator.pid
     check(farm, "deep.gltf", deep)  # the first request's own allocations (thread, buffers) aside
-    before = status_field(pid, "VmRSS")
+    before = memory_bytes(pid, "VmRSS")
     for _ in range(20):
         status, _, answer = check(farm, "deep.gltf", deep)
         assert status == 400, answer
@@ -166,6 +154,6 @@ def test_a_gltf_nested_a_million_levels_deep_is_refused_where_it_goes_too_deep(f
             "status": 400, "code": "invalid_scene", "pointer": "/scene_file",
             "message": f"scene{pointer}: deep.gltf: objects and arrays nested deeper than 128 levels; "
                        "expected at most 128 levels"}, answer["error"]["message"][:300]
-    grown = status_field(pid, "VmRSS") - before
+    grown = memory_bytes(pid, "VmRSS") - before
     print(f"20 glTF files nested 10^6 deep: VmRSS grew {grown / MIB:.1f} MiB")
     assert grown < 32 * MIB

@@ -19,7 +19,7 @@ import msgpack
 import pytest
 import zmq
 
-from farm_harness import LocalFarm, compare, render_reference, small_scene
+from farm_harness import LocalFarm, differing_pixels, render_reference, small_scene
 from test_asset_fetch import DISCONNECT, HEARTBEAT, READY, RESULT, TASK, WIRE_VERSION
 from test_worker_auth import coordinator_keys, keygen, keys, read_key, wait_for, worker_keys  # noqa: F401
 
@@ -110,9 +110,7 @@ def reference(scene, tmp_path_factory):
 
 
 def differing(farm, reference, job):
-    result = compare(reference, farm.store / str(job["id"]))
-    assert result["frames"] == FRAMES, result
-    return result["differing_pixels"]
+    return differing_pixels(farm, reference, job, FRAMES)
 
 
 @pytest.mark.parametrize("strategy", ["exact", "brute"])

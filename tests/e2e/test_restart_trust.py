@@ -14,7 +14,7 @@ import signal
 
 import pytest
 
-from farm_harness import LocalFarm, compare, render_reference, small_scene, wait_until
+from farm_harness import LocalFarm, differing_pixels, render_reference, small_scene, wait_until
 from tcfarm.client import FINAL_STATES
 from test_worker_auth import coordinator_keys, keys, worker_keys  # noqa: F401
 
@@ -36,9 +36,7 @@ def reference(scene, tmp_path_factory):
 
 
 def differing(farm, reference, job):
-    result = compare(reference, farm.store / str(job["id"]))
-    assert result["frames"] == FRAMES, result
-    return result["differing_pixels"]
+    return differing_pixels(farm, reference, job, FRAMES)
 
 
 def farm_of(directory, worker, keys):
