@@ -63,6 +63,9 @@ class ExactnessAudit {
   // A worker found wrong, by this job or another: the frames its values reached are owed
   // a repair. `name`: how the job record names it.
   void OnWorkerDistrusted(const std::string& worker, const std::string& name);
+  // The frame shows a wrong value that no worker of this run is known to have sent (a
+  // frame kept from before a restart): owed a repair all the same.
+  void OweRepair(int frame) { owedRepairs_.insert(frame); }
   // Frames owed a repair whose files are written (`written` says), now in repair.
   std::vector<int> TakeFramesToRepair(const std::function<bool(int frame)>& written);
   // A repair of `frame` by `worker` came back; `changed` of its pixels differed from

@@ -408,6 +408,7 @@ void JobRun::Audit(const JobStore& store) {
   sample_.Ask(spec_.sceneHash, [&]() -> const std::string& { return SceneJson(store); });
   for (Verdict& verdict : sample_.HearReferee()) verdicts_.push_back(std::move(verdict));
   for (const auto& [frame, pixels] : sample_.TakeWrongPixels()) verification_.OnWrongValues(frame, pixels);
+  for (int frame : sample_.TakeKeptFramesWrong()) audit_.OweRepair(frame);
   audit_.Open(verification_.TakeDisputes(),
               [&] { return ExactnessAudit::SceneRef{spec_.sceneHash, SceneJson(store)}; });
   for (ExactnessAudit::Verdict& verdict : audit_.HearReferee()) verdicts_.push_back(std::move(verdict));
@@ -504,6 +505,8 @@ void JobRun::FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds) {
     // gets no sampled checks: which pixels were traced, and by whom, went with the run
     // that traced them, and a copy taken for a trace would be disputed as a wrong one.
     verification_.OnKeptFrame(frame, image.rgb);
+    // What the run before drew of its values went with that run: drawn again here.
+    if (PromisesExact(resolved_.strategy)) sample_.OnKeptValues(frame, image.rgb);
     for (JobCoherence::ChangeMask& mask : coherence_.Add(frame, image)) {
       WriteMask(MaskKind::kChange, spec_.firstFrame + mask.frame, std::move(mask.unchanged));
     }

@@ -53,6 +53,21 @@ void RefereeSample::OnValues(int frame, const std::string& worker, const PixelSe
   }
 }
 
+void RefereeSample::OnKeptValues(int frame, const std::vector<float>& rgb) {
+  if (!referee_) return;
+  if (keptMark_ == kNoWorker) keptMark_ = WorkerIndex(kKeptFromBefore);
+  const uint64_t before = pixelsDrawn_;
+  Draw(frame, keptMark_, PixelSet::Full(static_cast<uint32_t>(rgb.size() / 3)), rgb.data(), nullptr, gap_,
+       untilNextDraw_);
+  keptPixelsDrawn_ += pixelsDrawn_ - before;
+}
+
+std::set<int> RefereeSample::TakeKeptFramesWrong() {
+  std::set<int> frames;
+  frames.swap(keptFramesWrong_);
+  return frames;
+}
+
 uint32_t RefereeSample::WorkerIndex(const std::string& worker) {
   // A job has few workers: a linear search beats a map here.
   const auto found = std::find(workers_.begin(), workers_.end(), worker);
@@ -138,6 +153,10 @@ void RefereeSample::Rule(const std::vector<Drawn>& drawn, int frame, const Refer
     ++pixelsWrong_;
     ++wrongByFrame_[frame];
     const Drawn& wrong = drawn[i];
+    if (wrong.worker == keptMark_) {
+      if (keptFramesWrong_.insert(frame).second) ++keptFramesRepaired_;
+      continue;  // sent to the run before the restart: evidence against nobody here
+    }
     const std::string& worker = workers_[wrong.worker];
     if (!caught_.insert(worker).second) continue;
     const std::string pixel = "pixel " + std::to_string(wrong.pixel);
@@ -169,6 +188,10 @@ nlohmann::json RefereeSample::Report() const {
           {"workers_caught", caught_.size()},
           {"unsettled", unsettled_},
           {"referee_cpu_seconds", refereeCpuSeconds_},
+          // Frames kept from before a restart: what was drawn of them, and how many were
+          // found wrong (and repaired).
+          {"kept_pixels_sampled", keptPixelsDrawn_},
+          {"kept_frames_wrong", keptFramesRepaired_},
           // What the share buys: the chance a worker altering that many of the pixels it
           // sends, in every frame of the job (or in one frame), is caught.
           {"catch_probability",

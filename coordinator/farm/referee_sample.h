@@ -81,6 +81,14 @@ class RefereeSample {
   // often, and it cannot tell (nothing it sees changes).
   void OnValues(int frame, const std::string& worker, const PixelSet& pixels, const float* rgb,
                 const int32_t* horizons = nullptr, bool onProbation = false);
+  // A frame kept from before a coordinator restart: what was drawn of its values then went
+  // with the run that drew it, so a share of what it shows is drawn now. Nobody is known
+  // to have sent those values (the ledger went with that run too): a wrong one names no
+  // worker, and its frame is owed a repair (TakeKeptFramesWrong). Only for strategies that
+  // promise exactness: other strategies' copies differ from the referee by design.
+  void OnKeptValues(int frame, const std::vector<float>& rgb);
+  // Kept frames whose drawn values the referee found wrong, since the last call.
+  std::set<int> TakeKeptFramesWrong();
   // A frame a check found wrong may show the worker's values: from now on its values are
   // drawn as a worker's on probation are. Nothing it sees changes.
   void Suspect(const std::string& worker) { suspects_.insert(worker); }
@@ -140,6 +148,13 @@ class RefereeSample {
   std::set<std::string> suspects_;
   std::set<std::string> caught_;  // by this sample
   std::map<int, uint64_t> wrongByFrame_;  // since the last TakeWrongPixels
+  std::set<int> keptFramesWrong_;         // since the last TakeKeptFramesWrong
+  // In workers_, the name of values kept from before a restart: no principal is spelled so.
+  static constexpr const char* kKeptFromBefore = "kept from before a restart";
+  static constexpr uint32_t kNoWorker = UINT32_MAX;
+  uint32_t keptMark_ = kNoWorker;
+  uint64_t keptPixelsDrawn_ = 0;
+  int keptFramesRepaired_ = 0;
   std::vector<std::string> unsettled_;
   // Figures
   uint64_t pixelsSent_ = 0, pixelsDrawn_ = 0, horizonChecks_ = 0, tracesAnswered_ = 0, pixelsWrong_ = 0;

@@ -201,6 +201,27 @@ TEST(RefereeSampleTest, SuspectsAndNewWorkersAreDrawnMoreOften) {
   EXPECT_NEAR(sample.Report()["share_on_probation"].get<double>(), 4 * sample.share(), 1e-12);
 }
 
+// A frame kept from before a restart is drawn from again: a wrong value there owes the
+// frame a repair and names nobody (no worker of this run sent it).
+TEST(RefereeSampleTest, AFrameKeptFromBeforeARestartIsDrawnAgainAndNamesNobody) {
+  TableReferee referee;
+  RefereeSample sample(7, 0, 10, &referee, 21);
+  const PixelSet all = PixelSet::Full(kPixels);
+  std::set<uint32_t> everyPixel;
+  for (uint32_t p = 0; p < kPixels; ++p) everyPixel.insert(p);
+  sample.OnKeptValues(3, Values(all));
+  sample.OnKeptValues(4, Values(all, everyPixel));  // a liar's values, sent to the run before
+  sample.OnValues(5, "honest", all, Values(all).data());
+  sample.Ask("h", SceneJson);
+  EXPECT_TRUE(sample.HearReferee().empty());
+  EXPECT_EQ(sample.TakeKeptFramesWrong(), std::set<int>{4});
+  EXPECT_TRUE(sample.TakeKeptFramesWrong().empty());
+  const nlohmann::json report = sample.Report();
+  EXPECT_GT(report["kept_pixels_sampled"].get<uint64_t>(), 0u);
+  EXPECT_EQ(report["kept_frames_wrong"], 1);
+  EXPECT_EQ(report["workers_caught"], 0);
+}
+
 TEST(RefereeSampleTest, AJobWaitsWhileTheRefereeOwesItTooMuch) {
   TableReferee referee;
   RefereeSample sample(7, 0, 1, &referee, 5);
