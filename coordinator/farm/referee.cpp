@@ -11,7 +11,8 @@
 
 namespace tcfarm {
 
-// Built on first use: a coordinator whose workers never disagree never starts Embree.
+// Built on the first question (every job's unseen sample asks some): a coordinator with no
+// job never starts Embree.
 class TracingReferee::Tracing {
  public:
   // Throws ImportBudgetBusyError while the farm's import budget has no room for the scene.
