@@ -279,8 +279,15 @@ void JobRun::HearRefereeChecks() {
     const DispatchTask task = std::move(asked->second);
     refereeChecks_.erase(asked);
     if (!answer.error.empty()) {
-      throw std::runtime_error("the coordinator's referee could not trace a check of frame " +
-                               std::to_string(task.frame) + ": " + answer.error);
+      const uint64_t check = task.plannerTaskId & ~kVerificationTask;
+      const bool spotCheck = (task.plannerTaskId & kVerificationTask) && !verification_.IsReference(check);
+      const std::string why = "the coordinator's referee could not trace a check of frame " +
+                              std::to_string(task.frame) + ": " + answer.error;
+      // A spot check only measures: without it the job reports fewer pixels checked. A
+      // reference or a repair the job cannot do without.
+      if (!spotCheck) throw std::runtime_error(why);
+      verification_.Abandon(check, why);
+      continue;
     }
     wire::Result result;
     result.jobId = id_;
@@ -502,8 +509,7 @@ void JobRun::FeedKeptFrames(std::chrono::steady_clock::time_point turnEnds) {
                          std::to_string(spec_.frameSize.width) + "x" + std::to_string(spec_.frameSize.height));
     }
     // Its reference, when one is asked for, is traced and compared like any frame's. It
-    // gets no sampled checks: which pixels were traced, and by whom, went with the run
-    // that traced them, and a copy taken for a trace would be disputed as a wrong one.
+    // gets no spot checks: which of its pixels are copies went with the run that made it.
     verification_.OnKeptFrame(frame, image.rgb);
     // What the run before drew of its values went with that run: drawn again here.
     if (PromisesExact(resolved_.strategy)) sample_.OnKeptValues(frame, image.rgb);

@@ -208,6 +208,15 @@ void Verification::NoteDisagreement(int frame, uint64_t pixels, Dispute dispute)
                static_cast<unsigned long long>(pixels), frame);
 }
 
+void Verification::Abandon(uint64_t id, const std::string& why) {
+  auto check = spotChecks_.find(id);
+  if (check == spotChecks_.end()) return;
+  abandonedPixels_ += check->second.pixels.size();
+  if (abandonedWhy_.empty()) abandonedWhy_ = why;
+  spotChecks_.erase(check);
+  outstanding_.erase(id);
+}
+
 void Verification::OnWrongValues(int frame, uint64_t pixels) {
   if (pixels > 0) suspectFrames_[frame] += pixels;
 }
@@ -229,6 +238,10 @@ nlohmann::json Verification::Report() const {
       {"estimated_error_percent",
        checkedPixels_ ? 100 * copiedShare * mismatchedPixels_ / double(checkedPixels_) : 0.0},
       {"ci95_percent", {100 * copiedShare * low, 100 * copiedShare * high}}};
+  if (abandonedPixels_ > 0) {
+    report["spot_checks"]["pixels_abandoned"] = abandonedPixels_;
+    report["spot_checks"]["abandoned_why"] = abandonedWhy_;
+  }
   if (!options_.referenceFrames.empty()) {
     FrameError compared;
     double ssimSum = 0;

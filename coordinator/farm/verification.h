@@ -74,6 +74,9 @@ class Verification {
   // The referee's unseen sample found `pixels` of `frame` sent wrong: for a job that
   // promises exactness, the frame is suspect like one a check disagreed on.
   void OnWrongValues(int frame, uint64_t pixels);
+  // A spot check that cannot be traced (the referee could not build the scene): given up,
+  // and counted as such in the report. Unknown ids are ignored.
+  void Abandon(uint64_t id, const std::string& why);
   // Disagreements found since the last call, for a job that promises exactness.
   std::vector<Dispute> TakeDisputes();
   // Whether an outstanding request traces part of a reference frame (not a spot check).
@@ -123,6 +126,8 @@ class Verification {
   // Figures
   uint64_t extraPixels_ = 0;
   uint64_t checkedPixels_ = 0, mismatchedPixels_ = 0;
+  uint64_t abandonedPixels_ = 0;  // of spot checks given up (Abandon)
+  std::string abandonedWhy_;       // the first reason
   uint64_t copiedPixels_ = 0, totalPixels_ = 0;
   uint64_t checkedByReferee_ = 0, checkedByWorkers_ = 0;  // pixels, every kind of check
   std::map<int, uint64_t> suspectFrames_;  // frame -> pixels a check disagreed on

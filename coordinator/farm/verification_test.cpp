@@ -204,6 +204,24 @@ TEST(VerificationTest, AReferenceByAWorkerFoundWrongIsTracedAgain) {
   EXPECT_TRUE(none.TakeRequests().empty());
 }
 
+// A spot check the referee cannot trace is given up: the job is no longer waiting for it,
+// and the report says how many pixels went unchecked and why.
+TEST(VerificationTest, AnAbandonedSpotCheckIsReportedAndNotWaitedFor) {
+  Verification verification(kWidth, kHeight, 1, VerificationOptions{});
+  const auto frame = Frame();
+  verification.OnFrameFinished(0, frame.first, frame.second);
+  const std::vector<Verification::Request> requests = verification.TakeRequests();
+  ASSERT_EQ(requests.size(), 1u);
+  EXPECT_TRUE(verification.Pending());
+  verification.Abandon(requests[0].id, "the scene no longer builds");
+  verification.Abandon(12345, "unknown: ignored");
+  EXPECT_FALSE(verification.Pending());
+  const nlohmann::json spot = verification.Report()["spot_checks"];
+  EXPECT_EQ(spot["pixels_abandoned"], requests[0].pixels.size());
+  EXPECT_EQ(spot["abandoned_why"], "the scene no longer builds");
+  EXPECT_EQ(spot["pixels_checked"], 0);
+}
+
 TEST(VerificationTest, AJobWhoseChecksAgreeIsNotSuspect) {
   VerificationOptions options;
   options.referenceFrames = {0};
