@@ -102,6 +102,11 @@ def test_status_shows_the_spot_checks(farm, finished_job, tcfarm):
             f"{spot['mismatches']:,} wrong; estimated {spot['estimated_error_percent']:.4f} % of all "
             f"pixels wrong (95 % CI {low:.4f}-{high:.4f} %)") in status.stdout, status.stdout
     assert "brute force" not in status.stdout  # not asked for
+    sample = finished_job["stats"]["error"]["referee_sample"]
+    assert sample["referee_traces"] > 0
+    assert (f"referee's unseen sample: {100 * sample['share']:.2f} % of every worker's pixels "
+            f"({sample['pixels_sampled']:,} px drawn, {sample['pixels_wrong']:,} wrong, ") in status.stdout, \
+        status.stdout
     assert "\n  frames: 6 written\n    ######   (# written, + tracing, . queued, x failed)" in status.stdout
 
 
@@ -129,6 +134,18 @@ def test_a_running_jobs_comparison_not_made_yet_is_not_a_result():
                       "percent_differing": 0.0, "max_abs_error": 0.0, "psnr_db": None, "ssim": 1.0}}}}
     assert _verification_lines(running) == [
         "spot checks: not measured yet", "against brute force: not measured yet (0/6 frames compared)"]
+
+
+def test_the_referee_sample_not_traced_yet_is_not_a_result():
+    from tcfarm.cli import _referee_sample_line  # farm_harness put the client on the path
+    sample = {"share": 0.1, "pixels_sampled": 12, "pixels_wrong": 0, "referee_traces": 0,
+              "referee_cpu_seconds": 0.0, "catch_probability": {"altering_16_pixels_every_frame": 0.81}}
+    assert _referee_sample_line(sample) == \
+        "referee's unseen sample: none traced yet (it traces 10.00 % of every worker's pixels)"
+    sample.update(referee_traces=12, pixels_wrong=3, referee_cpu_seconds=0.5)
+    assert _referee_sample_line(sample) == (
+        "referee's unseen sample: 10.00 % of every worker's pixels (12 px drawn, 3 wrong, 0.50 s referee CPU); "
+        "a worker altering 16 px a frame: 1 in 5 missed")
 
 
 def test_frames_are_downloaded(farm, finished_job, tmp_path, tcfarm):

@@ -428,6 +428,9 @@ def _verification_lines(job):
                          f"{reference['max_abs_error']:.6g}, PSNR {psnr}, SSIM {reference['ssim']:.4f}")
         else:
             lines.append(f"against brute force: not measured yet (0/{requested} frames compared)")
+    sample = error.get("referee_sample")
+    if sample:
+        lines.append(_referee_sample_line(sample))
     suspect = error.get("suspect")
     if suspect:
         frames = ", ".join(sorted(suspect.get("frames", {}), key=int))
@@ -438,6 +441,19 @@ def _verification_lines(job):
         lines.append("audit: " + ", ".join(f"{key.replace('_', ' ')} {value}"
                                            for key, value in audit.items()))
     return lines
+
+
+def _referee_sample_line(sample):
+    """The referee's unseen sample in words: what it traced of the workers' values, what it
+    found, what it cost, and how surely it catches a worker altering 16 pixels a frame."""
+    share = f"{100 * sample['share']:.2f} % of every worker's pixels"
+    if not sample.get("referee_traces"):
+        return f"referee's unseen sample: none traced yet (it traces {share})"
+    missed = 1 - sample["catch_probability"]["altering_16_pixels_every_frame"]
+    odds = f"1 in {round(1 / missed):,} missed" if missed > 0 else "none missed"
+    return (f"referee's unseen sample: {share} ({sample['pixels_sampled']:,} px drawn, "
+            f"{sample['pixels_wrong']:,} wrong, {sample['referee_cpu_seconds']:.2f} s referee CPU); "
+            f"a worker altering 16 px a frame: {odds}")
 
 
 # One character a frame: what `status` draws of each frame's state.
