@@ -7,6 +7,11 @@
 
 #include <string>
 
+#if defined(__SANITIZE_ADDRESS__)
+// AddressSanitizer's runtime (sanitizer/allocator_interface.h, which gcc does not ship).
+extern "C" size_t __sanitizer_get_current_allocated_bytes();
+#endif
+
 namespace tcfarm {
 namespace {
 
@@ -16,10 +21,16 @@ std::string Repeated(const std::string& piece, size_t times) {
   return text;
 }
 
-// The memory malloc has handed out, its own mapped blocks (large vectors) included.
+// The memory malloc has handed out, its own mapped blocks (large vectors) included. Under
+// AddressSanitizer its allocator stands in for glibc's, which then counts nothing: it is
+// asked instead.
 uint64_t MallocBytes() {
+#if defined(__SANITIZE_ADDRESS__)
+  return __sanitizer_get_current_allocated_bytes();
+#else
   const struct mallinfo2 info = mallinfo2();
   return info.uordblks + info.hblkhd;
+#endif
 }
 
 // The memory the DOM of `text` holds once parsed, as malloc counts it.
