@@ -20,13 +20,15 @@ import time
 
 import pytest
 
-from farm_harness import LocalFarm, differing_pixels, render_reference, small_scene
+from farm_harness import LocalFarm
 from liar_proxy import HONEST_TASKS, start_colluding_liars
 from tcfarm.client import FINAL_STATES, trace_cost_seconds
+# The liars' scene (the 12 spheres, 64x48, 10 frames), its reference, and the count of
+# pixels a job's frames differ from it by: the same as the lone liars' tests.
+from test_liars import differing, reference, scene  # noqa: F401
 from test_worker_auth import coordinator_keys, keys, read_key, wait_for, worker_keys  # noqa: F401
 
 WAIT_S = 300
-FRAMES = 10
 REPEATS = range(int(os.environ.get("TCFARM_TRUST_REPEATS", "1")))
 # Jobs run before the measured one, at most, for liars that are honest for their first tasks.
 MAX_WARM_UP_JOBS = 8
@@ -34,18 +36,6 @@ MAX_WARM_UP_JOBS = 8
 STILL_S = 15
 
 
-@pytest.fixture(scope="module")
-def scene(scenes_dir):
-    return small_scene(scenes_dir / "paper_b_twelve_spheres.json", width=64, height=48, frames=FRAMES)
-
-
-@pytest.fixture(scope="module")
-def reference(scene, tmp_path_factory):
-    return render_reference(scene, tmp_path_factory.mktemp("reference"))
-
-
-def differing(farm, reference, job):
-    return differing_pixels(farm, reference, job, FRAMES)
 
 
 def honest_principal(keys):
